@@ -1,0 +1,71 @@
+"""Input checks shared by every entry point: each error names the field and the value."""
+from __future__ import annotations
+
+import numpy as np
+
+
+def positive_scalar(name: str, value) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not np.isfinite(v) or v <= 0.0:
+        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    return v
+
+
+def step_count(name: str, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
+def vector(name: str, values, *, positive: bool = False, nonnegative: bool = False,
+           length: int | None = None) -> np.ndarray:
+    """A finite 1-D float array; ``positive``/``nonnegative`` check every entry."""
+    arr = np.asarray(values, dtype=float)
+    if arr.ndim != 1 or arr.size == 0:
+        raise ValueError(f"{name} must be a non-empty 1-D sequence, got shape {arr.shape}")
+    if length is not None and arr.size != length:
+        raise ValueError(f"{name} has length {arr.size}, expected {length}")
+    bad = ~np.isfinite(arr)
+    if positive:
+        bad |= arr <= 0.0
+    if nonnegative:
+        bad |= arr < 0.0
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        need = "> 0" if positive else (">= 0" if nonnegative else "finite")
+        raise ValueError(f"{name}[{i}] = {arr[i]!r}: every entry must be finite and {need}")
+    return arr
+
+
+def dof_indices(name: str, values, n_dof: int, default_all: bool = True) -> np.ndarray:
+    """0-based, unique, in-range DOF indices (all DOFs when ``values`` is None)."""
+    if values is None:
+        if not default_all:
+            raise ValueError(f"{name} is required")
+        return np.arange(n_dof, dtype=np.int64)
+    idx = np.atleast_1d(np.asarray(values))
+    if idx.ndim != 1 or idx.size == 0 or not np.issubdtype(idx.dtype, np.integer):
+        raise ValueError(f"{name} must be a non-empty sequence of integer DOF indices, got {values!r}")
+    if idx.min() < 0 or idx.max() >= n_dof:
+        raise ValueError(f"{name} = {idx.tolist()} has an index outside 0..{n_dof - 1}")
+    if np.unique(idx).size != idx.size:
+        raise ValueError(f"{name} = {idx.tolist()} repeats an index")
+    return idx.astype(np.int64)
+
+
+def force_samples(force, n_steps: int, loaded: np.ndarray) -> np.ndarray:
+    """Force samples at t_0 .. t_n, shape (n_steps + 1, len(loaded)), finite, C-contiguous."""
+    f = np.asarray(force, dtype=float)
+    if f.ndim == 1 and loaded.size == 1:
+        f = f[:, None]
+    want = (n_steps + 1, loaded.size)
+    if f.shape != want:
+        raise ValueError(f"force has shape {f.shape}, expected (n_steps + 1, len(loaded)) = {want}")
+    bad = ~np.isfinite(f)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} (sample {i}, loaded DOF {loaded[j]}) is not finite")
+    return np.ascontiguousarray(f)
