@@ -36,7 +36,7 @@ def vector(name: str, values, *, positive: bool = False, nonnegative: bool = Fal
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         need = "> 0" if positive else (">= 0" if nonnegative else "finite")
-        raise ValueError(f"{name}[{i}] = {arr[i]!r}: every entry must be finite and {need}")
+        raise ValueError(f"{name}[{i}] = {float(arr[i])!r}: every entry must be finite and {need}")
     return arr
 
 

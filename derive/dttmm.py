@@ -1,0 +1,121 @@
+"""Discrete-time transfer matrix method: step transfer matrices and the two sweeps.
+
+Reference.md section 3. At each step an integrator makes every mass's displacement, velocity and
+acceleration at the equilibrium point affine in one primary unknown u (u = xe in displacement
+form, u = ae in acceleration form):
+
+    x = p u + q,   v = r u + s,   a = alpha u + b
+
+with p, r, alpha the same at every mass (integrator and dt only) and q, s, b from each mass's
+history. Displacement form: p = 1, q = 0, r = D, s = E, alpha = A, b = B.
+Acceleration form: p = Dx, q = Ex, r = Dv, s = Ev, alpha = 1, b = 0.
+
+State z = [u, f, 1]^T. Substituting into the element laws gives, for station n (spring-damper
+from node n-1, mass m_n, force F_n):
+
+    spring-damper: f = k (x_n - x_{n-1}) + c (v_n - v_{n-1})
+                   => u_n = u_{n-1} + (f - Delta_n) / kappa,   kappa = k p + c r,
+                      Delta_n = k (q_n - q_{n-1}) + c (s_n - s_{n-1})
+    mass:          f_R = f_L + m (alpha u_n + b_n)
+    force:         f_R = f_L - F_n
+
+Ground: u_0 = q_0 = s_0 = 0.
+
+Plain sweep (the source's): z_n = T_n z_{n-1} from z_0 = [0, f_1, 1] with the unknown base force
+f_1 fixed by f_{N+1} = 0. Its entries grow like (m alpha / kappa)^N, so the far-end displacement is
+a difference of huge numbers (measured in reference.md section 3).
+
+Stable sweep (Riccati transfer matrix, Horner & Pilkey 1978; He, Wang & Rui 2007): carry
+f_n = S_n u_{n-1} + R_n from the free end (S_{N+1} = R_{N+1} = 0) back to the base, then
+u_n = T11 u_{n-1} + T12 f_n + T13 forward. Given the station matrix T and the relation on its
+right, f_R = S_R u_R + R_R, the relation on its left is
+
+    S_L = (S_R T11 - T21) / (T22 - S_R T12),   R_L = (S_R T13 + R_R - T23) / (T22 - S_R T12).
+
+S depends on the integrator, dt and the chain only, so it is computed once; each step only
+carries R back and u forward: an O(N) elimination whose factors are bounded (S_n <= 0).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+k, c, m = sp.symbols("k c m", positive=True)
+p, r = sp.symbols("p r")
+alpha = sp.Symbol("alpha_u")  # the alpha of the module docstring (HHT owns the name alpha)
+q_n, q_p, s_n, s_p, b_n, F_n = sp.symbols("q_n q_p s_n s_p b_n F_n")
+kappa, Delta = sp.symbols("kappa Delta")
+S_R, R_R, S_L, R_L = sp.symbols("S_R R_R S_L R_L")
+u_p, f_n = sp.symbols("u_p f_n")
+
+
+def spring_damper_step():
+    """Field matrix of the spring-damper in u: u_n = u_{n-1} + (f - Delta)/kappa."""
+    return sp.Matrix([[1, 1 / kappa, -Delta / kappa], [0, 1, 0], [0, 0, 1]])
+
+
+def mass_step():
+    """Point matrix of the mass: f_R = f_L + m (alpha u + b)."""
+    return sp.Matrix([[1, 0, 0], [m * alpha, 1, m * b_n], [0, 0, 1]])
+
+
+def force_step():
+    """Point matrix of the external force: f_R = f_L - F."""
+    return sp.Matrix([[1, 0, 0], [0, 1, -F_n], [0, 0, 1]])
+
+
+def station_step():
+    """T_n = force * mass * spring-damper, mapping [u_{n-1}, f_n, 1] to [u_n, f_{n+1}, 1]."""
+    return force_step() * mass_step() * spring_damper_step()
+
+
+#: kappa and Delta in the station's own symbols.
+KAPPA = k * p + c * r
+DELTA = k * (q_n - q_p) + c * (s_n - s_p)
+
+
+@dataclass(frozen=True)
+class Sweeps:
+    """Scalar recurrences of both sweeps, in the symbols of this module.
+
+    Stable (Riccati), per station n from N down to 1 (time-invariant part computed once):
+        S_L = S_expr(S_R);  den = T22 - S_R T12;  R_L = g R_R + h
+    then forward, n = 1..N:  u_n = a_fwd u_{n-1} + b_fwd   with b_fwd in R_L.
+    Plain: z_n = T z_{n-1}: u_n = T11 u + T12 f + T13, f_{n+1} = T21 u + T22 f + T23.
+    """
+
+    T: sp.Matrix
+    S_expr: sp.Expr
+    g: sp.Expr
+    h: sp.Expr
+    a_fwd: sp.Expr
+    b_fwd: sp.Expr
+
+
+def derive_sweeps() -> Sweeps:
+    T = station_step()
+    den = T[1, 1] - S_R * T[0, 1]
+    S_expr = sp.simplify((S_R * T[0, 0] - T[1, 0]) / den)
+    R_expr = (S_R * T[0, 2] + R_R - T[1, 2]) / den
+    g = sp.simplify(sp.diff(R_expr, R_R))
+    h = sp.simplify(R_expr - g * R_R)
+    # forward: f_n = S_L u_{n-1} + R_L, u_n = T11 u_{n-1} + T12 f_n + T13
+    u_next = T[0, 0] * u_p + T[0, 1] * (S_L * u_p + R_L) + T[0, 2]
+    a_fwd = sp.simplify(sp.diff(u_next, u_p))
+    b_fwd = sp.simplify(u_next - a_fwd * u_p)
+    return Sweeps(T, S_expr, g, h, a_fwd, b_fwd)
+
+
+FORMS = ("displacement", "acceleration")
+
+
+def form_maps(form: str, der) -> dict:
+    """p, r, alpha (constants) and q, s, b (history) of a form, from a derived integrator."""
+    if form == "displacement":
+        return {"p": sp.Integer(1), "r": der.D, "alpha_u": der.A,
+                "q": sp.Integer(0), "s": der.E, "b": der.B}
+    if form == "acceleration":
+        return {"p": der.Dx, "r": der.Dv, "alpha_u": sp.Integer(1),
+                "q": der.Ex, "s": der.Ev, "b": sp.Integer(0)}
+    raise ValueError(f"form must be one of {FORMS}, got {form!r}")

@@ -1,0 +1,198 @@
+"""Render the derivations through the jinja2 templates into generated/.
+
+`render_all()` returns {file name: text}; `write(dest)` writes them (atomically, each file) plus a
+manifest; `check(dest)` regenerates in memory and lists the files that differ.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import jinja2
+import sympy as sp
+
+from . import dttmm, integrators as I, kernels, printing, tmm
+
+TEMPLATES = Path(__file__).parent / "templates"
+GENERATED = Path(__file__).resolve().parent.parent / "generated"
+
+
+def environment() -> jinja2.Environment:
+    return jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(TEMPLATES)),
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+    )
+
+
+def _names(mapping):
+    """Symbols of dttmm renamed to the variables the kernels use."""
+    return {getattr(dttmm, k): sp.Symbol(v) for k, v in mapping.items()}
+
+
+# scalar names inside station loops (C and the NumPy plain sweep)
+SCALAR = _names({"m": "mn", "kappa": "kp", "S_R": "S_R", "S_L": "S_L", "R_R": "R_R",
+                 "Delta": "Dn", "F_n": "Fn", "b_n": "bn", "R_L": "R_L"})
+C_ARRAY = _names({"m": "mn", "kappa": "kp", "S_R": "SR[n]", "R_R": "R_R", "Delta": "Dl[n]",
+                  "F_n": "Fe[n]", "b_n": "b[n]", "R_L": "R[n]", "S_L": "S_L"})
+T_ENTRIES = ((0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2))
+PY_ARRAY = _names({"m": "mn", "kappa": "kp", "S_R": "SR", "Delta": "Dl", "F_n": "Fe",
+                   "b_n": "b", "R_L": "R"})
+
+
+def _lin(prefix: str, coeffs: dict) -> str:
+    """C text of sum_h prefix_h * h[i] (h = "u" is the primary unknown u[i])."""
+    return " + ".join(f"{prefix}_{h} * {h}[i]" for h in coeffs) or "0.0"
+
+
+def _shift_lines(history):
+    lines = []
+    for qty in "xv":
+        lags = sorted((int(h[2:]) for h in history if h.startswith(qty + "m")), reverse=True)
+        for lag in lags:
+            prev = f"{qty}0" if lag == 1 else f"{qty}m{lag - 1}"
+            lines.append(f"{qty}m{lag}[i] = {prev}[i];")
+    lines += ["x0[i] = x1;", "v0[i] = v1;", "a0[i] = a1;"]
+    return lines
+
+
+def _scheme_context(name: str) -> dict:
+    spec = kernels.scheme_spec(name)
+    sch = spec.scheme
+    sw = dttmm.derive_sweeps()
+    forms_py, forms_c = [], []
+    for form, fs in spec.forms.items():
+        rows = kernels.constant_table(spec, form)
+        temps, reduced = printing.cse_assignments(rows, prefix="k")
+        forms_py.append({"form": form,
+                         "temps": [(str(t), printing.py(e)) for t, e in temps],
+                         "rows": [(n, printing.py(e)) for n, e in reduced]})
+        # C: the sweep expressions, with the acceleration form's alpha_u = 1, b = 0 folded in
+        fold = {dttmm.alpha: sp.Integer(1), dttmm.b_n: 0} if form == "acceleration" else {}
+
+        def cc(expr, names=C_ARRAY):
+            return printing.c(sp.sympify(expr).subs(fold).xreplace(names))
+
+        forms_c.append({
+            "form": form,
+            "temps": [(str(t), printing.c(e)) for t, e in temps],
+            "rows": [(n, printing.c(e)) for n, e in reduced],
+            "g": cc(sw.g), "S": cc(sw.S_expr), "a": cc(sw.a_fwd.subs(dttmm.S_L, sp.Symbol("S_L"))),
+            "h": cc(sw.h), "bf": cc(sw.b_fwd),
+            "T": ["(" + cc(sw.T[i, j]) + ")" for i, j in T_ENTRIES],
+            **{n: _lin(n, fs.hist_terms[n]) for n in ("q", "s", "b")},
+            **{n: _lin(n, fs.update[n]) for n in ("x1", "v1", "a1")},
+        })
+    return {
+        "name": name, "title": sch.title, "reference": sch.reference, "notes": sch.notes,
+        "params": list(sch.params), "defaults": sch.defaults, "history": list(spec.history),
+        "startup_steps": sch.startup_steps, "order": sch.order, "explicit": spec.derived.explicit,
+        "forms_py": forms_py, "forms_c": forms_c, "shift": _shift_lines(spec.history),
+        "derived": spec.derived, "spec": spec,
+    }
+
+
+def _dttmm_context() -> dict:
+    sw = dttmm.derive_sweeps()
+    py = lambda e, names=PY_ARRAY: printing.py(sp.sympify(e).xreplace(names))  # noqa: E731
+    scalar = lambda e: printing.py(sp.sympify(e).xreplace(SCALAR))  # noqa: E731
+    T = sw.T
+    ctx = {"T_rows": [str(list(T.row(i))) for i in range(3)],
+           "S_expr": str(sw.S_expr), "g": str(sw.g), "h": str(sw.h), "a_fwd": str(sw.a_fwd),
+           "b_fwd": str(sw.b_fwd),
+           "g_py": scalar(sw.g), "S_py": scalar(sw.S_expr), "a_py": scalar(sw.a_fwd),
+           "h_py": py(sw.h), "bf_py": py(sw.b_fwd)}
+    for i, j in T_ENTRIES:
+        ctx[f"T{i + 1}{j + 1}_py"] = "(" + scalar(T[i, j]) + ")"
+    return ctx
+
+
+def _latex_rows(der: I.Derived) -> list[tuple[str, str]]:
+    rows = [("w_0", der.w0), ("w_1", der.w1)]
+    if not der.explicit:
+        rows += [("A", der.A), ("B", der.B), ("D", der.D), ("E", der.E)]
+    rows += [("D_x", der.Dx), ("E_x", der.Ex), ("D_v", der.Dv), ("E_v", der.Ev)]
+    return [(n, sp.latex(e)) for n, e in rows]
+
+
+def _tmm_context() -> dict:
+    m1, m2 = sp.symbols("m1 m2")
+    return {
+        "spring": sp.latex(tmm.spring_damper(*sp.symbols("k c"))),
+        "mass": sp.latex(tmm.mass(sp.Symbol("m"))),
+        "force": sp.latex(tmm.force(sp.Symbol("F"))),
+        "x1F": sp.latex(tmm.transfer_function(2, 1, 1)),
+        "x2F": sp.latex(tmm.transfer_function(2, 2, 1)),
+        "P2": sp.latex(sp.collect(tmm.characteristic_polynomial(2), tmm.s)),
+        "spring_py": [[printing.py(e) for e in row] for row in
+                      tmm.spring_damper(*sp.symbols("k c")).tolist()],
+        "mass_py": [[printing.py(e) for e in row] for row in tmm.mass(sp.Symbol("m")).tolist()],
+    }
+
+
+def render_all() -> dict[str, str]:
+    """Every generated file as {name: text}."""
+    env = environment()
+    out: dict[str, str] = {}
+
+    def render(template, dest, source, **ctx):
+        out[dest] = env.get_template(template).render(template=template, source=source, **ctx)
+
+    render("numpy/dttmm.py.jinja", "dttmm_sweep.py", "dtdyn.derive.dttmm", **_dttmm_context())
+    render("numpy/tmm.py.jinja", "tmm.py", "dtdyn.derive.tmm", **_tmm_context())
+    render("markdown/tmm.md.jinja", "tmm.md", "dtdyn.derive.tmm", **_tmm_context())
+    names = list(I.SCHEMES)
+    for name in names:
+        ctx = _scheme_context(name)
+        src = f"dtdyn.derive.integrators.SCHEMES[{name!r}]"
+        render("numpy/scheme.py.jinja", f"scheme_{name}.py", src, **ctx, forms=ctx["forms_py"])
+        render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, forms=ctx["forms_c"])
+        render("markdown/scheme.md.jinja", f"scheme_{name}.md", src, **ctx,
+               latex=_latex_rows(ctx["derived"]), relations=[sp.latex(r) for r in
+                                                             ctx["derived"].scheme.relations],
+               substitutions=[(sp.latex(k), sp.latex(v)) for k, v in
+                              ctx["derived"].scheme.substitutions.items()])
+    render("numpy/init.py.jinja", "__init__.py", "dtdyn.derive.integrators.SCHEMES",
+           schemes=names)
+    manifest = {n: {"sha256": hashlib.sha256(t.encode()).hexdigest()} for n, t in sorted(out.items())}
+    out["manifest.json"] = json.dumps(manifest, indent=1, sort_keys=True) + "\n"
+    return out
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def write(dest: Path = GENERATED) -> list[str]:
+    """Render everything into ``dest`` (rendering completes before anything is written)."""
+    files = render_all()
+    dest.mkdir(parents=True, exist_ok=True)
+    for name, text in files.items():
+        _atomic_write(dest / name, text)
+    stale = [p.name for p in dest.iterdir() if p.is_file() and p.name not in files
+             and p.suffix in (".py", ".c", ".md", ".json")]
+    for name in stale:
+        (dest / name).unlink()
+    return sorted(files)
+
+
+def check(dest: Path = GENERATED) -> list[str]:
+    """Names of generated files that are missing, stale, extra or differ from a fresh render."""
+    files = render_all()
+    bad = [n for n, t in files.items()
+           if not (dest / n).is_file() or (dest / n).read_text(encoding="utf-8") != t]
+    bad += [p.name for p in dest.iterdir() if p.is_file() and p.name not in files
+            and p.suffix in (".py", ".c", ".md", ".json")]
+    return sorted(bad)

@@ -1,0 +1,85 @@
+"""Kernel specs: the derived relations reshaped into what the templates print.
+
+Every map a kernel needs is linear in the history (x0, v0, a0, lags), with coefficients that
+depend on dt and the scheme parameters only, so the emitted code computes those coefficients once
+per run and each step is a few multiply-adds per mass:
+
+    q, s, b   = L_qsb . h                       (per form, see dttmm.form_maps)
+    x1, v1, a1 = c_u u + L_upd . h              (u the primary unknown of the form)
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from . import dttmm, integrators as I
+
+
+@dataclass(frozen=True)
+class FormSpec:
+    form: str
+    constants: dict  # name -> expr in dt and params: p, r, alpha
+    hist_terms: dict  # "q"/"s"/"b" -> {hist name: coeff expr}
+    update: dict  # "x1"/"v1"/"a1" -> {"u" or hist name: coeff expr}
+
+
+@dataclass(frozen=True)
+class SchemeSpec:
+    name: str
+    scheme: I.Scheme
+    derived: I.Derived
+    params: tuple  # user parameter names
+    history: tuple  # history names, kernel order
+    w0: sp.Expr
+    w1: sp.Expr
+    forms: dict  # form -> FormSpec (explicit schemes: acceleration only)
+
+
+def _linear(expr, variables, what):
+    """Coefficients of an expression that must be linear (no constant) in ``variables``."""
+    expr = sp.expand(expr)
+    coeffs = {str(v): sp.simplify(expr.coeff(v, 1)) for v in variables}
+    rest = sp.simplify(expr - sum(sp.Symbol(n) * cf for n, cf in coeffs.items()))
+    if rest != 0:
+        raise ValueError(f"{what} is not linear in {variables}: remainder {rest}")
+    return {n: cf for n, cf in coeffs.items() if cf != 0}
+
+
+def scheme_spec(name: str) -> SchemeSpec:
+    der = I.derive_scheme(name)
+    scheme = der.scheme
+    hist = [sp.Symbol(h) for h in scheme.history]
+    forms = {}
+    for form in dttmm.FORMS:
+        if form == "displacement" and der.explicit:
+            continue
+        maps = dttmm.form_maps(form, der)
+        u = I.xe if form == "displacement" else I.ae
+        upd = der.update_x if form == "displacement" else der.update_a
+        forms[form] = FormSpec(
+            form,
+            {n: sp.simplify(maps[n]) for n in ("p", "r", "alpha_u")},
+            {n: _linear(maps[n], hist, f"{name}.{form}.{n}") for n in ("q", "s", "b")},
+            {n: _linear(upd[n], [u] + hist, f"{name}.{form}.{n}") for n in ("x1", "v1", "a1")},
+        )
+    # the primary unknown is called u in the kernels
+    for fs in forms.values():
+        for n in fs.update:
+            d = fs.update[n]
+            for key in ("xe", "ae"):
+                if key in d:
+                    d["u"] = d.pop(key)
+    return SchemeSpec(name, scheme, der, scheme.params, scheme.history, der.w0, der.w1, forms)
+
+
+def constant_table(spec: SchemeSpec, form: str) -> list[tuple[str, sp.Expr]]:
+    """All per-run constants of one form as (C/Python name, expression), deterministic order."""
+    fs = spec.forms[form]
+    rows = [("w0", spec.w0), ("w1", spec.w1)]
+    rows += [(n, fs.constants[n]) for n in ("p", "r", "alpha_u")]
+    for n in ("q", "s", "b"):
+        rows += [(f"{n}_{h}", cf) for h, cf in fs.hist_terms[n].items()]
+    for n in ("x1", "v1", "a1"):
+        rows += [(f"{n}_{h}", cf) for h, cf in fs.update[n].items()]
+    return rows

@@ -1,0 +1,98 @@
+"""The time-loop driver shared by the DT-TMM chains and the assembled-matrix solver.
+
+A *stepper* advances the per-DOF history H (rows named by the scheme's HISTORY: x0, v0, a0 and
+lags such as xm1) over a block of steps and writes the requested outputs. This module runs the
+start-up of multistep schemes (average-acceleration steps that fill the lags), chunks long runs
+for the progress bar, and allocates only the outputs asked for.
+"""
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+
+from .result import Response
+from .schemes import SchemeInfo, get_scheme
+
+#: a stepper: (scheme, coefficients) -> advance(force_rows, H, xo, vo, ao) -> error estimate
+MakeAdvance = Callable[[SchemeInfo, dict], Callable]
+
+QUANTITIES = ("x", "v", "a")
+
+
+def _lag(name: str) -> int:
+    return 0 if name[1:] == "0" else int(name[2:])
+
+
+def history_from_states(names, states) -> np.ndarray:
+    """H rows from full states [(x, v, a) at steps ..., n-1, n] (last is current)."""
+    return np.array([states[-1 - _lag(nm)]["xva".index(nm[0])] for nm in names])
+
+
+def check_quantities(quantities) -> tuple:
+    q = tuple(quantities)
+    bad = [x for x in q if x not in QUANTITIES]
+    if bad or not q:
+        raise ValueError(f"quantities must be a non-empty subset of {QUANTITIES}, got {quantities!r}")
+    return q
+
+
+def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state0,
+              make_advance: MakeAdvance, out_idx: np.ndarray, quantities=QUANTITIES,
+              progress: bool = False, chunk_work: int | None = None) -> Response:
+    """Run ``len(force) - 1`` steps from ``state0 = (x0, v0, a0)`` (full-length arrays)."""
+    n_steps = force.shape[0] - 1
+    n_out = out_idx.size
+    store = {q: np.empty((n_steps + 1, n_out)) if q in quantities else None for q in QUANTITIES}
+    for q, arr in zip(QUANTITIES, state0):
+        if store[q] is not None:
+            store[q][0] = arr[out_idx]
+    t_start = time.perf_counter()
+    err_est = 0.0
+    step = 0
+    states = [tuple(np.array(a, dtype=float) for a in state0)]
+    n_start = min(scheme.startup_steps, n_steps)
+    if n_start:
+        avg = get_scheme("average_acceleration")
+        advance = make_advance(avg, avg.coefficients(form, dt))
+        for _ in range(n_start):
+            H = history_from_states(avg.history, states)
+            err_est = max(err_est, advance(force[step:step + 2], H, *_rows(store, step)))
+            states.append(tuple(H[avg.history.index(q + "0")].copy() for q in QUANTITIES))
+            step += 1
+    H = history_from_states(scheme.history, [states[0]] * (3 - len(states)) + states)
+    advance = make_advance(scheme, scheme.coefficients(form, dt))
+    n_chunks = 1 if not progress else min(100, max(1, n_steps - step))
+    bounds = np.linspace(step, n_steps, n_chunks + 1).astype(int)
+    bar = _progress(n_steps, step) if progress else None
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        if hi > lo:
+            err_est = max(err_est, advance(force[lo:hi + 1], H, *_rows(store, lo)))
+            if bar is not None:
+                bar.update(hi - lo)
+    if bar is not None:
+        bar.close()
+    run_time = time.perf_counter() - t_start
+    t = dt * np.arange(n_steps + 1)
+    for q in quantities:
+        if not np.all(np.isfinite(store[q])):
+            i = int(np.argwhere(~np.isfinite(store[q]))[0][0])
+            raise FloatingPointError(f"{scheme.name}: the response is not finite from step {i} "
+                                     f"(t = {t[i]:.6g} s): the scheme is unstable at dt = {dt!r} "
+                                     "or the sweep overflowed")
+    return Response(t, out_idx, store["x"], store["v"], store["a"],
+                    info={"scheme": scheme.name, "params": dict(scheme.params), "form": form,
+                          "dt": dt, "n_steps": n_steps, "run_time": run_time,
+                          "error_estimate": err_est})
+
+
+def _rows(store, start):
+    """Views of the output arrays whose row 0 is step ``start`` (rows 1.. get written)."""
+    return tuple(None if store[q] is None else store[q][start:] for q in QUANTITIES)
+
+
+def _progress(total, initial):
+    from tqdm import tqdm
+
+    return tqdm(total=total, initial=initial, unit="step", mininterval=0.5)
