@@ -33,7 +33,9 @@ right, f_R = S_R u_R + R_R, the relation on its left is
     S_L = (S_R T11 - T21) / (T22 - S_R T12),   R_L = (S_R T13 + R_R - T23) / (T22 - S_R T12).
 
 S depends on the integrator, dt and the chain only, so it is computed once; each step only
-carries R back and u forward: an O(N) elimination whose factors are bounded (S_n <= 0).
+carries R back and u forward: an O(N) elimination whose factors are bounded (S_n <= 0). The
+forward step is u_n = [kappa u_{n-1} + R_R + F - m b - Delta] / (kappa + m alpha - S_R): its
+divisor is at least m alpha, so it keeps the accuracy of the mass equation at any dt.
 """
 from __future__ import annotations
 
@@ -81,7 +83,7 @@ class Sweeps:
 
     Stable (Riccati), per station n from N down to 1 (time-invariant part computed once):
         S_L = S_expr(S_R);  den = T22 - S_R T12;  R_L = g R_R + h
-    then forward, n = 1..N:  u_n = a_fwd u_{n-1} + b_fwd   with b_fwd in R_L.
+    then forward, n = 1..N:  u_n = a_fwd u_{n-1} + b_fwd   with b_fwd in R_R (= R_L of n + 1).
     Plain: z_n = T z_{n-1}: u_n = T11 u + T12 f + T13, f_{n+1} = T21 u + T22 f + T23.
     """
 
@@ -100,10 +102,12 @@ def derive_sweeps() -> Sweeps:
     R_expr = (S_R * T[0, 2] + R_R - T[1, 2]) / den
     g = sp.simplify(sp.diff(R_expr, R_R))
     h = sp.simplify(R_expr - g * R_R)
-    # forward: f_n = S_L u_{n-1} + R_L, u_n = T11 u_{n-1} + T12 f_n + T13
-    u_next = T[0, 0] * u_p + T[0, 1] * (S_L * u_p + R_L) + T[0, 2]
-    a_fwd = sp.simplify(sp.diff(u_next, u_p))
-    b_fwd = sp.simplify(u_next - a_fwd * u_p)
+    # forward: f_n = S_L u_{n-1} + R_L, u_n = T11 u_{n-1} + T12 f_n + T13. Written with R_L and
+    # S_L eliminated in favour of R_R, S_R, so that nothing is divided by kappa: kappa -> 0 as
+    # dt -> 0 in the acceleration form, and (R_L - Delta)/kappa would cancel catastrophically.
+    u_next = T[0, 0] * u_p + T[0, 1] * ((S_expr * u_p) + g * R_R + h) + T[0, 2]
+    a_fwd = sp.factor(sp.cancel(sp.diff(u_next, u_p)))
+    b_fwd = sp.factor(sp.cancel(u_next - a_fwd * u_p))
     return Sweeps(T, S_expr, g, h, a_fwd, b_fwd)
 
 

@@ -42,7 +42,7 @@ C_ARRAY = _names({"m": "mn", "kappa": "kp", "S_R": "SR[n]", "R_R": "R_R", "Delta
                   "F_n": "Fe[n]", "b_n": "b[n]", "R_L": "R[n]", "S_L": "S_L"})
 T_ENTRIES = ((0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2))
 PY_ARRAY = _names({"m": "mn", "kappa": "kp", "S_R": "SR", "Delta": "Dl", "F_n": "Fe",
-                   "b_n": "b", "R_L": "R"})
+                   "b_n": "b", "R_L": "R", "R_R": "R_R"})
 
 
 def _lin(prefix: str, coeffs: dict) -> str:
@@ -132,6 +132,7 @@ def _tmm_context() -> dict:
         "spring_py": [[printing.py(e) for e in row] for row in
                       tmm.spring_damper(*sp.symbols("k c")).tolist()],
         "mass_py": [[printing.py(e) for e in row] for row in tmm.mass(sp.Symbol("m")).tolist()],
+        "force_py": [[printing.py(e) for e in row] for row in tmm.force(sp.Symbol("F")).tolist()],
     }
 
 

@@ -6,7 +6,8 @@
  *
  * hist: 3 rows of N doubles (x0, v0, a0), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..
- * written (NULL: not stored). work: 12 N doubles. err_est: plain sweep's relative error estimate.
+ * written (NULL: not stored). work: 12 N doubles. err_est: plain sweep's relative error estimate,
+ * the sum over steps of eps max|P_u f_1| / max|u| (the errors of successive steps accumulate).
  */
 #include <math.h>
 #include <float.h>
@@ -64,7 +65,7 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
             SR[n] = S_R;
             g[n] = kp/(-SR[n] + alpha_u*mn + kp);
             S_L = kp*(SR[n] - alpha_u*mn)/(-SR[n] + alpha_u*mn + kp);
-            af[n] = (S_L + kp)/kp;
+            af[n] = kp/(-SR[n] + alpha_u*mn + kp);
             S_R = S_L;
         }
     } else {
@@ -92,15 +93,15 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
             Dl[n] = k[n] * (q[n] - qp) + c[n] * (s[n] - sp);
         }
         if (sweep == 0) {
-            double R_R = 0.0, up = 0.0;
+            double up = 0.0;
             for (n = N - 1; n >= 0; --n) {
                 const double mn = m[n], kp = k[n] * p + c[n] * r;
-                R[n] = g[n] * R_R + (-Dl[n]*SR[n] + Dl[n]*alpha_u*mn + Fe[n]*kp - b[n]*kp*mn)/(-SR[n] + alpha_u*mn + kp);
-                R_R = R[n];
+                R[n] = g[n] * (n + 1 < N ? R[n + 1] : 0.0) + (-Dl[n]*SR[n] + Dl[n]*alpha_u*mn + Fe[n]*kp - b[n]*kp*mn)/(-SR[n] + alpha_u*mn + kp);
             }
             for (n = 0; n < N; ++n) {
-                const double kp = k[n] * p + c[n] * r;
-                up = af[n] * up + (-Dl[n] + R[n])/kp;
+                const double mn = m[n], kp = k[n] * p + c[n] * r;
+                const double R_R = n + 1 < N ? R[n + 1] : 0.0;
+                up = af[n] * up + -(Dl[n] - Fe[n] - R_R + b[n]*mn)/(-SR[n] + alpha_u*mn + kp);
                 u[n] = up;
             }
         } else {
@@ -122,7 +123,7 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
                 if (fabs(z_u) > umax) umax = fabs(z_u);
                 if (a_amp > amp) amp = a_amp;
             }
-            if (umax > 0.0 && DBL_EPSILON * amp / umax > *err_est) *err_est = DBL_EPSILON * amp / umax;
+            if (umax > 0.0) *err_est += DBL_EPSILON * amp / umax;
         }
         for (i = 0; i < N; ++i) {
             const double x1 = x1_u * u[i];
@@ -188,7 +189,7 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
             SR[n] = S_R;
             g[n] = kp/(-SR[n] + kp + mn);
             S_L = kp*(SR[n] - mn)/(-SR[n] + kp + mn);
-            af[n] = (S_L + kp)/kp;
+            af[n] = kp/(-SR[n] + kp + mn);
             S_R = S_L;
         }
     } else {
@@ -216,15 +217,15 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
             Dl[n] = k[n] * (q[n] - qp) + c[n] * (s[n] - sp);
         }
         if (sweep == 0) {
-            double R_R = 0.0, up = 0.0;
+            double up = 0.0;
             for (n = N - 1; n >= 0; --n) {
                 const double mn = m[n], kp = k[n] * p + c[n] * r;
-                R[n] = g[n] * R_R + (-Dl[n]*SR[n] + Dl[n]*mn + Fe[n]*kp)/(-SR[n] + kp + mn);
-                R_R = R[n];
+                R[n] = g[n] * (n + 1 < N ? R[n + 1] : 0.0) + (-Dl[n]*SR[n] + Dl[n]*mn + Fe[n]*kp)/(-SR[n] + kp + mn);
             }
             for (n = 0; n < N; ++n) {
-                const double kp = k[n] * p + c[n] * r;
-                up = af[n] * up + (-Dl[n] + R[n])/kp;
+                const double mn = m[n], kp = k[n] * p + c[n] * r;
+                const double R_R = n + 1 < N ? R[n + 1] : 0.0;
+                up = af[n] * up + -(Dl[n] - Fe[n] - R_R)/(-SR[n] + kp + mn);
                 u[n] = up;
             }
         } else {
@@ -246,7 +247,7 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
                 if (fabs(z_u) > umax) umax = fabs(z_u);
                 if (a_amp > amp) amp = a_amp;
             }
-            if (umax > 0.0 && DBL_EPSILON * amp / umax > *err_est) *err_est = DBL_EPSILON * amp / umax;
+            if (umax > 0.0) *err_est += DBL_EPSILON * amp / umax;
         }
         for (i = 0; i < N; ++i) {
             const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * u[i];

@@ -7,7 +7,7 @@ Station matrix T_n (maps [u_{n-1}, f_n, 1] to [u_n, f_{n+1}, 1]):
     [alpha_u*m, alpha_u*m/kappa + 1, -Delta*alpha_u*m/kappa - F_n + b_n*m]
     [0, 0, 1]
 Stable sweep (Riccati): S_L = kappa*(S_R - alpha_u*m)/(-S_R + alpha_u*m + kappa);  R_L = g R_R + h,  g = kappa/(-S_R + alpha_u*m + kappa),
-h = (-Delta*S_R + Delta*alpha_u*m + F_n*kappa - b_n*kappa*m)/(-S_R + alpha_u*m + kappa);  forward u_n = a u_{n-1} + b,  a = (S_L + kappa)/kappa,  b = (-Delta + R_L)/kappa.
+h = (-Delta*S_R + Delta*alpha_u*m + F_n*kappa - b_n*kappa*m)/(-S_R + alpha_u*m + kappa);  forward u_n = a u_{n-1} + b,  a = kappa/(-S_R + alpha_u*m + kappa),  b = -(Delta - F_n - R_R + b_n*m)/(-S_R + alpha_u*m + kappa).
 The time loop runs in Python but every station loop is a vector operation or one LAPACK
 triangular banded solve (dtbtrs), so a step costs O(N).
 """
@@ -64,7 +64,7 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
             SR[n] = S_R
             g[n] = kp/(-S_R + alpha_u*mn + kp)
             S_L = kp*(S_R - alpha_u*mn)/(-S_R + alpha_u*mn + kp)
-            af[n] = (S_L + kp)/kp
+            af[n] = kp/(-S_R + alpha_u*mn + kp)
             S_R = S_L
         upper = np.ones((2, N))
         upper[0, 1:] = -g[:-1]
@@ -89,7 +89,8 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
             h = (-Dl*SR + Dl*alpha_u*mn + Fe*kp - b*kp*mn)/(-SR + alpha_u*mn + kp)
             R, info = dtbtrs(upper, h[:, None], uplo="U", diag="U")
             R = R[:, 0]
-            u, info = dtbtrs(lower, ((-Dl + R)/kp)[:, None], uplo="L", diag="U")
+            R_R = np.append(R[1:], 0.0)
+            u, info = dtbtrs(lower, (-(Dl - Fe - R_R + b*mn)/(-SR + alpha_u*mn + kp))[:, None], uplo="L", diag="U")
             u = u[:, 0]
         else:
             u = np.empty(N)
@@ -107,7 +108,7 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
                 u[n] = z_u
             umax = np.max(np.abs(u))
             if umax > 0.0:
-                err_est = max(err_est, EPS * float(np.max(np.abs(Pu * f1))) / umax)
+                err_est += EPS * float(np.max(np.abs(Pu * f1))) / umax  # accumulates over steps
         new = {qty: combine(K, qty + "1", H, names, K.get(qty + "1_u", 0.0) * u) for qty in "xva"}
         shift_history(H, names, new)
         for arr, qty in ((xo, "x"), (vo, "v"), (ao, "a")):

@@ -10,3 +10,7 @@ def spring_damper(k, c, s):
 
 def mass(m, s):
     return np.array([[1.0, 0.0, 0.0], [m*(s*s), 1.0, 0.0], [0.0, 0.0, 1.0]], dtype=complex)
+
+
+def force(F):
+    return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -F], [0.0, 0.0, 1.0]], dtype=complex)

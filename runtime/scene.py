@@ -350,7 +350,8 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
     response = chain.simulate_chain(
         scene.mass, scene.stiffness, scene.damping, scene.force, scene.dt, scene.n_steps,
         loaded=scene.loaded, scheme=scene.scheme, form=scene.form, sweep=scene.sweep,
-        backend=scene.backend, outputs=scene.outputs, progress=progress, **scene.scheme_params)
+        backend=scene.backend, outputs=scene.outputs, quantities=scene.quantities,
+        progress=progress, **scene.scheme_params)
     run_time = time.perf_counter() - start
 
     report = {

@@ -58,7 +58,7 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
         advance = make_advance(avg, avg.coefficients(form, dt))
         for _ in range(n_start):
             H = history_from_states(avg.history, states)
-            err_est = max(err_est, advance(force[step:step + 2], H, *_rows(store, step)))
+            err_est += advance(force[step:step + 2], H, *_rows(store, step))
             states.append(tuple(H[avg.history.index(q + "0")].copy() for q in QUANTITIES))
             step += 1
     H = history_from_states(scheme.history, [states[0]] * (3 - len(states)) + states)
@@ -68,7 +68,7 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
     bar = _progress(n_steps, step) if progress else None
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         if hi > lo:
-            err_est = max(err_est, advance(force[lo:hi + 1], H, *_rows(store, lo)))
+            err_est += advance(force[lo:hi + 1], H, *_rows(store, lo))
             if bar is not None:
                 bar.update(hi - lo)
     if bar is not None:

@@ -1,0 +1,90 @@
+"""Speed of the DT-TMM chain kernels, with ratios measured in the same run.
+
+1. C DT-TMM (stable sweep) against `simulate_mck` with a scipy.sparse LU factorization, same
+   scheme: uniform chain of 1,000 masses (m = 1, k = 1e4, c = 1), 10,000 steps of dt = 1e-4.
+2. Cost per step of the C kernel for N = 1e2 .. 1e5 masses: the fitted slope of log(time) over
+   log(N) should be 1 (O(N) per step).
+3. C against NumPy backends: largest relative difference (should be <= 1e-12).
+
+Times: minimum of repeats after one warm-up run (compilation excluded and reported apart).
+Usage: python benchmarks/chain_speed.py [--quick]
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+from dtdyn.runtime import cbuild, kernels
+from dtdyn.runtime.chain import chain_matrices, simulate_chain
+from dtdyn.runtime.mck import simulate_mck
+
+
+def best_of(fn, repeats):
+    fn()  # warm-up
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), out
+
+
+def chain(n):
+    return np.ones(n), np.full(n, 1e4), np.ones(n)
+
+
+def main(quick=False):
+    t0 = time.perf_counter()
+    kernels.c_chain_function("newmark")
+    print(f"compile or cache load of chain_newmark.c: {time.perf_counter() - t0:.3f} s "
+          f"(C available: {cbuild.c_available()})\n")
+
+    n, steps, dt = 1000, 2000 if quick else 10_000, 1e-4
+    m, k, c = chain(n)
+    F = np.ones((steps + 1, 1))
+    out = [0, n // 2, n - 1]
+    M, C, K = chain_matrices(m, k, c, sparse=True)
+    t_c, rc = best_of(lambda: simulate_chain(m, k, c, F, dt, steps, loaded=[n - 1], outputs=out,
+                                             backend="c", quantities=("x",)), 5)
+    t_mck, rm = best_of(lambda: simulate_mck(M, C, K, F, dt, steps, loaded=[n - 1], outputs=out,
+                                             quantities=("x",)), 1 if quick else 3)
+    diff = np.max(np.abs(rc.x - rm.x)) / np.max(np.abs(rm.x))
+    print(f"1) {n} masses x {steps} steps, Newmark average acceleration")
+    print(f"   C DT-TMM            {t_c * 1e3:9.2f} ms  ({t_c / steps * 1e6:.2f} us/step)")
+    print(f"   simulate_mck sparse {t_mck * 1e3:9.2f} ms  ({t_mck / steps * 1e6:.2f} us/step)")
+    print(f"   speed-up {t_mck / t_c:.1f}x (target >= 5x); max relative difference {diff:.1e}\n")
+
+    print("2) C kernel cost per step against N (1,000 steps, outputs: last mass)")
+    Ns = [100, 1000, 10_000, 100_000]
+    per = []
+    for N in Ns:
+        m, k, c = chain(N)
+        s = 1000
+        F = np.ones((s + 1, 1))
+        t, _ = best_of(lambda: simulate_chain(m, k, c, F, dt, s, loaded=[N - 1], outputs=[N - 1],
+                                              quantities=("x",)), 3)
+        per.append(t / s)
+        print(f"   N = {N:>7d}: {t / s * 1e6:10.2f} us/step  {t / s / N * 1e9:7.2f} ns per mass-step")
+    slope = np.polyfit(np.log(Ns), np.log(per), 1)[0]
+    print(f"   fitted slope of log(time/step) over log(N): {slope:.3f} (1 = linear)\n")
+
+    print("3) C against NumPy (1,000 masses, 1,000 steps, every scheme, both forms)")
+    m, k, c = chain(1000)
+    F = np.random.default_rng(0).standard_normal((1001, 3))
+    worst = 0.0
+    from dtdyn.generated import SCHEMES
+    for scheme in SCHEMES:
+        forms = ("acceleration",) if scheme == "central_difference" else ("displacement",
+                                                                          "acceleration")
+        for form in forms:
+            kw = dict(loaded=[10, 500, 999], scheme=scheme, form=form, quantities=("x",))
+            a = simulate_chain(m, k, c, F, 1e-4, 1000, backend="c", **kw)
+            b = simulate_chain(m, k, c, F, 1e-4, 1000, backend="numpy", **kw)
+            worst = max(worst, np.max(np.abs(a.x - b.x)) / np.max(np.abs(b.x)))
+    print(f"   largest relative difference: {worst:.1e} (target <= 1e-12)")
+
+
+if __name__ == "__main__":
+    main(quick="--quick" in sys.argv)

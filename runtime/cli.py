@@ -1,0 +1,109 @@
+"""The `dtdyn` command: generate, show, simulate."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def _generate(args) -> int:
+    from dtdyn.derive import emit  # SymPy and jinja2: build time only
+
+    dest = Path(args.out) if args.out else emit.GENERATED
+    if args.check:
+        bad = emit.check(dest)
+        if bad:
+            print(f"generated/ is out of date in {dest}: {', '.join(bad)}\n"
+                  "run `dtdyn generate` to rewrite it", file=sys.stderr)
+            return 1
+        print(f"generated/ is up to date ({dest})")
+        return 0
+    files = emit.write(dest)
+    print(f"wrote {len(files)} files to {dest}")
+    return 0
+
+
+def _show(args) -> int:
+    import sympy as sp
+
+    from dtdyn.derive import dttmm, integrators
+
+    if args.scheme not in integrators.SCHEMES:
+        print(f"unknown scheme {args.scheme!r}; available: {', '.join(integrators.SCHEMES)}",
+              file=sys.stderr)
+        return 2
+    der = integrators.derive_scheme(args.scheme)
+    s = der.scheme
+    print(f"{s.title} ({s.name}); {s.reference}\n{s.notes}\n\nDefining relations:")
+    for rel in s.relations:
+        print("   ", sp.sstr(rel.subs(s.substitutions)))
+    print(f"\nEquilibrium: M ae + C ve + K xe = ({sp.sstr(der.w0)}) F_n + ({sp.sstr(der.w1)}) F_n+1")
+    rows = [] if der.explicit else [("A", der.A), ("B", der.B), ("D", der.D), ("E", der.E)]
+    rows += [("Dx", der.Dx), ("Ex", der.Ex), ("Dv", der.Dv), ("Ev", der.Ev)]
+    print("Displacement form: ae = A xe + B, ve = D xe + E" if not der.explicit
+          else "Explicit: no displacement form")
+    print("Acceleration form: xe = Dx ae + Ex, ve = Dv ae + Ev\n")
+    for name, expr in rows:
+        print(f"  {name:3s}= {sp.sstr(expr)}")
+    for form in dttmm.FORMS:
+        if form == "displacement" and der.explicit:
+            continue
+        maps = dttmm.form_maps(form, der)
+        subs = {dttmm.p: maps["p"], dttmm.r: maps["r"], dttmm.alpha: maps["alpha_u"],
+                dttmm.b_n: maps["b"]}
+        T = dttmm.station_step().subs(subs)
+        print(f"\nDT-TMM station matrix, {form} form, [u_n-1, f_n, 1] -> [u_n, f_n+1, 1]:")
+        sp.pprint(T, use_unicode=False)
+        print(f"  kappa = {sp.sstr(sp.simplify(dttmm.KAPPA.subs(subs)))}, "
+              "Delta = k (q_n - q_n-1) + c (s_n - s_n-1) with, at each mass,\n"
+              f"  q = {sp.sstr(maps['q'])}, s = {sp.sstr(maps['s'])}, b = {sp.sstr(maps['b'])}")
+    return 0
+
+
+def _simulate(args) -> int:
+    from dtdyn.runtime import scene as scenes
+
+    sc = scenes.load_scene(args.scene)
+    print(f"{sc.title}: {sc.n_dof} DOF, {sc.n_steps} steps of dt = {sc.dt:g} s, scheme "
+          f"{sc.scheme} ({sc.form} form, {sc.sweep} sweep, backend {sc.backend})")
+    long_run = sc.n_steps * sc.n_dof > 5e7
+    response, report = scenes.run_scene(sc, progress=long_run and not args.quiet)
+    if args.out:
+        scenes.save_results(args.out, response, sc)
+    if args.plot:
+        scenes.plot_response(args.plot, response, sc)
+    print(f"run time: {report['run_time_s'] * 1e3:.2f} ms ({response.info['backend']} backend, "
+          f"{report['run_time_s'] / sc.n_steps * 1e6:.2f} us per step)")
+    if report["max_rel_error"] is not None:
+        print(f"error against the exact response (matrix exponential, max over time and "
+              f"outputs, relative to max |x|): {report['max_rel_error']:.3e}")
+    for what, path in (("results", args.out), ("plot", args.plot)):
+        if path:
+            print(f"{what}: {path}")
+    return 0
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="dtdyn", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    g = sub.add_parser("generate", help="rewrite generated/ from the SymPy derivations")
+    g.add_argument("--check", action="store_true", help="exit 1 if generated/ is out of date")
+    g.add_argument("--out", help="target folder (default: the package's generated/)")
+    s = sub.add_parser("show", help="print a scheme's derived coefficients and transfer matrices")
+    s.add_argument("scheme")
+    r = sub.add_parser("simulate", help="run a scene (default: the embedded P3 benchmark)")
+    r.add_argument("scene", nargs="?", help="scene TOML file")
+    r.add_argument("--out", help="write results to this .npz file")
+    r.add_argument("--plot", help="plot the displacements to this image file")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    handler = {"generate": _generate, "show": _show, "simulate": _simulate}[args.command]
+    try:
+        return handler(args)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"dtdyn {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

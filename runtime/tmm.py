@@ -1,0 +1,65 @@
+"""Transfer matrix method in the Laplace domain, numerically: frequency responses and poles.
+
+Uses the generated element matrices (dtdyn.generated.tmm); U = prod_{n=N..1} M_n S_n, the poles
+are the roots of U22(s) (reference.md section 2).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import brentq
+
+from dtdyn.generated import tmm as elements
+
+from .chain import chain_parameters
+
+
+def system_matrix(m, k, c, s: complex) -> np.ndarray:
+    """U(s) of the unloaded chain, 3 x 3 complex."""
+    U = np.eye(3, dtype=complex)
+    for mn, kn, cn in zip(m, k, c):
+        U = elements.mass(mn, s) @ elements.spring_damper(kn, cn, s) @ U
+    return U
+
+
+def frequency_response(mass, stiffness, damping, omega, load: int, output: int) -> np.ndarray:
+    """x_output / F_load at s = j omega (0-based masses), by TMM with the boundary conditions."""
+    m, k, c = chain_parameters(mass, stiffness, damping)
+    out = np.empty(np.size(omega), dtype=complex)
+    for i, w in enumerate(np.atleast_1d(omega)):
+        s = 1j * w
+        U = np.eye(3, dtype=complex)
+        partial = []
+        for n, (mn, kn, cn) in enumerate(zip(m, k, c)):
+            U = elements.mass(mn, s) @ elements.spring_damper(kn, cn, s) @ U
+            if n == load:
+                U = elements.force(1.0) @ U
+            partial.append(U)
+        f_base = -U[1, 2] / U[1, 1]
+        out[i] = (partial[output] @ np.array([0.0, f_base, 1.0]))[0]
+    return out
+
+
+def undamped_poles(mass, stiffness) -> np.ndarray:
+    """Natural frequencies omega_n (rad/s, ascending) of an undamped chain: roots of U22(j omega).
+
+    U22 is a polynomial of degree N in lambda = omega^2 whose N roots are simple (an irreducible
+    tridiagonal pencil has distinct eigenvalues); they are bracketed on a grid refined until N
+    sign changes are found, then solved by Brent's method to machine precision.
+    """
+    m, k, _ = chain_parameters(mass, stiffness, np.zeros(np.size(mass)))
+
+    def u22(lam):
+        return system_matrix(m, k, np.zeros_like(m), 1j * np.sqrt(lam))[1, 1].real
+
+    lam_max = 1.01 * max(2.0 * (k[n] + (k[n + 1] if n + 1 < m.size else 0.0)) / m[n]
+                         for n in range(m.size))  # Gershgorin bound of M^-1 K
+    for points in (200 * m.size, 2000 * m.size, 20000 * m.size):
+        grid = np.linspace(0.0, np.sqrt(lam_max), points) ** 2
+        vals = np.array([u22(g) for g in grid])
+        idx = np.flatnonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) < 0)
+        if idx.size == m.size:
+            lams = [brentq(u22, grid[i], grid[i + 1], xtol=1e-300, rtol=4 * np.finfo(float).eps)
+                    for i in idx]
+            return np.sqrt(np.array(lams))
+    raise RuntimeError(f"found {idx.size} of {m.size} roots of U22; the chain is too ill-scaled "
+                       "for the grid search")

@@ -1,0 +1,151 @@
+"""DT-TMM chains against the assembled-matrix solution of the same scheme (reference sec. 3).
+
+Both solve the same linear system each step (a tridiagonal one), so they agree to rounding. The
+reference (`simulate_mck`) works in the acceleration form, which keeps the accuracy of the mass
+equation at any dt; the DT-TMM acceleration form must equal it to 1e-10. The displacement form
+(the source's state [x, f, 1]) computes a = A (x - x_pred) with A = 1/(beta dt^2): the
+acceleration is a difference that cancels by (omega dt)^2, so its rounding floor grows like
+eps / (omega_min dt)^2 as dt -> 0 (measured: 2e-10 on P1 at dt = 1e-5 for average acceleration,
+equal to the change a 1-ulp perturbation of the force makes in the displacement form itself).
+There the test bounds the difference by 10 eps / (omega_min dt)^2 instead of 1e-10.
+"""
+import warnings
+
+import numpy as np
+import pytest
+
+from dtdyn.runtime.chain import DtdynAccuracyWarning, chain_matrices, simulate_chain
+from dtdyn.runtime.mck import simulate_mck
+from dtdyn.runtime.schemes import NAMES
+
+from problems import P1, P2, P3, PROBLEMS, rel_error, uniform_chain
+
+TOL = 1e-10
+IMPLICIT = [s for s in NAMES if s != "central_difference"]
+
+
+def _tolerance(form, prob, dt, scheme):
+    if form == "acceleration":
+        # Houbolt's velocity (19 x0 - 26 xm1 + 7 xm2)/(12 dt) cancels like eps/(omega dt): at
+        # dt <= 1e-4 a 1-ulp change of the force moves the reference itself by 3e-11 .. 9e-11.
+        return 1e-9 if scheme == "houbolt" and dt <= 1e-4 else TOL
+    M, _, K = chain_matrices(prob["mass"], prob["stiffness"], prob["damping"], sparse=False)
+    omega_min = np.sqrt(np.min(np.linalg.eigvals(np.linalg.solve(M, K)).real))
+    return max(TOL, 10 * np.finfo(float).eps / (omega_min * dt) ** 2)
+
+
+def _run_both(prob, dt, n_steps, scheme, forms=("displacement", "acceleration"),
+              backends=("c", "numpy"), **kw):
+    F = np.ones((n_steps + 1, 1))
+    M, C, K = chain_matrices(prob["mass"], prob["stiffness"], prob["damping"])
+    ref = simulate_mck(M, C, K, F, dt, n_steps, loaded=prob["loaded"], scheme=scheme,
+                       quantities=("x",), **kw)
+    for form in forms:
+        for backend in backends:
+            r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, dt, n_steps,
+                               loaded=prob["loaded"], scheme=scheme, form=form, backend=backend,
+                               quantities=("x",), **kw)
+            err = rel_error(r.x, ref.x)
+            assert err < _tolerance(form, prob, dt, scheme), (scheme, form, backend, dt, err)
+
+
+@pytest.mark.parametrize("scheme", IMPLICIT)
+@pytest.mark.parametrize("name", ["P1", "P2", "P3"])
+@pytest.mark.parametrize("dt", [1e-2, 1e-3, 1e-4, 1e-5])
+def test_reference_problems_equal_assembled(name, dt, scheme):
+    prob = PROBLEMS[name]
+    # full duration down to dt = 1e-3 s, then the first 10,000 steps
+    n_steps = min(int(round(prob["T"] / dt)), 10000)
+    _run_both(prob, dt, n_steps, scheme)
+
+
+def test_central_difference_acceleration_form():
+    prob = dict(P2)
+    _run_both(prob, 1e-3, 3000, "central_difference", forms=("acceleration",))
+
+
+def test_parameterised_schemes():
+    for scheme, kw in (("newmark", dict(beta=0.3, gamma=0.6)), ("wilson", dict(theta=1.37)),
+                       ("hht", dict(alpha=-0.3)), ("generalized_alpha", dict(rho_inf=0.3))):
+        _run_both(P2, 1e-2, 1000, scheme, **kw)
+
+
+@pytest.mark.parametrize("n_mass, backends", [(1000, ("c", "numpy")), (100_000, ("c", "numpy"))])
+def test_long_uniform_chain(n_mass, backends):
+    prob = uniform_chain(n_mass)
+    dt, n_steps = 1e-4, 1000
+    F = np.ones((n_steps + 1, 1))
+    outputs = np.unique(np.r_[0, n_mass // 2, np.arange(n_mass - 50, n_mass)])
+    M, C, K = chain_matrices(prob["mass"], prob["stiffness"], prob["damping"], sparse=True)
+    ref = simulate_mck(M, C, K, F, dt, n_steps, loaded=prob["loaded"], scheme="newmark",
+                       outputs=outputs, quantities=("x",))
+    for form in ("displacement", "acceleration"):
+        for backend in backends:
+            r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, dt, n_steps,
+                               loaded=prob["loaded"], outputs=outputs, form=form, backend=backend,
+                               quantities=("x",))
+            assert r.x.shape == (n_steps + 1, outputs.size)
+            assert r.v is None and r.a is None
+            assert rel_error(r.x, ref.x) < TOL, (form, backend)
+
+
+def _plain_vs_stable(prob, dt, n_steps):
+    F = np.ones((n_steps + 1, 1))
+    args = (prob["mass"], prob["stiffness"], prob["damping"], F, dt, n_steps)
+    stable = simulate_chain(*args, loaded=prob["loaded"], scheme="average_acceleration")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        plain = simulate_chain(*args, loaded=prob["loaded"], scheme="average_acceleration",
+                               sweep="plain")
+    warned = [w for w in caught if issubclass(w.category, DtdynAccuracyWarning)]
+    return rel_error(plain.x, stable.x), plain.info["error_estimate"], warned
+
+
+def test_plain_sweep_fine_on_short_chain():
+    err, est, warned = _plain_vs_stable(uniform_chain(2), 1e-3, 500)
+    assert err < 1e-9 and est < 1e-9 and not warned
+
+
+@pytest.mark.parametrize("n_mass", [3, 4, 5])
+def test_plain_sweep_error_estimate(n_mass):
+    """The estimate (sum over steps of eps max|P_u f_1| / max|u|) tracks the real error."""
+    err, est, warned = _plain_vs_stable(uniform_chain(n_mass), 1e-3, 500)
+    assert 0.1 < est / err < 10
+    assert bool(warned) == (est > 1e-6)
+
+
+@pytest.mark.parametrize("n_mass, at_least", [(10, 1e10), (15, 1e30)])
+def test_plain_sweep_fails_as_measured(n_mass, at_least):
+    """reference.md sec. 3: m = 1, k = 1e4, c = 1, dt = 1e-3 gives 1e17 (N = 10), 1e40 (N = 15)."""
+    err, est, warned = _plain_vs_stable(uniform_chain(n_mass), 1e-3, 500)
+    assert err > at_least
+    assert warned and "sweep='stable'" in str(warned[0].message)
+    assert est > 1.0  # once the error is O(1) it feeds back through the history: a lower bound
+
+
+def test_plain_sweep_fails_on_p3():
+    """reference.md sec. 3: P3 with dt = 1e-2 gives 37 % error; dt = 5e-3 gives 1e27."""
+    err, est, warned = _plain_vs_stable(P3, 1e-2, 80)
+    assert 0.05 < err < 5.0 and warned
+    err, est, warned = _plain_vs_stable(P3, 5e-3, 160)
+    assert err > 1e20 and warned
+
+
+def test_initial_acceleration_and_startup():
+    """A step force at t_0 gives a_0 = F/m; multistep schemes still converge at order 2."""
+    r = simulate_chain(P1["mass"], P1["stiffness"], P1["damping"], np.ones((11, 1)), 0.01, 10,
+                       scheme="houbolt")
+    assert r.a[0, 0] == pytest.approx(0.5)
+    assert r.x[0, 0] == 0.0 and r.v[0, 0] == 0.0
+
+
+def test_only_loaded_columns_and_requested_outputs():
+    prob = uniform_chain(50)
+    F = np.random.default_rng(1).standard_normal((101, 2))
+    r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, 1e-3, 100,
+                       loaded=[3, 40], outputs=[7], quantities=("v",))
+    assert r.v.shape == (101, 1) and r.x is None and r.a is None
+    full = np.zeros((101, 50))
+    full[:, [3, 40]] = F
+    r2 = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], full, 1e-3, 100)
+    np.testing.assert_allclose(r.v[:, 0], r2.v[:, 7], rtol=1e-13, atol=1e-300)

@@ -1,0 +1,44 @@
+"""runtime/ imports without SymPy or jinja2, and falls back to NumPy (one warning) without C."""
+import os
+import subprocess
+import sys
+
+SCRIPT = r"""
+import sys
+sys.modules["sympy"] = None  # any import of SymPy or jinja2 now raises ImportError
+sys.modules["jinja2"] = None
+import warnings
+import numpy as np
+from dtdyn.runtime.chain import simulate_chain
+from dtdyn.runtime.mck import simulate_mck
+from dtdyn.runtime.exact import exact_response
+from dtdyn.runtime import scene, tmm
+F = np.ones((101, 1))
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    a = simulate_chain([2, 3], [20, 15], [5, 6], F, 0.01, 100, loaded=[1], backend="c")
+    b = simulate_chain([2, 3], [20, 15], [5, 6], F, 0.01, 100, loaded=[1], backend="c",
+                       scheme="houbolt")
+ours = [w for w in caught if "C backend unavailable" in str(w.message)]
+print(a.info["backend"], len(ours), repr(float(a.x[-1, 1])))
+"""
+
+
+def _run(env_extra):
+    env = dict(os.environ, **env_extra)
+    proc = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True,
+                          env=env, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout.split()
+
+
+def test_runtime_without_sympy_and_jinja2():
+    backend, n_warn, x = _run({})
+    assert backend == "c" and n_warn == "0"
+
+
+def test_numpy_fallback_warns_once_and_agrees():
+    backend_c, _, x_c = _run({})
+    backend, n_warn, x = _run({"DTDYN_NO_C": "1"})
+    assert backend == "numpy" and n_warn == "1"
+    assert abs(float(x) - float(x_c)) <= 1e-13 * abs(float(x_c))
