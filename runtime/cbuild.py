@@ -15,6 +15,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import os
+import platform
 import re
 import shlex
 import shutil
@@ -143,10 +144,20 @@ def _compiler() -> tuple[tuple[str, ...], str]:
         return info
 
 
+def _cpu_id() -> str:
+    """The CPU model and flags: -march=native code must not be reused on another processor."""
+    try:
+        text = Path("/proc/cpuinfo").read_text(errors="replace")
+    except OSError:
+        return platform.processor() or platform.machine()
+    keep = [ln for ln in text.splitlines() if ln.startswith(("model name", "flags", "Features"))]
+    return "\n".join(sorted(set(keep)))
+
+
 def _key(source: str, argv: tuple[str, ...], version: str) -> str:
     h = hashlib.sha256()
     for part in (source, shlex.join(argv), shlex.join(CFLAGS + LIBS), version,
-                 sysconfig.get_platform()):
+                 sysconfig.get_platform(), _cpu_id()):
         data = part.encode("utf-8", "surrogatepass")
         h.update(len(data).to_bytes(8, "little"))
         h.update(data)
