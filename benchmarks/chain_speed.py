@@ -70,21 +70,38 @@ def main(quick=False):
     slope = np.polyfit(np.log(Ns), np.log(per), 1)[0]
     print(f"   fitted slope of log(time/step) over log(N): {slope:.3f} (1 = linear)\n")
 
-    print("3) C against NumPy (1,000 masses, 1,000 steps, every scheme, both forms)")
+    print("3) C against NumPy (1,000 masses, 1,000 steps of 1e-4, random force on 3 masses)")
     m, k, c = chain(1000)
     F = np.random.default_rng(0).standard_normal((1001, 3))
-    worst = 0.0
+    worst = {"displacement": (0.0, ""), "acceleration": (0.0, "")}
     from dtdyn.generated import SCHEMES
     for scheme in SCHEMES:
-        forms = ("acceleration",) if scheme == "central_difference" else ("displacement",
-                                                                          "acceleration")
+        forms = ("acceleration",) if scheme == "central_difference" else tuple(worst)
         for form in forms:
             kw = dict(loaded=[10, 500, 999], scheme=scheme, form=form, quantities=("x",))
             a = simulate_chain(m, k, c, F, 1e-4, 1000, backend="c", **kw)
             b = simulate_chain(m, k, c, F, 1e-4, 1000, backend="numpy", **kw)
-            worst = max(worst, np.max(np.abs(a.x - b.x)) / np.max(np.abs(b.x)))
-    print(f"   largest relative difference: {worst:.1e} (target <= 1e-12)")
+            d = np.max(np.abs(a.x - b.x)) / np.max(np.abs(b.x))
+            if d > worst[form][0]:
+                worst[form] = (d, scheme)
+    for form, (d, scheme) in worst.items():
+        print(f"   {form} form, largest relative difference: {d:.1e} ({scheme}) (target <= 1e-12)")
+    print("   (NumPy solves the sweep recurrences with LAPACK dtbtrs, whose OpenBLAS kernels round\n"
+          "    differently from the C loops; the displacement form amplifies rounding by about\n"
+          "    1/(omega dt)^2, see README)")
 
 
 if __name__ == "__main__":
-    main(quick="--quick" in sys.argv)
+    import contextlib
+    import io
+    import pathlib
+
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        main(quick="--quick" in sys.argv)
+    print(buf.getvalue(), end="")
+    if "--quick" not in sys.argv:
+        doc = pathlib.Path(__file__).resolve().parents[1] / "docs" / "chain_speed.md"
+        doc.write_text("# DT-TMM chain speed\n\nOutput of `python benchmarks/chain_speed.py` "
+                       "(2-core shared machine; ratios are measured in one run):\n\n```\n"
+                       + buf.getvalue() + "```\n")

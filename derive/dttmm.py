@@ -93,6 +93,9 @@ class Sweeps:
     h: sp.Expr
     a_fwd: sp.Expr
     b_fwd: sp.Expr
+    den: sp.Expr  # time-invariant divisor of h and b_fwd: kernels store 1/den per station
+    h_num: sp.Expr  # h = h_num / den
+    b_num: sp.Expr  # b_fwd = b_num / den
 
 
 def derive_sweeps() -> Sweeps:
@@ -108,7 +111,10 @@ def derive_sweeps() -> Sweeps:
     u_next = T[0, 0] * u_p + T[0, 1] * ((S_expr * u_p) + g * R_R + h) + T[0, 2]
     a_fwd = sp.factor(sp.cancel(sp.diff(u_next, u_p)))
     b_fwd = sp.factor(sp.cancel(u_next - a_fwd * u_p))
-    return Sweeps(T, S_expr, g, h, a_fwd, b_fwd)
+    den_s = sp.denom(sp.together(h))
+    h_num, b_num = (sp.simplify(sp.together(e) * den_s) for e in (h, b_fwd))
+    assert sp.simplify(h_num / den_s - h) == 0 and sp.simplify(b_num / den_s - b_fwd) == 0
+    return Sweeps(T, S_expr, g, h, a_fwd, b_fwd, den_s, h_num, b_num)
 
 
 FORMS = ("displacement", "acceleration")

@@ -83,7 +83,7 @@ def _scheme_context(name: str) -> dict:
             "temps": [(str(t), printing.c(e)) for t, e in temps],
             "rows": [(n, printing.c(e)) for n, e in reduced],
             "g": cc(sw.g), "S": cc(sw.S_expr), "a": cc(sw.a_fwd.subs(dttmm.S_L, sp.Symbol("S_L"))),
-            "h": cc(sw.h), "bf": cc(sw.b_fwd),
+            "den": cc(sw.den), "h_num": cc(sw.h_num), "b_num": cc(sw.b_num),
             "T": ["(" + cc(sw.T[i, j]) + ")" for i, j in T_ENTRIES],
             **{n: _lin(n, fs.hist_terms[n]) for n in ("q", "s", "b")},
             **{n: _lin(n, fs.update[n]) for n in ("x1", "v1", "a1")},
@@ -106,7 +106,7 @@ def _dttmm_context() -> dict:
            "S_expr": str(sw.S_expr), "g": str(sw.g), "h": str(sw.h), "a_fwd": str(sw.a_fwd),
            "b_fwd": str(sw.b_fwd),
            "g_py": scalar(sw.g), "S_py": scalar(sw.S_expr), "a_py": scalar(sw.a_fwd),
-           "h_py": py(sw.h), "bf_py": py(sw.b_fwd)}
+           "den_py": scalar(sw.den), "h_py": py(sw.h_num), "bf_py": py(sw.b_num)}
     for i, j in T_ENTRIES:
         ctx[f"T{i + 1}{j + 1}_py"] = "(" + scalar(T[i, j]) + ")"
     return ctx

@@ -52,11 +52,11 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
     double *a0 = hist + 2 * N;
     double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
     double *SR = work + 5 * N, *g = work + 6 * N, *af = work + 7 * N, *R = work + 8 * N;
-    double *u = work + 9 * N, *Pu = work + 10 * N;
+    double *u = work + 9 * N, *Pu = work + 10 * N, *id = work + 11 * N;
     double PfN = 1.0;
     long n, i, j, step;
     (void)dt; (void)params; (void)alpha_u; (void)q; (void)b; (void)R; (void)Pu; (void)SR; (void)g;
-    (void)af;
+    (void)af; (void)id;
     if (sweep == 0) {
         double S_R = 0.0;
         for (n = N - 1; n >= 0; --n) {
@@ -66,6 +66,7 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
             g[n] = kp/(-SR[n] + alpha_u*mn + kp);
             S_L = kp*(SR[n] - alpha_u*mn)/(-SR[n] + alpha_u*mn + kp);
             af[n] = kp/(-SR[n] + alpha_u*mn + kp);
+            id[n] = 1.0 / (-SR[n] + alpha_u*mn + kp);
             S_R = S_L;
         }
     } else {
@@ -96,12 +97,13 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
             double up = 0.0;
             for (n = N - 1; n >= 0; --n) {
                 const double mn = m[n], kp = k[n] * p + c[n] * r;
-                R[n] = g[n] * (n + 1 < N ? R[n + 1] : 0.0) + (-Dl[n]*SR[n] + Dl[n]*alpha_u*mn + Fe[n]*kp - b[n]*kp*mn)/(-SR[n] + alpha_u*mn + kp);
+                R[n] = g[n] * (n + 1 < N ? R[n + 1] : 0.0) + (-Dl[n]*SR[n] + Dl[n]*alpha_u*mn + Fe[n]*kp - b[n]*kp*mn) * id[n];
             }
             for (n = 0; n < N; ++n) {
-                const double mn = m[n], kp = k[n] * p + c[n] * r;
+                const double mn = m[n];
                 const double R_R = n + 1 < N ? R[n + 1] : 0.0;
-                up = af[n] * up + -(Dl[n] - Fe[n] - R_R + b[n]*mn)/(-SR[n] + alpha_u*mn + kp);
+                (void)mn;
+                up = af[n] * up + (-Dl[n] + Fe[n] + R_R - b[n]*mn) * id[n];
                 u[n] = up;
             }
         } else {
@@ -176,11 +178,11 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
     double *a0 = hist + 2 * N;
     double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
     double *SR = work + 5 * N, *g = work + 6 * N, *af = work + 7 * N, *R = work + 8 * N;
-    double *u = work + 9 * N, *Pu = work + 10 * N;
+    double *u = work + 9 * N, *Pu = work + 10 * N, *id = work + 11 * N;
     double PfN = 1.0;
     long n, i, j, step;
     (void)dt; (void)params; (void)alpha_u; (void)q; (void)b; (void)R; (void)Pu; (void)SR; (void)g;
-    (void)af;
+    (void)af; (void)id;
     if (sweep == 0) {
         double S_R = 0.0;
         for (n = N - 1; n >= 0; --n) {
@@ -190,6 +192,7 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
             g[n] = kp/(-SR[n] + kp + mn);
             S_L = kp*(SR[n] - mn)/(-SR[n] + kp + mn);
             af[n] = kp/(-SR[n] + kp + mn);
+            id[n] = 1.0 / (-SR[n] + kp + mn);
             S_R = S_L;
         }
     } else {
@@ -220,12 +223,13 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
             double up = 0.0;
             for (n = N - 1; n >= 0; --n) {
                 const double mn = m[n], kp = k[n] * p + c[n] * r;
-                R[n] = g[n] * (n + 1 < N ? R[n + 1] : 0.0) + (-Dl[n]*SR[n] + Dl[n]*mn + Fe[n]*kp)/(-SR[n] + kp + mn);
+                R[n] = g[n] * (n + 1 < N ? R[n + 1] : 0.0) + (-Dl[n]*SR[n] + Dl[n]*mn + Fe[n]*kp) * id[n];
             }
             for (n = 0; n < N; ++n) {
-                const double mn = m[n], kp = k[n] * p + c[n] * r;
+                const double mn = m[n];
                 const double R_R = n + 1 < N ? R[n + 1] : 0.0;
-                up = af[n] * up + -(Dl[n] - Fe[n] - R_R)/(-SR[n] + kp + mn);
+                (void)mn;
+                up = af[n] * up + (-Dl[n] + Fe[n] + R_R) * id[n];
                 u[n] = up;
             }
         } else {

@@ -34,12 +34,14 @@ def shift_history(H, names, new):
 
 
 def combine(K, prefix, H, names, extra=None):
-    """sum_h K[prefix_h] H[h] (+ extra): the linear history maps of the generated schemes."""
-    out = np.zeros(H.shape[1]) if extra is None else extra.copy()
+    """sum_h K[prefix_h] H[h] (+ extra, added last as the C kernels do, so both round alike)."""
+    out = np.zeros(H.shape[1])
     for i, nm in enumerate(names):
         cf = K.get(f"{prefix}_{nm}")
         if cf is not None:
             out += cf * H[i]
+    if extra is not None:
+        out += extra
     return out
 
 
@@ -58,6 +60,7 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
         SR = np.empty(N)
         g = np.empty(N)
         af = np.empty(N)
+        inv_den = np.empty(N)
         S_R = 0.0
         for n in range(N - 1, -1, -1):
             mn, kp = m[n], kappa[n]
@@ -65,6 +68,7 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
             g[n] = kp/(-S_R + alpha_u*mn + kp)
             S_L = kp*(S_R - alpha_u*mn)/(-S_R + alpha_u*mn + kp)
             af[n] = kp/(-S_R + alpha_u*mn + kp)
+            inv_den[n] = 1.0 / (-S_R + alpha_u*mn + kp)
             S_R = S_L
         upper = np.ones((2, N))
         upper[0, 1:] = -g[:-1]
@@ -86,11 +90,11 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
         Dl = k * np.diff(q, prepend=0.0) + c * np.diff(s, prepend=0.0)
         if sweep == "stable":
             mn, kp = m, kappa
-            h = (-Dl*SR + Dl*alpha_u*mn + Fe*kp - b*kp*mn)/(-SR + alpha_u*mn + kp)
+            h = (-Dl*SR + Dl*alpha_u*mn + Fe*kp - b*kp*mn) * inv_den
             R, info = dtbtrs(upper, h[:, None], uplo="U", diag="U")
             R = R[:, 0]
             R_R = np.append(R[1:], 0.0)
-            u, info = dtbtrs(lower, (-(Dl - Fe - R_R + b*mn)/(-SR + alpha_u*mn + kp))[:, None], uplo="L", diag="U")
+            u, info = dtbtrs(lower, ((-Dl + Fe + R_R - b*mn) * inv_den)[:, None], uplo="L", diag="U")
             u = u[:, 0]
         else:
             u = np.empty(N)
@@ -109,7 +113,8 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
             umax = np.max(np.abs(u))
             if umax > 0.0:
                 err_est += EPS * float(np.max(np.abs(Pu * f1))) / umax  # accumulates over steps
-        new = {qty: combine(K, qty + "1", H, names, K.get(qty + "1_u", 0.0) * u) for qty in "xva"}
+        new = {qty: combine(K, qty + "1", H, names, K[qty + "1_u"] * u if qty + "1_u" in K else None)
+               for qty in "xva"}
         shift_history(H, names, new)
         for arr, qty in ((xo, "x"), (vo, "v"), (ao, "a")):
             if arr is not None:
