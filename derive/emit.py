@@ -14,7 +14,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from . import dttmm, integrators as I, kernels, printing, tmm
+from . import dttmm, integrators as I, kernels, printing, state_space, tmm
 
 TEMPLATES = Path(__file__).parent / "templates"
 GENERATED = Path(__file__).resolve().parent.parent / "generated"
@@ -72,11 +72,11 @@ def _scheme_context(name: str) -> dict:
         forms_py.append({"form": form,
                          "temps": [(str(t), printing.py(e)) for t, e in temps],
                          "rows": [(n, printing.py(e)) for n, e in reduced]})
-        # C: the sweep expressions, with the acceleration form's alpha_u = 1, b = 0 folded in
-        fold = {dttmm.alpha: sp.Integer(1), dttmm.b_n: 0} if form == "acceleration" else {}
+        # C: the sweep expressions exactly as the NumPy sweep evaluates them (alpha_u = 1 and
+        # b = 0 of the acceleration form are not folded in), so both backends round alike
 
         def cc(expr, names=C_ARRAY):
-            return printing.c(sp.sympify(expr).subs(fold).xreplace(names))
+            return printing.c(sp.sympify(expr).xreplace(names))
 
         forms_c.append({
             "form": form,
@@ -136,6 +136,20 @@ def _tmm_context() -> dict:
     }
 
 
+def _newmark_ss_context() -> dict:
+    def block(d):
+        code = " + ".join(f"({printing.py(v)}) * {k}" for k, v in d.items()) or "Z"
+        text = " + ".join(f"({sp.sstr(v)}) {k}" for k, v in d.items()) or "0"
+        return {"code": code, "text": text}
+
+    blocks = state_space.newmark_blocks()
+    num_damp, params = state_space.sharpy_alpha_params()
+    return {"blocks": [(n, [[block(b) for b in row] for row in rows]) for n, rows in blocks.items()],
+            "sharpy_beta": printing.py(params[I.beta]),
+            "sharpy_gamma": printing.py(params[I.gamma]),
+            "sharpy_text": ", ".join(f"{k} = {sp.sstr(v)}" for k, v in params.items())}
+
+
 def render_all() -> dict[str, str]:
     """Every generated file as {name: text}."""
     env = environment()
@@ -147,6 +161,9 @@ def render_all() -> dict[str, str]:
     render("numpy/dttmm.py.jinja", "dttmm_sweep.py", "dtdyn.derive.dttmm", **_dttmm_context())
     render("numpy/tmm.py.jinja", "tmm.py", "dtdyn.derive.tmm", **_tmm_context())
     render("markdown/tmm.md.jinja", "tmm.md", "dtdyn.derive.tmm", **_tmm_context())
+    render("numpy/newmark_ss.py.jinja", "newmark_ss.py", "dtdyn.derive.state_space",
+           **_newmark_ss_context())
+    render("c/ss_response.c.jinja", "ss_response.c", "the discrete state-space recursion")
     names = list(I.SCHEMES)
     for name in names:
         ctx = _scheme_context(name)

@@ -8,6 +8,8 @@
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..
  * written (NULL: not stored). work: 12 N doubles. err_est: plain sweep's relative error estimate,
  * the sum over steps of eps max|P_u f_1| / max|u| (the errors of successive steps accumulate).
+ * The stable sweep's two recurrences use fma(), as the OpenBLAS triangular solve of the NumPy
+ * backend does, so the two backends round alike (bitwise equal where that BLAS uses FMA).
  */
 #include <math.h>
 #include <float.h>
@@ -111,13 +113,13 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
             double up = 0.0;
             for (n = N - 1; n >= 0; --n) {
                 const double mn = m[n], kp = k[n] * p + c[n] * r;
-                R[n] = g[n] * (n + 1 < N ? R[n + 1] : 0.0) + (-Dl[n]*SR[n] + Dl[n]*alpha_u*mn + Fe[n]*kp - b[n]*kp*mn) * id[n];
+                R[n] = fma(g[n], n + 1 < N ? R[n + 1] : 0.0, (-Dl[n]*SR[n] + Dl[n]*alpha_u*mn + Fe[n]*kp - b[n]*kp*mn) * id[n]);
             }
             for (n = 0; n < N; ++n) {
                 const double mn = m[n];
                 const double R_R = n + 1 < N ? R[n + 1] : 0.0;
                 (void)mn;
-                up = af[n] * up + (-Dl[n] + Fe[n] + R_R - b[n]*mn) * id[n];
+                up = fma(af[n], up, (-Dl[n] + Fe[n] + R_R - b[n]*mn) * id[n]);
                 u[n] = up;
             }
         } else {
@@ -210,10 +212,10 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
             const double mn = m[n], kp = k[n] * p + c[n] * r;
             double S_L;
             SR[n] = S_R;
-            g[n] = kp/(-SR[n] + kp + mn);
-            S_L = kp*(SR[n] - mn)/(-SR[n] + kp + mn);
-            af[n] = kp/(-SR[n] + kp + mn);
-            id[n] = 1.0 / (-SR[n] + kp + mn);
+            g[n] = kp/(-SR[n] + alpha_u*mn + kp);
+            S_L = kp*(SR[n] - alpha_u*mn)/(-SR[n] + alpha_u*mn + kp);
+            af[n] = kp/(-SR[n] + alpha_u*mn + kp);
+            id[n] = 1.0 / (-SR[n] + alpha_u*mn + kp);
             S_R = S_L;
         }
     } else {
@@ -221,7 +223,7 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
         for (n = 0; n < N; ++n) {
             const double mn = m[n], kp = k[n] * p + c[n] * r;
             const double nu = (1) * P_u + (1.0/kp) * P_f;
-            P_f = (mn) * P_u + (1 + mn/kp) * P_f;
+            P_f = (alpha_u*mn) * P_u + (alpha_u*mn/kp + 1) * P_f;
             P_u = nu;
             Pu[n] = P_u;
         }
@@ -244,13 +246,13 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
             double up = 0.0;
             for (n = N - 1; n >= 0; --n) {
                 const double mn = m[n], kp = k[n] * p + c[n] * r;
-                R[n] = g[n] * (n + 1 < N ? R[n + 1] : 0.0) + (-Dl[n]*SR[n] + Dl[n]*mn + Fe[n]*kp) * id[n];
+                R[n] = fma(g[n], n + 1 < N ? R[n + 1] : 0.0, (-Dl[n]*SR[n] + Dl[n]*alpha_u*mn + Fe[n]*kp - b[n]*kp*mn) * id[n]);
             }
             for (n = 0; n < N; ++n) {
                 const double mn = m[n];
                 const double R_R = n + 1 < N ? R[n + 1] : 0.0;
                 (void)mn;
-                up = af[n] * up + (-Dl[n] + Fe[n] + R_R) * id[n];
+                up = fma(af[n], up, (-Dl[n] + Fe[n] + R_R - b[n]*mn) * id[n]);
                 u[n] = up;
             }
         } else {
@@ -258,7 +260,7 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
             for (n = 0; n < N; ++n) {
                 const double mn = m[n], kp = k[n] * p + c[n] * r;
                 const double nu = (1) * Q_u + (1.0/kp) * Q_f + (-Dl[n]/kp);
-                Q_f = (mn) * Q_u + (1 + mn/kp) * Q_f + (-Dl[n]*mn/kp - Fe[n]);
+                Q_f = (alpha_u*mn) * Q_u + (alpha_u*mn/kp + 1) * Q_f + (-Dl[n]*alpha_u*mn/kp - Fe[n] + b[n]*mn);
                 Q_u = nu;
             }
             z_f = -Q_f / PfN;
@@ -266,7 +268,7 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
                 const double mn = m[n], kp = k[n] * p + c[n] * r;
                 const double nu = (1) * z_u + (1.0/kp) * z_f + (-Dl[n]/kp);
                 const double a_amp = fabs(Pu[n] * (-Q_f / PfN));
-                z_f = (mn) * z_u + (1 + mn/kp) * z_f + (-Dl[n]*mn/kp - Fe[n]);
+                z_f = (alpha_u*mn) * z_u + (alpha_u*mn/kp + 1) * z_f + (-Dl[n]*alpha_u*mn/kp - Fe[n] + b[n]*mn);
                 z_u = nu;
                 u[n] = z_u;
                 if (fabs(z_u) > umax) umax = fabs(z_u);

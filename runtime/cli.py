@@ -64,8 +64,21 @@ def _simulate(args) -> int:
     from dtdyn.runtime import scene as scenes
 
     sc = scenes.load_scene(args.scene)
+    if sc.kind == "matrices":
+        how = (f"assembled {'sparse' if sc.sparse else 'dense'} M, C, K, {sc.form} form, "
+               f"backend {sc.backend}")
+    else:
+        how = f"{sc.form} form, {sc.sweep} sweep, backend {sc.backend}"
     print(f"{sc.title}: {sc.n_dof} DOF, {sc.n_steps} steps of dt = {sc.dt:g} s, scheme "
-          f"{sc.scheme} ({sc.form} form, {sc.sweep} sweep, backend {sc.backend})")
+          f"{sc.scheme} ({how})")
+    if sc.backend == "c":
+        import time
+
+        from dtdyn.runtime import kernels
+
+        t0 = time.perf_counter()
+        kernels.c_chain_function(sc.scheme)
+        print(f"C kernel compile or cache load: {time.perf_counter() - t0:.3f} s")
     long_run = sc.n_steps * sc.n_dof > 5e7
     response, report = scenes.run_scene(sc, progress=long_run and not args.quiet)
     if args.out:

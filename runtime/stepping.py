@@ -40,7 +40,7 @@ def check_quantities(quantities) -> tuple:
 
 def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state0,
               make_advance: MakeAdvance, out_idx: np.ndarray, quantities=QUANTITIES,
-              progress: bool = False, chunk_work: int | None = None) -> Response:
+              progress: bool = False) -> Response:
     """Run ``len(force) - 1`` steps from ``state0 = (x0, v0, a0)`` (full-length arrays)."""
     n_steps = force.shape[0] - 1
     n_out = out_idx.size
@@ -61,7 +61,9 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
             err_est += advance(force[step:step + 2], H, *_rows(store, step))
             states.append(tuple(H[avg.history.index(q + "0")].copy() for q in QUANTITIES))
             step += 1
-    H = history_from_states(scheme.history, [states[0]] * (3 - len(states)) + states)
+    # a run shorter than the start-up never uses the lags; pad them with the initial state
+    pad = max(_lag(nm) for nm in scheme.history) + 1 - len(states)
+    H = history_from_states(scheme.history, [states[0]] * pad + states)
     advance = make_advance(scheme, scheme.coefficients(form, dt))
     n_chunks = 1 if not progress else min(100, max(1, n_steps - step))
     bounds = np.linspace(step, n_steps, n_chunks + 1).astype(int)
