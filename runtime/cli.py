@@ -113,7 +113,7 @@ def main(argv=None) -> int:
     handler = {"generate": _generate, "show": _show, "simulate": _simulate}[args.command]
     try:
         return handler(args)
-    except (ValueError, FileNotFoundError) as exc:
+    except (ValueError, FileNotFoundError, FloatingPointError) as exc:
         print(f"dtdyn {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

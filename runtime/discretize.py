@@ -15,52 +15,12 @@ import scipy.linalg
 import scipy.signal
 import scipy.sparse
 
-from . import validate
+from . import linalg, validate
 
 __all__ = ["HOLDS", "first_order_form", "discretize", "to_dlti", "to_control"]
 
 #: Accepted values of ``hold`` in :func:`discretize` ("bilinear" is an alias of "tustin").
 HOLDS = ("zoh", "foh", "impulse", "tustin", "bilinear")
-
-
-def _matrix(name: str, value, n: int | None = None) -> np.ndarray:
-    """A finite, real, square, non-empty float64 dense copy of ``value`` (``n`` x ``n`` if given)."""
-    if scipy.sparse.issparse(value):
-        value = value.toarray()
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real numeric matrix, got {type(value).__name__}") from None
-    if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or arr.shape[0] == 0:
-        raise ValueError(f"{name} must be a non-empty square matrix, got shape {arr.shape}")
-    if n is not None and arr.shape != (n, n):
-        raise ValueError(f"{name} has shape {arr.shape}, expected {(n, n)} to match M")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise ValueError(f"{name}[{i}, {j}] = {arr[i, j]!r}: every entry must be finite")
-    return arr
-
-
-def _mass_solver(M: np.ndarray):
-    """``solve(X) = M^{-1} X`` through a Cholesky (symmetric positive definite ``M``) or LU factorisation."""
-    n = M.shape[0]
-    cond = np.linalg.cond(M)
-    if not np.isfinite(cond) or cond * n * np.finfo(float).eps >= 1.0:
-        raise ValueError(f"M is singular or numerically singular (condition number {cond:.3g}): "
-                         "a first-order form needs an invertible mass matrix")
-    if np.array_equal(M, M.T) and np.all(np.diag(M) > 0.0):
-        try:
-            cho = scipy.linalg.cho_factor(M, check_finite=False)
-        except np.linalg.LinAlgError:
-            pass                                   # symmetric but indefinite: use LU
-        else:
-            return lambda X: scipy.linalg.cho_solve(cho, X, check_finite=False)
-    lu_piv = scipy.linalg.lu_factor(M, check_finite=False)
-    if np.any(np.diag(lu_piv[0]) == 0.0):
-        raise ValueError("M is singular (zero pivot in its LU factorisation): "
-                         "a first-order form needs an invertible mass matrix")
-    return lambda X: scipy.linalg.lu_solve(lu_piv, X, check_finite=False)
 
 
 def first_order_form(M, C, K):
@@ -94,11 +54,9 @@ def first_order_form(M, C, K):
         If a matrix is not square, not finite or not the size of ``M`` (the message names the
         argument), or if ``M`` is singular or numerically singular.
     """
-    M = _matrix("M", M)
+    M, C, K = linalg.mck(M, C, K)
     N = M.shape[0]
-    C = _matrix("C", C, N)
-    K = _matrix("K", K, N)
-    solve = _mass_solver(M)
+    solve = linalg.solver(M, "M", "a first-order form needs an invertible mass matrix")
     rhs = solve(np.hstack((K, C, np.eye(N))))      # [M^-1 K, M^-1 C, M^-1] in one solve
     A = np.zeros((2 * N, 2 * N))
     A[:N, N:] = np.eye(N)
@@ -265,7 +223,7 @@ def discretize(M, C, K, dt, hold="zoh"):
 
 
 def _state_space(Ad, Bd, Cd, Dd):
-    Ad = _matrix("Ad", Ad)
+    Ad = linalg.square_matrix("Ad", Ad)
     ns = Ad.shape[0]
     out = [Ad]
     for name, value in (("Bd", Bd), ("Cd", Cd), ("Dd", Dd)):

@@ -11,44 +11,13 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse
 
-from . import validate
+from . import linalg, validate
+from .discretize import first_order_form
 from .result import Response
 
 __all__ = ["exact_response", "foh_matrices"]
 
 METHOD = "exact (matrix exponential, first-order hold)"
-
-
-def _dense_matrix(name: str, value, n: int | None = None, like: str = "M") -> np.ndarray:
-    """A finite, square, float64 dense matrix (``n`` x ``n`` when ``n`` is given)."""
-    if scipy.sparse.issparse(value):
-        value = value.toarray()
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a numeric matrix, got {type(value).__name__}") from None
-    if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or arr.shape[0] == 0:
-        raise ValueError(f"{name} must be a non-empty square matrix, got shape {arr.shape}")
-    if n is not None and arr.shape != (n, n):
-        raise ValueError(f"{name} has shape {arr.shape}, expected {(n, n)} to match {like}")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise ValueError(f"{name}[{i}, {j}] = {arr[i, j]!r}: every entry must be finite")
-    return arr
-
-
-def _factor_mass(M: np.ndarray):
-    """LU factors of ``M``; ValueError if ``M`` is singular or numerically singular."""
-    n = M.shape[0]
-    cond = np.linalg.cond(M)
-    if not np.isfinite(cond) or cond * n * np.finfo(float).eps >= 1.0:
-        raise ValueError(f"M is singular or numerically singular (condition number {cond:.3g}); "
-                         "the exact solution needs a nonsingular mass matrix")
-    lu, piv = scipy.linalg.lu_factor(M, check_finite=False)
-    if np.any(np.diag(lu) == 0.0):
-        raise ValueError("M is singular (zero pivot in its LU factorisation)")
-    return lu, piv
 
 
 def foh_matrices(A: np.ndarray, B: np.ndarray, dt: float):
@@ -156,27 +125,17 @@ def exact_response(M, C, K, force, dt, n_steps, loaded=None, outputs=None, x0=No
     start = time.perf_counter()
     dt = validate.positive_scalar("dt", dt)
     n_steps = validate.step_count("n_steps", n_steps)
-    M = _dense_matrix("M", M)
+    M, C, K = linalg.mck(M, C, K)
     N = M.shape[0]
-    C = _dense_matrix("C", C, N)
-    K = _dense_matrix("K", K, N)
     loaded = validate.dof_indices("loaded", loaded, N)
     outputs = validate.dof_indices("outputs", outputs, N)
     f = validate.force_samples(force, n_steps, loaded)
     q0 = np.zeros(N) if x0 is None else validate.vector("x0", x0, length=N)
     qd0 = np.zeros(N) if v0 is None else validate.vector("v0", v0, length=N)
 
-    lu_piv = _factor_mass(M)
-    n_in = loaded.size
-    L = np.zeros((N, n_in))
-    L[loaded, np.arange(n_in)] = 1.0
+    A, B_all = first_order_form(M, C, K)
+    B = B_all[:, loaded]
     ns = 2 * N
-    A = np.zeros((ns, ns))
-    A[:N, N:] = np.eye(N)
-    A[N:, :N] = -scipy.linalg.lu_solve(lu_piv, K, check_finite=False)
-    A[N:, N:] = -scipy.linalg.lu_solve(lu_piv, C, check_finite=False)
-    B = np.zeros((ns, n_in))
-    B[N:, :] = scipy.linalg.lu_solve(lu_piv, L, check_finite=False)
 
     Phi, G0, G1 = foh_matrices(A, B, dt)
 

@@ -11,46 +11,30 @@ equal, and the general-matrix path.
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sps
-import scipy.sparse.linalg as spla
 
 from dtdyn.generated.dttmm_sweep import combine, shift_history
 
-from . import stepping, validate
+from . import linalg, stepping, validate
 from .result import Response
 from .schemes import get_scheme
 
 
-def _matrix(name, A, n=None):
-    if sps.issparse(A):
-        A = sps.csr_matrix(A, dtype=float)
-        data = A.data
-    else:
-        A = np.asarray(A, dtype=float)
-        data = A
-    if A.ndim != 2 or A.shape[0] != A.shape[1]:
-        raise ValueError(f"{name} must be a square matrix, got shape {A.shape}")
-    if n is not None and A.shape[0] != n:
-        raise ValueError(f"{name} has shape {A.shape}, expected ({n}, {n}) to match M")
-    if not np.all(np.isfinite(data)):
-        raise ValueError(f"{name} has a non-finite entry")
-    return A
-
-
-def _factor(A, name):
-    """A solve function for A (sparse LU or dense LU), with a clear error when singular."""
-    if sps.issparse(A):
-        try:
-            lu = spla.splu(sps.csc_matrix(A))
-        except RuntimeError as exc:
-            raise ValueError(f"{name} is singular: {exc}") from None
-        return lu.solve
-    lu, piv = sla.lu_factor(A, check_finite=False)
-    d = np.abs(np.diag(lu))
-    if d.min() <= np.finfo(float).eps * A.shape[0] * max(d.max(), 1e-300):
-        raise ValueError(f"{name} is singular (smallest LU pivot {d.min():.3g})")
-    return lambda b: sla.lu_solve((lu, piv), b, check_finite=False)
+def _initial_acceleration(M, f0):
+    """a_0 from M a_0 = f_0 (zero initial state). A singular M (massless DOFs) is allowed when
+    f_0 is consistent with it: then a_0 is the minimum-norm solution (its massless components
+    are not physical; each step enforces their equilibrium)."""
+    try:
+        return linalg.solver(M, "M")(f0)
+    except ValueError:
+        dense = M.toarray() if sps.issparse(M) else M
+        a0, *_ = np.linalg.lstsq(dense, f0, rcond=None)
+        resid = dense @ a0 - f0
+        if np.linalg.norm(resid) > 1e-12 * max(np.linalg.norm(f0), np.finfo(float).tiny):
+            i = int(np.argmax(np.abs(resid)))
+            raise ValueError(f"M is singular and the force at t_0 loads its null space (DOF {i}): "
+                             "a zero initial state is not in equilibrium there") from None
+        return a0
 
 
 def simulate_mck(M, C, K, force, dt, n_steps, loaded=None, scheme="newmark", outputs=None,
@@ -58,12 +42,11 @@ def simulate_mck(M, C, K, force, dt, n_steps, loaded=None, scheme="newmark", out
     """Time history of M q'' + C q' + K q = L f(t) by one of the generated integrators.
 
     Same force convention and result as `simulate_chain`: ``force`` has shape
-    (n_steps + 1, len(loaded)) with samples at t_0 .. t_n; zero initial state; M must be
-    nonsingular (for the initial acceleration).
+    (n_steps + 1, len(loaded)) with samples at t_0 .. t_n; zero initial state. M may be singular
+    (massless DOFs) where M + Dv C + Dx K is invertible and f_0 is consistent with it.
     """
-    M = _matrix("M", M)
+    M, C, K = linalg.mck(M, C, K, keep_sparse=True)
     n = M.shape[0]
-    C, K = _matrix("C", C, n), _matrix("K", K, n)
     dt = validate.positive_scalar("dt", dt)
     n_steps = validate.step_count("n_steps", n_steps)
     loaded = validate.dof_indices("loaded", loaded, n)
@@ -73,10 +56,10 @@ def simulate_mck(M, C, K, force, dt, n_steps, loaded=None, scheme="newmark", out
     info = get_scheme(scheme, **scheme_params)
     f0 = np.zeros(n)
     f0[loaded] = force[0]
-    a0 = _factor(M, "M")(f0)
+    a0 = _initial_acceleration(M, f0)
 
     def make_advance(sch, K_):
-        solve = _factor(M + K_["r"] * C + K_["p"] * K, "the effective matrix M + Dv C + Dx K")
+        solve = linalg.solver(M + K_["r"] * C + K_["p"] * K, "the effective matrix M + Dv C + Dx K")
         names = sch.history
 
         def advance(frc, H, xo, vo, ao):
@@ -95,5 +78,6 @@ def simulate_mck(M, C, K, force, dt, n_steps, loaded=None, scheme="newmark", out
 
     res = stepping.integrate(info, "acceleration", dt, force, (np.zeros(n), np.zeros(n), a0),
                              make_advance, outputs, quantities, progress)
-    res.info.update(method="assembled matrices", sparse=sps.issparse(M))
+    res.info.update(method="assembled matrices", sparse=sps.issparse(M),
+                    backend="scipy.sparse" if sps.issparse(M) else "numpy")
     return res

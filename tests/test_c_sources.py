@@ -11,10 +11,10 @@ CC = shutil.which("cc") or shutil.which("gcc")
 
 
 @pytest.mark.skipif(CC is None, reason="no C compiler on this machine")
-@pytest.mark.parametrize("scheme", SCHEMES)
-def test_compiles_without_warnings(scheme, tmp_path):
-    src = tmp_path / f"chain_{scheme}.c"
-    src.write_text(resources.files("dtdyn.generated").joinpath(f"chain_{scheme}.c").read_text())
+@pytest.mark.parametrize("name", [f"chain_{s}" for s in SCHEMES] + ["ss_response"])
+def test_compiles_without_warnings(name, tmp_path):
+    src = tmp_path / f"{name}.c"
+    src.write_text(resources.files("dtdyn.generated").joinpath(f"{name}.c").read_text())
     proc = subprocess.run([CC, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-c",
                            str(src), "-o", str(tmp_path / "k.o")], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr

@@ -1,0 +1,63 @@
+"""Checked matrices and factorizations shared by the M, C, K entry points."""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sps
+import scipy.sparse.linalg as spla
+
+
+def square_matrix(name: str, value, n: int | None = None, keep_sparse: bool = False):
+    """A finite, non-empty, square float64 matrix (``n`` x ``n`` to match M when given).
+
+    scipy.sparse input stays sparse (CSR) when ``keep_sparse``, else it is densified.
+    """
+    if sps.issparse(value) and keep_sparse:
+        arr = sps.csr_matrix(value, dtype=float)
+        data = arr.data
+    else:
+        if sps.issparse(value):
+            value = value.toarray()
+        try:
+            arr = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name} must be a real numeric matrix, got "
+                             f"{type(value).__name__}") from None
+        data = arr
+    if arr.ndim != 2 or arr.shape[0] != arr.shape[1] or arr.shape[0] == 0:
+        raise ValueError(f"{name} must be a non-empty square matrix, got shape {arr.shape}")
+    if n is not None and arr.shape != (n, n):
+        raise ValueError(f"{name} has shape {arr.shape}, expected {(n, n)} to match M")
+    bad = ~np.isfinite(data)
+    if bad.any():
+        if sps.issparse(arr):
+            raise ValueError(f"{name} has a non-finite entry")
+        i, j = np.argwhere(bad)[0]
+        raise ValueError(f"{name}[{i}, {j}] = {float(arr[i, j])!r}: every entry must be finite")
+    return arr
+
+
+def mck(M, C, K, keep_sparse: bool = False):
+    """Checked (M, C, K) of one size."""
+    M = square_matrix("M", M, keep_sparse=keep_sparse)
+    n = M.shape[0]
+    return M, square_matrix("C", C, n, keep_sparse), square_matrix("K", K, n, keep_sparse)
+
+
+def solver(A, what: str, why: str = ""):
+    """``solve(B) = A^-1 B`` by sparse or dense LU, factorized once; ValueError naming ``what``
+    when A is singular or numerically singular (condition number * n * eps >= 1)."""
+    tail = f": {why}" if why else ""
+    if sps.issparse(A):
+        try:
+            lu = spla.splu(sps.csc_matrix(A))
+        except RuntimeError as exc:
+            raise ValueError(f"{what} is singular ({exc}){tail}") from None
+        return lu.solve
+    n = A.shape[0]
+    cond = np.linalg.cond(A)
+    if not np.isfinite(cond) or cond * n * np.finfo(float).eps >= 1.0:
+        raise ValueError(f"{what} is singular or numerically singular (condition number "
+                         f"{cond:.3g}){tail}")
+    lu_piv = sla.lu_factor(A, check_finite=False)
+    return lambda B: sla.lu_solve(lu_piv, B, check_finite=False)

@@ -1,0 +1,188 @@
+"""Discrete-time state-space models of M q'' + C q' + K q = f, and a fast time loop for them.
+
+- `newmark_ss`: SHARPy's model (reference.md section 5), built from the M-multiplied blocks
+  derived in dtdyn.derive.state_space, so M is never inverted and massless DOFs are allowed.
+- `discrete_state_space`: the same kind of model for any scheme of the integrator library, from
+  its generated coefficients; state = the scheme's history (x, v, a and lags), output
+  [q; q'] or [q; q'; q''].
+- `state_space_response`: x_{n+1} = A x_n + B f_n, y_n = C x_n + D f_n in a generated C loop.
+
+Every model here removes the direct dependence on f_{n+1} as SHARPy does: with
+z_{n+1} = Phi z_n + Gamma0 f_n + Gamma1 f_{n+1}, the state x_n = z_n - Gamma1 f_n gives
+A = Phi, B = Gamma0 + Phi Gamma1, and the outputs y_n = S z_n = S x_n + S Gamma1 f_n.
+"""
+from __future__ import annotations
+
+import ctypes
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+import scipy.linalg as sla
+
+from dtdyn.generated import newmark_ss as _blocks
+
+from . import cbuild, linalg, validate
+from .schemes import get_scheme
+
+
+def _shift_feedthrough(Phi, G0, G1, S):
+    """(A, B, C, D) for the state x_n = z_n - G1 f_n (see the module docstring)."""
+    return Phi, G0 + Phi @ G1, S, S @ G1
+
+
+def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False):
+    """SHARPy's Newmark discrete-time state space: ``(Ass, Bss, Css, Dss)``.
+
+    gamma = 1/2 + num_damp, beta = (1 + num_damp)^2 / 4. With y = [q; q'] and the derived
+    M-multiplied blocks ``E1 y_{n+1} = E0 y_n + G0 f_n + G1 f_{n+1}``,
+
+        Ass = E1^-1 E0,  Dss = E1^-1 G1,  Bss = E1^-1 (G0 + E0 Dss),  Css = I,
+
+    equal to SHARPy's Ass1^-1 Ass0 etc. (reference.md section 5) without forming M^-1. A singular
+    M still has no such model: for a massless DOF both rows reduce to its equilibrium at t_{n+1}
+    (M's row is zero), so E1 is singular; the error says so and points to
+    `discrete_state_space`, whose state [q; q'; q''] needs only M + Dv C + Dx K invertible.
+    ``M_is_SPD`` is kept for SHARPy's signature; when True, M is checked to be symmetric positive
+    definite (Cholesky) and a ValueError names it otherwise.
+
+    Output y_n = Css x_n + Dss f_n = [q_n; q'_n]; input f on every DOF.
+    """
+    M, C, K = linalg.mck(M, C, K)
+    dt = validate.positive_scalar("dt", dt)
+    try:
+        num_damp = float(num_damp)
+    except (TypeError, ValueError):
+        raise ValueError(f"num_damp must be a number, got {num_damp!r}") from None
+    if not (np.isfinite(num_damp) and num_damp >= 0.0):
+        raise ValueError(f"num_damp must be finite and >= 0, got {num_damp!r}")
+    if M_is_SPD:
+        if not np.allclose(M, M.T, rtol=1e-12, atol=0.0):
+            raise ValueError("M_is_SPD=True but M is not symmetric")
+        try:
+            sla.cholesky(M)
+        except sla.LinAlgError:
+            raise ValueError("M_is_SPD=True but M is not positive definite") from None
+    n = M.shape[0]
+    beta, gamma = _blocks.sharpy_params(num_damp)
+    E1, E0, G0, G1 = (np.block(b) for b in _blocks.blocks(M, C, K, np.eye(n), np.zeros((n, n)),
+                                                           dt, beta, gamma))
+    try:
+        solve = linalg.solver(E1, "the Newmark matrix [[M + beta dt^2 K, beta dt^2 C], "
+                                  "[gamma dt K, M + gamma dt C]]", "no discrete model at this dt")
+    except ValueError:
+        if np.linalg.matrix_rank(M) < n:
+            raise ValueError("M is singular: with a massless DOF the two Newmark rows of that DOF "
+                             "both reduce to its equilibrium at t_n+1, so no [q; q'] model exists; "
+                             "use discrete_state_space(M, C, K, dt, scheme='newmark', beta=..., "
+                             "gamma=...), whose state carries q''") from None
+        raise
+    Ass = solve(E0)
+    Dss = solve(G1)
+    Bss = solve(G0 + E0 @ Dss)
+    return Ass, Bss, np.eye(2 * n), Dss
+
+
+def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False, **scheme_params):
+    """State-space model ``(A, B, C, D)`` of one step of any scheme of the integrator library.
+
+    State: the scheme's history per DOF (x, v, a and, for multistep schemes, the lags), shifted
+    by the f_{n+1} feedthrough; input f on every DOF; output [q; q'] (and q'' when
+    ``acceleration``). Each step solves, as `simulate_mck` does (acceleration form),
+
+        (M + Dv C + Dx K) a_e = w0 f_n + w1 f_{n+1} - K Ex(h_n) - C Ev(h_n),
+        h_{n+1} = c_u a_e + L h_n,
+
+    with the generated coefficients; no inverse of M is formed. For Houbolt and Park this is the
+    main recursion: the start-up steps of `simulate_mck` are not part of the LTI model.
+    """
+    M, C, K = linalg.mck(M, C, K)
+    dt = validate.positive_scalar("dt", dt)
+    info = get_scheme(scheme, **scheme_params)
+    coef = info.coefficients("acceleration", dt)
+    names = info.history
+    n, nh = M.shape[0], len(names)
+    eye = np.eye(n)
+    solve = linalg.solver(M + coef["r"] * C + coef["p"] * K, "the effective matrix M + Dv C + Dx K",
+                          "no discrete model at this dt")
+
+    def row(prefix):
+        return np.hstack([coef.get(f"{prefix}_{h}", 0.0) * eye for h in names])
+
+    KE = K @ row("q") + C @ row("s")  # K Ex + C Ev as a map of h
+    U_h = np.zeros((nh * n, nh * n))
+    U_u = np.zeros((nh * n, n))
+    for i, h in enumerate(names):
+        block = slice(i * n, (i + 1) * n)
+        lag = 0 if h[1:] == "0" else int(h[2:])
+        if lag == 0:  # x0, v0, a0 <- x1, v1, a1
+            U_h[block] = row(h[0] + "1")
+            U_u[block] = coef.get(f"{h[0]}1_u", 0.0) * eye
+        else:  # xm1 <- x0, xm2 <- xm1, ...
+            prev = names.index(h[0] + ("0" if lag == 1 else f"m{lag - 1}"))
+            U_h[block, prev * n:(prev + 1) * n] = eye
+    Keff_inv_KE = solve(KE)
+    Keff_inv = solve(eye)
+    Phi = U_h - U_u @ Keff_inv_KE
+    G0 = coef["w0"] * (U_u @ Keff_inv)
+    G1 = coef["w1"] * (U_u @ Keff_inv)
+    outputs = ["x0", "v0"] + (["a0"] if acceleration else [])
+    S = np.zeros((len(outputs) * n, nh * n))
+    for k, h in enumerate(outputs):
+        i = names.index(h)
+        S[k * n:(k + 1) * n, i * n:(i + 1) * n] = eye
+    return _shift_feedthrough(Phi, G0, G1, S)
+
+
+@lru_cache(maxsize=None)
+def _c_loop():
+    source = resources.files("dtdyn.generated").joinpath("ss_response.c").read_text()
+    lib = cbuild.load_library(source, "ss_response")
+    if lib is None:
+        return None
+    fn = lib.dtdyn_ss_states
+    fn.argtypes = [ctypes.c_long] * 2 + [ctypes.c_void_p] * 5
+    fn.restype = ctypes.c_int
+    return fn
+
+
+def state_space_response(Ad, Bd, Cd, Dd, force, x0=None, backend="c"):
+    """Response of x_{n+1} = Ad x_n + Bd f_n, y_n = Cd x_n + Dd f_n for n = 0 .. n_steps - 1.
+
+    ``force`` has shape (n_steps, n_inputs); returns y of shape (n_steps, n_outputs). The input
+    and output maps run as two matrix-matrix products over the whole record; only the recursion
+    x_{n+1} = Ad x_n + w_n is sequential, in a generated C kernel (a NumPy loop when no compiler
+    exists). Memory: the states, n_steps x n_states doubles.
+    """
+    A = np.asarray(Ad, dtype=float)
+    B, Cm, D = (np.atleast_2d(np.asarray(X, dtype=float)) for X in (Bd, Cd, Dd))
+    ns = A.shape[0]
+    if A.ndim != 2 or A.shape != (ns, ns):
+        raise ValueError(f"Ad must be square, got shape {A.shape}")
+    f = np.asarray(force, dtype=float)
+    if f.ndim == 1:
+        f = f[:, None]
+    ni, no = B.shape[1], Cm.shape[0]
+    for name, X, shape in (("Ad", A, (ns, ns)), ("Bd", B, (ns, ni)), ("Cd", Cm, (no, ns)),
+                           ("Dd", D, (no, ni)), ("force", f, (f.shape[0], ni))):
+        if X.shape != shape:
+            raise ValueError(f"{name} has shape {X.shape}, expected {shape}")
+        if not np.all(np.isfinite(X)):
+            raise ValueError(f"{name} has a non-finite entry")
+    x = np.zeros(ns) if x0 is None else validate.vector("x0", x0, length=ns).copy()
+    n_steps = f.shape[0]
+    w = np.ascontiguousarray(f @ B.T)
+    X = np.empty((n_steps, ns))
+    fn = _c_loop() if backend == "c" else None
+    if fn is None:
+        for k in range(n_steps):
+            X[k] = x
+            x = A @ x + w[k]
+    else:
+        At = np.ascontiguousarray(A.T)
+        fn(ns, n_steps, At.ctypes.data, w.ctypes.data, x.ctypes.data, X.ctypes.data,
+           np.empty(ns).ctypes.data)
+    y = X.copy() if Cm.shape == (ns, ns) and np.array_equal(Cm, np.eye(ns)) else X @ Cm.T
+    if D.any():
+        y += f @ D.T
+    return y
