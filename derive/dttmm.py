@@ -93,7 +93,8 @@ class Sweeps:
     h: sp.Expr
     a_fwd: sp.Expr
     b_fwd: sp.Expr
-    den: sp.Expr  # time-invariant divisor of h and b_fwd: kernels store 1/den per station
+    den: sp.Expr  # time-invariant divisor of h and b_fwd: kernels store it per station (a
+    # division, not a product with 1/den, whose rounding bias accumulates in the displacement form)
     h_num: sp.Expr  # h = h_num / den
     b_num: sp.Expr  # b_fwd = b_num / den
 

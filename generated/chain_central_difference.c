@@ -46,11 +46,11 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
     double *a0 = hist + 2 * N;
     double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
     double *SR = work + 5 * N, *g = work + 6 * N, *af = work + 7 * N, *R = work + 8 * N;
-    double *u = work + 9 * N, *Pu = work + 10 * N, *id = work + 11 * N;
+    double *u = work + 9 * N, *Pu = work + 10 * N, *den = work + 11 * N;
     double PfN = 1.0;
     long n, i, j, step;
     (void)dt; (void)params; (void)alpha_u; (void)q; (void)b; (void)R; (void)Pu; (void)SR; (void)g;
-    (void)af; (void)id;
+    (void)af; (void)den;
     if (sweep == 0) {
         double S_R = 0.0;
         for (n = N - 1; n >= 0; --n) {
@@ -60,7 +60,7 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
             g[n] = kp/(-SR[n] + alpha_u*mn + kp);
             S_L = kp*(SR[n] - alpha_u*mn)/(-SR[n] + alpha_u*mn + kp);
             af[n] = kp/(-SR[n] + alpha_u*mn + kp);
-            id[n] = 1.0 / (-SR[n] + alpha_u*mn + kp);
+            den[n] = -SR[n] + alpha_u*mn + kp;
             S_R = S_L;
         }
     } else {
@@ -91,13 +91,13 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
             double up = 0.0;
             for (n = N - 1; n >= 0; --n) {
                 const double mn = m[n], kp = k[n] * p + c[n] * r;
-                R[n] = fma(g[n], n + 1 < N ? R[n + 1] : 0.0, (-Dl[n]*SR[n] + Dl[n]*alpha_u*mn + Fe[n]*kp - b[n]*kp*mn) * id[n]);
+                R[n] = fma(g[n], n + 1 < N ? R[n + 1] : 0.0, (-Dl[n]*SR[n] + Dl[n]*alpha_u*mn + Fe[n]*kp - b[n]*kp*mn) / den[n]);
             }
             for (n = 0; n < N; ++n) {
                 const double mn = m[n];
                 const double R_R = n + 1 < N ? R[n + 1] : 0.0;
                 (void)mn;
-                up = fma(af[n], up, (-Dl[n] + Fe[n] + R_R - b[n]*mn) * id[n]);
+                up = fma(af[n], up, (-Dl[n] + Fe[n] + R_R - b[n]*mn) / den[n]);
                 u[n] = up;
             }
         } else {

@@ -60,7 +60,7 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
         SR = np.empty(N)
         g = np.empty(N)
         af = np.empty(N)
-        inv_den = np.empty(N)
+        den = np.empty(N)
         S_R = 0.0
         for n in range(N - 1, -1, -1):
             mn, kp = m[n], kappa[n]
@@ -68,7 +68,7 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
             g[n] = kp/(-S_R + alpha_u*mn + kp)
             S_L = kp*(S_R - alpha_u*mn)/(-S_R + alpha_u*mn + kp)
             af[n] = kp/(-S_R + alpha_u*mn + kp)
-            inv_den[n] = 1.0 / (-S_R + alpha_u*mn + kp)
+            den[n] = -S_R + alpha_u*mn + kp
             S_R = S_L
         upper = np.ones((2, N))
         upper[0, 1:] = -g[:-1]
@@ -90,11 +90,11 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
         Dl = k * np.diff(q, prepend=0.0) + c * np.diff(s, prepend=0.0)
         if sweep == "stable":
             mn, kp = m, kappa
-            h = (-Dl*SR + Dl*alpha_u*mn + Fe*kp - b*kp*mn) * inv_den
+            h = (-Dl*SR + Dl*alpha_u*mn + Fe*kp - b*kp*mn) / den
             R, info = dtbtrs(upper, h[:, None], uplo="U", diag="U")
             R = R[:, 0]
             R_R = np.append(R[1:], 0.0)
-            u, info = dtbtrs(lower, ((-Dl + Fe + R_R - b*mn) * inv_den)[:, None], uplo="L", diag="U")
+            u, info = dtbtrs(lower, ((-Dl + Fe + R_R - b*mn) / den)[:, None], uplo="L", diag="U")
             u = u[:, 0]
         else:
             u = np.empty(N)

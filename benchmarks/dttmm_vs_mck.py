@@ -1,0 +1,66 @@
+"""How closely the DT-TMM chain sweep equals the assembled-matrix solution of the same scheme.
+
+For P1, P2, P3 (reference.md section 7, unit step on the last mass) and dt = 1e-2 .. 1e-5 (the
+full duration, at most 3,000 steps), every implicit scheme, both forms, C backend: the largest
+max-over-time relative difference of x (relative to max |x|) against `simulate_mck`, which
+works in the acceleration form. Writes docs/dttmm_accuracy.md.
+Usage: python benchmarks/dttmm_vs_mck.py
+"""
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+
+from dtdyn.generated import SCHEMES
+from dtdyn.runtime.chain import chain_matrices, simulate_chain
+from dtdyn.runtime.mck import simulate_mck
+
+PROBLEMS = {
+    "P1": ([2.0], [12.0], [3.0], 10.0),
+    "P2": ([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], 10.0),
+    "P3": ([10, 9, 8, 7, 6, 6, 5.5, 5, 4.5, 4, 3.5, 4, 2.5, 2, 2],
+           [55000, 50000, 45000, 40000, 40000, 35000, 30000, 25000, 20000, 15000, 10000, 9000,
+            8000, 7000, 6000], [0.0] * 15, 0.8),
+}
+DTS = (1e-2, 1e-3, 1e-4, 1e-5)
+
+
+def main():
+    rows = []
+    for form in ("displacement", "acceleration"):
+        worst = {}
+        for name, (m, k, c, T) in PROBLEMS.items():
+            M, C, K = chain_matrices(m, k, c)
+            for dt in DTS:
+                n = min(int(round(T / dt)), 3000)
+                F = np.ones((n + 1, 1))
+                for scheme in SCHEMES:
+                    if scheme == "central_difference":
+                        continue
+                    ref = simulate_mck(M, C, K, F, dt, n, loaded=[len(m) - 1], scheme=scheme,
+                                       quantities=("x",))
+                    r = simulate_chain(m, k, c, F, dt, n, loaded=[len(m) - 1], scheme=scheme,
+                                       form=form, quantities=("x",))
+                    d = float(np.max(np.abs(r.x - ref.x)) / np.max(np.abs(ref.x)))
+                    if d >= worst.get((name, dt), (0.0, ""))[0]:
+                        worst[(name, dt)] = (d, scheme)
+        for (name, dt), (d, scheme) in sorted(worst.items()):
+            rows.append(f"| {form} | {name} | {dt:g} | {d:.1e} | {scheme} |")
+    table = ("| form | problem | dt | largest difference | scheme |\n|---|---|---|---:|---|\n"
+             + "\n".join(rows))
+    print(table)
+    doc = pathlib.Path(__file__).resolve().parents[1] / "docs" / "dttmm_accuracy.md"
+    doc.write_text(
+        "# DT-TMM against the assembled matrices\n\nOutput of `python benchmarks/dttmm_vs_mck.py`: "
+        "max over time of |x_DT-TMM - x_mck| / max |x_mck|, the largest over the implicit "
+        "schemes, stable sweep, C backend; full duration or the first 3,000 steps.\n\n" + table
+        + "\n\nThe acceleration form keeps the accuracy of the mass equation at any dt. The "
+        "displacement form (the source's state [x, f, 1]) computes a = A (x - x_pred) with "
+        "A = 1/(beta dt^2): the acceleration is a difference that cancels by (omega dt)^2, so "
+        "its rounding floor grows as dt shrinks; an assembled-matrix solver written in the "
+        "displacement form shows the same floor.\n")
+
+
+if __name__ == "__main__":
+    main()
