@@ -14,7 +14,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from . import dttmm, integrators as I, kernels, printing, state_space, tmm
+from . import dttmm, integrators as I, kernels, modal_filters, printing, state_space, tmm
 
 TEMPLATES = Path(__file__).parent / "templates"
 GENERATED = Path(__file__).resolve().parent.parent / "generated"
@@ -150,6 +150,19 @@ def _newmark_ss_context() -> dict:
             "sharpy_text": ", ".join(f"{k} = {sp.sstr(v)}" for k, v in params.items())}
 
 
+def _modal_filters_context() -> dict:
+    mf = modal_filters
+    inv = [mf.derive_invariant(n) for n in mf.INVARIANTS]
+    fold = mf.fold_pair()
+    return {
+        "closed": [(i.name, sp.sstr(i.c0), sp.sstr(i.c1)) for i in inv],
+        "phi": [(i.name, i.phi) for i in inv],
+        "series": [[repr(float(c)) for c in ser] for ser in mf.phi_series()],
+        "fold": [(k, sp.sstr(e)) for k, e in fold.items()],
+        "fold_py": [printing.py(fold[k]) for k in ("b0", "b1", "b2", "a1", "a2")],
+    }
+
+
 def render_all() -> dict[str, str]:
     """Every generated file as {name: text}."""
     env = environment()
@@ -164,6 +177,9 @@ def render_all() -> dict[str, str]:
     render("numpy/newmark_ss.py.jinja", "newmark_ss.py", "dtdyn.derive.state_space",
            **_newmark_ss_context())
     render("c/ss_response.c.jinja", "ss_response.c", "the discrete state-space recursion")
+    render("numpy/modal_filters.py.jinja", "modal_filters.py", "dtdyn.derive.modal_filters",
+           **_modal_filters_context())
+    render("c/filter_bank.c.jinja", "filter_bank.c", "dtdyn.derive.modal_filters (sections)")
     names = list(I.SCHEMES)
     for name in names:
         ctx = _scheme_context(name)
