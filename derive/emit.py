@@ -82,7 +82,7 @@ def _scheme_context(name: str) -> dict:
             "form": form,
             "temps": [(str(t), printing.c(e)) for t, e in temps],
             "rows": [(n, printing.c(e)) for n, e in reduced],
-            "g": cc(sw.g), "S": cc(sw.S_expr), "a": cc(sw.a_fwd.subs(dttmm.S_L, sp.Symbol("S_L"))),
+            "g": cc(sw.g), "S": cc(sw.S_expr), "a": cc(sw.a_fwd),
             "den": cc(sw.den), "h_num": cc(sw.h_num), "b_num": cc(sw.b_num),
             "T": ["(" + cc(sw.T[i, j]) + ")" for i, j in T_ENTRIES],
             **{n: _lin(n, fs.hist_terms[n]) for n in ("q", "s", "b")},
@@ -93,7 +93,7 @@ def _scheme_context(name: str) -> dict:
         "params": list(sch.params), "defaults": sch.defaults, "history": list(spec.history),
         "startup_steps": sch.startup_steps, "order": sch.order, "explicit": spec.derived.explicit,
         "forms_py": forms_py, "forms_c": forms_c, "shift": _shift_lines(spec.history),
-        "derived": spec.derived, "spec": spec,
+        "derived": spec.derived,
     }
 
 

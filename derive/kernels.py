@@ -46,6 +46,9 @@ def _linear(expr, variables, what):
     return {n: cf for n, cf in coeffs.items() if cf != 0}
 
 
+U = sp.Symbol("u")
+
+
 def scheme_spec(name: str) -> SchemeSpec:
     der = I.derive_scheme(name)
     scheme = der.scheme
@@ -55,21 +58,16 @@ def scheme_spec(name: str) -> SchemeSpec:
         if form == "displacement" and der.explicit:
             continue
         maps = dttmm.form_maps(form, der)
-        u = I.xe if form == "displacement" else I.ae
+        primary = I.xe if form == "displacement" else I.ae
         upd = der.update_x if form == "displacement" else der.update_a
+        # the primary unknown is called u in the kernels, and its term comes last
         forms[form] = FormSpec(
             form,
             {n: sp.simplify(maps[n]) for n in ("p", "r", "alpha_u")},
             {n: _linear(maps[n], hist, f"{name}.{form}.{n}") for n in ("q", "s", "b")},
-            {n: _linear(upd[n], [u] + hist, f"{name}.{form}.{n}") for n in ("x1", "v1", "a1")},
+            {n: _linear(upd[n].subs(primary, U), hist + [U], f"{name}.{form}.{n}")
+             for n in ("x1", "v1", "a1")},
         )
-    # the primary unknown is called u in the kernels
-    for fs in forms.values():
-        for n in fs.update:
-            d = fs.update[n]
-            for key in ("xe", "ae"):
-                if key in d:
-                    d["u"] = d.pop(key)
     return SchemeSpec(name, scheme, der, scheme.params, scheme.history, der.w0, der.w1, forms)
 
 
