@@ -14,7 +14,8 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from . import dttmm, integrators as I, kernels, modal_filters, printing, state_space, tmm
+from . import (dttmm, integrators as I, kernels, modal_filters, printing, stability,
+               state_space, tmm)
 
 TEMPLATES = Path(__file__).parent / "templates"
 GENERATED = Path(__file__).resolve().parent.parent / "generated"
@@ -163,6 +164,20 @@ def _modal_filters_context() -> dict:
     }
 
 
+def _stability_context() -> dict:
+    out = []
+    for name, sch in I.SCHEMES.items():
+        A = stability.amplification_matrix(name)
+        n = A.shape[0]
+        rows = [((i, j), A[i, j]) for i in range(n) for j in range(n)]
+        temps, reduced = printing.cse_assignments([(f"{i},{j}", e) for (i, j), e in rows], "t")
+        out.append({"name": name, "params": list(sch.params), "history": list(sch.history),
+                    "n": n, "temps": [(str(t), printing.py(e)) for t, e in temps],
+                    "entries": [(tuple(map(int, k.split(","))), printing.py(e))
+                                for k, e in reduced]})
+    return {"schemes": out}
+
+
 def render_all() -> dict[str, str]:
     """Every generated file as {name: text}."""
     env = environment()
@@ -180,6 +195,8 @@ def render_all() -> dict[str, str]:
     render("numpy/modal_filters.py.jinja", "modal_filters.py", "dtdyn.derive.modal_filters",
            **_modal_filters_context())
     render("c/filter_bank.c.jinja", "filter_bank.c", "dtdyn.derive.modal_filters (sections)")
+    render("numpy/stability.py.jinja", "stability.py", "dtdyn.derive.stability",
+           **_stability_context())
     names = list(I.SCHEMES)
     for name in names:
         ctx = _scheme_context(name)

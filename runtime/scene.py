@@ -676,6 +676,42 @@ def load_scene(path: str | os.PathLike | None = None) -> Scene:
         raise ValueError(f"{source}: {exc}") from None
 
 
+def natural_frequencies(scene: Scene) -> np.ndarray:
+    """Undamped natural frequencies (rad/s) to check stability against: all of them up to
+    EXACT_MAX_DOF DOFs, else the highest only (the one conditionally stable schemes lose first)."""
+    import scipy.linalg as sla
+    import scipy.sparse as sps
+
+    if scene.kind == "matrices":
+        if scene.n_dof > EXACT_MAX_DOF:
+            return np.array([])
+        M, K = (A.toarray() if sps.issparse(A) else np.asarray(A) for A in (scene.M, scene.K))
+        try:
+            lam = sla.eigh(K, M, eigvals_only=True)
+        except (np.linalg.LinAlgError, ValueError):  # singular or indefinite M: skip the check
+            return np.array([])
+        return np.sqrt(np.clip(lam, 0.0, None))
+    m, k = scene.mass, scene.stiffness
+    s = 1.0 / np.sqrt(m)
+    kk = k + np.append(k[1:], 0.0)
+    d, e = kk * s * s, -k[1:] * s[:-1] * s[1:]  # M^-1/2 K M^-1/2, tridiagonal
+    n = m.size
+    sel = {} if n <= EXACT_MAX_DOF else {"select": "i", "select_range": (n - 1, n - 1)}
+    lam = sla.eigh_tridiagonal(d, e, eigvals_only=True, **sel)
+    return np.sqrt(np.clip(lam, 0.0, None))
+
+
+def check_stability(scene: Scene) -> bool:
+    """Warn before a run whose dt makes the scheme unstable for a mode of the model."""
+    from .stability import warn_if_unstable
+
+    omegas = natural_frequencies(scene)
+    omegas = omegas[omegas > 0.0]
+    if omegas.size == 0:
+        return False
+    return warn_if_unstable(scene.scheme, omegas, scene.dt, **scene.scheme_params)
+
+
 def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
     """Simulate a scene with ``simulate_chain`` (chains) or ``simulate_mck`` (general matrices)
     and report run time and error.
@@ -697,6 +733,7 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
         run_time_s, exact_time_s, max_rel_error``. For matrices ``form`` is ``"acceleration"``,
         ``sweep`` None and ``backend`` ``"numpy"`` (dense) or ``"scipy.sparse"``.
     """
+    check_stability(scene)
     start = time.perf_counter()
     if scene.kind == "matrices":
         from . import mck

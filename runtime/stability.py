@@ -1,0 +1,88 @@
+"""Stability and accuracy of every scheme on x'' + 2 zeta omega x' + omega^2 x = 0.
+
+Evaluates the amplification matrices derived from each scheme's own relations
+(dtdyn.generated.stability): spectral radius rho = max |eig A(Omega, zeta)|, and from the
+principal eigenvalue pair lambda = exp(Omega_bar (-xi_bar +- i)) the period elongation
+Omega / Omega_bar - 1 and the algorithmic damping xi_bar (Hilber & Hughes 1978). The principal
+pair is the eigenvalue with Im > 0 closest to the exact exp((-zeta + i sqrt(1 - zeta^2)) Omega).
+"""
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from dtdyn.generated import stability as _amp
+
+from .schemes import get_scheme
+
+
+@dataclass
+class Stability:
+    scheme: str
+    params: dict
+    omega_dt: np.ndarray
+    zeta: float
+    spectral_radius: np.ndarray
+    period_elongation: np.ndarray  # NaN where the principal pair is real (no oscillation)
+    algorithmic_damping: np.ndarray
+
+
+class DtdynStabilityWarning(RuntimeWarning):
+    """The scheme is unstable at this dt for some mode of the model."""
+
+
+def stability(scheme, omega_dt, zeta=0.0, **scheme_params) -> Stability:
+    """Spectral radius, period elongation and algorithmic damping over ``omega_dt``."""
+    info = get_scheme(scheme, **scheme_params)
+    W = np.atleast_1d(np.asarray(omega_dt, dtype=float))
+    if np.any(~np.isfinite(W)) or np.any(W <= 0.0):
+        raise ValueError("omega_dt must be finite and > 0")
+    zeta = float(zeta)
+    if not 0.0 <= zeta < 1.0:
+        raise ValueError(f"zeta must be in [0, 1), got {zeta!r}")
+    params = [info.params[p] for p in info.module.PARAMS]
+    lam = np.linalg.eigvals(_amp.amplification(info.name, W, zeta, params))
+    rho = np.abs(lam).max(axis=1)
+    exact = np.exp((-zeta + 1j * np.sqrt(1.0 - zeta**2)) * W)[:, None]
+    cand = np.where(lam.imag > 1e-14, lam, np.inf)
+    k = np.argmin(np.abs(cand - exact), axis=1)
+    principal = lam[np.arange(W.size), k]
+    osc = np.isfinite(cand[np.arange(W.size), k])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w_bar = np.where(osc, np.angle(principal), np.nan)
+        xi_bar = np.where(osc, -np.log(np.abs(principal)) / w_bar, np.nan)
+        elong = W * np.sqrt(1.0 - zeta**2) / w_bar - 1.0
+    return Stability(info.name, dict(info.params), W, zeta, rho, elong, xi_bar)
+
+
+def critical_omega_dt(scheme, zeta=0.0, upper=1e4, **scheme_params) -> float:
+    """The largest Omega below which rho <= 1 (inf when stable up to ``upper``)."""
+    grid = np.geomspace(1e-3, upper, 4000)
+    unstable = stability(scheme, grid, zeta, **scheme_params).spectral_radius > 1.0 + 1e-10
+    if not unstable.any():
+        return float("inf")
+    i = int(np.argmax(unstable))
+    lo, hi = (grid[i - 1] if i else 0.0), grid[i]
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        bad = stability(scheme, [mid], zeta, **scheme_params).spectral_radius[0] > 1.0 + 1e-10
+        lo, hi = (lo, mid) if bad else (mid, hi)
+    return lo
+
+
+def warn_if_unstable(scheme, omegas, dt, zeta=0.0, **scheme_params) -> bool:
+    """Warn (DtdynStabilityWarning) naming the worst unstable mode (1-based, ascending frequency)
+    and its Omega = omega dt; returns whether any mode is unstable."""
+    omegas = np.sort(np.asarray(omegas, dtype=float))
+    st = stability(scheme, omegas * dt, zeta, **scheme_params)
+    bad = np.flatnonzero(st.spectral_radius > 1.0 + 1e-10)
+    if bad.size:
+        i = int(bad[np.argmax(st.spectral_radius[bad])])  # the worst mode
+        warnings.warn(f"scheme {st.scheme!r} is unstable at dt = {dt:g} s: mode {i + 1} "
+                      f"(omega = {omegas[i]:.6g} rad/s) has Omega = omega dt = {omegas[i] * dt:.4g}, "
+                      f"spectral radius {st.spectral_radius[i]:.6g} > 1 ({bad.size} unstable "
+                      "mode(s))", DtdynStabilityWarning, stacklevel=2)
+        return True
+    return False
