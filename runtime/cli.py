@@ -96,6 +96,48 @@ def _simulate(args) -> int:
     return 0
 
 
+def _stability(args) -> int:
+    import numpy as np
+
+    from dtdyn.generated import SCHEMES
+    from dtdyn.runtime.stability import critical_omega_dt, stability
+
+    names = args.schemes or list(SCHEMES)
+    omega = np.geomspace(1e-2, 1e3, 400)
+    marks = [0.1, 0.5, 1.0, 10.0, 1000.0]
+    print(f"{'scheme':22s} {'critical Omega':>14s}  " + "  ".join(f"rho({w:g})" for w in marks)
+          + "  elongation(0.1)  damping(0.1)")
+    curves = {}
+    for name in names:
+        st = stability(name, omega)
+        at = stability(name, marks)
+        crit = critical_omega_dt(name)
+        curves[name] = st
+        print(f"{name:22s} {crit:14.4f}  " + "  ".join(f"{r:8.4f}" for r in at.spectral_radius)
+              + f"  {at.period_elongation[0]:15.3e}  {at.algorithmic_damping[0]:12.3e}")
+    if args.plot:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(12, 4), layout="constrained")
+        FigureCanvasAgg(fig)
+        axes = fig.subplots(1, 3)
+        for name, st in curves.items():
+            axes[0].semilogx(st.omega_dt, st.spectral_radius, label=name)
+            axes[1].loglog(st.omega_dt, np.abs(st.period_elongation), label=name)
+            axes[2].loglog(st.omega_dt, np.abs(st.algorithmic_damping), label=name)
+        for ax, title in zip(axes, ("spectral radius", "|period elongation|",
+                                    "|algorithmic damping ratio|")):
+            ax.set_title(title)
+            ax.set_xlabel("Omega = omega dt")
+            ax.grid(True, which="both", alpha=0.3)
+        axes[0].set_ylim(0, 1.5)
+        axes[0].legend(fontsize=6)
+        fig.savefig(args.plot, dpi=120)
+        print(f"plot: {args.plot}")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="dtdyn", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -109,8 +151,12 @@ def main(argv=None) -> int:
     r.add_argument("--out", help="write results to this .npz file")
     r.add_argument("--plot", help="plot the displacements to this image file")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    st = sub.add_parser("stability", help="spectral radius, period elongation, damping per scheme")
+    st.add_argument("schemes", nargs="*", help="scheme names (default: all)")
+    st.add_argument("--plot", help="draw the curves to this image file")
     args = parser.parse_args(argv)
-    handler = {"generate": _generate, "show": _show, "simulate": _simulate}[args.command]
+    handler = {"generate": _generate, "show": _show, "simulate": _simulate,
+               "stability": _stability}[args.command]
     try:
         return handler(args)
     except (ValueError, FileNotFoundError, FloatingPointError) as exc:
