@@ -122,10 +122,15 @@ def _stability(args) -> int:
         fig = Figure(figsize=(12, 4), layout="constrained")
         FigureCanvasAgg(fig)
         axes = fig.subplots(1, 3)
-        for name, st in curves.items():
-            axes[0].semilogx(st.omega_dt, st.spectral_radius, label=name)
-            axes[1].loglog(st.omega_dt, np.abs(st.period_elongation), label=name)
-            axes[2].loglog(st.omega_dt, np.abs(st.algorithmic_damping), label=name)
+        from matplotlib import colormaps
+
+        colors = colormaps["tab20"](np.linspace(0, 1, 20))
+        for i, (name, st) in enumerate(curves.items()):
+            style = dict(label=name, color=colors[(2 * i) % 20 + (2 * i) // 20],
+                         ls=("-", "--", ":")[i % 3])
+            axes[0].semilogx(st.omega_dt, st.spectral_radius, **style)
+            axes[1].loglog(st.omega_dt, np.abs(st.period_elongation), **style)
+            axes[2].loglog(st.omega_dt, np.maximum(np.abs(st.algorithmic_damping), 1e-16), **style)
         for ax, title in zip(axes, ("spectral radius", "|period elongation|",
                                     "|algorithmic damping ratio|")):
             ax.set_title(title)
