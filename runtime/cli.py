@@ -143,6 +143,59 @@ def _stability(args) -> int:
     return 0
 
 
+def _srs(args) -> int:
+    import warnings
+
+    import numpy as np
+
+    from dtdyn.runtime import srs as S
+
+    accel = S.load_record(args.record, args.column)
+    if not args.fs > 0.0 or not np.isfinite(args.fs):
+        raise ValueError(f"--fs must be finite and > 0, got {args.fs!r}")
+    if args.freqs is None:
+        fmin, fmax, n = args.fs / 1e4, args.fs / 10.0, 100
+    else:
+        fmin, fmax, n = args.freqs
+        if float(n) != int(n) or int(n) < 1:
+            raise ValueError(f"--freqs: the count n must be an integer >= 1, got {n!r}")
+        n = int(n)
+        if not (0.0 < fmin and fmin <= fmax):
+            raise ValueError(f"--freqs: need 0 < fmin <= fmax, got fmin = {fmin!r}, "
+                             f"fmax = {fmax!r}")
+    freqs = np.geomspace(fmin, fmax, n)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", S.SRSSamplingWarning)
+        res = S.shock_response_spectrum(accel, args.fs, freqs, damping=args.damping,
+                                        response=args.response, window=args.window,
+                                        points_per_cycle=args.points_per_cycle,
+                                        exact_peaks=args.exact_peaks)
+    for w in caught:
+        print(f"warning: {w.message}", file=sys.stderr)
+    info = res.info
+    print(f"SRS of {args.record}: {accel.size} samples at fs = {args.fs:g} Hz; "
+          f"{args.response.replace('_', ' ')}, damping {args.damping:g} (Q = "
+          f"{(1 / (2 * args.damping)) if args.damping > 0 else float('inf'):g}), "
+          f"{args.window} window, {'exact' if args.exact_peaks else 'sampled'} peaks"
+          + (f", upsampled x{info['upsample']}" if info["upsample"] > 1 else ""))
+    rows = np.unique(np.linspace(0, n - 1, min(n, 12)).round().astype(int))
+    print(f"{'f [Hz]':>12s} {'maximax':>13s} {'positive':>13s} {'negative':>13s}")
+    for i in rows:
+        print(f"{res.freqs[i]:12.5g} {res.maximax[i]:13.6g} {res.positive[i]:13.6g} "
+              f"{res.negative[i]:13.6g}")
+    k = int(np.argmax(res.maximax))
+    print(f"largest: {res.maximax[k]:.6g} at {res.freqs[k]:.5g} Hz; run time "
+          f"{(info['setup_time'] + info['run_time']) * 1e3:.1f} ms ({info['backend']})")
+    if args.out:
+        S.save_srs_csv(args.out, res)
+        print(f"results: {args.out}")
+    if args.plot:
+        S.plot_srs(args.plot, res, title=f"SRS of {Path(args.record).name}, damping "
+                                         f"{args.damping:g}, {args.window} window")
+        print(f"plot: {args.plot}")
+    return 0
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="dtdyn", description=__doc__)
     sub = parser.add_subparsers(dest="command", required=True)
@@ -159,9 +212,26 @@ def main(argv=None) -> int:
     st = sub.add_parser("stability", help="spectral radius, period elongation, damping per scheme")
     st.add_argument("schemes", nargs="*", help="scheme names (default: all)")
     st.add_argument("--plot", help="draw the curves to this image file")
+    sr = sub.add_parser("srs", help="shock response spectrum of a base-acceleration record")
+    sr.add_argument("record", help=".npy or .csv record of acceleration samples")
+    sr.add_argument("--fs", type=float, required=True, help="sampling rate, Hz")
+    sr.add_argument("--freqs", type=float, nargs=3, metavar=("FMIN", "FMAX", "N"),
+                    help="N log-spaced natural frequencies, Hz (default fs/1e4 .. fs/10, 100)")
+    sr.add_argument("--damping", type=float, default=0.05, help="damping ratio (default 0.05)")
+    sr.add_argument("--response", default="absolute_acceleration",
+                    choices=["absolute_acceleration", "relative_displacement",
+                             "relative_velocity", "pseudo_velocity", "pseudo_acceleration"])
+    sr.add_argument("--window", default="total", choices=["total", "primary", "residual"])
+    sr.add_argument("--points-per-cycle", type=float, default=None,
+                    help="upsample linearly to at least this many samples per cycle")
+    sr.add_argument("--exact-peaks", action="store_true", help="true peaks between samples")
+    sr.add_argument("--column", type=int, default=-1,
+                    help="column of a table holding the samples (default: the last)")
+    sr.add_argument("--plot", help="draw maximax/positive/negative to this image file")
+    sr.add_argument("--out", help="write freq_hz, maximax, positive, negative to this CSV")
     args = parser.parse_args(argv)
     handler = {"generate": _generate, "show": _show, "simulate": _simulate,
-               "stability": _stability}[args.command]
+               "stability": _stability, "srs": _srs}[args.command]
     try:
         return handler(args)
     except (ValueError, FileNotFoundError, FloatingPointError) as exc:
