@@ -284,6 +284,28 @@ def modal_model(M, C, K, inputs, outputs, modes=None) -> ModalModel:
     n = M.shape[0]
     inputs = validate.dof_indices("inputs", inputs, n)
     outputs = validate.dof_indices("outputs", outputs, n)
+    s, Psi_q, X_f = modal_factors(M, C, K)
+    R_all = np.einsum("or,ri->roi", Psi_q[outputs], X_f[:, inputs])
+
+    keep, osc = _pair_poles(s)
+    poles = s[keep].copy()
+    R = R_all[keep]
+    poles[~osc] = poles[~osc].real
+    R[~osc] = R[~osc].real  # a real eigenpair of a real pencil has real vectors
+    order = np.argsort(np.abs(poles), kind="stable")
+    model = ModalModel(poles[order], R[order], osc[order], inputs, outputs)
+    return model if modes is None else model.select(modes)
+
+
+def modal_factors(M, C, K):
+    """All 2n poles s_r and rank-one residue factors of M q'' + C q' + K q = f.
+
+    Returns (s, Psi_q, X_f) with H(s) = sum_r Psi_q[:, r] X_f[r, :] / (s - s_r) over all 2n
+    eigenvalues (conjugates included), i.e. R_r = outer(Psi_q[:, r], X_f[r, :]); the velocity
+    part of the eigenvector is s_r Psi_q[:, r]. Same checks as `modal_model` (module docstring).
+    """
+    M, C, K = linalg.mck(M, C, K)
+    n = M.shape[0]
     linalg.solver(M, "M", "the modal model needs a nonsingular mass matrix (no massless DOFs)")
 
     # scaled pencil: s = Omega s~, velocity w = q'/Omega, velocity equation divided by mu
@@ -318,16 +340,7 @@ def modal_model(M, C, K, inputs, outputs, modes=None) -> ModalModel:
                       f"critically damped mode): modal sum relative error ~{estimate:.1e}",
                       DtdynAccuracyWarning, stacklevel=2)
     # H(s) = (1/(Omega^2 mu)) sum psi~ x~ / (s~ - s~_r) = sum psi~ x~ / (Omega mu (s - s_r))
-    R_all = np.einsum("or,ri->roi", Psi[outputs], X[:, n + inputs]) / (omega_s * mu)
-
-    keep, osc = _pair_poles(s)
-    poles = s[keep].copy()
-    R = R_all[keep]
-    poles[~osc] = poles[~osc].real
-    R[~osc] = R[~osc].real  # a real eigenpair of a real pencil has real vectors
-    order = np.argsort(np.abs(poles), kind="stable")
-    model = ModalModel(poles[order], R[order], osc[order], inputs, outputs)
-    return model if modes is None else model.select(modes)
+    return s, Psi[:n], X[:, n:] / (omega_s * mu)
 
 
 def _check_rigid_body(s: np.ndarray, K: np.ndarray) -> None:

@@ -96,6 +96,12 @@ def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False, **sc
     with the generated coefficients; no inverse of M is formed. For Houbolt and Park this is the
     main recursion: the start-up steps of `simulate_mck` are not part of the LTI model.
     """
+    return _shift_feedthrough(*scheme_blocks(M, C, K, dt, scheme, acceleration, **scheme_params))
+
+
+def scheme_blocks(M, C, K, dt, scheme="newmark", acceleration=False, **scheme_params):
+    """(Phi, Gamma0, Gamma1, S) of z_{n+1} = Phi z_n + Gamma0 f_n + Gamma1 f_{n+1}, y_n = S z_n
+    (module docstring): `discrete_state_space` before the feedthrough shift."""
     M, C, K = linalg.mck(M, C, K)
     dt = validate.positive_scalar("dt", dt)
     info = get_scheme(scheme, **scheme_params)
@@ -131,7 +137,7 @@ def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False, **sc
     for k, h in enumerate(outputs):
         i = names.index(h)
         S[k * n:(k + 1) * n, i * n:(i + 1) * n] = eye
-    return _shift_feedthrough(Phi, G0, G1, S)
+    return Phi, G0, G1, S
 
 
 @lru_cache(maxsize=None)

@@ -1,0 +1,485 @@
+"""Nonlinear forced response: a linear discretization plus localized nonlinear elements.
+
+    M q'' + C q' + K q + L^T g(L q, L q', z) = f,   z' = z'(L q', z)    (runtime/elements.py)
+
+Every method here is a linear discrete model of the (sub)step h = 1/(fs S), written with the
+element forces as extra inputs (u = [f; g], the g columns carrying -L^T), and shifted so that the
+state x_k is known before step k is solved (as `discrete_state_space` and SHARPy do):
+
+    w_k = Cw x_k + Dwf f_k + Dwg g_k,   x_{k+1} = A x_k + Bf f_k + Bg g_k,
+
+w = [y; y'] the element deformations. Each step solves the small nonlinear system
+w - Q_k - Dwg g(w, z) = 0 (with the internal states' trapezoidal update) for w and z only:
+the source's x_nl(n) + B0 g(x_nl(n)) = Q(n) (reference.md section 6; derivation and the
+modal B0 in generated/nonlinear.md). Methods:
+
+- "modal_ramp": modal digital filters, ramp invariant (Ahlin, Josefsson & Magnevall): one
+  complex first-order recursion per kept mode, exact for a force linear between samples, the
+  nonlinear force treated as linear over the step (second order in h).
+- any one-step scheme of the integrator library on M, C, K ("newmark", "average_acceleration",
+  "hht", "generalized_alpha", ...): the effective nonlinear system of the scheme; HHT and
+  generalized-alpha evaluate the nonlinear forces like the external ones, averaged between
+  t_n and t_{n+1} (alpha_f g_n + (1 - alpha_f) g_{n+1}).
+
+Backends: "c" (generated loop dtdyn_nl_run of generated/nl_loop.c, with the element laws'
+residual and Jacobian from CasADi code generation; compiled once and cached), "casadi" (the same
+step as a CasADi rootfinder inside Function.mapaccum over the record; `compiled=True` generates
+and compiles it). Both check every step: a Newton failure raises NewtonError naming the step,
+the time and the residual.
+"""
+from __future__ import annotations
+
+import ctypes
+import time
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+
+from . import cbuild, linalg, validate
+from .elements import casadi_ops, check_elements, element_matrix
+from .result import Response
+
+MULTISTEP = ("houbolt", "park")
+
+
+class NewtonError(RuntimeError):
+    """The per-step Newton iteration failed (not converged, singular Jacobian or non-finite)."""
+
+
+@dataclass
+class LinearStep:
+    """The shifted linear model of one (sub)step (module docstring), row-major matrices.
+
+    Inputs u = [f; g]. X0f, X0g give the shifted initial state x_0 = X0f f_0 + X0g g_0 of a
+    system at rest (x_0 = z_0 - Gamma1 u_0, z_0 the scheme's history at t_0).
+    """
+
+    h: float
+    A: np.ndarray
+    Bf: np.ndarray
+    Bg: np.ndarray
+    Cw: np.ndarray
+    Dwf: np.ndarray
+    Dwg: np.ndarray
+    Co: np.ndarray
+    Dof: np.ndarray
+    Dog: np.ndarray
+    X0f: np.ndarray
+    X0g: np.ndarray
+
+
+def _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h, direct=None) -> LinearStep:
+    """LinearStep of z_{k+1} = Phi z_k + G0 u_k + G1 u_{k+1}, [q; q'; q''] = S z + direct u.
+
+    Shifted state x = z - G1 u (A = Phi, B = G0 + Phi G1, D = S G1); Z0 maps u_0 to z_0.
+    """
+    n = L.shape[1]
+    q, v, a = S[:n], S[n:2 * n], S[2 * n:]
+    W = np.vstack([L @ q] + ([L @ v] if need_v else []))
+    O = np.vstack([q[out], v[out], a[out]])
+    B = G0 + Phi @ G1
+    Dw, Do = W @ G1, O @ G1
+    if direct is not None:
+        Do = Do + np.vstack([direct[:n][out], direct[n:2 * n][out], direct[2 * n:][out]])
+    X0 = Z0 - G1
+    c = np.ascontiguousarray
+    return LinearStep(h, c(Phi), c(B[:, :nf]), c(B[:, nf:]), c(W), c(Dw[:, :nf]), c(Dw[:, nf:]),
+                      c(O), c(Do[:, :nf]), c(Do[:, nf:]), c(X0[:, :nf]), c(X0[:, nf:]))
+
+
+def _modal_ramp_step(M, C, K, h, U, L, out, modes, need_v, nf) -> LinearStep:
+    """Ramp-invariant modal model: eta_k = lam eta_{k-1} + N0 p_k + N1 p_{k-1}, p = X_f U u.
+
+    Displacement q = sum_r w_r Re(psi_r eta_r) (w = 2 for a conjugate pair, 1 for a real pole),
+    velocity with psi_r s_r, acceleration with psi_r s_r^2 plus the direct term
+    sum_r w_r Re(s_r R_r) u (= M^-1 with all modes).
+    """
+    from scipy.linalg import block_diag
+
+    from dtdyn.generated.modal_filters import forced_coefficients
+
+    from .modal import _pair_poles, modal_factors
+    s_all, Psi_q, X_f = modal_factors(M, C, K)
+    keep, osc = _pair_poles(s_all)
+    order = np.argsort(np.abs(s_all[keep]), kind="stable")
+    idx, osc = keep[order], osc[order]
+    if modes is not None:
+        sel = np.sort(validate.dof_indices("modes", modes, idx.size))
+        idx, osc = idx[sel], osc[sel]
+    s = np.where(osc, s_all[idx], s_all[idx].real)
+    N1, N0 = forced_coefficients("ramp", s, np.ones_like(s), h)  # old input, new input
+    lam = np.exp(s * h)
+    P = X_f[idx] @ U
+    psi = Psi_q[:, idx] * np.where(osc, 2.0, 1.0)
+    Sc = np.vstack([psi, psi * s, psi * s**2])
+    direct = np.vstack([np.zeros((2 * L.shape[1], U.shape[1])), ((psi * s) @ P).real])
+    A_blocks, G0_rows, G1_rows, S_cols = [], [], [], []
+    for r in range(idx.size):
+        l, g0, g1 = lam[r], N1[r] * P[r], N0[r] * P[r]
+        if osc[r]:  # real state (Re eta, Im eta)
+            A_blocks.append(np.array([[l.real, -l.imag], [l.imag, l.real]]))
+            G0_rows += [g0.real, g0.imag]
+            G1_rows += [g1.real, g1.imag]
+            S_cols += [Sc[:, r].real, -Sc[:, r].imag]
+        else:
+            A_blocks.append(np.array([[l.real]]))
+            G0_rows.append(g0.real)
+            G1_rows.append(g1.real)
+            S_cols.append(Sc[:, r].real)
+    G1 = np.array(G1_rows)
+    return _shifted(block_diag(*A_blocks), np.array(G0_rows), G1, np.array(S_cols).T,
+                    np.zeros_like(G1), L, out, need_v, nf, h, direct)
+
+
+def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearStep:
+    """The scheme's one-step model (`scheme_blocks`), history [x0; v0; a0] per DOF, with
+    a_0 = M^+ U u_0 at rest (M^+: pseudo-inverse, = M^-1 when M is nonsingular)."""
+    from .state_space import scheme_blocks
+    if scheme in MULTISTEP:
+        raise ValueError(f"method {scheme!r} is a multistep scheme whose start-up is not a single "
+                         "linear step; use 'newmark', 'hht', 'generalized_alpha' or 'modal_ramp'")
+    Phi, G0, G1, S = scheme_blocks(M, C, K, h, scheme, acceleration=True, **params)
+    n = M.shape[0]
+    G0, G1 = G0 @ U, G1 @ U
+    Z0 = np.zeros_like(G1)
+    Z0[2 * n:3 * n] = np.linalg.pinv(M) @ U
+    return _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h)
+
+
+def linear_step(method, M, C, K, h, force_dofs, L, outputs, modes=None, need_v=False,
+                **scheme_params) -> LinearStep:
+    """The shifted linear model of one step h for ``method`` (module docstring)."""
+    n = M.shape[0]
+    U = np.hstack([np.eye(n)[:, force_dofs], -L.T])  # DOF forces of u = [f; g]
+    if method == "modal_ramp":
+        if scheme_params:
+            raise ValueError(f"method 'modal_ramp' takes no scheme parameters, got "
+                             f"{', '.join(sorted(scheme_params))}")
+        return _modal_ramp_step(M, C, K, h, U, L, outputs, modes, need_v, len(force_dofs))
+    if modes is not None:
+        raise ValueError(f"modes selects modal filters; method {method!r} integrates all DOFs")
+    return _scheme_step(M, C, K, h, U, L, outputs, method, scheme_params, need_v,
+                        len(force_dofs))
+
+
+# ----------------------------------------------------------------------------------------------
+# the per-step residual of the elements (CasADi SX), shared by both backends
+
+
+@dataclass(frozen=True)
+class _Sizes:
+    ne: int  # elements
+    nw: int  # element kinematics w = [y; y'] (y' only when some element uses it)
+    nz: int  # internal states
+    need_v: bool
+
+
+def _sizes(elements) -> _Sizes:
+    ne = len(elements)
+    need_v = any(el.uses_velocity for el in elements)
+    return _Sizes(ne, ne * (2 if need_v else 1), sum(el.n_internal for el in elements), need_v)
+
+
+def _residual_expressions(elements, sz: _Sizes):
+    """SX symbols and expressions of r(u; Q, z_old, z'_old, [Dwg; h]) (module docstring)."""
+    import casadi as ca
+    ops = casadi_ops()
+    u = ca.SX.sym("u", sz.nw + sz.nz)
+    Q = ca.SX.sym("Q", sz.nw)
+    zold = ca.SX.sym("zold", sz.nz)
+    rold = ca.SX.sym("rold", sz.nz)
+    par = ca.SX.sym("par", sz.nw * sz.ne + 1)  # Dwg column-major, then h
+    Dwg = ca.reshape(par[:sz.nw * sz.ne], sz.nw, sz.ne)
+    h = par[sz.nw * sz.ne]
+    y = u[:sz.ne]
+    vy = u[sz.ne:2 * sz.ne] if sz.need_v else ca.SX.zeros(sz.ne)
+    z = u[sz.nw:]
+    g, rate, k = [], [], 0
+    for e, el in enumerate(elements):
+        ze = [z[k + i] for i in range(el.n_internal)]
+        g.append(el.force(y[e], vy[e], ze, ops))
+        rate += list(el.rate(y[e], vy[e], ze, ops))
+        k += el.n_internal
+    g = ca.vertcat(*g)
+    rate = ca.vertcat(*rate) if rate else ca.SX(0, 1)
+    r = ca.vertcat(u[:sz.nw] - Q - ca.mtimes(Dwg, g), z - zold - 0.5 * h * (rate + rold))
+    return dict(u=u, Q=Q, zold=zold, rold=rold, par=par, r=r, g=g, rate=rate)
+
+
+def _residual_function(elements, sz: _Sizes):
+    import casadi as ca
+    e = _residual_expressions(elements, sz)
+    J = ca.densify(ca.jacobian(e["r"], e["u"]))
+    return ca.Function("nl_residual", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]],
+                       [e["r"], J, e["g"], e["rate"]])
+
+
+def _forces_at_rest(elements, sz: _Sizes):
+    """g and z' at y = y' = 0, z = 0 (the state at t_0)."""
+    from .elements import NUMPY_OPS
+    g = np.array([float(el.force(0.0, 0.0, np.zeros(el.n_internal), NUMPY_OPS))
+                  for el in elements])
+    rate = [float(r) for el in elements for r in el.rate(0.0, 0.0, np.zeros(el.n_internal),
+                                                         NUMPY_OPS)]
+    return g, np.array(rate)
+
+
+# ----------------------------------------------------------------------------------------------
+# backend "c": generated loop + CasADi-generated residual
+
+
+@lru_cache(maxsize=32)
+def _c_runner(elements):
+    import casadi as ca
+    sz = _sizes(elements)
+    fn = _residual_function(elements, sz)
+    cg = ca.CodeGenerator("nl_residual", {"with_header": False})
+    cg.add(fn)
+    loop = resources.files("dtdyn.generated").joinpath("nl_loop.c").read_text()
+    lib = cbuild.load_library(loop + "\n" + cg.dump(), "nl_loop")
+    if lib is None:
+        return None
+    run = lib.dtdyn_nl_run
+    run.argtypes = [ctypes.c_void_p] * 8 + [ctypes.c_double] + [ctypes.c_void_p] * 4
+    run.restype = ctypes.c_int
+    return run, int(fn.sz_w()), int(fn.sz_iw())
+
+
+def _p(a):
+    return a.ctypes.data_as(ctypes.c_void_p)
+
+
+def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate):
+    run, n_w, n_iw = runner
+    ns, nf, no = step.A.shape[0], force.shape[1], step.Co.shape[0]
+    n_samples = force.shape[0]
+    nu = sz.nw + sz.nz
+    dims = np.array([ns, nf, sz.ne, sz.nw, sz.nz, no, n_samples, S, max_iter], dtype=np.int64)
+    par = np.concatenate([step.Dwg.ravel(order="F"), [step.h]])
+    mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, par, step.Co, step.Dof,
+            step.Dog]
+    mats = [np.ascontiguousarray(m, dtype=float) for m in mats]
+    ptrs = (ctypes.c_void_p * len(mats))(*[m.ctypes.data for m in mats])
+    out = np.empty((n_samples, no))
+    stats = np.zeros(4)
+    fail = np.zeros(1, dtype=np.int64)
+    work = np.zeros(nf + sz.nw + 2 * sz.nz + nu + nu * nu + sz.ne + sz.nz + ns + n_w + 1)
+    iwork = np.zeros(n_iw + 1, dtype=np.int64)
+    rc = run(_p(dims), ctypes.cast(ptrs, ctypes.c_void_p), _p(force), _p(x), _p(u), _p(g),
+             _p(rate), _p(out), tol, _p(stats), _p(fail), _p(work), _p(iwork))
+    return rc, out, stats, int(fail[0])
+
+
+# ----------------------------------------------------------------------------------------------
+# backend "casadi": rootfinder per sub-step, mapaccum over the record
+
+
+@lru_cache(maxsize=32)
+def _casadi_record(elements, ns, nf, no, S, n_samples, solver, tol, max_iter, compiled):
+    """F(x_aug, [f_n; f_{n+1}], mats) -> (x_aug', out_n, [iterations; residual]) mapaccum'ed.
+
+    x_aug = [x; u; g; z'] (the state, the last solution, forces and rates)."""
+    import casadi as ca
+    sz = _sizes(elements)
+    e = _residual_expressions(elements, sz)
+    nu = sz.nw + sz.nz
+    p = ca.vertcat(e["Q"], e["zold"], e["rold"], e["par"])
+    opts = {"abstol": 1e-300, "abstolStep": tol, "max_iter": max_iter}
+    if solver == "newton":
+        opts["error_on_fail"] = False
+    rf = ca.rootfinder("rf", solver, {"x": e["u"], "p": p, "g": e["r"]}, opts)
+    post = ca.Function("post", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]],
+                       [e["r"], e["g"], e["rate"]])
+    MX = ca.MX
+    A, Bf, Bg = MX.sym("A", ns, ns), MX.sym("Bf", ns, nf), MX.sym("Bg", ns, sz.ne)
+    Cw, Dwf, Dwg = MX.sym("Cw", sz.nw, ns), MX.sym("Dwf", sz.nw, nf), MX.sym("Dwg", sz.nw, sz.ne)
+    Co, Dof, Dog = MX.sym("Co", no, ns), MX.sym("Dof", no, nf), MX.sym("Dog", no, sz.ne)
+    h = MX.sym("h")
+    mats = [A, Bf, Bg, Cw, Dwf, Dwg, Co, Dof, Dog, h]
+    xa = MX.sym("xa", ns + nu + sz.ne + sz.nz)
+    ff = MX.sym("ff", 2 * nf)
+    x, u = xa[:ns], xa[ns:ns + nu]
+    g, rate = xa[ns + nu:ns + nu + sz.ne], xa[ns + nu + sz.ne:]
+    par = ca.vertcat(ca.vec(Dwg), h)
+    worst = MX(0)
+    out = None
+    for j in range(S):
+        f = ff[:nf] + (j / S) * (ff[nf:] - ff[:nf])
+        Q = ca.mtimes(Cw, x) + ca.mtimes(Dwf, f)
+        zold = u[sz.nw:]
+        guess = ca.vertcat(Q + ca.mtimes(Dwg, g), zold + h * rate)
+        u = rf(guess, ca.vertcat(Q, zold, rate, par))
+        r, g, rate = post(u, Q, zold, rate, par)
+        worst = ca.fmax(worst, ca.norm_inf(r))
+        if j == 0:
+            out = ca.mtimes(Co, x) + ca.mtimes(Dof, f) + ca.mtimes(Dog, g)
+        x = ca.mtimes(A, x) + ca.mtimes(Bf, f) + ca.mtimes(Bg, g)
+    step = ca.Function("nl_step", [xa, ff] + mats, [ca.vertcat(x, u, g, rate), out, worst])
+    record = step.mapaccum("nl_record", n_samples, [0], [0])
+    if compiled:
+        record = _compile_casadi(record)
+    return record
+
+
+def _compile_casadi(fn):
+    """CasADi code generation of ``fn``, compiled through cbuild's cache, loaded as external."""
+    import casadi as ca
+    cg = ca.CodeGenerator(fn.name(), {"with_header": False})
+    cg.add(fn)
+    lib = cbuild.load_library(cg.dump(), fn.name())
+    if lib is None:
+        return fn
+    return ca.external(fn.name(), lib._name)
+
+
+# ----------------------------------------------------------------------------------------------
+# public entry point
+
+
+def _check_force(force, n_fd):
+    f = np.asarray(force, dtype=float)
+    if f.ndim == 1 and n_fd == 1:
+        f = f[:, None]
+    if f.ndim != 2 or f.shape[1] != n_fd or f.shape[0] < 1:
+        raise ValueError(f"force has shape {np.shape(force)}, expected (n_samples, "
+                         f"len(force_dofs)) = (n, {n_fd})")
+    bad = ~np.isfinite(f)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} is not finite")
+    return np.ascontiguousarray(f)
+
+
+def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, outputs=None,
+                       method="modal_ramp", substeps=1, backend="c", tol=1e-12, max_iter=30,
+                       solver="newton", compiled=False, **scheme_params) -> Response:
+    """Forced response of M q'' + C q' + K q + L^T g = f with localized nonlinear elements.
+
+    The equivalent of the source's ``nonlindxmck(F, fs, M, C, K, FD, nID, modes, resps)``.
+
+    Parameters
+    ----------
+    force : array_like, shape (n_samples, len(force_dofs))
+        Force samples at t_n = n / fs, linear between samples; the system starts at rest.
+    fs : float
+        Sampling rate, Hz.
+    M, C, K : (n, n) array_like
+        The linear part (M nonsingular for "modal_ramp").
+    force_dofs : sequence of int
+        0-based loaded DOFs.
+    elements : sequence of elements
+        `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen` (dtdyn.runtime.elements).
+    modes : sequence of int, optional
+        "modal_ramp" only: the modes kept (indices into the modes sorted by |s|).
+    outputs : sequence of int, optional
+        Response DOFs (all by default).
+    method : str
+        "modal_ramp", or a one-step scheme of the integrator library ("newmark",
+        "average_acceleration", "hht", "generalized_alpha", "wilson", ...).
+    substeps : int
+        Steps per sample (h = 1 / (fs substeps)); the force is interpolated linearly.
+    backend : {"c", "casadi"}
+        "c": the generated loop (falls back to "casadi", with one warning, without a compiler).
+    tol : float
+        Newton stops when the step |du|_inf <= tol * max |u| seen so far.
+    max_iter : int
+        Newton iterations per step before NewtonError.
+    solver : {"newton", "fast_newton"}
+        CasADi rootfinder plugin (backend "casadi").
+    compiled : bool
+        Backend "casadi": generate C for the whole record function and compile it (cached).
+
+    Returns
+    -------
+    Response
+        ``t``, ``x``, ``v``, ``a`` of shape (n_samples, len(outputs)); ``info`` holds the method,
+        the construction, compile and run times, and the Newton statistics (iterations per
+        step, largest final residual).
+
+    Raises
+    ------
+    NewtonError
+        A step did not converge (or went non-finite): the message names the step, its time and
+        the residual. More ``substeps`` (or a ``Gap`` with ``smoothing``) usually cure it.
+    """
+    t0 = time.perf_counter()
+    M, C, K = linalg.mck(M, C, K)
+    n = M.shape[0]
+    fs = validate.positive_scalar("fs", fs)
+    force_dofs = validate.dof_indices("force_dofs", force_dofs, n, default_all=False)
+    outputs = validate.dof_indices("outputs", outputs, n)
+    elements = check_elements(elements)
+    if not elements:
+        raise ValueError("elements is empty: use simulate_mck or modal_filter_response for a "
+                         "linear model")
+    S = validate.step_count("substeps", substeps)
+    max_iter = validate.step_count("max_iter", max_iter)
+    tol = validate.positive_scalar("tol", tol)
+    if backend not in ("c", "casadi"):
+        raise ValueError(f"backend must be 'c' or 'casadi', got {backend!r}")
+    if solver not in ("newton", "fast_newton"):
+        raise ValueError(f"solver must be 'newton' or 'fast_newton', got {solver!r}")
+    f = _check_force(force, force_dofs.size)
+    L = element_matrix(elements, n)
+    sz = _sizes(elements)
+    h = 1.0 / (fs * S)
+    step = linear_step(method, M, C, K, h, force_dofs, L, outputs, modes, sz.need_v,
+                       **scheme_params)
+    g0, rate0 = _forces_at_rest(elements, sz)
+    x = np.ascontiguousarray(step.X0f @ f[0] + step.X0g @ g0)
+    u = np.zeros(sz.nw + sz.nz)
+    t1 = time.perf_counter()
+
+    used = backend
+    runner = _c_runner(elements) if backend == "c" else None
+    if backend == "c" and runner is None:
+        used = "casadi"
+    t2 = time.perf_counter()
+    if used == "c":
+        rc, out, stats, fail = _run_c(runner, step, sz, f, S, tol, max_iter, x, u, g0.copy(),
+                                      rate0.copy())
+        t3 = time.perf_counter()
+        if rc:
+            _newton_error(fail, S, fs, stats[3], max_iter)
+        iters = {"max": int(stats[0]), "mean": stats[1] / ((f.shape[0] - 1) * S + 1)}
+        worst = float(stats[2])
+    else:
+        record = _casadi_record(elements, step.A.shape[0], f.shape[1], step.Co.shape[0], S,
+                                f.shape[0], solver, tol, max_iter, compiled)
+        t2 = time.perf_counter()
+        ff = np.hstack([f, np.vstack([f[1:], f[-1:]])]).T
+        xa = np.concatenate([x, u, g0, rate0])
+        mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, step.Co, step.Dof,
+                step.Dog, step.h]
+        _, out, resid = record(xa, ff, *mats)
+        t3 = time.perf_counter()
+        out, resid = np.asarray(out).T, np.asarray(resid).ravel()
+        bad = np.flatnonzero(~(resid <= _casadi_limit(tol, out)) | ~np.isfinite(out).all(axis=1))
+        if bad.size:
+            k = int(bad[0])
+            _newton_error(k * S, S, fs, float(resid[k]), max_iter)
+        iters, worst = None, float(resid.max())
+    no = outputs.size
+    return Response(np.arange(f.shape[0]) / fs, outputs, x=out[:, :no], v=out[:, no:2 * no],
+                    a=out[:, 2 * no:],
+                    info={"method": method, "substeps": S, "backend": used, "fs": fs,
+                          "elements": [el.describe() for el in elements],
+                          "setup_time": t1 - t0, "compile_time": t2 - t1, "run_time": t3 - t2,
+                          "newton_iterations": iters, "max_residual": worst,
+                          **({"scheme_params": scheme_params} if scheme_params else {})})
+
+
+def _casadi_limit(tol, out):
+    """Largest acceptable final residual of a CasADi step (its plugins do not report failure)."""
+    scale = np.abs(out).max() if out.size else 1.0
+    return max(1e3 * tol, 1e-9) * max(scale, 1e-300)
+
+
+def _newton_error(k, S, fs, resid, max_iter):
+    n, j = divmod(k, S)
+    where = f"sample {n}" + (f", sub-step {j} of {S}" if S > 1 else "")
+    raise NewtonError(f"Newton did not converge at step {k} ({where}, t = {k / (fs * S):.6g} s): "
+                      f"residual {resid:.3g} after at most {max_iter} iterations; try more "
+                      "substeps (or smoothing for a Gap)")
