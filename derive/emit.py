@@ -14,7 +14,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from . import (dttmm, integrators as I, kernels, modal_filters, printing, stability,
+from . import (dttmm, integrators as I, kernels, modal_filters, nonlinear, printing, stability,
                state_space, tmm)
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -164,6 +164,15 @@ def _modal_filters_context() -> dict:
     }
 
 
+def _nonlinear_context() -> dict:
+    m = nonlinear.modal_step()
+    one_step = [n for n in I.SCHEMES if not I.SCHEMES[n].lags]
+    return {"modal_B0": sp.latex(m["B0"]), "modal_Q": sp.latex(m["Q"]),
+            "schemes": [(n, sp.latex(nonlinear.scheme_coefficient(n)),
+                         *(sp.latex(e) for e in nonlinear.scheme_effective(n)))
+                        for n in one_step]}
+
+
 def _stability_context() -> dict:
     out = []
     for name, sch in I.SCHEMES.items():
@@ -195,6 +204,9 @@ def render_all() -> dict[str, str]:
     render("numpy/modal_filters.py.jinja", "modal_filters.py", "dtdyn.derive.modal_filters",
            **_modal_filters_context())
     render("c/filter_bank.c.jinja", "filter_bank.c", "dtdyn.derive.modal_filters (sections)")
+    render("c/nl_loop.c.jinja", "nl_loop.c", "dtdyn.derive.nonlinear")
+    render("markdown/nonlinear.md.jinja", "nonlinear.md", "dtdyn.derive.nonlinear",
+           **_nonlinear_context())
     render("numpy/stability.py.jinja", "stability.py", "dtdyn.derive.stability",
            **_stability_context())
     names = list(I.SCHEMES)

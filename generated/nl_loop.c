@@ -15,25 +15,27 @@
  * `nl_residual` (CasADi code generation of the element laws, appended to this source).
  * Between samples the force is linear: f at sub-step j of sample n is f_n + (j/S)(f_{n+1} - f_n).
  *
- * Matrices are row-major. Returns 0, or 1 when Newton failed at step fail[0] (sub-step index)
- * with residual stats[3] (non-finite or not converged in max_iter iterations).
+ * Newton stops when |r|_inf <= max(tol, 16 eps |J|_inf) * (the largest |u|_inf or |Q|_inf so
+ * far): the second term is the round-off floor of r for stiff elements. Matrices are column-major; par
+ * holds Dwg, then h. Returns 0, or 1 when Newton failed at step fail[0] (sub-step
+ * index) with residual stats[3] (non-finite, singular Jacobian or max_iter iterations).
  */
+#include <float.h>
 #include <math.h>
-#include <string.h>
 
 typedef long long int nl_int;
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem);
 
-static void matvec_add(long rows, long cols, const double *restrict A, const double *restrict x,
-                       double *restrict y)
+/* y += A x with A column-major (rows x cols): independent axpys, no long add chains */
+static inline void matvec_add(long rows, long cols, const double *restrict A,
+                              const double *restrict x, double *restrict y)
 {
     long i, j;
-    for (i = 0; i < rows; ++i) {
-        const double *a = A + i * cols;
-        double s = y[i];
-        for (j = 0; j < cols; ++j)
-            s += a[j] * x[j];
-        y[i] = s;
+    for (j = 0; j < cols; ++j) {
+        const double xj = x[j];
+        const double *a = A + j * rows;
+        for (i = 0; i < rows; ++i)
+            y[i] += a[i] * xj;
     }
 }
 
@@ -91,9 +93,24 @@ static double norm_inf(long n, const double *v)
     return m;
 }
 
+static inline void copy(long n, const double *restrict src, double *restrict dst)
+{
+    long i;
+    for (i = 0; i < n; ++i)
+        dst[i] = src[i];
+}
+
+static inline void zero(long n, double *restrict dst)
+{
+    long i;
+    for (i = 0; i < n; ++i)
+        dst[i] = 0.0;
+}
+
 /*
- * dims: ns, nf, ne, nw, nz, no, n_samples, substeps, max_iter.
- * mats: A, Bf, Bg, Cw, Dwf, Dwg (Dwg also column-major for nl_residual as Dwg_cm), Co, Dof, Dog.
+ * dims: ns, nf, ne, nw, nz, no (checked against the compile-time sizes NL_NS .. NL_NO, which
+ * let the compiler unroll the small products), n_samples, substeps, max_iter.
+ * mats (column-major): A, Bf, Bg, Cw, Dwf, Dwg, par = [Dwg; h], Co, Dof, Dog.
  * state: x (ns), u (nw + nz: last solution), g (ne), rate (nz); all updated in place.
  * stats: [max iterations, total iterations, max final residual, failing residual].
  */
@@ -102,85 +119,99 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                  double *restrict rate, double *restrict out, double tol, double *stats,
                  long *fail, double *restrict work, nl_int *restrict iwork)
 {
-    const long ns = dims[0], nf = dims[1], ne = dims[2], nw = dims[3], nz = dims[4];
-    const long no = dims[5], n_samples = dims[6], S = dims[7], max_iter = dims[8];
-    const long nu = nw + nz;
+    enum { ns = NL_NS, nf = NL_NF, ne = NL_NE, nw = NL_NW, nz = NL_NZ, no = NL_NO };
+    const long n_samples = dims[6], S = dims[7], max_iter = dims[8];
+    enum { nu = NL_NW + NL_NZ };
     const double *A = mats[0], *Bf = mats[1], *Bg = mats[2], *Cw = mats[3], *Dwf = mats[4];
-    const double *Dwg = mats[5], *Dwg_cm = mats[6], *Co = mats[7], *Dof = mats[8];
+    const double *Dwg = mats[5], *par = mats[6], *Co = mats[7], *Dof = mats[8];
     const double *Dog = mats[9];
-    double *f = work, *Q = f + nf, *zold = Q + nw, *rold = zold + nz, *r = rold + nz;
-    double *J = r + nu, *gn = J + nu * nu, *raten = gn + ne, *xn = raten + nz;
-    double *cw = xn + ns; /* CasADi work */
+    double f[nf + 1], Q[nw + 1], zold[nz + 1], rold[nz + 1], r[nu + 1], J[nu * nu + 1];
+    double xn[ns], limit = 0.0;
+    double *cw = work; /* CasADi work */
     const double *arg[5];
     double *res[4];
     double scale = 0.0;
-    long n, j, i, it;
+    long n, j, i, k, it;
+    arg[0] = u; arg[1] = Q; arg[2] = zold; arg[3] = rold; arg[4] = par;
+    res[0] = r; res[1] = J; res[2] = g; res[3] = rate;
     stats[0] = stats[1] = stats[2] = stats[3] = 0.0;
+    if (dims[0] != ns || dims[1] != nf || dims[2] != ne || dims[3] != nw || dims[4] != nz ||
+        dims[5] != no)
+        return 2; /* compiled for other sizes */
     for (n = 0; n < n_samples; ++n) {
         const double *f0 = force + n * nf;
         const double *f1 = (n + 1 < n_samples) ? f0 + nf : f0;
         const long nsub = (n + 1 < n_samples) ? S : 1;
         for (j = 0; j < nsub; ++j) {
             const double c = (double)j / (double)S;
-            int converged = 0;
+            double rn = INFINITY;
             for (i = 0; i < nf; ++i)
                 f[i] = f0[i] + c * (f1[i] - f0[i]);
             /* Q = Cw x + Dwf f; predictor u = [Q + Dwg g_prev; z_prev + h z'_prev] */
-            memset(Q, 0, (size_t)nw * sizeof(double));
+            zero(nw, Q);
             matvec_add(nw, ns, Cw, x, Q);
             matvec_add(nw, nf, Dwf, f, Q);
-            memcpy(u, Q, (size_t)nw * sizeof(double));
+            copy(nw, Q, u);
             matvec_add(nw, ne, Dwg, g, u);
-            memcpy(zold, u + nw, (size_t)nz * sizeof(double));
-            memcpy(rold, rate, (size_t)nz * sizeof(double));
-            arg[0] = u; arg[1] = Q; arg[2] = zold; arg[3] = rold; arg[4] = Dwg_cm;
-            res[0] = r; res[1] = J; res[2] = gn; res[3] = raten;
-            for (it = 0; it <= max_iter; ++it) {
-                double du, un;
+            copy(nz, u + nw, zold);
+            copy(nz, rate, rold);
+            for (i = 0; i < nz; ++i)
+                u[nw + i] = zold[i] + par[nw * ne] * rold[i];
+            /* Newton to |r|_inf <= max(tol, 16 eps |J|_inf) * scale (header comment) */
+            {
+                const double qn = norm_inf(nw, Q);
+                if (qn > scale && qn < INFINITY)
+                    scale = qn;
+            }
+            for (it = 0;; ++it) {
+                double un, floor = 0.0;
                 nl_residual(arg, res, iwork, cw, 0);
-                if (converged)
+                rn = norm_inf(nu, r);
+                un = norm_inf(nu, u);
+                if (un > scale && un < INFINITY)
+                    scale = un;
+                limit = tol * scale;
+                if (rn > limit && rn < INFINITY) {
+                    for (i = 0; i < nu; ++i) { /* round-off floor of r: 16 eps |J|_inf scale */
+                        double row = 0.0;
+                        for (k = 0; k < nu; ++k)
+                            row += fabs(J[k * nu + i]);
+                        if (row > floor)
+                            floor = row;
+                    }
+                    limit = fmax(tol, 16.0 * DBL_EPSILON * floor) * scale;
+                }
+                if (rn <= limit || it == max_iter || !(rn < INFINITY))
                     break;
                 if (lu_solve(nu, J, r))
                     break;
-                du = norm_inf(nu, r);
                 for (i = 0; i < nu; ++i)
                     u[i] += r[i];
-                un = norm_inf(nu, u);
-                if (!(du <= INFINITY) || !(un <= INFINITY))
-                    break;
-                if (un > scale)
-                    scale = un;
-                if (du <= tol * scale)
-                    converged = 1;
             }
             stats[1] += (double)it;
             if ((double)it > stats[0])
                 stats[0] = (double)it;
-            {
-                const double rn = norm_inf(nu, r);
-                if (!converged || !(rn <= INFINITY) || !(norm_inf(ne, gn) <= INFINITY)) {
-                    fail[0] = n * S + j;
-                    stats[3] = converged ? rn : (rn == rn ? rn : INFINITY);
-                    return 1;
-                }
-                if (rn > stats[2])
-                    stats[2] = rn;
+            if (!(rn <= limit) || !(norm_inf(ne, g) < INFINITY) ||
+                !(norm_inf(nz, rate) < INFINITY)) {
+                fail[0] = n * S + j;
+                stats[3] = rn;
+                return 1;
             }
-            memcpy(g, gn, (size_t)ne * sizeof(double));
-            memcpy(rate, raten, (size_t)nz * sizeof(double));
+            if (rn > stats[2])
+                stats[2] = rn;
             if (j == 0) {
                 double *o = out + n * no;
-                memset(o, 0, (size_t)no * sizeof(double));
+                zero(no, o);
                 matvec_add(no, ns, Co, x, o);
                 matvec_add(no, nf, Dof, f, o);
                 matvec_add(no, ne, Dog, g, o);
             }
             if (n + 1 < n_samples) {
-                memset(xn, 0, (size_t)ns * sizeof(double));
+                zero(ns, xn);
                 matvec_add(ns, ns, A, x, xn);
                 matvec_add(ns, nf, Bf, f, xn);
                 matvec_add(ns, ne, Bg, g, xn);
-                memcpy(x, xn, (size_t)ns * sizeof(double));
+                copy(ns, xn, x);
             }
         }
     }

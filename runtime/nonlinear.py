@@ -195,7 +195,7 @@ def _residual_expressions(elements, sz: _Sizes):
     h = par[sz.nw * sz.ne]
     y = u[:sz.ne]
     vy = u[sz.ne:2 * sz.ne] if sz.need_v else ca.SX.zeros(sz.ne)
-    z = u[sz.nw:]
+    z = u[sz.nw:] if sz.nz else ca.SX(0, 1)
     g, rate, k = [], [], 0
     for e, el in enumerate(elements):
         ze = [z[k + i] for i in range(el.n_internal)]
@@ -231,20 +231,28 @@ def _forces_at_rest(elements, sz: _Sizes):
 
 
 @lru_cache(maxsize=32)
-def _c_runner(elements):
+def _c_runner(elements, dims):
+    """(runner or None, construct time, compile time) for these elements and sizes (ns, nf, ne,
+    nw, nz, no); cached, so a second run pays neither."""
     import casadi as ca
+    t0 = time.perf_counter()
     sz = _sizes(elements)
     fn = _residual_function(elements, sz)
     cg = ca.CodeGenerator("nl_residual", {"with_header": False})
     cg.add(fn)
+    sizes = "".join(f"#define NL_{k} {int(v)}\n" for k, v in zip(("NS", "NF", "NE", "NW", "NZ",
+                                                                     "NO"), dims))
     loop = resources.files("dtdyn.generated").joinpath("nl_loop.c").read_text()
-    lib = cbuild.load_library(loop + "\n" + cg.dump(), "nl_loop")
+    source = sizes + loop + "\n" + cg.dump()
+    t1 = time.perf_counter()
+    lib = cbuild.load_library(source, "nl_loop")
+    t2 = time.perf_counter()
     if lib is None:
-        return None
+        return None, t1 - t0, t2 - t1
     run = lib.dtdyn_nl_run
     run.argtypes = [ctypes.c_void_p] * 8 + [ctypes.c_double] + [ctypes.c_void_p] * 4
     run.restype = ctypes.c_int
-    return run, int(fn.sz_w()), int(fn.sz_iw())
+    return (run, int(fn.sz_w()), int(fn.sz_iw())), t1 - t0, t2 - t1
 
 
 def _p(a):
@@ -260,12 +268,12 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate)
     par = np.concatenate([step.Dwg.ravel(order="F"), [step.h]])
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, par, step.Co, step.Dof,
             step.Dog]
-    mats = [np.ascontiguousarray(m, dtype=float) for m in mats]
+    mats = [np.asfortranarray(m, dtype=float) for m in mats]
     ptrs = (ctypes.c_void_p * len(mats))(*[m.ctypes.data for m in mats])
     out = np.empty((n_samples, no))
     stats = np.zeros(4)
     fail = np.zeros(1, dtype=np.int64)
-    work = np.zeros(nf + sz.nw + 2 * sz.nz + nu + nu * nu + sz.ne + sz.nz + ns + n_w + 1)
+    work = np.zeros(n_w + 1)
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
     rc = run(_p(dims), ctypes.cast(ptrs, ctypes.c_void_p), _p(force), _p(x), _p(u), _p(g),
              _p(rate), _p(out), tol, _p(stats), _p(fail), _p(work), _p(iwork))
@@ -276,12 +284,32 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate)
 # backend "casadi": rootfinder per sub-step, mapaccum over the record
 
 
-@lru_cache(maxsize=32)
-def _casadi_record(elements, ns, nf, no, S, n_samples, solver, tol, max_iter, compiled):
-    """F(x_aug, [f_n; f_{n+1}], mats) -> (x_aug', out_n, [iterations; residual]) mapaccum'ed.
+#: samples per inner mapaccum block: the record is a mapaccum of mapaccums, so building it costs
+#: O(BLOCK + n_samples / BLOCK) graph nodes instead of O(n_samples)
+BLOCK = 256
 
-    x_aug = [x; u; g; z'] (the state, the last solution, forces and rates)."""
+
+_RECORDS: dict = {}
+
+
+def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_iter, compiled):
+    """F(x_aug, [f_n; f_{n+1}] columns) -> (x_aug', out columns, [|r|; |u|] columns).
+
+    x_aug = [x; u; g; z'] (state, last solution, forces, rates); one column per sample, the
+    record padded to n_blocks * BLOCK samples; the step's matrices are constants of the graph.
+    Returns (function, construct time, compile time); cached per process.
+    """
+    import hashlib
+
     import casadi as ca
+    mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, step.Co, step.Dof, step.Dog]
+    digest = hashlib.sha256(b"".join(np.ascontiguousarray(m).tobytes() for m in mats)
+                            + repr([m.shape for m in mats] + [step.h]).encode()).hexdigest()
+    key = (elements, digest, S, n_blocks, solver, tol, max_iter, compiled)
+    if key in _RECORDS:
+        return _RECORDS[key][0], 0.0, 0.0
+    t0 = time.perf_counter()
+    ns, nf, no = step.A.shape[0], step.Bf.shape[1], step.Co.shape[0]
     sz = _sizes(elements)
     e = _residual_expressions(elements, sz)
     nu = sz.nw + sz.nz
@@ -293,18 +321,14 @@ def _casadi_record(elements, ns, nf, no, S, n_samples, solver, tol, max_iter, co
     post = ca.Function("post", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]],
                        [e["r"], e["g"], e["rate"]])
     MX = ca.MX
-    A, Bf, Bg = MX.sym("A", ns, ns), MX.sym("Bf", ns, nf), MX.sym("Bg", ns, sz.ne)
-    Cw, Dwf, Dwg = MX.sym("Cw", sz.nw, ns), MX.sym("Dwf", sz.nw, nf), MX.sym("Dwg", sz.nw, sz.ne)
-    Co, Dof, Dog = MX.sym("Co", no, ns), MX.sym("Dof", no, nf), MX.sym("Dog", no, sz.ne)
-    h = MX.sym("h")
-    mats = [A, Bf, Bg, Cw, Dwf, Dwg, Co, Dof, Dog, h]
+    A, Bf, Bg, Cw, Dwf, Dwg, Co, Dof, Dog = (ca.DM(m) for m in mats)
+    h = step.h
     xa = MX.sym("xa", ns + nu + sz.ne + sz.nz)
     ff = MX.sym("ff", 2 * nf)
     x, u = xa[:ns], xa[ns:ns + nu]
     g, rate = xa[ns + nu:ns + nu + sz.ne], xa[ns + nu + sz.ne:]
     par = ca.vertcat(ca.vec(Dwg), h)
-    worst = MX(0)
-    out = None
+    worst, unorm, out = MX(0), MX(0), None
     for j in range(S):
         f = ff[:nf] + (j / S) * (ff[nf:] - ff[:nf])
         Q = ca.mtimes(Cw, x) + ca.mtimes(Dwf, f)
@@ -313,18 +337,25 @@ def _casadi_record(elements, ns, nf, no, S, n_samples, solver, tol, max_iter, co
         u = rf(guess, ca.vertcat(Q, zold, rate, par))
         r, g, rate = post(u, Q, zold, rate, par)
         worst = ca.fmax(worst, ca.norm_inf(r))
+        unorm = ca.fmax(unorm, ca.norm_inf(u))
         if j == 0:
             out = ca.mtimes(Co, x) + ca.mtimes(Dof, f) + ca.mtimes(Dog, g)
         x = ca.mtimes(A, x) + ca.mtimes(Bf, f) + ca.mtimes(Bg, g)
-    step = ca.Function("nl_step", [xa, ff] + mats, [ca.vertcat(x, u, g, rate), out, worst])
-    record = step.mapaccum("nl_record", n_samples, [0], [0])
+    one = ca.Function("nl_step", [xa, ff], [ca.vertcat(x, u, g, rate), out,
+                                             ca.vertcat(worst, unorm)])
+    inner = one.mapaccum("nl_block", BLOCK, [0], [0])
+    record = inner.mapaccum("nl_record", n_blocks, [0], [0])
+    t1 = time.perf_counter()
     if compiled:
         record = _compile_casadi(record)
-    return record
+    _RECORDS[key] = (record,)
+    return record, t1 - t0, time.perf_counter() - t1
 
 
 def _compile_casadi(fn):
-    """CasADi code generation of ``fn``, compiled through cbuild's cache, loaded as external."""
+    """CasADi code generation of ``fn``, compiled through cbuild's cache, loaded as external.
+
+    Only the "fast_newton" rootfinder can be code-generated (CasADi's "newton" cannot)."""
     import casadi as ca
     cg = ca.CodeGenerator(fn.name(), {"with_header": False})
     cg.add(fn)
@@ -332,6 +363,20 @@ def _compile_casadi(fn):
     if lib is None:
         return fn
     return ca.external(fn.name(), lib._name)
+
+
+def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa):
+    n = f.shape[0]
+    n_blocks = -(-n // BLOCK)
+    record, t_build, t_compile = _casadi_record(elements, step, S, n_blocks, solver, tol,
+                                                max_iter, compiled)
+    padded = np.vstack([f, np.repeat(f[-1:], n_blocks * BLOCK - n + 1, axis=0)])
+    ff = np.hstack([padded[:-1], padded[1:]]).T
+    t0 = time.perf_counter()
+    _, out, check = record(xa, ff)
+    t_run = time.perf_counter() - t0
+    out, check = np.asarray(out).T[:n], np.asarray(check)[:, :n]
+    return out, check[0], check[1], t_build, t_compile, t_run
 
 
 # ----------------------------------------------------------------------------------------------
@@ -383,7 +428,7 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
     backend : {"c", "casadi"}
         "c": the generated loop (falls back to "casadi", with one warning, without a compiler).
     tol : float
-        Newton stops when the step |du|_inf <= tol * max |u| seen so far.
+        Newton stops when |r|_inf <= tol * (the largest |u|_inf or |Q|_inf so far), u = [w; z].
     max_iter : int
         Newton iterations per step before NewtonError.
     solver : {"newton", "fast_newton"}
@@ -421,6 +466,9 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
         raise ValueError(f"backend must be 'c' or 'casadi', got {backend!r}")
     if solver not in ("newton", "fast_newton"):
         raise ValueError(f"solver must be 'newton' or 'fast_newton', got {solver!r}")
+    if compiled and solver != "fast_newton":
+        raise ValueError("compiled=True needs solver='fast_newton': CasADi cannot generate C for "
+                         "its 'newton' rootfinder")
     f = _check_force(force, force_dofs.size)
     L = element_matrix(elements, n)
     sz = _sizes(elements)
@@ -433,30 +481,27 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
     t1 = time.perf_counter()
 
     used = backend
-    runner = _c_runner(elements) if backend == "c" else None
-    if backend == "c" and runner is None:
-        used = "casadi"
-    t2 = time.perf_counter()
+    if backend == "c":
+        dims = (step.A.shape[0], f.shape[1], sz.ne, sz.nw, sz.nz, step.Co.shape[0])
+        runner, t_build, t_compile = _c_runner(elements, dims)
+        used = "c" if runner is not None else "casadi"
     if used == "c":
+        t2 = time.perf_counter()
         rc, out, stats, fail = _run_c(runner, step, sz, f, S, tol, max_iter, x, u, g0.copy(),
                                       rate0.copy())
-        t3 = time.perf_counter()
+        t_run = time.perf_counter() - t2
+        if rc == 2:
+            raise RuntimeError(f"dtdyn_nl_run was compiled for other sizes than {dims}")
         if rc:
             _newton_error(fail, S, fs, stats[3], max_iter)
         iters = {"max": int(stats[0]), "mean": stats[1] / ((f.shape[0] - 1) * S + 1)}
         worst = float(stats[2])
     else:
-        record = _casadi_record(elements, step.A.shape[0], f.shape[1], step.Co.shape[0], S,
-                                f.shape[0], solver, tol, max_iter, compiled)
-        t2 = time.perf_counter()
-        ff = np.hstack([f, np.vstack([f[1:], f[-1:]])]).T
         xa = np.concatenate([x, u, g0, rate0])
-        mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, step.Co, step.Dof,
-                step.Dog, step.h]
-        _, out, resid = record(xa, ff, *mats)
-        t3 = time.perf_counter()
-        out, resid = np.asarray(out).T, np.asarray(resid).ravel()
-        bad = np.flatnonzero(~(resid <= _casadi_limit(tol, out)) | ~np.isfinite(out).all(axis=1))
+        out, resid, unorm, t_build, t_compile, t_run = _run_casadi(
+            elements, step, sz, f, S, solver, tol, max_iter, compiled, xa)
+        limit = 10.0 * tol * max(1.0, unorm.max())  # tol is CasADi's absolute abstolStep
+        bad = np.flatnonzero(~((resid <= limit) | (resid == 0)) | ~np.isfinite(out).all(axis=1))
         if bad.size:
             k = int(bad[0])
             _newton_error(k * S, S, fs, float(resid[k]), max_iter)
@@ -466,15 +511,10 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
                     a=out[:, 2 * no:],
                     info={"method": method, "substeps": S, "backend": used, "fs": fs,
                           "elements": [el.describe() for el in elements],
-                          "setup_time": t1 - t0, "compile_time": t2 - t1, "run_time": t3 - t2,
+                          "setup_time": t1 - t0, "construct_time": t_build,
+                          "compile_time": t_compile, "run_time": t_run,
                           "newton_iterations": iters, "max_residual": worst,
                           **({"scheme_params": scheme_params} if scheme_params else {})})
-
-
-def _casadi_limit(tol, out):
-    """Largest acceptable final residual of a CasADi step (its plugins do not report failure)."""
-    scale = np.abs(out).max() if out.size else 1.0
-    return max(1e3 * tol, 1e-9) * max(scale, 1e-300)
 
 
 def _newton_error(k, S, fs, resid, max_iter):
