@@ -207,6 +207,12 @@ def render_all() -> dict[str, str]:
     render("c/nl_loop.c.jinja", "nl_loop.c", "dtdyn.derive.nonlinear")
     render("markdown/nonlinear.md.jinja", "nonlinear.md", "dtdyn.derive.nonlinear",
            **_nonlinear_context())
+    par = nonlinear.parabola_coefficient()
+    render("numpy/nl_modal.py.jinja", "nl_modal.py", "dtdyn.derive.nonlinear.parabola_coefficient",
+           closed=sp.sstr(par["closed"]), kernel=sp.sstr(par["kernel"]),
+           kernel_py=printing.py(par["kernel"].subs(nonlinear.zz, sp.Symbol("zs"))
+                                 .replace(sp.exp, lambda a: sp.Symbol("e"))),
+           series=[repr(float(c)) for c in par["series"]])
     render("numpy/stability.py.jinja", "stability.py", "dtdyn.derive.stability",
            **_stability_context())
     names = list(I.SCHEMES)

@@ -64,3 +64,29 @@ def scheme_effective(name: str) -> tuple[sp.Expr, sp.Expr]:
     spec = kernels.scheme_spec(name)
     rows = dict(kernels.constant_table(spec, "acceleration"))
     return sp.simplify(rows["r"]), sp.simplify(rows["p"])
+
+
+# --- parabolic treatment of the element forces (method "modal_parabolic") ----------------------
+#
+# Between t_k and t_{k+1} the ramp invariant takes g linear. The parabola through g_{k-1}, g_k,
+# g_{k+1} adds  (g_{k+1} - 2 g_k + g_{k-1}) u (u - T) / (2 T^2),  u = t - t_k, whose response is
+# N2 (g_{k+1} - 2 g_k + g_{k-1}) with N2 = integral_0^T e^{s(T-u)} u (u - T) / (2 T^2) du:
+# third order in T instead of second, same per-step problem.
+
+zz = modal_filters.z
+uu = modal_filters.u
+
+
+@lru_cache(maxsize=None)
+def parabola_coefficient() -> dict:
+    """N2(s, T) in closed form, as T * (2 phi3(z) - phi2(z)) / 2 with z = sT, and its series."""
+    closed = sp.simplify(sp.integrate(sp.exp(s * (T - uu)) * uu * (uu - T) / (2 * T**2),
+                                      (uu, 0, T), conds="none"))
+    phi2 = modal_filters.phi2(zz)
+    phi3 = (sp.exp(zz) - 1 - zz - zz**2 / 2) / zz**3
+    phi_form = T * (2 * phi3 - phi2) / 2
+    assert sp.simplify(closed - phi_form.subs(zz, s * T)) == 0
+    kernel = (2 * phi3 - phi2) / 2
+    ser = sp.series(kernel, zz, 0, 18).removeO()
+    series = [sp.Rational(ser.coeff(zz, k)) for k in range(18)]
+    return {"closed": closed, "kernel": kernel, "series": series}

@@ -16,6 +16,8 @@ modal B0 in generated/nonlinear.md). Methods:
 - "modal_ramp": modal digital filters, ramp invariant (Ahlin, Josefsson & Magnevall): one
   complex first-order recursion per kept mode, exact for a force linear between samples, the
   nonlinear force treated as linear over the step (second order in h).
+- "modal_parabolic": the same filters with the element forces interpolated by the parabola
+  through g_{k-1}, g_k, g_{k+1} (third order in h, same per-step problem; dtdyn's addition).
 - any one-step scheme of the integrator library on M, C, K ("newmark", "average_acceleration",
   "hht", "generalized_alpha", ...): the effective nonlinear system of the scheme; HHT and
   generalized-alpha evaluate the nonlinear forces like the external ones, averaged between
@@ -42,6 +44,7 @@ from .elements import casadi_ops, check_elements, element_matrix
 from .result import Response
 
 MULTISTEP = ("houbolt", "park")
+MODAL = ("modal_ramp", "modal_parabolic")
 
 
 class NewtonError(RuntimeError):
@@ -89,16 +92,19 @@ def _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h, direct=None) -> LinearSt
                       c(O), c(Do[:, :nf]), c(Do[:, nf:]), c(X0[:, :nf]), c(X0[:, nf:]))
 
 
-def _modal_ramp_step(M, C, K, h, U, L, out, modes, need_v, nf) -> LinearStep:
+def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> LinearStep:
     """Ramp-invariant modal model: eta_k = lam eta_{k-1} + N0 p_k + N1 p_{k-1}, p = X_f U u.
 
     Displacement q = sum_r w_r Re(psi_r eta_r) (w = 2 for a conjugate pair, 1 for a real pole),
     velocity with psi_r s_r, acceleration with psi_r s_r^2 plus the direct term
-    sum_r w_r Re(s_r R_r) u (= M^-1 with all modes).
+    sum_r w_r Re(s_r R_r) u (= M^-1 with all modes). ``parabolic`` adds
+    N2 X_f U_g (g_k - 2 g_{k-1} + g_{k-2}) (generated/nl_modal.py), the state then carrying
+    g_{k-1} (g_{-1} = g_0 at rest).
     """
     from scipy.linalg import block_diag
 
     from dtdyn.generated.modal_filters import forced_coefficients
+    from dtdyn.generated.nl_modal import parabola_coefficient
 
     from .modal import _pair_poles, modal_factors
     s_all, Psi_q, X_f = modal_factors(M, C, K)
@@ -110,27 +116,40 @@ def _modal_ramp_step(M, C, K, h, U, L, out, modes, need_v, nf) -> LinearStep:
         idx, osc = idx[sel], osc[sel]
     s = np.where(osc, s_all[idx], s_all[idx].real)
     N1, N0 = forced_coefficients("ramp", s, np.ones_like(s), h)  # old input, new input
+    N2 = parabola_coefficient(s, h) if parabolic else np.zeros_like(s)
     lam = np.exp(s * h)
     P = X_f[idx] @ U
+    ne, nu = L.shape[0], U.shape[1]
     psi = Psi_q[:, idx] * np.where(osc, 2.0, 1.0)
     Sc = np.vstack([psi, psi * s, psi * s**2])
-    direct = np.vstack([np.zeros((2 * L.shape[1], U.shape[1])), ((psi * s) @ P).real])
-    A_blocks, G0_rows, G1_rows, S_cols = [], [], [], []
+    direct = np.vstack([np.zeros((2 * L.shape[1], nu)), ((psi * s) @ P).real])
+    A_blocks, rows = [], {"G0": [], "G1": [], "G2": [], "S": []}
     for r in range(idx.size):
-        l, g0, g1 = lam[r], N1[r] * P[r], N0[r] * P[r]
+        l, g0, g1, g2 = lam[r], N1[r] * P[r], N0[r] * P[r], N2[r] * P[r, nf:]
+        g0[nf:] -= 2.0 * g2
+        g1[nf:] += g2
+        parts = {"G0": g0, "G1": g1, "G2": g2, "S": Sc[:, r]}
         if osc[r]:  # real state (Re eta, Im eta)
             A_blocks.append(np.array([[l.real, -l.imag], [l.imag, l.real]]))
-            G0_rows += [g0.real, g0.imag]
-            G1_rows += [g1.real, g1.imag]
-            S_cols += [Sc[:, r].real, -Sc[:, r].imag]
+            for k, v in parts.items():
+                rows[k] += [v.real, -v.imag if k == "S" else v.imag]
         else:
             A_blocks.append(np.array([[l.real]]))
-            G0_rows.append(g0.real)
-            G1_rows.append(g1.real)
-            S_cols.append(Sc[:, r].real)
-    G1 = np.array(G1_rows)
-    return _shifted(block_diag(*A_blocks), np.array(G0_rows), G1, np.array(S_cols).T,
-                    np.zeros_like(G1), L, out, need_v, nf, h, direct)
+            for k, v in parts.items():
+                rows[k].append(v.real)
+    Phi = block_diag(*A_blocks)
+    G0, G1, G2, S = (np.array(rows[k]) for k in ("G0", "G1", "G2", "S"))
+    S = S.T
+    Z0 = np.zeros_like(G1)
+    if parabolic:  # state [eta; g_{k-1}]
+        nz = Phi.shape[0]
+        E_g = np.hstack([np.zeros((ne, nf)), np.eye(ne)])
+        Phi = np.block([[Phi, G2], [np.zeros((ne, nz + ne))]])
+        G0 = np.vstack([G0, E_g])
+        G1 = np.vstack([G1, np.zeros((ne, nu))])
+        S = np.hstack([S, np.zeros((S.shape[0], ne))])
+        Z0 = np.vstack([Z0, E_g])
+    return _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h, direct)
 
 
 def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearStep:
@@ -153,11 +172,12 @@ def linear_step(method, M, C, K, h, force_dofs, L, outputs, modes=None, need_v=F
     """The shifted linear model of one step h for ``method`` (module docstring)."""
     n = M.shape[0]
     U = np.hstack([np.eye(n)[:, force_dofs], -L.T])  # DOF forces of u = [f; g]
-    if method == "modal_ramp":
+    if method in MODAL:
         if scheme_params:
-            raise ValueError(f"method 'modal_ramp' takes no scheme parameters, got "
+            raise ValueError(f"method {method!r} takes no scheme parameters, got "
                              f"{', '.join(sorted(scheme_params))}")
-        return _modal_ramp_step(M, C, K, h, U, L, outputs, modes, need_v, len(force_dofs))
+        return _modal_step(M, C, K, h, U, L, outputs, modes, need_v, len(force_dofs),
+                           parabolic=method == "modal_parabolic")
     if modes is not None:
         raise ValueError(f"modes selects modal filters; method {method!r} integrates all DOFs")
     return _scheme_step(M, C, K, h, U, L, outputs, method, scheme_params, need_v,
@@ -411,17 +431,17 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
     fs : float
         Sampling rate, Hz.
     M, C, K : (n, n) array_like
-        The linear part (M nonsingular for "modal_ramp").
+        The linear part (M nonsingular for the modal methods).
     force_dofs : sequence of int
         0-based loaded DOFs.
     elements : sequence of elements
         `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen` (dtdyn.runtime.elements).
     modes : sequence of int, optional
-        "modal_ramp" only: the modes kept (indices into the modes sorted by |s|).
+        Modal methods only: the modes kept (indices into the modes sorted by |s|).
     outputs : sequence of int, optional
         Response DOFs (all by default).
     method : str
-        "modal_ramp", or a one-step scheme of the integrator library ("newmark",
+        "modal_ramp", "modal_parabolic", or a one-step scheme of the integrator library ("newmark",
         "average_acceleration", "hht", "generalized_alpha", "wilson", ...).
     substeps : int
         Steps per sample (h = 1 / (fs substeps)); the force is interpolated linearly.
