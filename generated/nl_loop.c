@@ -18,7 +18,8 @@
  * Newton stops when |r|_inf <= max(tol, 16 eps |J|_inf) * (the largest |u|_inf or |Q|_inf so
  * far): the second term is the round-off floor of r for stiff elements. Matrices are column-major; par
  * holds Dwg, then h. Returns 0, or 1 when Newton failed at step fail[0] (sub-step
- * index) with residual stats[3] (non-finite, singular Jacobian or max_iter iterations).
+ * index) with residual stats[3] (non-finite, singular Jacobian or max_iter iterations), 3 (see
+ * below) when the step is beyond its stability limit.
  */
 #include <float.h>
 #include <math.h>
@@ -112,11 +113,14 @@ static inline void zero(long n, double *restrict dst)
  * let the compiler unroll the small products), n_samples, substeps, max_iter.
  * mats (column-major): A, Bf, Bg, Cw, Dwf, Dwg, par = [Dwg; h], Co, Dof, Dog.
  * state: x (ns), u (nw + nz: last solution), g (ne), rate (nz); all updated in place.
- * stats: [max iterations, total iterations, max final residual, failing residual].
+ * stats: [max iterations, total iterations, max final residual, failing residual or theta,
+ * max theta]. Returns 3 when theta = |B0 dg/dw|_inf exceeds theta_limit (the method's
+ * stability limit for the elements' tangent stiffness) at step fail[0].
  */
 int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
                  double *restrict x, double *restrict u, double *restrict g,
-                 double *restrict rate, double *restrict out, double tol, double *stats,
+                 double *restrict rate, double *restrict out, double tol, double theta_limit,
+                 double *stats,
                  long *fail, double *restrict work, nl_int *restrict iwork)
 {
     enum { ns = NL_NS, nf = NL_NF, ne = NL_NE, nw = NL_NW, nz = NL_NZ, no = NL_NO };
@@ -134,7 +138,7 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     long n, j, i, k, it;
     arg[0] = u; arg[1] = Q; arg[2] = zold; arg[3] = rold; arg[4] = par;
     res[0] = r; res[1] = J; res[2] = g; res[3] = rate;
-    stats[0] = stats[1] = stats[2] = stats[3] = 0.0;
+    stats[0] = stats[1] = stats[2] = stats[3] = stats[4] = 0.0;
     if (dims[0] != ns || dims[1] != nf || dims[2] != ne || dims[3] != nw || dims[4] != nz ||
         dims[5] != no)
         return 2; /* compiled for other sizes */
@@ -199,6 +203,23 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
             }
             if (rn > stats[2])
                 stats[2] = rn;
+            { /* theta = |J_ww - I|_inf = |B0 dg/dw|_inf: the elements' stiffness seen by the step */
+                double theta = 0.0;
+                for (i = 0; i < nw; ++i) {
+                    double row = 0.0;
+                    for (k = 0; k < nw; ++k)
+                        row += fabs(J[k * nu + i] - (i == k ? 1.0 : 0.0));
+                    if (row > theta)
+                        theta = row;
+                }
+                if (theta > stats[4])
+                    stats[4] = theta;
+                if (theta > theta_limit) {
+                    fail[0] = n * S + j;
+                    stats[3] = theta;
+                    return 3;
+                }
+            }
             if (j == 0) {
                 double *o = out + n * no;
                 zero(no, o);

@@ -46,6 +46,14 @@ from .result import Response
 MULTISTEP = ("houbolt", "park")
 MODAL = ("modal_ramp", "modal_parabolic")
 
+#: largest theta = |B0 dg/dw|_inf (the elements' tangent stiffness k_t as seen by the step) a
+#: method stays stable at: the ramp invariant treats the element force like the linear-
+#: acceleration method (unstable beyond B0 k_t = 2, i.e. Omega_t = h sqrt(k_t/m) = sqrt 12);
+#: the parabolic one grows like Adams-Moulton 3 on the imaginary axis, rho - 1 ~ 1e-3 per step at
+#: theta = 0.03 without damping (docs/nonlinear.md), so it is held to theta <= 0.01.
+#: The implicit schemes (average acceleration, HHT, generalized-alpha) have no such limit.
+THETA_LIMIT = {"modal_ramp": 2.0, "modal_parabolic": 0.01}
+
 
 class NewtonError(RuntimeError):
     """The per-step Newton iteration failed (not converged, singular Jacobian or non-finite)."""
@@ -270,7 +278,7 @@ def _c_runner(elements, dims):
     if lib is None:
         return None, t1 - t0, t2 - t1
     run = lib.dtdyn_nl_run
-    run.argtypes = [ctypes.c_void_p] * 8 + [ctypes.c_double] + [ctypes.c_void_p] * 4
+    run.argtypes = [ctypes.c_void_p] * 8 + [ctypes.c_double] * 2 + [ctypes.c_void_p] * 4
     run.restype = ctypes.c_int
     return (run, int(fn.sz_w()), int(fn.sz_iw())), t1 - t0, t2 - t1
 
@@ -279,7 +287,7 @@ def _p(a):
     return a.ctypes.data_as(ctypes.c_void_p)
 
 
-def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate):
+def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate, theta_limit):
     run, n_w, n_iw = runner
     ns, nf, no = step.A.shape[0], force.shape[1], step.Co.shape[0]
     n_samples = force.shape[0]
@@ -291,12 +299,12 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate)
     mats = [np.asfortranarray(m, dtype=float) for m in mats]
     ptrs = (ctypes.c_void_p * len(mats))(*[m.ctypes.data for m in mats])
     out = np.empty((n_samples, no))
-    stats = np.zeros(4)
+    stats = np.zeros(5)
     fail = np.zeros(1, dtype=np.int64)
     work = np.zeros(n_w + 1)
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
     rc = run(_p(dims), ctypes.cast(ptrs, ctypes.c_void_p), _p(force), _p(x), _p(u), _p(g),
-             _p(rate), _p(out), tol, _p(stats), _p(fail), _p(work), _p(iwork))
+             _p(rate), _p(out), tol, theta_limit, _p(stats), _p(fail), _p(work), _p(iwork))
     return rc, out, stats, int(fail[0])
 
 
@@ -508,14 +516,16 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
     if used == "c":
         t2 = time.perf_counter()
         rc, out, stats, fail = _run_c(runner, step, sz, f, S, tol, max_iter, x, u, g0.copy(),
-                                      rate0.copy())
+                                      rate0.copy(), THETA_LIMIT.get(method, np.inf))
         t_run = time.perf_counter() - t2
         if rc == 2:
             raise RuntimeError(f"dtdyn_nl_run was compiled for other sizes than {dims}")
+        if rc == 3:
+            _stability_error(method, fail, S, fs, stats[3])
         if rc:
             _newton_error(fail, S, fs, stats[3], max_iter)
         iters = {"max": int(stats[0]), "mean": stats[1] / ((f.shape[0] - 1) * S + 1)}
-        worst = float(stats[2])
+        worst, theta = float(stats[2]), float(stats[4])
     else:
         xa = np.concatenate([x, u, g0, rate0])
         out, resid, unorm, t_build, t_compile, t_run = _run_casadi(
@@ -525,7 +535,7 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
         if bad.size:
             k = int(bad[0])
             _newton_error(k * S, S, fs, float(resid[k]), max_iter)
-        iters, worst = None, float(resid.max())
+        iters, worst, theta = None, float(resid.max()), None
     no = outputs.size
     return Response(np.arange(f.shape[0]) / fs, outputs, x=out[:, :no], v=out[:, no:2 * no],
                     a=out[:, 2 * no:],
@@ -534,7 +544,23 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
                           "setup_time": t1 - t0, "construct_time": t_build,
                           "compile_time": t_compile, "run_time": t_run,
                           "newton_iterations": iters, "max_residual": worst,
+                          "max_theta": theta,
                           **({"scheme_params": scheme_params} if scheme_params else {})})
+
+
+class DtdynStepStabilityError(ValueError):
+    """The elements' tangent stiffness is beyond the method's stability limit at this step."""
+
+
+def _stability_error(method, k, S, fs, theta):
+    n, j = divmod(k, S)
+    where = f"sample {n}" + (f", sub-step {j} of {S}" if S > 1 else "")
+    limit = THETA_LIMIT[method]
+    more = int(np.ceil(S * np.sqrt(theta / limit)))
+    raise DtdynStepStabilityError(
+        f"method {method!r} is unstable at step {k} ({where}, t = {k / (fs * S):.6g} s): the "
+        f"elements' tangent stiffness gives theta = |B0 dg/dw| = {theta:.3g} > {limit:g}; use "
+        f"substeps >= {more} or an unconditionally stable scheme (method='newmark')")
 
 
 def _newton_error(k, S, fs, resid, max_iter):
