@@ -114,7 +114,8 @@ static inline void zero(long n, double *restrict dst)
  * mats (column-major): A, Bf, Bg, Cw, Dwf, Dwg, par = [Dwg; h], Co, Dof, Dog.
  * state: x (ns), u (nw + nz: last solution), g (ne), rate (nz); all updated in place.
  * stats: [max iterations, total iterations, max final residual, failing residual or theta,
- * max theta]. Returns 3 when theta = |B0 dg/dw|_inf exceeds theta_limit (the method's
+ * max theta]. Returns 3 when theta = |B0 dg/dy|_inf (displacement rows and columns) exceeds
+ * theta_limit (the method's
  * stability limit for the elements' tangent stiffness) at step fail[0].
  */
 int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
@@ -203,11 +204,11 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
             }
             if (rn > stats[2])
                 stats[2] = rn;
-            { /* theta = |J_ww - I|_inf = |B0 dg/dw|_inf: the elements' stiffness seen by the step */
+            { /* theta = |J_yy - I|_inf = |B0 dg/dy|_inf: the elements' stiffness seen by the step */
                 double theta = 0.0;
-                for (i = 0; i < nw; ++i) {
+                for (i = 0; i < ne; ++i) {
                     double row = 0.0;
-                    for (k = 0; k < nw; ++k)
+                    for (k = 0; k < ne; ++k)
                         row += fabs(J[k * nu + i] - (i == k ? 1.0 : 0.0));
                     if (row > theta)
                         theta = row;

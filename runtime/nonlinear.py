@@ -46,7 +46,8 @@ from .result import Response
 MULTISTEP = ("houbolt", "park")
 MODAL = ("modal_ramp", "modal_parabolic")
 
-#: largest theta = |B0 dg/dw|_inf (the elements' tangent stiffness k_t as seen by the step) a
+#: largest theta = |B0 dg/dy|_inf (the elements' tangent stiffness k_t as seen by the step; y
+#: rows and columns only: velocity terms and internal states are not counted) a
 #: method stays stable at: the ramp invariant treats the element force like the linear-
 #: acceleration method (unstable beyond B0 k_t = 2, i.e. Omega_t = h sqrt(k_t/m) = sqrt 12);
 #: the parabolic one grows like Adams-Moulton 3 on the imaginary axis, rho - 1 ~ 1e-3 per step at
@@ -561,7 +562,7 @@ def _stability_error(method, k, S, fs, theta):
     more = int(np.ceil(S * np.sqrt(theta / limit)))
     raise DtdynStepStabilityError(
         f"method {method!r} is unstable at step {k} ({where}, t = {k / (fs * S):.6g} s): the "
-        f"elements' tangent stiffness gives theta = |B0 dg/dw| = {theta:.3g} > {limit:g}; use "
+        f"elements' tangent stiffness gives theta = |B0 dg/dy| = {theta:.3g} > {limit:g}; use "
         f"substeps >= {more} or an unconditionally stable scheme (method='newmark')")
 
 
