@@ -16,6 +16,10 @@ _EXPORTS = {
     "modal_model": "modal", "from_poles_residues": "modal",
     "modal_filter_response": "modal_filters",
     "shock_response_spectrum": "srs",
+    "nonlinear_response": "nonlinear", "NewtonError": "nonlinear",
+    "Cubic": "elements", "Polynomial": "elements", "Gap": "elements", "Law": "elements",
+    "BoucWen": "elements",
+    "reference_response": "nl_reference",
     "load_scene": "scene", "run_scene": "scene",
     "Response": "result",
 }

@@ -143,6 +143,13 @@ def _stability(args) -> int:
     return 0
 
 
+def _bench(args) -> int:
+    from dtdyn.runtime import bench
+    command = "dtdyn bench " + " ".join(args.problems) + (" --quick" if args.quick else "")
+    bench.run(args.problems, args.out, quick=args.quick, command=command)
+    return 0
+
+
 def _srs(args) -> int:
     import warnings
 
@@ -212,6 +219,10 @@ def main(argv=None) -> int:
     st = sub.add_parser("stability", help="spectral radius, period elongation, damping per scheme")
     st.add_argument("schemes", nargs="*", help="scheme names (default: all)")
     st.add_argument("--plot", help="draw the curves to this image file")
+    be = sub.add_parser("bench", help="work-precision report: error against run time per method")
+    be.add_argument("problems", nargs="*", default=["P3", "P4"], help="P3, P4 (default: both)")
+    be.add_argument("--out", default="bench", help="folder for the Markdown, JSON and plot")
+    be.add_argument("--quick", action="store_true", help="shorter sweeps (a smoke run)")
     sr = sub.add_parser("srs", help="shock response spectrum of a base-acceleration record")
     sr.add_argument("record", help=".npy or .csv record of acceleration samples")
     sr.add_argument("--fs", type=float, required=True, help="sampling rate, Hz")
@@ -231,7 +242,7 @@ def main(argv=None) -> int:
     sr.add_argument("--out", help="write freq_hz, maximax, positive, negative to this CSV")
     args = parser.parse_args(argv)
     handler = {"generate": _generate, "show": _show, "simulate": _simulate,
-               "stability": _stability, "srs": _srs}[args.command]
+               "stability": _stability, "srs": _srs, "bench": _bench}[args.command]
     try:
         return handler(args)
     except (ValueError, FileNotFoundError, FloatingPointError) as exc:

@@ -9,9 +9,9 @@ y_e = q_i - q_j is its relative displacement and y'_e its relative velocity; the
 DOF i with -g_e and DOF j with +g_e (a restoring force for g_e of the sign of y_e). Elements with
 memory carry internal states z integrated with the step (Bouc-Wen's hysteretic displacement).
 
-Each law is written once against a small math namespace (`NUMPY_OPS` or `CASADI_OPS`), so the
+Each law is written once against a small math namespace (`NUMPY_OPS` or `casadi_ops()`), so the
 same definition builds the CasADi residual of the per-step solve and evaluates the solve_ivp
-reference.
+reference. (`casadi_ops()` builds the CasADi namespace on first use.)
 
     Cubic(i, j=None, k3=...)                    g = k3 y^3
     Polynomial(i, j=None, coeffs=[c0, c1, ...]) g = sum_p coeffs[p] y^p
@@ -58,6 +58,8 @@ def _dof(name: str, value, allow_none: bool = False):
 
 
 def _number(name: str, value, *, positive=False, nonnegative=False) -> float:
+    if isinstance(value, bool):
+        raise ValueError(f"{name} must be a number, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -89,7 +91,7 @@ class Element:
                              "different DOFs (or one DOF and ground, j=None)")
 
     def force(self, y, v, z, ops):
-        """g(y, y', z): the force on j, minus the force on i."""
+        """g(y, y', z): the element pushes DOF i with -g and DOF j with +g."""
         raise NotImplementedError
 
     def rate(self, y, v, z, ops):

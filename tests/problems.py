@@ -42,12 +42,5 @@ def p4(n_samples=100_000):
 
     (first 5000 samples: peak ratios 0.72 and 0.51; tests/test_nl_reference.py checks them.)
     """
-    from dtdyn.runtime.chain import chain_matrices
-    from dtdyn.runtime.elements import Cubic
-
-    k, k3 = 1e4, 2e7
-    M, _, K = chain_matrices(np.ones(4), np.full(4, k), np.zeros(4), sparse=False)
-    C = 1.0 * M + 2e-4 * K
-    force = (np.random.default_rng(0).standard_normal(n_samples) * 100.0)[:, None]
-    return dict(M=M, C=C, K=K, force=force, fs=1000.0, force_dofs=[3],
-                elements=[Cubic(0, None, k3=k3), Cubic(1, 2, k3=k3)], k=k, k3=k3)
+    from dtdyn.runtime.problems import p4 as runtime_p4
+    return runtime_p4(n_samples)

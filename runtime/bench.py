@@ -1,0 +1,314 @@
+"""Work-precision reports (`dtdyn bench`): every applicable method on a reference problem, error
+against a tight reference and run time, as a Markdown table, JSON and a log-log plot.
+
+Error: the displacement of the problem's output DOF (P3: mass 15; P4: DOF 3), max over time of
+|x - x_ref| relative to max |x_ref|, and the RMS over time of the difference on the same scale.
+Time: median of repeats after a warm-up; construction and compile (the first call minus the
+median) reported apart. Fixed-step methods sweep dt (P3) or sub-steps (P4); adaptive solvers
+sweep rtol. References: the matrix exponential (exact for P3's piecewise-linear force) and the
+solve_ivp DOP853 rtol 1e-12 reference restarted at every sample (P4, cached on disk). solve_ivp
+peers on P4 run on a window of the record and are extrapolated (marked).
+"""
+from __future__ import annotations
+
+import json
+import statistics
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import problems
+
+
+@dataclass
+class Run:
+    method: str
+    family: str
+    setting: str
+    max_error: float
+    rms_error: float
+    run_time: float
+    build_time: float
+    note: str = ""
+
+
+def _errors(x, ref):
+    d = np.asarray(x) - np.asarray(ref)
+    scale = np.abs(ref).max()
+    return float(np.abs(d).max() / scale), float(np.sqrt(np.mean(d**2)) / scale)
+
+
+def _timed(fn, repeats):
+    """(result, median run time, build time): first call, then ``repeats`` timed calls
+    (``repeats`` = 0: the first call's time, no build time)."""
+    t0 = time.perf_counter()
+    out = fn()
+    first = time.perf_counter() - t0
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    if not times:  # a single (cold) run: no build time to separate
+        return out, first, 0.0
+    med = statistics.median(times)
+    return out, med, max(first - med, 0.0)
+
+
+# --- P3: linear chain ---------------------------------------------------------------------------
+
+P3_SCHEMES = [("average_acceleration", {}), ("linear_acceleration", {}), ("fox_goodwin", {}),
+              ("newmark_1_8", {}), ("fox_euler", {}), ("wilson", {"theta": 1.4}),
+              ("houbolt", {}), ("park", {}), ("hht", {"alpha": -0.05}),
+              ("generalized_alpha", {"rho_inf": 0.8})]
+
+
+def bench_p3(quick=False, log=print):
+    from scipy import signal
+    from scipy.integrate import solve_ivp
+
+    from .chain import simulate_chain
+    from .discretize import discretize, first_order_form
+    from .exact import exact_response
+    from .modal_filters import modal_filter_response
+    from .state_space import discrete_state_space, state_space_response
+    P = problems.p3()
+    M, C, K, T, out = P["M"], P["C"], P["K"], P["T"], P["output"]
+    dts = (2e-3, 1e-3, 5e-4) if quick else (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4)
+    reps = 3
+    runs = []
+
+    def add(method, family, setting, x, ref, t_run, t_build, note=""):
+        e_max, e_rms = _errors(x, ref)
+        runs.append(Run(method, family, setting, e_max, e_rms, t_run, t_build, note))
+        log(f"  {method:32s} {setting:>12s}  max {e_max:9.2e}  rms {e_rms:9.2e}  "
+            f"{t_run * 1e3:9.3f} ms")
+
+    for dt in dts:
+        n = int(round(T / dt))
+        f = np.ones((n + 1, 1))
+        ref = exact_response(M, C, K, f, dt, n, loaded=[14], outputs=[out]).x[:, 0]
+        setting = f"dt={dt:g}"
+        for name, params in P3_SCHEMES:
+            r, t_run, t_b = _timed(lambda: simulate_chain(
+                P["mass"], P["stiffness"], P["damping"], f, dt, n, loaded=[14], scheme=name,
+                outputs=[out], quantities=("x",), **params), reps)
+            add(f"DT-TMM {name}", "DT-TMM (C)", setting, r.x[:, 0], ref, t_run, t_b)
+
+        def ss(model):
+            A, B, Cd, D = model()
+            return state_space_response(A, B, Cd, D, np.hstack([np.zeros((n + 1, 14)), f]))
+        y, t_run, t_b = _timed(lambda: ss(lambda: discrete_state_space(M, C, K, dt)), reps)
+        add("state space (Newmark)", "state space", setting, y[:, out], ref, t_run, t_b)
+        y, t_run, t_b = _timed(lambda: ss(lambda: discretize(M, C, K, dt, hold="foh")), reps)
+        add("exact discretization (foh)", "state space", setting, y[:, out], ref, t_run, t_b)
+        for inv in ("ramp", "step", "impulse"):
+            r, t_run, t_b = _timed(lambda: modal_filter_response(
+                f, 1 / dt, M, C, K, [14], [out], invariant=inv), reps)
+            add(f"modal filters {inv}", "modal filters", setting, r.x[:, 0], ref, t_run, t_b)
+        for keep in (5, 10):
+            r, t_run, t_b = _timed(lambda: modal_filter_response(
+                f, 1 / dt, M, C, K, [14], [out], modes=range(keep), invariant="ramp"), reps)
+            add(f"modal filters ramp, {keep} modes", "modal filters", setting, r.x[:, 0], ref,
+                t_run, t_b)
+        A, B = first_order_form(M, C, K)[:2]
+        sys = signal.StateSpace(A, B[:, [14]], np.eye(30)[[out]], np.zeros((1, 1)))
+        tt = np.arange(n + 1) * dt
+        (_, y, _), t_run, t_b = _timed(lambda: signal.lsim(sys, f[:, 0], tt), 1)
+        add("scipy lsim", "peer", setting, y, ref, t_run, t_b)
+
+    # adaptive peers on the dt = 1e-3 grid
+    dt = 1e-3
+    n = int(round(T / dt))
+    tt = np.arange(n + 1) * dt
+    ref = exact_response(M, C, K, np.ones((n + 1, 1)), dt, n, loaded=[14], outputs=[out]).x[:, 0]
+    A, B = first_order_form(M, C, K)[:2]
+    b = B[:, 14].copy()
+
+    def rhs(_t, s):
+        return A @ s + b
+
+    for solver in ("RK45", "DOP853", "LSODA", "Radau"):
+        for rtol in ((1e-4, 1e-7) if quick else (1e-3, 1e-5, 1e-7, 1e-9)):
+            implicit = {"jac": lambda _t, _s: A} if solver in ("Radau", "LSODA") else {}
+            sol, t_run, t_b = _timed(lambda: solve_ivp(
+                rhs, (0, T), np.zeros(30), method=solver, t_eval=tt, rtol=rtol,
+                atol=rtol * 1e-4, **implicit), 1)
+            add(f"solve_ivp {solver}", "peer", f"rtol={rtol:g}", sol.y[out], ref, t_run, t_b)
+    meta = {"problem": "P3", "description": "15-DOF chain (Kumar & Sankar 1986), undamped, unit "
+            "step on mass 15, T = 0.8 s; error of x at mass 15 against the matrix exponential",
+            "targets": [1e-3, 1e-6]}
+    return runs, meta
+
+
+# --- P4: nonlinear ------------------------------------------------------------------------------
+
+P4_METHODS = [("modal_parabolic", {}), ("modal_ramp", {}), ("newmark", {}),
+              ("hht", {"alpha": -0.05}), ("generalized_alpha", {"rho_inf": 0.8})]
+
+
+def bench_p4(quick=False, log=print):
+    from scipy.integrate import solve_ivp
+
+    from .nl_reference import check_reference, reference_response
+    from .nonlinear import nonlinear_response
+    n = 10_000 if quick else 100_000
+    P = problems.p4(n)
+    out = P["output"]
+    args = (P["force"], P["fs"], P["M"], P["C"], P["K"], P["force_dofs"], P["elements"])
+    t0 = time.perf_counter()
+    ref_r = reference_response(*args)
+    t_ref = time.perf_counter() - t0
+    ref = ref_r.x[:, out]
+    radau = check_reference(*args, n_samples=300)
+    runs = []
+
+    def add(method, family, setting, x, ref_x, t_run, t_b, note=""):
+        e_max, e_rms = _errors(x, ref_x)
+        runs.append(Run(method, family, setting, e_max, e_rms, t_run, t_b, note))
+        log(f"  {method:32s} {setting:>12s}  max {e_max:9.2e}  rms {e_rms:9.2e}  "
+            f"{t_run * 1e3:9.1f} ms  {note}")
+
+    for method, params in P4_METHODS:
+        for S in (1, 2, 3, 4, 8):
+            r, t_run, t_b = _timed(lambda: nonlinear_response(*args, method=method, substeps=S,
+                                                              **params), 3)
+            add(method, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref,
+                r.info["run_time"], t_b)
+    for S in (4, 8):
+        r, t_run, t_b = _timed(lambda: nonlinear_response(
+            *args, method="newmark", substeps=S, backend="casadi", solver="fast_newton",
+            compiled=True), 1)
+        add("CasADi newmark (compiled)", "peer", f"substeps={S}", r.x[:, out], ref,
+            r.info["run_time"], t_b, "fast_newton in mapaccum")
+
+    # solve_ivp across the kinks (force interpolated), on a window, extrapolated
+    M, C, K, fs = P["M"], P["C"], P["K"], P["fs"]
+    Minv = np.linalg.inv(M)
+    L = np.array([[1.0, 0, 0, 0], [0, 1.0, -1.0, 0]])
+    k3 = P["k3"]
+
+    def run_ivp(solver, rtol, n_win):
+        f = P["force"][:n_win, 0]
+        tt = np.arange(n_win) / fs
+
+        def rhs(t, s):
+            q, v = s[:4], s[4:]
+            F = np.zeros(4)
+            F[3] = np.interp(t, tt, f)
+            return np.concatenate([v, Minv @ (F - C @ v - K @ q - L.T @ (k3 * (L @ q) ** 3))])
+        sol = solve_ivp(rhs, (0, tt[-1]), np.zeros(8), method=solver, t_eval=tt, rtol=rtol,
+                        atol=rtol * 1e-3)
+        return sol.y[out]
+
+    for solver, n_win in (("RK45", 1000), ("DOP853", 1000), ("LSODA", 1000), ("Radau", 200)):
+        n_win = min(n_win, n)
+        for rtol in ((1e-5, 1e-7) if quick else (1e-4, 1e-6, 1e-8)):
+            y, t_run, _ = _timed(lambda: run_ivp(solver, rtol, n_win), 0)
+            add(f"solve_ivp {solver}", "peer", f"rtol={rtol:g}", y, ref[:n_win],
+                t_run * n / n_win, 0.0,
+                f"window of {n_win} samples, time extrapolated x{n // n_win}")
+    meta = {"problem": "P4", "description": f"nonlinear 4-DOF chain, {n} samples at 1 kHz; error "
+            "of x at DOF 3 against solve_ivp DOP853 rtol 1e-12 restarted at every sample "
+            f"(reference {'from the disk cache' if ref_r.info.get('cached') else f'{t_ref:.0f} s'}"
+            f"; DOP853 vs Radau on 300 samples: {radau:.1e})", "targets": [1e-3]}
+    return runs, meta
+
+
+# --- report -------------------------------------------------------------------------------------
+
+BENCHES = {"P3": bench_p3, "P4": bench_p4}
+
+
+def ranking(runs, target):
+    """The fastest run of each method with max error <= target, fastest first."""
+    best = {}
+    for r in runs:
+        if r.max_error <= target and (r.method not in best
+                                      or r.run_time < best[r.method].run_time):
+            best[r.method] = r
+    return sorted(best.values(), key=lambda r: r.run_time)
+
+
+def write_report(runs, meta, out_dir, command):
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    name = meta["problem"]
+    lines = [f"# Work-precision: {name}", "", f"Output of `{command}`. {meta['description']}.",
+             "Times: median of repeats after a warm-up (solve_ivp: one run); build = "
+             "construction and compile (first call minus the median).", ""]
+    for target in meta["targets"]:
+        lines += [f"## Ranking at max error <= {target:g}", "",
+                  "| rank | method | setting | max error | run time [ms] |", "|---|---|---|---|---|"]
+        for k, r in enumerate(ranking(runs, target), 1):
+            lines.append(f"| {k} | {r.method} | {r.setting} | {r.max_error:.2e} | "
+                         f"{r.run_time * 1e3:.3g} |")
+        lines.append("")
+    lines += ["## All runs", "", "| method | family | setting | max error | RMS error | run time "
+              "[ms] | build [ms] | note |", "|---|---|---|---|---|---|---|---|"]
+    for r in runs:
+        lines.append(f"| {r.method} | {r.family} | {r.setting} | {r.max_error:.2e} | "
+                     f"{r.rms_error:.2e} | {r.run_time * 1e3:.4g} | {r.build_time * 1e3:.3g} | "
+                     f"{r.note} |")
+    lines += ["", f"![error against run time](bench_{name}.png)", ""]
+    md = out_dir / f"bench_{name}.md"
+    _write(md, "\n".join(lines))
+    _write(out_dir / f"bench_{name}.json",
+           json.dumps({"meta": meta, "command": command, "runs": [asdict(r) for r in runs]},
+                      indent=1))
+    _plot(runs, meta, out_dir / f"bench_{name}.png")
+    return md
+
+
+def _write(path, text):
+    import os
+    import tempfile
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text)
+    os.replace(tmp, path)
+
+
+def _plot(runs, meta, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(8.5, 5.5))
+    methods = list(dict.fromkeys(r.method for r in runs))
+    styles = ["o-", "s-", "^-", "v-", "D-", "x-", "+-", "*-", "<-", ">-"]
+    for k, m in enumerate(methods):
+        pts = sorted((r.run_time, max(r.max_error, 1e-17)) for r in runs if r.method == m)
+        ax.loglog([p[0] * 1e3 for p in pts], [p[1] for p in pts], styles[k % len(styles)],
+                  ms=4, lw=1, label=m, color=plt.cm.tab20(k % 20))
+    for target in meta["targets"]:
+        ax.axhline(target, color="gray", lw=0.7, ls="--")
+    ax.set_xlabel("run time [ms]")
+    ax.set_ylabel("max relative error over time")
+    ax.set_title(f"{meta['problem']}: error against run time")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=6.5, ncol=2, loc="best")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def run(names, out_dir, quick=False, command="dtdyn bench"):
+    written = []
+    for name in names:
+        if name not in BENCHES:
+            raise ValueError(f"unknown problem {name!r}; available: {', '.join(BENCHES)}")
+        print(f"{name}:")
+        t0 = time.perf_counter()
+        runs, meta = BENCHES[name](quick=quick)
+        meta["wall_time"] = time.perf_counter() - t0
+        md = write_report(runs, meta, out_dir, command)
+        print(f"{name}: {len(runs)} runs in {meta['wall_time']:.0f} s; report {md}")
+        for target in meta["targets"]:
+            top = ranking(runs, target)[:3]
+            print(f"  fastest at max error <= {target:g}: " + "; ".join(
+                f"{r.method} ({r.setting}) {r.max_error:.1e} in {r.run_time * 1e3:.3g} ms"
+                for r in top))
+        written.append(md)
+    return written

@@ -1,0 +1,43 @@
+"""`dtdyn bench`: the P3 work-precision report (quick sweep) is complete and consistent."""
+import json
+
+import numpy as np
+import pytest
+
+from dtdyn.runtime import bench
+
+
+@pytest.fixture(scope="module")
+def p3_runs():
+    return bench.bench_p3(quick=True, log=lambda *a: None)
+
+
+def test_p3_covers_every_family(p3_runs):
+    runs, meta = p3_runs
+    families = {r.family for r in runs}
+    assert families == {"DT-TMM (C)", "state space", "modal filters", "peer"}
+    assert {"solve_ivp RK45", "solve_ivp DOP853", "solve_ivp LSODA", "solve_ivp Radau",
+            "scipy lsim"} <= {r.method for r in runs}
+
+
+def test_p3_errors_follow_theory(p3_runs):
+    runs, _ = p3_runs
+    by = {(r.method, r.setting): r.max_error for r in runs}
+    # the FOH discretization is exact for P3's (constant) force: round-off only
+    assert max(v for (m, _), v in by.items() if m == "exact discretization (foh)") < 1e-10
+    # average acceleration is second order: halving dt divides the error by ~4
+    e = [by[("DT-TMM average_acceleration", f"dt={dt:g}")] for dt in (2e-3, 1e-3, 5e-4)]
+    assert all(3.5 < a / b < 4.5 for a, b in zip(e, e[1:])), e
+
+
+def test_ranking_and_report(p3_runs, tmp_path):
+    runs, meta = p3_runs
+    ranked = bench.ranking(runs, 1e-3)
+    assert all(r.max_error <= 1e-3 for r in ranked)
+    assert [r.run_time for r in ranked] == sorted(r.run_time for r in ranked)
+    assert len({r.method for r in ranked}) == len(ranked)
+    md = bench.write_report(runs, meta, tmp_path, "dtdyn bench P3 --quick")
+    data = json.loads((tmp_path / "bench_P3.json").read_text())
+    assert len(data["runs"]) == len(runs) and (tmp_path / "bench_P3.png").stat().st_size > 0
+    assert "Ranking at max error <= 0.001" in md.read_text()
+    assert np.isfinite([r["max_error"] for r in data["runs"]]).all()
