@@ -99,6 +99,26 @@ def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False, **sc
     return _shift_feedthrough(*scheme_blocks(M, C, K, dt, scheme, acceleration, **scheme_params))
 
 
+def rest_state(M, C, K, dt, f0, scheme="newmark", **scheme_params):
+    """Initial state of `discrete_state_space` for a system at rest at t_0 loaded by f_0.
+
+    The model's state is shifted by the f_{n+1} feedthrough (module docstring), so a zero state
+    is not rest when f_0 != 0: rest is z_0 = [q = 0; q' = 0; q'' = M^-1 f_0] (lags 0), and
+    x_0 = z_0 - Gamma1 f_0. (For `discretize` with Cd = I the same reasoning gives
+    x_0 = -Dd f_0.) Pass it as ``state_space_response(..., x0=rest_state(...))``.
+    """
+    from .mck import _initial_acceleration
+    M, C, K = linalg.mck(M, C, K)
+    n = M.shape[0]
+    f0 = validate.vector("f0", f0, length=n)
+    Phi, G0, G1, S = scheme_blocks(M, C, K, dt, scheme, **scheme_params)
+    names = get_scheme(scheme, **scheme_params).history
+    z0 = np.zeros(Phi.shape[0])
+    i = names.index("a0")
+    z0[i * n:(i + 1) * n] = _initial_acceleration(M, f0)
+    return z0 - G1 @ f0
+
+
 def scheme_blocks(M, C, K, dt, scheme="newmark", acceleration=False, **scheme_params):
     """(Phi, Gamma0, Gamma1, S) of z_{n+1} = Phi z_n + Gamma0 f_n + Gamma1 f_{n+1}, y_n = S z_n
     (module docstring): `discrete_state_space` before the feedthrough shift."""

@@ -194,3 +194,22 @@ def test_bad_input():
     with pytest.raises(ValueError, match="force has a non-finite"):
         state_space_response(np.eye(2), np.ones((2, 1)), np.eye(2), np.zeros((2, 1)),
                              np.full((5, 1), np.nan))
+
+
+def test_rest_state_starts_at_rest_under_a_step():
+    """With f_0 != 0 the shifted state of a system at rest is not 0: rest_state gives it, and the
+    model then equals simulate_mck (same scheme) to round-off."""
+    from dtdyn.runtime import simulate_mck
+    from dtdyn.runtime.state_space import rest_state
+    M, C, K = np.diag([2.0, 1.0]), np.array([[0.3, -0.1], [-0.1, 0.1]]), \
+        np.array([[30.0, -10.0], [-10.0, 10.0]])
+    dt, n = 0.01, 400
+    u = np.zeros((n + 1, 2))
+    u[:, 1] = 1.0
+    for scheme, params in (("newmark", {}), ("generalized_alpha", {"rho_inf": 0.7})):
+        A, B, Cd, D = discrete_state_space(M, C, K, dt, scheme=scheme, **params)
+        y = state_space_response(A, B, Cd, D, u, x0=rest_state(M, C, K, dt, u[0], scheme=scheme,
+                                                                **params))
+        ref = simulate_mck(M, C, K, u, dt, n, scheme=scheme, **params)
+        assert np.abs(y[:, :2] - ref.x).max() <= 1e-12 * np.abs(ref.x).max()
+        assert np.abs(y[0]).max() == 0.0
