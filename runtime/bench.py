@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from . import problems
+from .atomic import write_atomic
 
 
 @dataclass
@@ -57,6 +58,16 @@ def _timed(fn, repeats):
     return out, med, max(first - med, 0.0)
 
 
+def _recorder(runs, log):
+    """add(method, family, setting, x, x_ref, run time, build time, note): append and log a Run."""
+    def add(method, family, setting, x, ref, t_run, t_build, note=""):
+        e_max, e_rms = _errors(x, ref)
+        runs.append(Run(method, family, setting, e_max, e_rms, t_run, t_build, note))
+        log(f"  {method:32s} {setting:>12s}  max {e_max:9.2e}  rms {e_rms:9.2e}  "
+            f"{t_run * 1e3:9.3f} ms  {note}")
+    return add
+
+
 # --- P3: linear chain ---------------------------------------------------------------------------
 
 P3_SCHEMES = [("average_acceleration", {}), ("linear_acceleration", {}), ("fox_goodwin", {}),
@@ -79,12 +90,7 @@ def bench_p3(quick=False, log=print):
     dts = (2e-3, 1e-3, 5e-4) if quick else (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4)
     reps = 3
     runs = []
-
-    def add(method, family, setting, x, ref, t_run, t_build, note=""):
-        e_max, e_rms = _errors(x, ref)
-        runs.append(Run(method, family, setting, e_max, e_rms, t_run, t_build, note))
-        log(f"  {method:32s} {setting:>12s}  max {e_max:9.2e}  rms {e_rms:9.2e}  "
-            f"{t_run * 1e3:9.3f} ms")
+    add = _recorder(runs, log)
 
     for dt in dts:
         n = int(round(T / dt))
@@ -168,12 +174,7 @@ def bench_p4(quick=False, log=print):
     ref = ref_r.x[:, out]
     radau = check_reference(*args, n_samples=300)
     runs = []
-
-    def add(method, family, setting, x, ref_x, t_run, t_b, note=""):
-        e_max, e_rms = _errors(x, ref_x)
-        runs.append(Run(method, family, setting, e_max, e_rms, t_run, t_b, note))
-        log(f"  {method:32s} {setting:>12s}  max {e_max:9.2e}  rms {e_rms:9.2e}  "
-            f"{t_run * 1e3:9.1f} ms  {note}")
+    add = _recorder(runs, log)
 
     for method, params in P4_METHODS:
         for S in (1, 2, 3, 4, 8):
@@ -258,21 +259,12 @@ def write_report(runs, meta, out_dir, command):
                      f"{r.note} |")
     lines += ["", f"![error against run time](bench_{name}.png)", ""]
     md = out_dir / f"bench_{name}.md"
-    _write(md, "\n".join(lines))
-    _write(out_dir / f"bench_{name}.json",
-           json.dumps({"meta": meta, "command": command, "runs": [asdict(r) for r in runs]},
-                      indent=1))
+    write_atomic(md, lambda fh: fh.write("\n".join(lines).encode()))
+    data = {"meta": meta, "command": command, "runs": [asdict(r) for r in runs]}
+    write_atomic(out_dir / f"bench_{name}.json",
+                 lambda fh: fh.write(json.dumps(data, indent=1).encode()))
     _plot(runs, meta, out_dir / f"bench_{name}.png")
     return md
-
-
-def _write(path, text):
-    import os
-    import tempfile
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
 
 
 def _plot(runs, meta, path):

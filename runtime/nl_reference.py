@@ -12,8 +12,6 @@ they are, which is the accuracy a report can state for the reference.
 from __future__ import annotations
 
 import hashlib
-import os
-import tempfile
 import time
 import zipfile
 from pathlib import Path
@@ -24,6 +22,7 @@ import scipy.integrate
 import scipy.linalg
 
 from . import linalg, validate
+from .atomic import write_atomic
 from .elements import NUMPY_OPS, check_elements, element_matrix
 from .result import Response
 
@@ -260,19 +259,8 @@ def _cache_load(path: Path, key: str, shape):
 def _cache_store(path: Path, key: str, S, n_steps):
     """Write to a temporary file in the same folder, then os.replace: readers see either no
     file or a complete one, and racing writers each replace it with identical content."""
-    fd, tmp = tempfile.mkstemp(prefix=path.stem + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, key=np.array(key), states=S, n_steps=np.array(n_steps))
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    write_atomic(path, lambda fh: np.savez(fh, key=np.array(key), states=S,
+                                           n_steps=np.array(n_steps)))
 
 
 # ----------------------------------------------------------------------------------------------

@@ -292,7 +292,6 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     run, n_w, n_iw = runner
     ns, nf, no = step.A.shape[0], force.shape[1], step.Co.shape[0]
     n_samples = force.shape[0]
-    nu = sz.nw + sz.nz
     dims = np.array([ns, nf, sz.ne, sz.nw, sz.nz, no, n_samples, S, max_iter], dtype=np.int64)
     par = np.concatenate([step.Dwg.ravel(order="F"), [step.h]])
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, par, step.Co, step.Dof,
@@ -338,7 +337,7 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     if key in _RECORDS:
         return _RECORDS[key][0], 0.0, 0.0
     t0 = time.perf_counter()
-    ns, nf, no = step.A.shape[0], step.Bf.shape[1], step.Co.shape[0]
+    ns, nf = step.A.shape[0], step.Bf.shape[1]
     sz = _sizes(elements)
     e = _residual_expressions(elements, sz)
     nu = sz.nw + sz.nz

@@ -92,7 +92,6 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -104,6 +103,7 @@ import numpy as np
 from dtdyn.generated import modal_filters as coef
 
 from . import validate
+from .atomic import write_atomic
 from .modal_filters import _c_bank, run_bank
 
 __all__ = ["RESPONSES", "WINDOWS", "SRS", "SRSSamplingWarning", "shock_response_spectrum",
@@ -562,29 +562,12 @@ def load_record(path, column: int = -1) -> np.ndarray:
 
 
 # --- output ---------------------------------------------------------------------------------
-def _atomic_write(path: Path, write) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            write(fh)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-
-
 def save_srs_csv(path, srs: SRS) -> None:
     """Columns freq_hz, maximax, positive, negative; written atomically."""
     path = Path(path)
     rows = np.column_stack([srs.freqs, srs.maximax, srs.positive, srs.negative])
     head = "freq_hz,maximax,positive,negative"
-    _atomic_write(path, lambda fh: np.savetxt(fh, rows, delimiter=",", header=head, comments="",
+    write_atomic(path, lambda fh: np.savetxt(fh, rows, delimiter=",", header=head, comments="",
                                               fmt="%.10g"))
 
 
@@ -613,4 +596,4 @@ def plot_srs(path, srs: SRS, title: str | None = None) -> None:
                            f"{info.get('window', '')} window"), fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
-    _atomic_write(path, lambda fh: fig.savefig(fh, format=fmt, dpi=120))
+    write_atomic(path, lambda fh: fig.savefig(fh, format=fmt, dpi=120))
