@@ -46,19 +46,20 @@ PY_ARRAY = _names({"m": "mn", "kappa": "kp", "S_R": "SR", "Delta": "Dl", "F_n": 
                    "b_n": "b", "R_L": "R", "R_R": "R_R"})
 
 
-def _lin(prefix: str, coeffs: dict) -> str:
-    """C text of sum_h prefix_h * h[i] (h = "u" is the primary unknown u[i])."""
-    return " + ".join(f"{prefix}_{h} * {h}[i]" for h in coeffs) or "0.0"
+def _lin(prefix: str, coeffs: dict, array: str = "") -> str:
+    """C text of sum_h prefix_h * h[i] (h = "u" is the primary unknown u[i]); ``array`` is
+    prepended to the array names ("e": the plain sweep's error history ex0, ..., and eu)."""
+    return " + ".join(f"{prefix}_{h} * {array}{h}[i]" for h in coeffs) or "0.0"
 
 
-def _shift_lines(history):
+def _shift_lines(history, array: str = ""):
     lines = []
     for qty in "xv":
         lags = sorted((int(h[2:]) for h in history if h.startswith(qty + "m")), reverse=True)
         for lag in lags:
             prev = f"{qty}0" if lag == 1 else f"{qty}m{lag - 1}"
-            lines.append(f"{qty}m{lag}[i] = {prev}[i];")
-    lines += ["x0[i] = x1;", "v0[i] = v1;", "a0[i] = a1;"]
+            lines.append(f"{array}{qty}m{lag}[i] = {array}{prev}[i];")
+    lines += [f"{array}{q}0[i] = {array}{q}1;" for q in "xva"]
     return lines
 
 
@@ -85,15 +86,20 @@ def _scheme_context(name: str) -> dict:
             "rows": [(n, printing.c(e)) for n, e in reduced],
             "g": cc(sw.g), "S": cc(sw.S_expr), "a": cc(sw.a_fwd),
             "den": cc(sw.den), "h_num": cc(sw.h_num), "b_num": cc(sw.b_num),
+            "h0_num": cc(sw.h0_num), "b0_num": cc(sw.b0_num),
             "T": ["(" + cc(sw.T[i, j]) + ")" for i, j in T_ENTRIES],
             **{n: _lin(n, fs.hist_terms[n]) for n in ("q", "s", "b")},
             **{n: _lin(n, fs.update[n]) for n in ("x1", "v1", "a1")},
+            # the plain sweep's error history (same rows, names prefixed with e)
+            **{"e" + n: _lin(n, fs.hist_terms[n], "e") for n in ("q", "s", "b")},
+            **{"e" + n: _lin(n, fs.update[n], "e") for n in ("x1", "v1", "a1")},
         })
     return {
         "name": name, "title": sch.title, "reference": sch.reference, "notes": sch.notes,
         "params": list(sch.params), "defaults": sch.defaults, "history": list(spec.history),
         "startup_steps": sch.startup_steps, "order": sch.order, "explicit": spec.derived.explicit,
         "forms_py": forms_py, "forms_c": forms_c, "shift": _shift_lines(spec.history),
+        "eshift": _shift_lines(spec.history, "e"),
         "derived": spec.derived,
     }
 
@@ -107,7 +113,8 @@ def _dttmm_context() -> dict:
            "S_expr": str(sw.S_expr), "g": str(sw.g), "h": str(sw.h), "a_fwd": str(sw.a_fwd),
            "b_fwd": str(sw.b_fwd),
            "g_py": scalar(sw.g), "S_py": scalar(sw.S_expr), "a_py": scalar(sw.a_fwd),
-           "den_py": scalar(sw.den), "h_py": py(sw.h_num), "bf_py": py(sw.b_num)}
+           "den_py": scalar(sw.den), "h_py": py(sw.h_num), "bf_py": py(sw.b_num),
+           "h0_py": py(sw.h0_num), "b0_py": py(sw.b0_num)}
     for i, j in T_ENTRIES:
         ctx[f"T{i + 1}{j + 1}_py"] = "(" + scalar(T[i, j]) + ")"
     return ctx
@@ -204,6 +211,9 @@ def render_all() -> dict[str, str]:
     render("numpy/modal_filters.py.jinja", "modal_filters.py", "dtdyn.derive.modal_filters",
            **_modal_filters_context())
     render("c/filter_bank.c.jinja", "filter_bank.c", "dtdyn.derive.modal_filters (sections)")
+    render("c/modal_states.c.jinja", "modal_states.c",
+           "dtdyn.derive.modal_filters.increment_form",
+           increments=[(k, sp.sstr(v)) for k, v in modal_filters.increment_form().items()])
     render("c/nl_loop.c.jinja", "nl_loop.c", "dtdyn.derive.nonlinear")
     render("markdown/nonlinear.md.jinja", "nonlinear.md", "dtdyn.derive.nonlinear",
            **_nonlinear_context())

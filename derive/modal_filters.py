@@ -19,6 +19,12 @@ folds into one real second-order section
                                                        a2 = e^{2 sigma T},
 
 and a real pole (overdamped mode) into a first-order section.
+
+The per-mode form keeps the complex recursion instead (`increment_form`): one state per mode and
+residue factor, updated as eta <- eta + (d eta + c0 p_n + c1 p_{n+1}) with d = e^{sT} - 1 =
+z phi1(z). Storing d (accurate to eps |d|) instead of a1 = -2 e^{sigma T} cos(omega T) (whose
+rounding moves the pole angle by ~ eps / (omega T)) keeps the modal frequency and damping of a
+lightly damped mode exact to ~ eps over long records.
 """
 from __future__ import annotations
 
@@ -123,3 +129,29 @@ def phi_series(order: int = 18):
         ser = sp.series(f(z), z, 0, order).removeO()
         out.append([sp.Rational(ser.coeff(z, k)) for k in range(order)])
     return out
+
+
+# --- the per-mode recursion in increment form -------------------------------------------------
+e_re, e_im, d_re, d_im = sp.symbols("e_re e_im d_re d_im", real=True)
+g0r, g0i, g1r, g1i = sp.symbols("g0_re g0_im g1_re g1_im", real=True)
+xa, xb = sp.symbols("x_a x_b", real=True)  # input sample before (x_n) and after (x_{n+1})
+
+
+@lru_cache(maxsize=None)
+def increment_form():
+    """Real increments of eta_{n+1} = e^{sT} eta_n + g0 x_n + g1 x_{n+1} with e^{sT} = 1 + d.
+
+    eta = e_re + j e_im, d = d_re + j d_im, g0 = c0 v, g1 = c1 v (c0, c1 of `derive_invariant` with
+    unit residue, v the input factor of the residue R = u v). Returns {"e_re": ..., "e_im": ...},
+    the increments eta_{n+1} - eta_n, after checking them against the complex recursion and
+    d = z phi1(z) = e^z - 1 symbolically. One input column; several inputs add their terms.
+    """
+    eta = e_re + sp.I * e_im
+    d = d_re + sp.I * d_im
+    nxt = (1 + d) * eta + (g0r + sp.I * g0i) * xa + (g1r + sp.I * g1i) * xb
+    inc = {"e_re": d_re * e_re - d_im * e_im + g0r * xa + g1r * xb,
+           "e_im": d_re * e_im + d_im * e_re + g0i * xa + g1i * xb}
+    assert sp.expand(sp.re(nxt) - e_re - inc["e_re"]) == 0
+    assert sp.expand(sp.im(nxt) - e_im - inc["e_im"]) == 0
+    assert sp.simplify(z * phi1(z) - (sp.exp(z) - 1)) == 0
+    return inc

@@ -2,30 +2,43 @@
 // Do not edit: run `dtdyn generate` to rewrite, `dtdyn generate --check` to verify.
 /*
  * A bank of parallel second-order sections (transposed direct form II):
- *   w_n = x_n ... y_n += b0 x_n + s1;  s1 = b1 x_n - a1 v_n + s2;  s2 = b2 x_n - a2 v_n
- * where v_n is the section output. Section k reads input column in_col[k] of x (n x n_in) and
- * adds its output to column out_col[k] of y (n x n_out, zeroed by the caller). One pass over the
- * record per section keeps the state in registers.
+ *   v_n = b0 x_n + s1;  s1 = b1 x_n - a1 v_n + s2;  s2 = b2 x_n - a2 v_n
+ * where v_n is the section output. Section k reads input row in_col[k] of xt (n_in x n: one
+ * contiguous row per input) and adds its output to row out_col[k] of yt (n_out x n, zeroed by the
+ * caller), so every pass reads and writes contiguously. The record is cut into blocks of
+ * BLOCK samples; in each block every section runs in turn, its state carried in `state`
+ * (2 n_sec, zeroed by the caller), so the block's inputs and outputs stay in cache. Each output
+ * still receives its sections' outputs in the order k = 0, 1, ... (the sums do not depend on
+ * BLOCK).
  */
 #include <stddef.h>
 
+#define BLOCK 2048
+
 int dtdyn_filter_bank(long n, long n_in, long n_out, long n_sec, const double *restrict sos,
                       const long *restrict in_col, const long *restrict out_col,
-                      const double *restrict x, double *restrict y)
+                      const double *restrict xt, double *restrict yt, double *restrict state)
 {
-    long k, i;
-    for (k = 0; k < n_sec; ++k) {
-        const double b0 = sos[5 * k], b1 = sos[5 * k + 1], b2 = sos[5 * k + 2];
-        const double a1 = sos[5 * k + 3], a2 = sos[5 * k + 4];
-        const double *xi = x + in_col[k];
-        double *yo = y + out_col[k];
-        double s1 = 0.0, s2 = 0.0;
-        for (i = 0; i < n; ++i) {
-            const double xn = xi[i * n_in];
-            const double v = b0 * xn + s1;
-            s1 = b1 * xn - a1 * v + s2;
-            s2 = b2 * xn - a2 * v;
-            yo[i * n_out] += v;
+    long b, k, i;
+    (void)n_in;
+    (void)n_out;
+    for (b = 0; b < n; b += BLOCK) {
+        const long end = (b + BLOCK < n) ? b + BLOCK : n;
+        for (k = 0; k < n_sec; ++k) {
+            const double b0 = sos[5 * k], b1 = sos[5 * k + 1], b2 = sos[5 * k + 2];
+            const double a1 = sos[5 * k + 3], a2 = sos[5 * k + 4];
+            const double *xi = xt + in_col[k] * n;
+            double *yo = yt + out_col[k] * n;
+            double s1 = state[2 * k], s2 = state[2 * k + 1];
+            for (i = b; i < end; ++i) {
+                const double xn = xi[i];
+                const double v = b0 * xn + s1;
+                s1 = b1 * xn - a1 * v + s2;
+                s2 = b2 * xn - a2 * v;
+                yo[i] += v;
+            }
+            state[2 * k] = s1;
+            state[2 * k + 1] = s2;
         }
     }
     return 0;

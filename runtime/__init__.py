@@ -17,6 +17,7 @@ _EXPORTS = {
     "modal_filter_response": "modal_filters",
     "shock_response_spectrum": "srs",
     "nonlinear_response": "nonlinear", "NewtonError": "nonlinear",
+    "nonlinear_chain_response": "nonlinear_chain",
     "Cubic": "elements", "Polynomial": "elements", "Gap": "elements", "Law": "elements",
     "BoucWen": "elements",
     "reference_response": "nl_reference",

@@ -261,3 +261,58 @@ def test_bad_inputs(P4, change, match):
 def test_bad_elements(make, match):
     with pytest.raises(ValueError, match=match):
         make()
+
+
+# --- DT-TMM chains with nonlinear elements ------------------------------------------------------
+
+def _chain_case(n=600):
+    m, k, c = np.ones(4), np.full(4, 1e4), np.full(4, 2.0)
+    f = (np.random.default_rng(0).standard_normal(n) * 100.0)[:, None]
+    return m, k, c, f
+
+
+@pytest.mark.parametrize("form", ["acceleration", "displacement"])
+@pytest.mark.parametrize("scheme, params", [("newmark", {}), ("hht", {"alpha": -0.1}),
+                                            ("generalized_alpha", {"rho_inf": 0.7})])
+@pytest.mark.parametrize("elements", [[Cubic(0, k3=2e7), Cubic(1, 2, k3=2e7)],
+                                      [BoucWen(1, 2, stiffness=1e4, beta=50.0, gamma=50.0)]])
+def test_chain_equals_mck_path(form, scheme, params, elements):
+    """The O(N) DT-TMM path and the M, C, K path solve the same per-step problem. Acceleration
+    form: round-off (1e-12); displacement form: its known floor a = A (x - x_pred), relative
+    10 eps / (omega_min dt)^2 ~ 1e-9 here (as in tests/test_dttmm.py)."""
+    from dtdyn.runtime.chain import chain_matrices
+    from dtdyn.runtime.nonlinear_chain import nonlinear_chain_response
+    m, k, c, f = _chain_case()
+    M, C, K = chain_matrices(m, k, c, sparse=False)
+    a = nonlinear_chain_response(m, k, c, f, 1000.0, [3], elements, scheme=scheme, form=form,
+                                 substeps=2, **params)
+    b = NL.nonlinear_response(f, 1000.0, M, C, K, [3], elements, method=scheme, substeps=2,
+                              **params)
+    w_min = np.sqrt(np.linalg.eigvalsh(np.linalg.solve(M, K)).min())
+    tol = 1e-12 if form == "acceleration" else 10 * np.finfo(float).eps / (w_min * 5e-4) ** 2
+    for q in "xva":
+        assert np.abs(getattr(a, q) - getattr(b, q)).max() <= tol * np.abs(getattr(b, q)).max()
+
+
+def test_long_chain_linear_limit_equals_simulate_chain():
+    """20,000 masses: with zero nonlinear stiffness the chain path is simulate_chain's sweep."""
+    from dtdyn.runtime import simulate_chain
+    from dtdyn.runtime.nonlinear_chain import nonlinear_chain_response
+    n = 20_000
+    m, k, c = np.ones(n), np.full(n, 1e4), np.full(n, 1.0)
+    f = (np.random.default_rng(1).standard_normal(30) * 100.0)[:, None]
+    els = [Cubic(0, k3=0.0), Cubic(n - 3, n - 2, k3=0.0)]
+    a = nonlinear_chain_response(m, k, c, f, 1000.0, [n - 1], els, outputs=[0, n - 2, n - 1],
+                                 form="acceleration")
+    s = simulate_chain(m, k, c, f, 1e-3, 29, loaded=[n - 1], outputs=[0, n - 2, n - 1],
+                       form="acceleration")
+    assert np.abs(a.x - s.x).max() <= 1e-12 * np.abs(s.x).max()
+
+
+def test_chain_refuses_multistep_and_bad_elements():
+    from dtdyn.runtime.nonlinear_chain import nonlinear_chain_response
+    m, k, c, f = _chain_case(10)
+    with pytest.raises(ValueError, match="multistep"):
+        nonlinear_chain_response(m, k, c, f, 1000.0, [3], [Cubic(0, k3=1.0)], scheme="houbolt")
+    with pytest.raises(ValueError, match="outside the chain"):
+        nonlinear_chain_response(m, k, c, f, 1000.0, [3], [Cubic(7, k3=1.0)])
