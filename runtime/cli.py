@@ -60,10 +60,49 @@ def _show(args) -> int:
     return 0
 
 
+def _simulate_nonlinear(args, sc) -> int:
+    """`dtdyn simulate` of a scene with [[element]]: run, store, print times and Newton stats."""
+    from dtdyn.runtime import scene as scenes
+    from dtdyn.runtime.nonlinear import DtdynStepStabilityError, NewtonError
+
+    params = "".join(f", {k} = {v:g}" for k, v in sc.scheme_params.items())
+    substeps = sc.nonlinear.get("substeps", 1)
+    print(f"{sc.title}: {sc.n_dof} DOF, {sc.n_steps} steps of dt = {sc.dt:g} s, "
+          f"{len(sc.elements)} nonlinear element(s), method {sc.scheme}{params} "
+          f"({substeps} substep(s) per sample, backend {sc.backend})")
+    for k, el in enumerate(sc.elements):
+        print(f"  element[{k}]: {el.describe()}")
+    try:
+        response, report = scenes.run_scene(sc)
+    except (NewtonError, DtdynStepStabilityError) as exc:  # the run failed: nothing is written
+        print(f"dtdyn simulate: error: {exc}", file=sys.stderr)
+        return 1
+    if args.out:
+        scenes.save_results(args.out, response, sc)
+    if args.plot:
+        scenes.plot_response(args.plot, response, sc)
+    n_steps = sc.n_steps * report["substeps"] + 1  # as nonlinear_response counts them
+    print(f"construct time: {report['construct_time_s'] * 1e3:.2f} ms, compile or cache load: "
+          f"{report['compile_time_s'] * 1e3:.2f} ms, setup: {report['setup_time_s'] * 1e3:.2f} ms")
+    print(f"run time: {report['run_time_s'] * 1e3:.2f} ms ({report['backend']} backend, "
+          f"{report['run_time_s'] / n_steps * 1e6:.3f} us per step of h = dt / "
+          f"{report['substeps']})")
+    iters = report["newton_iterations"]
+    its = ("not counted (casadi backend)" if iters is None
+           else f"max {iters['max']}, mean {iters['mean']:.3f}")
+    print(f"Newton iterations per step: {its}; max residual: {report['max_residual']:.3e}")
+    for what, path in (("results", args.out), ("plot", args.plot)):
+        if path:
+            print(f"{what}: {path}")
+    return 0
+
+
 def _simulate(args) -> int:
     from dtdyn.runtime import scene as scenes
 
     sc = scenes.load_scene(args.scene)
+    if not sc.linear:
+        return _simulate_nonlinear(args, sc)
     if sc.kind == "matrices":
         how = (f"assembled {'sparse' if sc.sparse else 'dense'} M, C, K, {sc.form} form, "
                f"backend {sc.backend}")

@@ -50,8 +50,50 @@ are 0-based indices or names from ``model.dofs``. It runs with ``simulate_mck`` 
 acceleration form, dense or sparse); ``scheme.form``, ``scheme.sweep`` and ``scheme.backend``
 belong to chains and are rejected.
 
+Nonlinear elements (dtdyn.runtime.elements) join the model, chain or matrices; any
+``[[element]]`` table makes the scene nonlinear (``scenes/p4.toml``, reference problem P4)::
+
+    [[element]]                         # zero or more, in the order given
+    kind = "cubic"                      # cubic | polynomial | gap | law | bouc_wen
+    i = 0                               # DOF: 0-based index (or a model.dofs name for matrices)
+    j = 1                               # optional, default: ground; y = q_i - q_j (y = q_i)
+    k3 = 2e7                            # and that kind's fields (below)
+    [nonlinear]                         # optional
+    method = "modal_ramp"               # default (see below): "modal_ramp", "modal_parabolic"
+                                        #   or a one-step scheme name (not houbolt, park)
+    substeps = 1                        # optional: steps per sample, h = dt / substeps
+    backend = "c"                       # optional: "c" or "casadi"
+    tol = 1e-12                         # optional: relative Newton tolerance
+    max_iter = 30                       # optional: Newton iterations per step
+    modes = [0, 1]                      # optional, modal methods only: the modes kept (0-based,
+                                        #   sorted by |pole|), default all
+
+Element kinds and fields (required unless a default is given; the defaults are those of the
+element classes)::
+
+    cubic       k3 (N/m^3)                          g = k3 y^3
+    polynomial  coeffs = [c0, c1, ...]              g = sum_p c_p y^p
+    gap         gap (m, >= 0), stiffness (N/m, > 0), smoothing (m, >= 0) [0.0],
+                side ("both", "positive", "negative") ["both"]
+    law         expression = "k*x**3 + c*v"         g(x, v): x = y, v = y'; arithmetic and the
+                [element.constants]                 functions of dtdyn.runtime.expressions (parsed,
+                k = 2e7                             never evaluated as Python); constants: a table
+                c = 0.5                             of numbers [none]
+    bouc_wen    stiffness (> 0), beta, gamma, alpha (>= 0) [0.1], A [1.0], n (>= 1) [1.0]
+
+The method of a nonlinear scene is ``nonlinear.method`` if given, else ``scheme.name`` if a
+``[scheme]`` table is given, else ``"modal_ramp"``. ``[scheme]`` is optional there; when given it
+names the same method (a one-step scheme; a modal method takes none) and carries that scheme's
+parameters (``beta = 0.3``, ...); ``scheme.form``, ``.sweep`` and ``.backend`` are refused
+(``nonlinear.backend`` chooses the backend). ``[nonlinear]`` without any ``[[element]]`` is an
+error. A nonlinear scene runs ``nonlinear_response`` on dense M, C, K (a chain's from
+``chain_matrices``; ``model.sparse = true`` is refused) with the loads sampled at
+``fs = 1 / dt`` and the stored outputs and quantities the scene asks for; it is not compared
+with the exact solution.
+
 Every error is a ``ValueError`` that names the file and the field, e.g.
-``p3.toml: model.mass[3] = -1.0: every entry must be finite and > 0``.
+``p3.toml: model.mass[3] = -1.0: every entry must be finite and > 0`` or
+``p4.toml: element[1].expression = '__import__("os")': ...``.
 """
 from __future__ import annotations
 
@@ -72,7 +114,8 @@ from .loads import finite_number, sample_load
 from .result import Response
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "run_scene", "save_results", "plot_response",
-           "SCHEMES", "FORMS", "SWEEPS", "BACKENDS", "QUANTITIES", "EXACT_MAX_DOF", "MODEL_KINDS"]
+           "SCHEMES", "FORMS", "SWEEPS", "BACKENDS", "QUANTITIES", "EXACT_MAX_DOF", "MODEL_KINDS",
+           "ELEMENT_KINDS", "NONLINEAR_BACKENDS"]
 
 #: scheme name -> {parameter: (lower bound, upper bound)} (inclusive; None: unbounded)
 SCHEMES: dict[str, dict[str, tuple[float | None, float | None]]] = {
@@ -96,7 +139,7 @@ QUANTITIES = ("x", "v", "a")
 #: run_scene compares with the matrix-exponential solution up to this many DOFs
 EXACT_MAX_DOF = 2000
 
-_TOP_KEYS = ("title", "model", "load", "scheme", "time", "output")
+_TOP_KEYS = ("title", "model", "load", "element", "nonlinear", "scheme", "time", "output")
 #: model kinds: a chain (mass, stiffness, damping vectors) or general M, C, K matrices
 MODEL_KINDS = ("chain", "matrices")
 _MODEL_KEYS = ("kind", "mass", "stiffness", "damping")
@@ -107,6 +150,28 @@ _MTX_SUFFIXES = (".mtx", ".mtx.gz", ".mtx.bz2")
 _TIME_KEYS = ("dt", "duration")
 _OUTPUT_KEYS = ("dofs", "quantities")
 _SCHEME_COMMON = ("name", "form", "sweep", "backend")
+
+#: element kind -> (class in dtdyn.runtime.elements, required fields, optional fields); the
+#: optional fields' defaults are the classes' own
+ELEMENT_KINDS: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
+    "cubic": ("Cubic", ("k3",), ()),
+    "polynomial": ("Polynomial", ("coeffs",), ()),
+    "gap": ("Gap", ("gap", "stiffness"), ("smoothing", "side")),
+    "law": ("Law", ("expression",), ("constants",)),
+    "bouc_wen": ("BoucWen", ("stiffness", "beta", "gamma"), ("alpha", "A", "n")),
+}
+#: element field -> what it must be: "number", "numbers", ">= 0", "> 0", ">= 1", "text",
+#: "table", or a tuple of allowed strings
+_ELEMENT_FIELDS = {
+    "k3": "number", "coeffs": "numbers", "gap": ">= 0", "stiffness": "> 0", "smoothing": ">= 0",
+    "side": ("both", "positive", "negative"), "expression": "text", "constants": "table",
+    "alpha": ">= 0", "A": "number", "beta": "number", "gamma": "number", "n": ">= 1",
+}
+#: Law's own argument names, which its constants cannot take
+_LAW_RESERVED = ("i", "j", "expression")
+_NONLINEAR_KEYS = ("method", "substeps", "backend", "tol", "max_iter", "modes")
+NONLINEAR_BACKENDS = ("c", "casadi")
+_DEFAULT_NONLINEAR_METHOD = "modal_ramp"
 
 DEFAULT_SCENE = "scenes/p3.toml"
 
@@ -123,6 +188,13 @@ class Scene:
     options already added to ``C``; ``mass``, ``stiffness``, ``damping`` None; ``dof_names`` one
     name per DOF; ``form = "acceleration"``, ``sweep = None``, ``backend`` ``"numpy"`` or
     ``"scipy.sparse"``).
+
+    A nonlinear scene has ``elements`` (dtdyn.runtime.elements objects, DOFs checked),
+    ``scheme`` the method (``"modal_ramp"``, ``"modal_parabolic"`` or a one-step scheme),
+    ``scheme_params`` that scheme's parameters, ``nonlinear`` the ``[nonlinear]`` options the
+    file gives (``substeps``, ``tol``, ``max_iter``, ``modes``, ``backend``; the others take
+    ``nonlinear_response``'s defaults), ``backend`` ``"c"`` or ``"casadi"``, ``form`` and
+    ``sweep`` None; matrices are dense.
     """
 
     title: str
@@ -134,7 +206,7 @@ class Scene:
     force: np.ndarray
     scheme: str
     scheme_params: dict
-    form: str
+    form: str | None
     sweep: str | None
     backend: str
     dt: float
@@ -148,6 +220,8 @@ class Scene:
     C: np.ndarray | sps.csr_matrix | None = None
     K: np.ndarray | sps.csr_matrix | None = None
     dof_names: tuple[str, ...] | None = None
+    elements: tuple = ()
+    nonlinear: dict = field(default_factory=dict)
 
     @property
     def n_dof(self) -> int:
@@ -177,8 +251,8 @@ class Scene:
 
     @property
     def linear(self) -> bool:
-        """Scenes hold linear chains only (no nonlinear elements in the file format yet)."""
-        return True
+        """True when the scene has no nonlinear elements."""
+        return not self.elements
 
 
 # ----------------------------------------------------------------------------------------------
@@ -505,15 +579,8 @@ def _parse_time(tbl) -> tuple[float, int]:
     return dt, validate.step_count("time.duration / time.dt", n_steps)
 
 
-def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None, str]:
-    if not isinstance(tbl, dict):
-        raise ValueError(f"scheme = {tbl!r}: must be a table [scheme]")
-    if kind == "matrices":
-        for key in ("form", "sweep", "backend"):
-            if key in tbl:
-                raise ValueError(f"scheme.{key} = {tbl[key]!r}: only for chain models; a model "
-                                 "with kind = 'matrices' runs simulate_mck (acceleration form, "
-                                 "dense or sparse as the matrices are): remove the key")
+def _scheme_name_params(tbl: dict) -> tuple[str, dict]:
+    """``scheme.name`` and its parameters, each checked against its bounds in SCHEMES."""
     name = tbl.get("name")
     if name is None:
         raise ValueError(f"scheme.name is required, allowed: {', '.join(SCHEMES)}")
@@ -529,12 +596,171 @@ def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None,
             rng = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
             raise ValueError(f"scheme.{key} = {tbl[key]!r}: must lie in {rng} for scheme {name!r}")
         params[key] = v
+    return name, params
+
+
+def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None, str]:
+    if not isinstance(tbl, dict):
+        raise ValueError(f"scheme = {tbl!r}: must be a table [scheme]")
+    if kind == "matrices":
+        for key in ("form", "sweep", "backend"):
+            if key in tbl:
+                raise ValueError(f"scheme.{key} = {tbl[key]!r}: only for chain models; a model "
+                                 "with kind = 'matrices' runs simulate_mck (acceleration form, "
+                                 "dense or sparse as the matrices are): remove the key")
+    name, params = _scheme_name_params(tbl)
     if kind == "matrices":
         return name, params, "acceleration", None, ""  # backend: set from the matrices
     form = _choice("scheme.form", tbl.get("form", "displacement"), FORMS)
     sweep = _choice("scheme.sweep", tbl.get("sweep", "stable"), SWEEPS)
     backend = _choice("scheme.backend", tbl.get("backend", "c"), BACKENDS)
     return name, params, form, sweep, backend
+
+
+# --- nonlinear elements and options -----------------------------------------------------------
+
+def _element_field(name: str, value, what):
+    """One element field checked as ``_ELEMENT_FIELDS`` says; ``name`` e.g. ``element[0].k3``."""
+    if isinstance(what, tuple):
+        return _choice(name, value, what)
+    if what == "text":
+        if not isinstance(value, str):
+            raise ValueError(f"{name} = {value!r}: must be a string (an expression such as "
+                             "'k*x**3 + c*v')")
+        return value
+    if what == "numbers":
+        if not isinstance(value, list) or not value:
+            raise ValueError(f"{name} = {value!r}: must be a non-empty array of numbers")
+        return [finite_number(f"{name}[{p}]", c) for p, c in enumerate(value)]
+    if what == "table":
+        if not isinstance(value, dict):
+            raise ValueError(f"{name} = {value!r}: must be a table of numbers")
+        consts = {}
+        for key, c in value.items():
+            if key in _LAW_RESERVED:
+                raise ValueError(f"{name}.{key} = {c!r}: the name {key!r} is reserved "
+                                 f"({', '.join(_LAW_RESERVED)} are the element's own fields)")
+            consts[key] = finite_number(f"{name}.{key}", c)
+        return consts
+    v = finite_number(name, value)
+    bound = {"> 0": v > 0, ">= 0": v >= 0, ">= 1": v >= 1}.get(what, True)
+    if not bound:
+        raise ValueError(f"{name} = {value!r}: must be {what}")
+    return v
+
+
+def _parse_element(k: int, spec, n_dof: int, names: tuple[str, ...] | None):
+    """The element of ``[[element]]`` number k (0-based), built from checked fields."""
+    from . import elements as el_mod
+
+    name = f"element[{k}]"
+    if not isinstance(spec, dict):
+        raise ValueError(f"{name} = {spec!r}: must be an [[element]] table")
+    kind = spec.get("kind")
+    if kind is None:
+        raise ValueError(f"{name}.kind is required, allowed: {', '.join(map(repr, ELEMENT_KINDS))}")
+    _choice(f"{name}.kind", kind, tuple(ELEMENT_KINDS))
+    cls_name, required, optional = ELEMENT_KINDS[kind]
+    allowed = ("kind", "i", "j", *required, *optional)
+    for key in spec:
+        if key not in allowed:
+            raise ValueError(f"{name}.{key} = {spec[key]!r}: unknown key for kind {kind!r}, "
+                             f"allowed: {', '.join(allowed)}")
+    for key in ("i", *required):
+        if key not in spec:
+            raise ValueError(f"{name}.{key} is required for kind {kind!r}")
+    i = _dof_index(f"{name}.i", spec["i"], n_dof, names)
+    j = None
+    if "j" in spec:
+        j = _dof_index(f"{name}.j", spec["j"], n_dof, names)
+        if j == i:
+            raise ValueError(f"{name}.j = {spec['j']!r}: the same DOF as {name}.i = {spec['i']!r}; "
+                             "an element joins two different DOFs (omit j for ground)")
+    fields = {key: _element_field(f"{name}.{key}", spec[key], _ELEMENT_FIELDS[key])
+              for key in (*required, *optional) if key in spec}
+    if kind == "law":  # parsed here so that a refused expression names this field
+        from .expressions import parse_expression
+
+        constants = fields.pop("constants", {})
+        parse_expression(fields["expression"], variables=("x", "v"), constants=tuple(constants),
+                         name=f"{name}.expression")
+        fields.update(constants)
+    try:
+        return getattr(el_mod, cls_name)(i, j, **fields)
+    except ValueError as exc:  # a rule across fields (e.g. Bouc-Wen's beta + gamma > 0)
+        raise ValueError(f"{name} (kind {kind!r}): {exc}") from None
+
+
+def _parse_elements(tables, n_dof: int, names: tuple[str, ...] | None) -> tuple:
+    if not isinstance(tables, list) or not all(isinstance(x, dict) for x in tables):
+        raise ValueError(f"element = {tables!r}: must be zero or more [[element]] tables")
+    return tuple(_parse_element(k, spec, n_dof, names) for k, spec in enumerate(tables))
+
+
+def _nonlinear_methods() -> tuple[str, ...]:
+    from .nonlinear import MODAL, MULTISTEP
+
+    return MODAL + tuple(s for s in SCHEMES if s not in MULTISTEP)
+
+
+def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
+    """(method, scheme parameters, options, backend) of a nonlinear scene (module docstring)."""
+    from .nonlinear import MODAL
+
+    _table("nonlinear", tbl, _NONLINEAR_KEYS)
+    methods = _nonlinear_methods()
+    scheme_name, params = None, {}
+    if scheme_tbl is not None:
+        if not isinstance(scheme_tbl, dict):
+            raise ValueError(f"scheme = {scheme_tbl!r}: must be a table [scheme]")
+        for key in ("form", "sweep", "backend"):
+            if key in scheme_tbl:
+                raise ValueError(f"scheme.{key} = {scheme_tbl[key]!r}: only for linear chains; a "
+                                 "scene with [[element]] runs nonlinear_response (set "
+                                 "nonlinear.backend): remove the key")
+        scheme_name, params = _scheme_name_params(scheme_tbl)
+    if "method" in tbl:
+        method = _choice("nonlinear.method", tbl["method"], methods)
+        if scheme_name is not None and scheme_name != method:
+            extra = (f"method {method!r} takes no [scheme]" if method in MODAL
+                     else "they must name the same method")
+            raise ValueError(f"nonlinear.method = {method!r} and scheme.name = {scheme_name!r}: "
+                             f"{extra}; remove [scheme] or make them agree")
+    elif scheme_name is not None:
+        method = scheme_name
+        if method not in methods:
+            raise ValueError(f"scheme.name = {method!r}: a multistep scheme cannot run nonlinear "
+                             f"elements, allowed: {', '.join(map(repr, methods))}")
+    else:
+        method = _DEFAULT_NONLINEAR_METHOD
+    options = {}
+    for key in ("substeps", "max_iter"):
+        if key in tbl:
+            v = tbl[key]
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"nonlinear.{key} = {v!r}: must be an integer >= 1")
+            options[key] = v
+    if "tol" in tbl:
+        tol = finite_number("nonlinear.tol", tbl["tol"])
+        if tol <= 0:
+            raise ValueError(f"nonlinear.tol = {tbl['tol']!r}: must be > 0")
+        options["tol"] = tol
+    if "modes" in tbl:
+        modes = tbl["modes"]
+        if method not in MODAL:
+            raise ValueError(f"nonlinear.modes = {modes!r}: selects modal filters; method "
+                             f"{method!r} integrates all DOFs (remove modes)")
+        if (not isinstance(modes, list) or not modes
+                or any(isinstance(m, bool) or not isinstance(m, int) or m < 0 for m in modes)):
+            raise ValueError(f"nonlinear.modes = {modes!r}: must be a non-empty array of 0-based "
+                             "mode indices (integers >= 0)")
+        if len(set(modes)) != len(modes):
+            raise ValueError(f"nonlinear.modes = {modes!r}: repeats a mode")
+        options["modes"] = list(modes)
+    backend = _choice("nonlinear.backend", tbl.get("backend", "c"), NONLINEAR_BACKENDS)
+    if "backend" in tbl:
+        options["backend"] = backend
+    return method, params, options, backend
 
 
 def _parse_output(tbl, n_dof: int, names: tuple[str, ...] | None = None
@@ -596,10 +822,14 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
     for key in data:
         if key not in _TOP_KEYS:
             raise ValueError(f"{key}: unknown top-level key or table, allowed: {', '.join(_TOP_KEYS)}")
-    for key in ("model", "load", "scheme", "time"):
+    nonlinear = bool(data.get("element"))  # [scheme] is optional then
+    for key in ("model", "load", "time") + (() if nonlinear else ("scheme",)):
         if key not in data:
             hint = "[[load]]" if key == "load" else f"[{key}]"
             raise ValueError(f"{key} is required: add a {hint} table")
+    if "nonlinear" in data and not nonlinear:
+        raise ValueError(f"nonlinear = {data['nonlinear']!r}: the [nonlinear] options need at "
+                         "least one [[element]] table")
     title = data.get("title", Path(source).stem)
     if not isinstance(title, str):
         raise ValueError(f"title = {title!r}: must be a string")
@@ -609,15 +839,29 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
     M = C = K = names = None
     mass = stiffness = damping = None
     if kind == "matrices":
+        if nonlinear and data["model"].get("sparse") is True:
+            raise ValueError("model.sparse = True: a scene with [[element]] runs on dense "
+                             "matrices; remove the key")
         M, C, K, names = _parse_matrix_model(data["model"], base_dir)
         n_dof = M.shape[0]
+        if nonlinear:
+            M, C, K = (A.toarray() if sps.issparse(A) else A for A in (M, C, K))
     else:
         mass, stiffness, damping = _parse_model(data["model"])
         n_dof = mass.size
     dt, n_steps = _parse_time(data["time"])
-    scheme, params, form, sweep, backend = _parse_scheme(data["scheme"], kind)
-    if kind == "matrices":
-        backend = "scipy.sparse" if sps.issparse(M) else "numpy"
+    elements, options = (), {}
+    if nonlinear:
+        elements = _parse_elements(data["element"], n_dof, names)
+        scheme, params, options, backend = _parse_nonlinear(data.get("nonlinear", {}),
+                                                            data.get("scheme"))
+        form = sweep = None
+    else:
+        if "element" in data:  # an empty array: still a linear scene
+            _parse_elements(data["element"], n_dof, names)
+        scheme, params, form, sweep, backend = _parse_scheme(data["scheme"], kind)
+        if kind == "matrices":
+            backend = "scipy.sparse" if sps.issparse(M) else "numpy"
     outputs, quantities = _parse_output(data.get("output", {}), n_dof, names)
     t = np.arange(n_steps + 1) * dt
     loads, loaded, force = _parse_loads(data["load"], n_dof, t, base_dir, names)
@@ -625,7 +869,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
                  loaded=loaded, force=force, scheme=scheme, scheme_params=params, form=form,
                  sweep=sweep, backend=backend, dt=dt, n_steps=n_steps, outputs=outputs,
                  quantities=quantities, source=source, base_dir=base_dir, kind=kind, M=M, C=C, K=K,
-                 dof_names=names)
+                 dof_names=names, elements=elements, nonlinear=options)
 
 
 def load_scene(path: str | os.PathLike | None = None) -> Scene:
@@ -702,19 +946,75 @@ def natural_frequencies(scene: Scene) -> np.ndarray:
 
 
 def check_stability(scene: Scene) -> bool:
-    """Warn before a run whose dt makes the scheme unstable for a mode of the model."""
+    """Warn before a run whose dt makes the scheme unstable for a mode of the model.
+
+    A nonlinear scene is checked for its linear part at the sub-step dt / substeps when its
+    method is a scheme (the modal methods are exact for the linear part; nonlinear_response
+    checks the elements' tangent stiffness as it runs).
+    """
     from .stability import warn_if_unstable
 
+    dt = scene.dt
+    if not scene.linear:
+        if scene.scheme not in SCHEMES:
+            return False
+        dt = scene.dt / scene.nonlinear.get("substeps", 1)
     omegas = natural_frequencies(scene)
     omegas = omegas[omegas > 0.0]
     if omegas.size == 0:
         return False
-    return warn_if_unstable(scene.scheme, omegas, scene.dt, **scene.scheme_params)
+    return warn_if_unstable(scene.scheme, omegas, dt, **scene.scheme_params)
+
+
+def scene_matrices(scene: Scene):
+    """(M, C, K) of a scene: a chain's from ``chain_matrices`` (dense), else as held."""
+    if scene.kind == "matrices":
+        return scene.M, scene.C, scene.K
+    from .chain import chain_matrices
+
+    return chain_matrices(scene.mass, scene.stiffness, scene.damping, sparse=False)
+
+
+def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
+    """``nonlinear_response`` on the scene; errors get the scene file's name."""
+    from . import nonlinear
+
+    M, C, K = scene_matrices(scene)
+    start = time.perf_counter()
+    try:
+        response = nonlinear.nonlinear_response(
+            scene.force, 1.0 / scene.dt, M, C, K, scene.loaded, scene.elements,
+            outputs=scene.outputs, method=scene.scheme, **scene.nonlinear, **scene.scheme_params)
+    except (nonlinear.NewtonError, nonlinear.DtdynStepStabilityError) as exc:
+        substeps = scene.nonlinear.get("substeps", 1)
+        raise type(exc)(f"{scene.source}: {exc} (the scene has nonlinear.substeps = "
+                        f"{substeps})") from None
+    except ValueError as exc:
+        if str(exc).startswith("modes"):  # the range of nonlinear.modes is known only here
+            raise ValueError(f"{scene.source}: nonlinear.{exc}") from None
+        raise
+    wall = time.perf_counter() - start
+    for q in QUANTITIES:  # store what the scene asks for, as the linear runs do
+        if q not in scene.quantities:
+            setattr(response, q, None)
+    info = response.info
+    report = {
+        "title": scene.title, "scheme": scene.scheme, "scheme_params": dict(scene.scheme_params),
+        "form": None, "sweep": None, "backend": info["backend"], "dt": scene.dt,
+        "n_steps": scene.n_steps, "n_dof": scene.n_dof, "n_outputs": int(scene.outputs.size),
+        "run_time_s": info["run_time"], "exact_time_s": None, "max_rel_error": None,
+        "method": scene.scheme, "substeps": info["substeps"],
+        "elements": list(info["elements"]), "setup_time_s": info["setup_time"],
+        "construct_time_s": info["construct_time"], "compile_time_s": info["compile_time"],
+        "total_time_s": wall, "newton_iterations": info["newton_iterations"],
+        "max_residual": info["max_residual"], "max_theta": info["max_theta"],
+    }
+    return response, report
 
 
 def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
-    """Simulate a scene with ``simulate_chain`` (chains) or ``simulate_mck`` (general matrices)
-    and report run time and error.
+    """Simulate a scene with ``simulate_chain`` (chains), ``simulate_mck`` (general matrices) or
+    ``nonlinear_response`` (scenes with elements) and report run time and error.
 
     The error is measured against the matrix-exponential solution (``exact_response``) when the
     scene is linear and has at most ``EXACT_MAX_DOF`` DOFs (and, for matrices, a mass matrix
@@ -732,8 +1032,21 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
         ``title, scheme, scheme_params, form, sweep, backend, dt, n_steps, n_dof, n_outputs,
         run_time_s, exact_time_s, max_rel_error``. For matrices ``form`` is ``"acceleration"``,
         ``sweep`` None and ``backend`` ``"numpy"`` (dense) or ``"scipy.sparse"``.
+        A nonlinear scene (``form``, ``sweep``, ``max_rel_error`` None; ``backend`` the one used)
+        adds ``method, substeps, elements`` (descriptions), ``setup_time_s,
+        construct_time_s, compile_time_s`` (``run_time_s`` is the stepping loop alone,
+        ``total_time_s`` the whole call), ``newton_iterations`` (``{"max", "mean"}`` per step;
+        None for backend "casadi"), ``max_residual`` and ``max_theta`` (``Response.info``).
+
+    Raises
+    ------
+    NewtonError, DtdynStepStabilityError
+        A nonlinear scene's step failed (dtdyn.runtime.nonlinear); the message starts with the
+        scene file and names the step, its time and the residual (or the tangent stiffness).
     """
     check_stability(scene)
+    if not scene.linear:
+        return _run_nonlinear(scene)
     start = time.perf_counter()
     if scene.kind == "matrices":
         from . import mck
