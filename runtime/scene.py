@@ -99,7 +99,6 @@ from __future__ import annotations
 
 import importlib.resources
 import os
-import tempfile
 import time
 import tomllib
 import zipfile
@@ -110,6 +109,7 @@ import numpy as np
 import scipy.sparse as sps
 
 from . import validate
+from .atomic import write_atomic
 from .loads import finite_number, sample_load
 from .result import Response
 
@@ -1100,27 +1100,6 @@ def _nonsingular(M: np.ndarray) -> bool:
     return bool(np.isfinite(cond) and cond * M.shape[0] * np.finfo(float).eps < 1.0)
 
 
-def _atomic_write(path: Path, write) -> None:
-    """Call ``write(binary_file)`` on a temporary file next to ``path``, then rename it into place.
-
-    On any failure the temporary file is removed and ``path`` is left as it was.
-    """
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-            f.flush()
-            os.fsync(f.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-
-
 def save_results(path: str | os.PathLike, response: Response, scene: Scene) -> None:
     """Write ``t``, ``outputs`` and the scene's requested quantities to an ``.npz`` file.
 
@@ -1138,7 +1117,7 @@ def save_results(path: str | os.PathLike, response: Response, scene: Scene) -> N
         if value is None:
             raise ValueError(f"output.quantities asks for {q!r}, but the response did not store it")
         arrays[q] = np.asarray(value)
-    _atomic_write(path, lambda f: np.savez(f, **arrays))
+    write_atomic(path, lambda f: np.savez(f, **arrays))
 
 
 def plot_response(path: str | os.PathLike, response: Response, scene: Scene) -> None:
@@ -1177,4 +1156,4 @@ def plot_response(path: str | os.PathLike, response: Response, scene: Scene) -> 
     ax.grid(True, alpha=0.3)
     if x.shape[1] <= 20:
         ax.legend(fontsize=7, ncols=1 + x.shape[1] // 8, loc="best")
-    _atomic_write(path, lambda f: fig.savefig(f, format=fmt, dpi=120))
+    write_atomic(path, lambda f: fig.savefig(f, format=fmt, dpi=120))
