@@ -5,7 +5,7 @@
 (2) The classic closed-form undamped half-sine shock spectrum (primary and residual).
 (3) Peak picking at 5 points per cycle errs by > 10 % (within 1 - cos(pi f / fs)); upsampling and
     exact peaks fix it.
-(4) pyyeti.srs where installed. (5) Bad inputs and the sampling warning. (6) The CLI.
+(4) pyyeti.srs and endaq.calc.shock.shock_spectrum where installed. (5) Bad inputs and the sampling warning. (6) The CLI.
 """
 import warnings
 
@@ -270,6 +270,34 @@ def test_against_pyyeti(response):
         tol = (1 - np.cos(np.pi * freqs / fs)) * ours.maximax + 1e-9 * scale
         assert np.all(theirs <= ours.maximax + 1e-9 * scale)
         assert np.all(ours.maximax - theirs <= tol)
+
+
+# --- (4b) endaq ---------------------------------------------------------------------------
+@pytest.mark.parametrize("mode, response", [("srs", "absolute_acceleration"),
+                                            ("pvss", "pseudo_velocity")])
+def test_against_endaq(mode, response):
+    """endaq.calc.shock.shock_spectrum filters the record (Smallwood, the ramp invariant), then
+    zero-pads it by one period of the lowest frequency (two-sided) and picks peaks at samples:
+    its residual can only be below our closed-form one, by at most the peak-picking bound."""
+    es = pytest.importorskip("endaq.calc.shock")
+    pd = pytest.importorskip("pandas")
+    fs, zeta = 50e3, 0.05
+    t, a = _half_sine(fs, 1e-3, 100 * G, 3e-3)
+    freqs = np.geomspace(20, 5000, 25)
+    df = pd.DataFrame({"a": a}, index=pd.Index(t, name="time"))
+    neg, pos = es.shock_spectrum(df, freqs=freqs, damp=zeta, mode=mode, max_time=None,
+                                 two_sided=True)
+    ours = shock_response_spectrum(a, fs, freqs, zeta, response, window="total")
+    scale = ours.maximax.max()
+    tol = (1 - np.cos(np.pi * freqs / fs)) * ours.maximax + 1e-9 * scale
+    for theirs, mine in ((neg["a"].to_numpy(), ours.negative), (pos["a"].to_numpy(),
+                                                                ours.positive)):
+        assert np.all(theirs <= mine + 1e-9 * scale)
+        assert np.all(mine - theirs <= tol)
+    # the primary window alone: the same filter, the same samples
+    prim = shock_response_spectrum(a, fs, freqs, zeta, response, window="primary")
+    one = es.shock_spectrum(df, freqs=freqs, damp=zeta, mode=mode, max_time=None)
+    assert np.all(one["a"].to_numpy() >= prim.maximax - 1e-9 * scale)
 
 
 # --- (5) inputs, warnings, backends ---------------------------------------------------------
