@@ -62,7 +62,7 @@ class NewtonError(RuntimeError):
 
 @dataclass
 class LinearStep:
-    """The shifted linear model of one (sub)step (module docstring), row-major matrices.
+    """The shifted linear model of one (sub)step (module docstring).
 
     Inputs u = [f; g]. X0f, X0g give the shifted initial state x_0 = X0f f_0 + X0g g_0 of a
     system at rest (x_0 = z_0 - Gamma1 u_0, z_0 the scheme's history at t_0).
