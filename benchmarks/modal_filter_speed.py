@@ -1,4 +1,4 @@
-"""Modal filter bank speed: the generated C bank against scipy.signal, measured in one run.
+"""Modal filter speed and long-record accuracy: dtdyn's two filter forms against scipy.signal.
 
 Writes docs/modal_filter_speed.md. Run from the repository root:
 
@@ -6,23 +6,35 @@ Writes docs/modal_filter_speed.md. Run from the repository root:
 
 Problem: P3 (shared/reference.md section 7), the 15-DOF chain, as given: undamped (C = 0). The
 modal model keeps its undamped poles (Re s = 0, allowed by dtdyn.runtime.modal); damping would
-not change the work per sample (one second-order section per mode and output/input pair).
-Force on DOF 14 (0-based), random piecewise-linear (standard normal samples, first one 0),
-fs = 2000 Hz, ramp invariant.
+not change the work per sample. Force on DOF 14 (0-based), random piecewise-linear (standard
+normal samples, first one 0), fs = 2000 Hz, ramp invariant, 1,000,000 samples.
 
-(a) The filter bank alone on 1,000,000 samples, displacement of DOF 14: dtdyn's run_bank (C)
-    against scipy.signal.sosfilt on the same 15 sections, each row filtered separately and the
-    outputs summed (the same work as the parallel bank), and, for reference only, one sosfilt
-    call over all 15 rows (a cascade: a different filter, same number of section updates).
-(b) The whole response: modal_filter_response (modal model + sections + C bank) on 1,000,000
-    samples against scipy.signal.lsim (first-order form from
-    dtdyn.runtime.discretize.first_order_form, linear interpolation, i.e. the same
-    piecewise-linear force), whose Python loop is timed on 100,000 samples and extrapolated
-    linearly to 1,000,000 (its cost per step is constant). Outputs: DOF 14 (15 sections) and
-    all 15 DOFs (225 sections). The maximum relative difference is measured on the common
-    first 100,000 samples; a diagnosis of the 15-output case, and the accuracy of both against
-    exact_response over the first 1,000 / 10,000 / 100,000 samples.
-Times: minimum of repeats after one warm-up call (which also compiles the C kernel).
+The two forms of dtdyn.runtime.modal_filters (its module docstring):
+- sections: one real second-order section per mode and output (15 for one output, 225 for all
+  15), generated C kernel filter_bank.c;
+- modes: one complex state per mode (15), updated in increment form, outputs formed from the
+  states by one product with the mode shapes, generated C kernel modal_states.c.
+
+(a) The filters alone, for the displacement of DOF 14 and of all 15 DOFs: run_bank (C) and
+    run_modes (C); scipy.signal.sosfilt on the same sections (each row filtered separately and
+    the outputs summed: the same work as the parallel bank) and, for one output and reference
+    only, one sosfilt call over all 15 rows (a cascade: a different filter, same number of
+    section updates); the NumPy fallbacks (scipy.signal.lfilter per section / per state, timed
+    on 200,000 samples and extrapolated).
+(b) The whole response, modal_filter_response (modal model + coefficients + filters) with
+    method "modes", "sections" and "auto", against scipy.signal.lsim (first-order form from
+    dtdyn.runtime.discretize.first_order_form, linear interpolation, i.e. the same piecewise-
+    linear force), whose Python loop is timed on 100,000 samples and extrapolated linearly (its
+    cost per step is constant). The maximum relative difference is measured on the common
+    first 100,000 samples.
+(c) Accuracy over the whole record, DOF 14. Truth: the same modal model (its double-precision
+    poles and residues taken as exact) filtered in 80-bit extended precision (numpy.longdouble,
+    scipy.signal.lfilter) with e^{sT}, c0, c1 computed in 40-digit arithmetic (mpmath): the
+    ramp invariant is exact for this force, so this isolates each filter's own round-off
+    (its drift: ~1e-19 per step). exact_response (matrix exponential, the reference of the
+    tests) is compared too: its difference from the truth also contains the eigensolver's error
+    in the poles.
+Times: minimum of repeats after one warm-up call (which also compiles the C kernels).
 """
 from __future__ import annotations
 
@@ -34,6 +46,7 @@ import platform
 import sys
 import time
 
+import mpmath
 import numpy as np
 import scipy
 import scipy.signal as sig
@@ -42,14 +55,16 @@ from dtdyn.runtime.chain import chain_matrices
 from dtdyn.runtime.discretize import first_order_form
 from dtdyn.runtime.exact import exact_response
 from dtdyn.runtime.modal import modal_model
-from dtdyn.runtime.modal_filters import modal_filter_response, run_bank, sections
+from dtdyn.runtime.modal_filters import (modal_filter_response, modal_states, run_bank, run_modes,
+                                         sections)
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 from problems import P3  # noqa: E402
 
-N_BANK = 1_000_000
+N = 1_000_000
 N_LSIM = 100_000
+N_LF = 200_000
 FS = 2000.0
 LOADED = 14
 
@@ -68,100 +83,155 @@ def rel_diff(a, b):
     return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
 
 
+def ms(t):
+    return f"{t * 1e3:9.1f} ms"
+
+
+def extended_precision_truth(model, force):
+    """y = sum_r 2 Re(eta_r), eta_r the ramp-invariant recursion of mode r in long double with
+    e^{sT}, c0, c1 (residue included) evaluated by mpmath (40 digits) from the model's poles."""
+    mpmath.mp.dps = 40
+    T = mpmath.mpf(1) / int(FS)
+
+    def ld(v):
+        re, im = (np.longdouble(mpmath.nstr(part, 30)) for part in (v.real, v.imag))
+        return re + 1j * im
+
+    x = force.astype(np.clongdouble)
+    y = np.zeros(force.size, np.longdouble)
+    for s, R in zip(model.poles, model.residues[:, 0, 0]):
+        sm, Rm = mpmath.mpc(s.real, s.imag), mpmath.mpc(R.real, R.imag)
+        e = mpmath.exp(sm * T)
+        c1 = Rm * (e - 1 - sm * T) / (sm * sm * T)  # weight of x_n (reference.md: N0)
+        c0 = Rm * (1 + (sm * T - 1) * e) / (sm * sm * T)  # weight of x_{n-1} (N1)
+        b = np.array([ld(c1), ld(c0)], np.clongdouble)
+        a = np.array([1, -ld(e)], np.clongdouble)
+        y += 2 * sig.lfilter(b, a, x).real
+    return y.astype(float)
+
+
 def main():
     M, C, K = chain_matrices(P3["mass"], P3["stiffness"], P3["damping"], sparse=False)
     n = M.shape[0]
     rng = np.random.default_rng(0)
-    force = rng.standard_normal(N_BANK)
+    force = rng.standard_normal(N)
     force[0] = 0.0
     x = force[:, None]
-    print(f"P3 undamped 15-DOF chain, force on DOF {LOADED}, fs = {FS:g} Hz, ramp invariant; "
-          f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}, "
-          f"NumPy {np.__version__}, SciPy {scipy.__version__}")
+    print(f"P3 undamped 15-DOF chain, force on DOF {LOADED}, fs = {FS:g} Hz, ramp invariant, "
+          f"{N:,} samples; {platform.machine()}, {os.cpu_count()} cores, Python "
+          f"{platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__}")
 
-    # (a) the bank alone
-    model = modal_model(M, C, K, [LOADED], [LOADED])
-    sos, in_col, out_col, direct = sections(model, FS, "ramp")
-    sos6 = np.column_stack([sos[:, :3], np.ones(len(sos)), sos[:, 3:]])
-    t_bank, y_bank = best_of(lambda: run_bank(sos, in_col, out_col, direct, x, 1), 5)
-    t_rows, y_rows = best_of(lambda: sum(sig.sosfilt(row[None, :], force) for row in sos6), 3)
-    t_casc, _ = best_of(lambda: sig.sosfilt(sos6, force), 3)
-    n_lf = 200_000
-    t_lf, _ = best_of(lambda: run_bank(sos, in_col, out_col, direct, x[:n_lf], 1,
-                                       backend="numpy"), 2)
-    print(f"\n(a) filter bank, {len(sos)} sections (one per mode), {N_BANK:,} samples, "
-          "displacement of DOF 14")
-    print(f"   run_bank (generated C)                    {t_bank * 1e3:8.1f} ms  "
-          f"({t_bank / N_BANK / len(sos) * 1e9:.2f} ns per sample and section)")
-    print(f"   sosfilt, each row separately, summed      {t_rows * 1e3:8.1f} ms  "
-          f"({t_rows / N_BANK / len(sos) * 1e9:.2f} ns per sample and section)")
-    print(f"   sosfilt, one call, rows as a cascade      {t_casc * 1e3:8.1f} ms  "
-          "(reference only: a different filter)")
-    print(f"   run_bank NumPy fallback (lfilter per row) {t_lf / n_lf * N_BANK * 1e3:8.1f} ms  "
-          f"(extrapolated from {n_lf:,} samples)")
-    print(f"   bank / row-wise sosfilt speed-up {t_rows / t_bank:.2f}x (target >= 1x); vs the "
-          f"cascade {t_casc / t_bank:.2f}x; max relative difference bank vs row-wise sosfilt "
-          f"{rel_diff(y_bank[:, 0], y_rows):.1e}")
+    # (a) the filters alone
+    print("\n(a) the filters alone")
+    kernel = {}
+    for outputs in ([LOADED], list(range(n))):
+        n_out = len(outputs)
+        model = modal_model(M, C, K, [LOADED], outputs)
+        sos, in_col, out_col, direct = sections(model, FS, "ramp")
+        st = modal_states(model, FS, "ramp")
+        sos6 = np.column_stack([sos[:, :3], np.ones(len(sos)), sos[:, 3:]])
+        rep = 3 if n_out == 1 else 2
+        t_bank, y_bank = best_of(lambda: run_bank(sos, in_col, out_col, direct, x, n_out), rep)
+        t_modes, y_modes = best_of(lambda: run_modes(st, x), rep)
 
-    # (b) whole response against lsim
+        def rowwise():
+            y = np.zeros((N, n_out))
+            for row, o in zip(sos6, out_col):
+                y[:, o] += sig.sosfilt(row[None, :], force)
+            return y
+
+        t_rows, y_rows = best_of(rowwise, 1)
+        t_lf, _ = best_of(lambda: run_bank(sos, in_col, out_col, direct, x[:N_LF], n_out,
+                                           backend="numpy"), 1)
+        t_lfm, _ = best_of(lambda: run_modes(st, x[:N_LF], backend="numpy"), 1)
+        scale = N / N_LF
+        kernel[n_out] = (t_bank, t_modes, t_rows)
+        label = "DOF 14" if n_out == 1 else "all 15 DOFs"
+        print(f"   displacement of {label}: {len(sos)} sections, {st.n_states} modal states")
+        print(f"      run_bank, sections (generated C)          {ms(t_bank)}  "
+              f"({t_bank / N / len(sos) * 1e9:.2f} ns per sample and section)")
+        print(f"      run_modes, per mode (generated C)         {ms(t_modes)}  "
+              f"({t_modes / N * 1e9:.1f} ns per sample)")
+        print(f"      sosfilt, each row separately, summed      {ms(t_rows)}  "
+              f"({t_rows / N / len(sos) * 1e9:.2f} ns per sample and section)")
+        if n_out == 1:
+            t_casc, _ = best_of(lambda: sig.sosfilt(sos6, force), 3)
+            print(f"      sosfilt, one call, rows as a cascade      {ms(t_casc)}  "
+                  "(reference only: a different filter)")
+        print(f"      NumPy fallback, lfilter per section       {ms(t_lf * scale)}  "
+              f"(extrapolated from {N_LF:,} samples)")
+        print(f"      NumPy fallback, lfilter per modal state   {ms(t_lfm * scale)}  "
+              f"(extrapolated from {N_LF:,} samples)")
+        print(f"      speed-up over row-wise sosfilt: bank {t_rows / t_bank:.1f}x (target >= 1x), "
+              f"per mode {t_rows / t_modes:.1f}x; per mode vs bank {t_bank / t_modes:.1f}x")
+        print(f"      max relative difference: bank vs sosfilt {rel_diff(y_bank, y_rows):.1e}, "
+              f"per mode vs bank {rel_diff(y_modes, y_bank):.1e} (whole record)")
+
+    # (b) the whole response against lsim
     A, B = first_order_form(M, C, K)
     t = np.arange(N_LSIM) / FS
-    print(f"\n(b) whole response, modal_filter_response on {N_BANK:,} samples vs scipy.signal.lsim "
-          f"(timed on {N_LSIM:,} samples, extrapolated x{N_BANK // N_LSIM})")
-    results = {}
+    print(f"\n(b) whole response, modal_filter_response on {N:,} samples vs scipy.signal.lsim "
+          f"(timed on {N_LSIM:,} samples, extrapolated x{N // N_LSIM})")
     for outputs in ([LOADED], list(range(n))):
-        Cm = np.zeros((len(outputs), 2 * n))
-        Cm[np.arange(len(outputs)), outputs] = 1.0
-        system = (A, B[:, [LOADED]], Cm, np.zeros((len(outputs), 1)))
-        t_mf, r = best_of(lambda: modal_filter_response(x, FS, M, C, K, [LOADED], outputs),
-                          3 if len(outputs) == 1 else 2)
+        n_out = len(outputs)
+        Cm = np.zeros((n_out, 2 * n))
+        Cm[np.arange(n_out), outputs] = 1.0
+        system = (A, B[:, [LOADED]], Cm, np.zeros((n_out, 1)))
         t_ls, (_, y_ls, _) = best_of(lambda: sig.lsim(system, force[:N_LSIM], t), 1)
-        y_ls = np.reshape(y_ls, (N_LSIM, len(outputs)))
-        results[len(outputs)] = (r, y_ls)
-        t_ls_full = t_ls * N_BANK / N_LSIM
-        diff = rel_diff(r.x[:N_LSIM], y_ls)
-        label = "DOF 14" if len(outputs) == 1 else "all 15 DOFs"
-        print(f"   outputs {label}: {r.info['sections']} sections")
-        print(f"      modal_filter_response   {t_mf * 1e3:9.1f} ms  (sections "
-              f"{r.info['setup_time'] * 1e3:.2f} ms, bank {r.info['run_time'] * 1e3:.1f} ms)")
-        print(f"      scipy.signal.lsim       {t_ls_full * 1e3:9.1f} ms  (extrapolated; measured "
+        y_ls = np.reshape(y_ls, (N_LSIM, n_out))
+        t_ls_full = t_ls * N / N_LSIM
+        label = "DOF 14" if n_out == 1 else "all 15 DOFs"
+        print(f"   outputs {label}:")
+        print(f"      scipy.signal.lsim              {ms(t_ls_full)}  (extrapolated; measured "
               f"{t_ls * 1e3:.1f} ms on {N_LSIM:,} samples)")
-        print(f"      speed-up {t_ls_full / t_mf:.1f}x (target >= 20x); max relative difference "
-              f"{diff:.1e} (first {N_LSIM:,} samples)")
+        for method in ("modes", "sections", "auto"):
+            t_mf, r = best_of(lambda: modal_filter_response(x, FS, M, C, K, [LOADED], outputs,
+                                                            method=method),
+                              3 if n_out == 1 else 2)
+            diff = rel_diff(r.x[:N_LSIM], y_ls)
+            print(f"      method={method + ',':10s} {r.info['filters']:8s}  {ms(t_mf)}  "
+                  f"(coefficients {r.info['setup_time'] * 1e3:.1f} ms, filters "
+                  f"{r.info['run_time'] * 1e3:.1f} ms); {t_ls_full / t_mf:.1f}x faster than lsim; "
+                  f"max relative difference {diff:.1e}")
+        print("      (target: >= 20x faster than lsim)")
 
-    # diagnosis of the 15-output case: the bank's passes write y (n, n_out) with stride n_out;
-    # the same sections run output by output into contiguous arrays
-    model15 = modal_model(M, C, K, [LOADED], list(range(n)))
-    sos15, in15, out15, direct15 = sections(model15, FS, "ramp")
-
-    def per_output():
-        y = np.empty((n, N_BANK))
-        for o in range(n):
-            keep = out15 == o
-            y[o] = run_bank(sos15[keep], in15[keep], np.zeros(int(keep.sum()), np.int64),
-                            direct15[[o]], x, 1)[:, 0]
-        return y
-
-    t_po, y_po = best_of(per_output, 2)
-    same = rel_diff(y_po.T, results[n][0].x)
-    print(f"   diagnosis, all 15 DOFs: the same 225 sections run output by output into contiguous "
-          f"arrays take {t_po * 1e3:.1f} ms (max relative difference {same:.1e}); the gap to the "
-          "bank time above is the cost of one pass per section over the whole (n, 15) output, "
-          "written with stride 15")
-
-    # accuracy against exact_response (matrix exponential, exact for the piecewise-linear force)
-    ex = exact_response(M, C, K, x[:N_LSIM], 1 / FS, N_LSIM - 1, loaded=[LOADED],
-                        outputs=[LOADED]).x[:, 0]
-    r1, yl1 = results[1]
-    print("\naccuracy, DOF 14, against exact_response (max relative error over the first n "
-          "samples; P3 is undamped, so an error in a modal frequency grows linearly with n):")
-    for m in (1_000, 10_000, 100_000):
-        print(f"   n = {m:>7,}: modal filters {rel_diff(r1.x[:m, 0], ex[:m]):.1e}, lsim "
-              f"{rel_diff(yl1[:m, 0], ex[:m]):.1e}")
+    # (c) accuracy over the whole record
+    model = modal_model(M, C, K, [LOADED], [LOADED])
+    t0 = time.perf_counter()
+    truth = extended_precision_truth(model, force)
+    t_truth = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    ex = exact_response(M, C, K, x, 1 / FS, N - 1, loaded=[LOADED], outputs=[LOADED]).x[:, 0]
+    t_ex = time.perf_counter() - t0
+    ys = {
+        "modes (C, increment form)": modal_filter_response(x, FS, M, C, K, [LOADED], [LOADED],
+                                                           method="modes").x[:, 0],
+        "modes (lfilter, pole e^sT)": modal_filter_response(x, FS, M, C, K, [LOADED], [LOADED],
+                                                            method="modes",
+                                                            backend="numpy").x[:, 0],
+        "sections (C)": modal_filter_response(x, FS, M, C, K, [LOADED], [LOADED],
+                                              method="sections").x[:, 0],
+        "exact_response": ex,
+    }
+    print(f"\n(c) accuracy, DOF 14, max |y - truth| over the first n samples / max |truth| "
+          f"(truth: extended precision, {t_truth:.1f} s; exact_response took {t_ex:.1f} s)")
+    marks = (1_000, 10_000, 100_000, 1_000_000)
+    print("   " + " " * 28 + "".join(f"n = {m:>9,}  " for m in marks))
+    ref = np.max(np.abs(truth))
+    for name, y in ys.items():
+        print(f"   {name:28s}" + "".join(f"{np.max(np.abs(y[:m] - truth[:m])) / ref:13.1e}  "
+                                         for m in marks))
+    print("   against exact_response instead of the truth:")
+    for name in ("modes (C, increment form)", "sections (C)"):
+        y = ys[name]
+        print(f"   {name:28s}" + "".join(f"{np.max(np.abs(y[:m] - ex[:m])) / ref:13.1e}  "
+                                         for m in marks))
     w1 = model.frequencies[0]
-    print(f"   the section's pole angle theta = |s_1| T = {w1 / FS:.2e} for the lowest mode is "
-          f"stored through a1 = -2 cos(theta); its rounding perturbs the modal frequency by "
-          f"~ eps / theta^2 = {np.finfo(float).eps / (w1 / FS) ** 2:.1e} relative")
+    eps = np.finfo(float).eps
+    print(f"   mode 1: theta = |s_1| T = {w1 / FS:.2e}. A section stores a1 = -2 cos(theta), "
+          f"whose rounding moves theta by ~ eps / theta = {eps / (w1 / FS):.1e} (a relative frequency "
+          f"error ~ {eps / (w1 / FS) ** 2:.1e}, a phase error that grows with n); the per-mode "
+          f"form stores d = e^(sT) - 1 to ~ eps |d| = {eps * w1 / FS:.1e}.")
 
 
 if __name__ == "__main__":
@@ -170,7 +240,7 @@ if __name__ == "__main__":
         main()
     print(buf.getvalue(), end="")
     doc = ROOT / "docs" / "modal_filter_speed.md"
-    doc.write_text("# Modal filter bank speed\n\nOutput of "
+    doc.write_text("# Modal filter speed and long-record accuracy\n\nOutput of "
                    "`python benchmarks/modal_filter_speed.py` (2-core shared machine; ratios "
-                   "measured in one run). What is timed: the script's docstring.\n\n```\n"
-                   + buf.getvalue() + "```\n")
+                   "measured in one run). What is timed and the reference of (c): the script's "
+                   "docstring.\n\n```\n" + buf.getvalue() + "```\n")

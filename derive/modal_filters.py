@@ -22,9 +22,10 @@ and a real pole (overdamped mode) into a first-order section.
 
 The per-mode form keeps the complex recursion instead (`increment_form`): one state per mode and
 residue factor, updated as eta <- eta + (d eta + c0 p_n + c1 p_{n+1}) with d = e^{sT} - 1 =
-z phi1(z). Storing d (accurate to eps |d|) instead of a1 = -2 e^{sigma T} cos(omega T) (whose
-rounding moves the pole angle by ~ eps / (omega T)) keeps the modal frequency and damping of a
-lightly damped mode exact to ~ eps over long records.
+z phi1(z). Storing d (to ~ eps |d|, i.e. the pole to ~ eps |sT|) instead of
+a1 = -2 e^{sigma T} cos(omega T) (whose rounding moves the pole angle omega T by ~ eps / (omega T))
+makes the phase error of a lightly damped mode after n samples ~ n eps |sT| instead of
+~ n eps / (omega T).
 """
 from __future__ import annotations
 

@@ -75,7 +75,7 @@ import numpy as np
 
 from . import validate
 from .modal import QUANTITY_POWER, ModalModel, modal_model
-from .modal_filters import _quantity_residues, sections
+from .modal_filters import quantity_residues, sections
 
 __all__ = ["INVARIANTS", "discrete_frequency_response", "continuous_frequency_response",
            "ramp_bias", "alias_sum", "AliasSum", "truncation_error", "TruncationError"]
@@ -150,7 +150,7 @@ def ramp_bias(freqs_hz, fs: float) -> np.ndarray:
 def _pole_terms(model: ModalModel, quantity: str):
     """(poles, coefficients (n_terms, n_out, n_in), direct): Hq(s) = sum c/(s - p) + direct,
     both members of every conjugate pair listed."""
-    Rq, direct = _quantity_residues(model, quantity)
+    Rq, direct = quantity_residues(model, quantity)
     osc = model.oscillatory
     poles = np.concatenate([model.poles, np.conj(model.poles[osc])])
     coeffs = np.concatenate([Rq, np.conj(Rq[osc])], axis=0)
