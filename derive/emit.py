@@ -46,10 +46,11 @@ PY_ARRAY = _names({"m": "mn", "kappa": "kp", "S_R": "SR", "Delta": "Dl", "F_n": 
                    "b_n": "b", "R_L": "R", "R_R": "R_R"})
 
 
-def _lin(prefix: str, coeffs: dict, array: str = "") -> str:
-    """C text of sum_h prefix_h * h[i] (h = "u" is the primary unknown u[i]); ``array`` is
-    prepended to the array names ("e": the plain sweep's error history ex0, ..., and eu)."""
-    return " + ".join(f"{prefix}_{h} * {array}{h}[i]" for h in coeffs) or "0.0"
+def _lin(prefix: str, coeffs: dict, array: str = "", zero: str = "0.0") -> str:
+    """C text of sum_h prefix_h * h[i] (h = "u" is the primary unknown u[i]), ``zero`` when
+    empty; ``array`` is prepended to the array names ("e": the plain sweep's error histories
+    ex0, ..., and eu)."""
+    return " + ".join(f"{prefix}_{h} * {array}{h}[i]" for h in coeffs) or zero
 
 
 def _shift_lines(history, array: str = ""):
@@ -61,6 +62,22 @@ def _shift_lines(history, array: str = ""):
             lines.append(f"{array}{qty}m{lag}[i] = {array}{prev}[i];")
     lines += [f"{array}{q}0[i] = {array}{q}1;" for q in "xva"]
     return lines
+
+
+def _plain_entries(T, printer, element: str) -> dict:
+    """The station matrix's entries as the plain sweep uses them: numbers inline, entries in
+    m and kappa only computed once per run ("run"), entries with Delta, F_n or b_n once per step
+    in the first pass and reused in the second ("step"); ``element`` formats the array element."""
+    per_step = {dttmm.Delta, dttmm.F_n, dttmm.b_n}
+    out = {"run": [], "step": [], "use": []}
+    for i, j in T_ENTRIES:
+        name, e = f"T{i + 1}{j + 1}", sp.sympify(T[i, j])
+        if e.is_number:
+            out["use"].append("(" + printer(e) + ")")
+            continue
+        out["step" if e.free_symbols & per_step else "run"].append((name, "(" + printer(e) + ")"))
+        out["use"].append(element.format(name))
+    return out
 
 
 def _scheme_context(name: str) -> dict:
@@ -86,20 +103,22 @@ def _scheme_context(name: str) -> dict:
             "rows": [(n, printing.c(e)) for n, e in reduced],
             "g": cc(sw.g), "S": cc(sw.S_expr), "a": cc(sw.a_fwd),
             "den": cc(sw.den), "h_num": cc(sw.h_num), "b_num": cc(sw.b_num),
-            "h0_num": cc(sw.h0_num), "b0_num": cc(sw.b0_num),
-            "T": ["(" + cc(sw.T[i, j]) + ")" for i, j in T_ENTRIES],
+            "error_step": [(n, cc(e)) for n, e in sw.error_step.items()],
+            "plain": _plain_entries(sw.T, cc, "{}[n]"),
             **{n: _lin(n, fs.hist_terms[n]) for n in ("q", "s", "b")},
             **{n: _lin(n, fs.update[n]) for n in ("x1", "v1", "a1")},
-            # the plain sweep's error history (same rows, names prefixed with e)
-            **{"e" + n: _lin(n, fs.hist_terms[n], "e") for n in ("q", "s", "b")},
-            **{"e" + n: _lin(n, fs.update[n], "e") for n in ("x1", "v1", "a1")},
+            # the plain sweep's two error histories, as pairs (rows as the history; names
+            # prefixed with e; dtdyn.derive.dttmm)
+            "error": {"shift": _shift_lines(spec.history, "e"),
+                      **{n: _lin(n, fs.hist_terms[n], "e", "zero2") for n in ("q", "s", "b")},
+                      **{n: _lin(n, fs.update[n], "e", "zero2") for n in ("x1", "v1", "a1")}},
         })
     return {
         "name": name, "title": sch.title, "reference": sch.reference, "notes": sch.notes,
         "params": list(sch.params), "defaults": sch.defaults, "history": list(spec.history),
         "startup_steps": sch.startup_steps, "order": sch.order, "explicit": spec.derived.explicit,
         "forms_py": forms_py, "forms_c": forms_c, "shift": _shift_lines(spec.history),
-        "eshift": _shift_lines(spec.history, "e"),
+        "random_spread": repr(float(dttmm.RANDOM_SPREAD)),
         "derived": spec.derived,
     }
 
@@ -114,9 +133,17 @@ def _dttmm_context() -> dict:
            "b_fwd": str(sw.b_fwd),
            "g_py": scalar(sw.g), "S_py": scalar(sw.S_expr), "a_py": scalar(sw.a_fwd),
            "den_py": scalar(sw.den), "h_py": py(sw.h_num), "bf_py": py(sw.b_num),
-           "h0_py": py(sw.h0_num), "b0_py": py(sw.b0_num)}
+           "error_step": [(n, scalar(e)) for n, e in sw.error_step.items()],
+           "error_step_doc": [(n, str(e)) for n, e in sw.error_step.items()],
+           "random_spread": repr(float(dttmm.RANDOM_SPREAD))}
     for i, j in T_ENTRIES:
         ctx[f"T{i + 1}{j + 1}_py"] = "(" + scalar(T[i, j]) + ")"
+    plain = _plain_entries(T, scalar, "{}[n]")
+    both = plain["run"] + plain["step"]
+    ctx["plain"] = dict(
+        plain, names=", ".join(n for n, _ in both), alloc=", ".join("[0.0] * N" for _ in both),
+        **{f"{w}_{side}": ", ".join(f"{n}[n]" if side == "lhs" else e for n, e in plain[w])
+           for w in ("run", "step") for side in ("lhs", "rhs")})
     return ctx
 
 

@@ -10,11 +10,63 @@ Stable sweep (Riccati): S_L = kappa*(S_R - alpha_u*m)/(-S_R + alpha_u*m + kappa)
 h = (-Delta*S_R + Delta*alpha_u*m + F_n*kappa - b_n*kappa*m)/(-S_R + alpha_u*m + kappa);  forward u_n = a u_{n-1} + b,  a = kappa/(-S_R + alpha_u*m + kappa),  b = -(Delta - F_n - R_R + b_n*m)/(-S_R + alpha_u*m + kappa).
 The time loop runs in Python but every station loop is a vector operation or one LAPACK
 triangular banded solve (dtbtrs), so a step costs O(N).
+
+Plain sweep: z_n = T_n z_{n-1} from z_0 = [0, f_1, 1], f_1 = -Q_f / P_f,N (scalar loops). Its error
+estimate (dtdyn.derive.dttmm) carries an error history E, rows as H, through the exact step with
+zero force, R_L = g R_R + hD Delta + hb b, u_n = a u_{n-1} + fR R_R + fD Delta + fb b with
+hD = (-S_R + alpha_u*m)/(-S_R + alpha_u*m + kappa),
+hb = -kappa*m/(-S_R + alpha_u*m + kappa),
+fR = 1/(-S_R + alpha_u*m + kappa),
+fD = -1/(-S_R + alpha_u*m + kappa),
+fb = -m/(-S_R + alpha_u*m + kappa);
+for two error histories, E_s and E_r, and adds this step's rounding error to their unknowns:
+-eps_P f_1 P_u to E_s (eps_P: the rounding error of P_f,N, from the product in double-double) and
+1.5 s_j eps f_1 P_u to E_r (s_j: a pseudo-random sign of the step index j). With
+e = max_n (max_i |E_s,x| + max_i |E_r,x|) and x_max = max_n max_i |x| the relative error estimate
+is e / (x_max - e) (infinite when e >= x_max).
 """
 import numpy as np
 from scipy.linalg.lapack import dtbtrs
 
 EPS = float(np.finfo(float).eps)
+RANDOM_SPREAD = 1.5
+SPLIT = 134217729.0  # 2^27 + 1: Veltkamp's split
+MASK64 = (1 << 64) - 1
+
+
+def two_prod(a, b):
+    """p + e = a b exactly (no fma: the C kernels run the same steps)."""
+    ta, tb = SPLIT * a, SPLIT * b
+    ah = ta - (ta - a)
+    bh = tb - (tb - b)
+    al, bl = a - ah, b - bh
+    p = a * b
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+def two_sum(a, b):
+    """s + e = a + b exactly."""
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+def dd_axpy(a, xh, xl, b, yh, yl):
+    """a x + b y in double-double arithmetic (x = xh + xl, y = yh + yl)."""
+    p, pe = two_prod(a, xh)
+    q, qe = two_prod(b, yh)
+    t, te = two_sum(p, q)
+    te += pe + qe + a * xl + b * yl
+    return two_sum(t, te)
+
+
+def step_sign(j):
+    """+1 or -1 from the step index j (the top bit of splitmix64 of j)."""
+    z = ((j + 1) * 0x9E3779B97F4A7C15) & MASK64
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & MASK64
+    z ^= z >> 31
+    return 1.0 if z >> 63 else -1.0
 
 
 def _lag(name):
@@ -45,43 +97,90 @@ def combine(K, prefix, H, names, extra=None):
     return out
 
 
-def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
-    """Advance the chain over len(force) - 1 steps; returns the plain sweep's error estimate.
+def error_history_maps(K, names):
+    """The step on the plain sweep's error history E as matrices (an estimate: it need not round
+    as the solution does). q, s, b = L_qsb @ E; x1, v1, a1 = L_upd @ E + c_u u_E; then the lags
+    are shifted, E[d] = E[s] for (d, s) in ``shifts`` in order, and E[rows] = x1, v1, a1."""
+    L = np.array([[K.get(f"{pre}_{nm}", 0.0) for nm in names]
+                  for pre in ("q", "s", "b", "x1", "v1", "a1")])
+    c_u = np.array([K.get(f"{qty}1_u", 0.0) for qty in "xva"])[:, None]
+    lagged = sorted((nm for nm in names if _lag(nm) > 0), key=_lag, reverse=True)
+    shifts = [(names.index(nm), names.index(nm[0] + ("0" if _lag(nm) == 1 else f"m{_lag(nm) - 1}")))
+              for nm in lagged]
+    rows = [names.index(qty + "0") for qty in "xva"]
+    rows = slice(rows[0], rows[0] + 3) if rows == list(range(rows[0], rows[0] + 3)) else rows
+    return L[:3].copy(), L[3:].copy(), c_u, shifts, rows
+
+
+def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E=None, err=None):
+    """Advance the chain over len(force) - 1 steps.
 
     K: coefficients of one scheme and form; H: history rows (modified in place);
     xo/vo/ao: arrays of shape (len(force), len(out_idx)) whose rows 1.. are written, or None.
+    Plain sweep: E (the two error histories E_s, E_r: shape H.shape + (2,), the C kernels'
+    layout of pairs) and err = [max_n e_n, max |x|, steps so far] are updated in place; the
+    relative error estimate is err[0] / (err[1] - err[0]) (module docstring).
     """
     N = m.size
     p, r, alpha_u = K["p"], K["r"], K["alpha_u"]
     kappa = k * p + c * r
     Fe = np.zeros(N)
-    err_est = 0.0
-    if sweep == "stable":
-        SR = np.empty(N)
-        g = np.empty(N)
-        af = np.empty(N)
-        den = np.empty(N)
-        S_R = 0.0
-        for n in range(N - 1, -1, -1):
-            mn, kp = m[n], kappa[n]
-            SR[n] = S_R
-            g[n] = kp/(-S_R + alpha_u*mn + kp)
-            S_L = kp*(S_R - alpha_u*mn)/(-S_R + alpha_u*mn + kp)
-            af[n] = kp/(-S_R + alpha_u*mn + kp)
-            den[n] = -S_R + alpha_u*mn + kp
-            S_R = S_L
-        upper = np.ones((2, N))
-        upper[0, 1:] = -g[:-1]
-        lower = np.ones((2, N))
-        lower[1, :-1] = -af[1:]
-    else:
+    # Riccati factors: the stable sweep, and the plain sweep's error estimate
+    SR = np.empty(N)
+    g = np.empty(N)
+    af = np.empty(N)
+    den = np.empty(N)
+    es = np.empty((5, N))  # the error step's hD, hb, fR, fD, fb (plain sweep)
+    S_R = 0.0
+    for n in range(N - 1, -1, -1):
+        mn, kp = m[n], kappa[n]
+        SR[n] = S_R
+        g[n] = kp/(-S_R + alpha_u*mn + kp)
+        S_L = kp*(S_R - alpha_u*mn)/(-S_R + alpha_u*mn + kp)
+        af[n] = kp/(-S_R + alpha_u*mn + kp)
+        den[n] = -S_R + alpha_u*mn + kp
+        if sweep == "plain":
+            es[:, n] = ((-S_R + alpha_u*mn)/(-S_R + alpha_u*mn + kp), -kp*mn/(-S_R + alpha_u*mn + kp), 1.0/(-S_R + alpha_u*mn + kp), -1.0/(-S_R + alpha_u*mn + kp), -mn/(-S_R + alpha_u*mn + kp))
+        S_R = S_L
+    upper = np.ones((2, N))
+    upper[0, 1:] = -g[:-1]
+    lower = np.ones((2, N))
+    lower[1, :-1] = -af[1:]
+
+    def zero_force_step(Dl, b):
+        """The exact step's unknowns (columns) for the history terms Dl, b (columns), F = 0."""
+        hD, hb, fR, fD, fb = es[:, :, None]
+        R, info = dtbtrs(upper, hD * Dl + hb * b, uplo="U", diag="U")
+        R_R = np.zeros_like(R)
+        R_R[:-1] = R[1:]
+        u, info = dtbtrs(lower, fR * R_R + fD * Dl + fb * b, uplo="L", diag="U")
+        return u
+
+    if sweep == "plain":
+        emax, xmax, jstep = err[0], err[1], int(err[2])
+        E2 = np.moveaxis(E, 2, 0)  # (2, rows, N): E_s, E_r (a view)
+        L_qsb, L_upd, c_u, shifts, rows = error_history_maps(K, names)
+        # the station matrices' entries (Python floats: the scalar loops round as with NumPy
+        # scalars, faster); those in m and kappa once per run, the others once per step
+        ml, kl = m.tolist(), kappa.tolist()
+        T12, T21, T22, T13, T23 = [0.0] * N, [0.0] * N, [0.0] * N, [0.0] * N, [0.0] * N
         Pu = np.empty(N)
         P_u, P_f = 0.0, 1.0
         for n in range(N):
-            mn, kp = m[n], kappa[n]
-            P_u, P_f = (1.0) * P_u + (1.0/kp) * P_f, (alpha_u*mn) * P_u + (alpha_u*mn/kp + 1.0) * P_f
+            mn, kp = ml[n], kl[n]
+            T12[n], T21[n], T22[n] = (1.0/kp), (alpha_u*mn), (alpha_u*mn/kp + 1.0)
+            P_u, P_f = (1.0) * P_u + T12[n] * P_f, T21[n] * P_u + T22[n] * P_f
             Pu[n] = P_u
         PfN = P_f
+        # eps_P: the rounding error of P_f,N against the same product in double-double
+        uh, ul, fh, fl = 0.0, 0.0, 1.0, 0.0
+        for n in range(N):
+            (uh, ul), (fh, fl) = (dd_axpy((1.0), uh, ul, T12[n], fh, fl),
+                                  dd_axpy(T21[n], uh, ul, T22[n], fh, fl))
+        with np.errstate(all="ignore"):
+            epsP = float(np.float64((PfN - fh) - fl) / fh)
+        if not np.isfinite(epsP):
+            epsP = EPS  # the product overflowed: an eps-sized systematic part
     for step in range(force.shape[0] - 1):
         Fe[loaded] = K["w0"] * force[step] + K["w1"] * force[step + 1]
         q = combine(K, "q", H, names)
@@ -98,25 +197,40 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao):
             u = u[:, 0]
         else:
             u = np.empty(N)
+            Dll, Fel, bl = Dl.tolist(), Fe.tolist(), b.tolist()
             Q_u, Q_f = 0.0, 0.0
             for n in range(N):
-                mn, kp, Dn, Fn, bn = m[n], kappa[n], Dl[n], Fe[n], b[n]
-                Q_u, Q_f = ((1.0) * Q_u + (1.0/kp) * Q_f + (-Dn/kp),
-                            (alpha_u*mn) * Q_u + (alpha_u*mn/kp + 1.0) * Q_f + (-Dn*alpha_u*mn/kp - Fn + bn*mn))
+                mn, kp, Dn, Fn, bn = ml[n], kl[n], Dll[n], Fel[n], bl[n]
+                T13[n], T23[n] = (-Dn/kp), (-Dn*alpha_u*mn/kp - Fn + bn*mn)
+                Q_u, Q_f = ((1.0) * Q_u + T12[n] * Q_f + T13[n],
+                            T21[n] * Q_u + T22[n] * Q_f + T23[n])
             f1 = -Q_f / PfN
             z_u, z_f = 0.0, f1
             for n in range(N):
-                mn, kp, Dn, Fn, bn = m[n], kappa[n], Dl[n], Fe[n], b[n]
-                z_u, z_f = ((1.0) * z_u + (1.0/kp) * z_f + (-Dn/kp),
-                            (alpha_u*mn) * z_u + (alpha_u*mn/kp + 1.0) * z_f + (-Dn*alpha_u*mn/kp - Fn + bn*mn))
+                z_u, z_f = ((1.0) * z_u + T12[n] * z_f + T13[n],
+                            T21[n] * z_u + T22[n] * z_f + T23[n])
                 u[n] = z_u
-            umax = np.max(np.abs(u))
-            if umax > 0.0:
-                err_est += EPS * float(np.max(np.abs(Pu * f1))) / umax  # accumulates over steps
+            # error estimate: both error histories' exact zero-force step plus this step's
+            # rounding error, -eps_P f_1 P_u (E_s) and RANDOM_SPREAD s_j eps f_1 P_u (E_r)
+            kicks = np.array([[-epsP * f1], [RANDOM_SPREAD * step_sign(jstep) * EPS * f1]])
+            jstep += 1
+            qsb = L_qsb @ E2  # (2, 3, N)
+            d = qsb[:, :2].copy()
+            d[:, :, 1:] -= qsb[:, :2, :-1]
+            ue = zero_force_step((k * d[:, 0] + c * d[:, 1]).T, qsb[:, 2].T).T + kicks * Pu
+            enew = L_upd @ E2
+            enew += c_u * ue[:, None, :]
+            for dst, src in shifts:
+                E2[:, dst] = E2[:, src]
+            E2[:, rows] = enew
+            emax = max(emax, float(np.abs(enew[0, 0]).max() + np.abs(enew[1, 0]).max()))
         new = {qty: combine(K, qty + "1", H, names, K[qty + "1_u"] * u if qty + "1_u" in K else None)
                for qty in "xva"}
         shift_history(H, names, new)
+        if sweep == "plain":
+            xmax = max(xmax, float(np.abs(new["x"]).max()))
         for arr, qty in ((xo, "x"), (vo, "v"), (ao, "a")):
             if arr is not None:
                 arr[step + 1] = new[qty][out_idx]
-    return err_est
+    if sweep == "plain":
+        err[0], err[1], err[2] = emax, xmax, jstep

@@ -10,10 +10,58 @@ import numpy as np
 from dtdyn.generated import dttmm_sweep
 
 from . import cbuild
+from .stepping import history_from_states
 
 FORM_CODE = {"displacement": 0, "acceleration": 1}
 SWEEP_CODE = {"stable": 0, "plain": 1}
-WORK_ROWS = 12  # doubles per mass the C kernel needs as scratch
+WORK_ROWS = {"stable": 12, "plain": 30}  # doubles per mass the C kernel needs as scratch
+
+
+class PlainSweepError:
+    """The plain sweep's running error estimate, shared by the steppers of one run.
+
+    The kernels carry two error histories, E_s and E_r (rows as the scheme's history H; E has
+    shape H.shape + (2,): pairs, as the C kernels read them), through the exact zero-force step
+    and add each step's rounding error to their unknowns (dtdyn.derive.dttmm derives it);
+    ``err = [max_n e_n, max |x|, steps so far]``. A multistep
+    scheme's start-up runs single average-acceleration steps first: the error states (x, v, a of
+    both histories) after those steps are kept, and the main scheme's E (with its lags) is built
+    from them as stepping.integrate builds H from the states.
+    """
+
+    def __init__(self, n_mass: int):
+        zero = np.zeros(n_mass)
+        self.states = [((zero,) * 3, (zero,) * 3)]  # (E_s, E_r) states after the steps so far
+        self.names = None
+        self.E = None
+        self.err = np.zeros(3)
+
+    def history(self, names) -> np.ndarray:
+        """E for a scheme with history rows ``names`` (rebuilt when the scheme changes)."""
+        if names != self.names:
+            lags = max(int(nm[2:]) if nm[1:] != "0" else 0 for nm in names)
+            states = [self.states[0]] * max(lags + 1 - len(self.states), 0) + self.states
+            self.E = np.ascontiguousarray(np.stack(
+                [history_from_states(names, [st[part] for st in states]) for part in (0, 1)],
+                axis=-1))
+            self.names = names
+        return self.E
+
+    def record(self, n_steps: int) -> None:
+        """Keep the error states after a single step (the start-up's steps are single calls)."""
+        if n_steps == 1:
+            self.states.append(tuple(
+                tuple(self.E[self.names.index(q + "0"), :, part].copy() for q in "xva")
+                for part in (0, 1)))
+            del self.states[:-8]
+
+    @property
+    def estimate(self) -> float:
+        """e / (max |x| - e): relative to max |x_true| >= max |x| - e; inf when e >= max |x|."""
+        e, xmax = float(self.err[0]), float(self.err[1])
+        if e == 0.0:
+            return 0.0
+        return e / (xmax - e) if xmax > e else float("inf")
 
 
 @lru_cache(maxsize=None)
@@ -26,7 +74,7 @@ def c_chain_function(scheme: str):
     fn = getattr(lib, f"dtdyn_chain_{scheme}")
     ptr, lng = ctypes.c_void_p, ctypes.c_long
     fn.argtypes = [ctypes.c_int, ctypes.c_int, lng, lng, ptr, ptr, ptr, ctypes.c_double, ptr, lng,
-                   ptr, ptr, ptr, lng, ptr, ptr, ptr, ptr, ptr, ptr]
+                   ptr, ptr, ptr, lng, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
     fn.restype = ctypes.c_int
     return fn
 
@@ -35,32 +83,43 @@ def _p(a):
     return None if a is None else a.ctypes.data
 
 
-def chain_advance(backend, scheme, coeffs, form, sweep, m, k, c, dt, loaded, out_idx):
-    """An ``advance(force_rows, H, xo, vo, ao) -> error estimate`` for stepping.integrate."""
+def chain_advance(backend, scheme, coeffs, form, sweep, m, k, c, dt, loaded, out_idx,
+                  tracker: PlainSweepError | None = None):
+    """An ``advance(force_rows, H, xo, vo, ao) -> error estimate of the run so far`` for
+    stepping.integrate. The plain sweep needs the run's ``tracker`` (0.0 for the stable one)."""
+    if sweep == "plain" and tracker is None:
+        raise ValueError("the plain sweep needs a PlainSweepError tracker")
+    plain = sweep == "plain"
     fn = c_chain_function(scheme.name) if backend == "c" else None
     if fn is None:
         def advance(force, H, xo, vo, ao):
-            return dttmm_sweep.run_chain(coeffs, scheme.history, sweep, m, k, c, loaded, force, H,
-                                         out_idx, xo, vo, ao)
+            E = tracker.history(scheme.history) if plain else None
+            dttmm_sweep.run_chain(coeffs, scheme.history, sweep, m, k, c, loaded, force, H,
+                                  out_idx, xo, vo, ao, E, tracker.err if plain else None)
+            if plain:
+                tracker.record(force.shape[0] - 1)
+            return tracker.estimate if plain else 0.0
         return advance
     N = m.size
     params = np.array([scheme.params[p] for p in scheme.module.PARAMS] or [0.0])
     loaded64 = np.ascontiguousarray(loaded, dtype=np.int64)
     out64 = np.ascontiguousarray(out_idx, dtype=np.int64)
-    work = np.empty(WORK_ROWS * N)
-    err = np.zeros(1)
+    work = np.empty(WORK_ROWS[sweep] * N)
 
     def advance(force, H, xo, vo, ao):
         force = np.ascontiguousarray(force)
         assert H.flags.c_contiguous and H.dtype == np.float64
         for arr in (xo, vo, ao):
             assert arr is None or arr.flags.c_contiguous
-        err[0] = 0.0
+        E = tracker.history(scheme.history) if plain else None
         rc = fn(FORM_CODE[form], SWEEP_CODE[sweep], N, force.shape[0] - 1, m.ctypes.data,
                 k.ctypes.data, c.ctypes.data, dt, params.ctypes.data, loaded64.size,
                 loaded64.ctypes.data, force.ctypes.data, H.ctypes.data, out64.size,
-                out64.ctypes.data, _p(xo), _p(vo), _p(ao), work.ctypes.data, err.ctypes.data)
+                out64.ctypes.data, _p(xo), _p(vo), _p(ao), work.ctypes.data, _p(E),
+                _p(tracker.err) if plain else None)
         if rc != 0:
             raise RuntimeError(f"C kernel chain_{scheme.name} returned {rc} for form {form!r}")
-        return float(err[0])
+        if plain:
+            tracker.record(force.shape[0] - 1)
+        return tracker.estimate if plain else 0.0
     return advance

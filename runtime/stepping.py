@@ -15,7 +15,9 @@ import numpy as np
 from .result import Response
 from .schemes import SchemeInfo, get_scheme
 
-#: a stepper: (scheme, coefficients) -> advance(force_rows, H, xo, vo, ao) -> error estimate
+#: a stepper: (scheme, coefficients) -> advance(force_rows, H, xo, vo, ao) -> error estimate of
+#: the run so far (not of the call: an estimate that propagates through the steps is not a sum
+#: over calls; the DT-TMM plain sweep's steppers share it, start-up included). 0.0: none.
 MakeAdvance = Callable[[SchemeInfo, dict], Callable]
 
 QUANTITIES = ("x", "v", "a")
@@ -58,7 +60,7 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
         advance = make_advance(avg, avg.coefficients(form, dt))
         for _ in range(n_start):
             H = history_from_states(avg.history, states)
-            err_est += advance(force[step:step + 2], H, *_rows(store, step))
+            err_est = advance(force[step:step + 2], H, *_rows(store, step))
             states.append(tuple(H[avg.history.index(q + "0")].copy() for q in QUANTITIES))
             step += 1
     # a run shorter than the start-up never uses the lags; pad them with the initial state
@@ -70,7 +72,7 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
     bar = _progress(n_steps, step) if progress else None
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         if hi > lo:
-            err_est += advance(force[lo:hi + 1], H, *_rows(store, lo))
+            err_est = advance(force[lo:hi + 1], H, *_rows(store, lo))
             if bar is not None:
                 bar.update(hi - lo)
     if bar is not None:
