@@ -245,11 +245,13 @@ def write_report(runs, meta, out_dir, command):
              "Times: median of repeats after a warm-up (solve_ivp: one run); build = "
              "construction and compile (first call minus the median).", ""]
     for target in meta["targets"]:
+        ranked = ranking(runs, target)
         lines += [f"## Ranking at max error <= {target:g}", "",
-                  "| rank | method | setting | max error | run time [ms] |", "|---|---|---|---|---|"]
-        for k, r in enumerate(ranking(runs, target), 1):
+                  "| rank | method | setting | max error | run time [ms] | time / fastest |",
+                  "|---|---|---|---|---|---|"]
+        for k, r in enumerate(ranked, 1):
             lines.append(f"| {k} | {r.method} | {r.setting} | {r.max_error:.2e} | "
-                         f"{r.run_time * 1e3:.3g} |")
+                         f"{r.run_time * 1e3:.3g} | {r.run_time / ranked[0].run_time:.3g} |")
         lines.append("")
     lines += ["## All runs", "", "| method | family | setting | max error | RMS error | run time "
               "[ms] | build [ms] | note |", "|---|---|---|---|---|---|---|---|"]
