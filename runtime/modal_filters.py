@@ -387,16 +387,7 @@ def modal_filter_response(force, fs, M, C, K, inputs, outputs, modes=None, invar
     if modes is not None:
         model = model.select(modes)
     fs = validate.positive_scalar("fs", fs)
-    f = np.asarray(force, dtype=float)
-    if f.ndim == 1 and model.inputs.size == 1:
-        f = f[:, None]
-    if f.ndim != 2 or f.shape[1] != model.inputs.size or f.shape[0] < 1:
-        raise ValueError(f"force has shape {f.shape}, expected (n_samples, len(inputs)) = "
-                         f"(n, {model.inputs.size})")
-    bad = ~np.isfinite(f)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} is not finite")
+    f = validate.force_record(force, model.inputs.size, "inputs")
     n_out, n_in = model.outputs.size, model.inputs.size
     t0 = time.perf_counter()
     states = modal_states(model, fs, invariant, quantity) if method != "sections" else None

@@ -413,20 +413,6 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa):
 # public entry point
 
 
-def _check_force(force, n_fd):
-    f = np.asarray(force, dtype=float)
-    if f.ndim == 1 and n_fd == 1:
-        f = f[:, None]
-    if f.ndim != 2 or f.shape[1] != n_fd or f.shape[0] < 1:
-        raise ValueError(f"force has shape {np.shape(force)}, expected (n_samples, "
-                         f"len(force_dofs)) = (n, {n_fd})")
-    bad = ~np.isfinite(f)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} is not finite")
-    return np.ascontiguousarray(f)
-
-
 def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, outputs=None,
                        method="modal_ramp", substeps=1, backend="c", tol=1e-12, max_iter=30,
                        solver="newton", compiled=False, **scheme_params) -> Response:
@@ -499,7 +485,7 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
     if compiled and solver != "fast_newton":
         raise ValueError("compiled=True needs solver='fast_newton': CasADi cannot generate C for "
                          "its 'newton' rootfinder")
-    f = _check_force(force, force_dofs.size)
+    f = validate.force_record(force, force_dofs.size)
     L = element_matrix(elements, n)
     sz = _sizes(elements)
     h = 1.0 / (fs * S)

@@ -57,15 +57,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, fs, force_dofs, el
                 raise ValueError(f"elements[{e}] ({type(el).__name__}).{name} = {d} is outside "
                                  f"the chain's masses 0..{N - 1}")
     S = validate.step_count("substeps", substeps)
-    f = np.asarray(force, dtype=float)
-    if f.ndim == 1 and force_dofs.size == 1:
-        f = f[:, None]
-    if f.ndim != 2 or f.shape[1] != force_dofs.size or f.shape[0] < 1:
-        raise ValueError(f"force has shape {np.shape(force)}, expected (n_samples, "
-                         f"len(force_dofs)) = (n, {force_dofs.size})")
-    if not np.isfinite(f).all():
-        i, j = np.argwhere(~np.isfinite(f))[0]
-        raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} is not finite")
+    f = validate.force_record(force, force_dofs.size)
     info = get_scheme(scheme, **scheme_params)
     if info.startup_steps:
         raise ValueError(f"scheme {info.name!r} is multistep; the nonlinear chain needs a "

@@ -69,3 +69,19 @@ def force_samples(force, n_steps: int, loaded: np.ndarray) -> np.ndarray:
         i, j = np.argwhere(bad)[0]
         raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} (sample {i}, loaded DOF {loaded[j]}) is not finite")
     return np.ascontiguousarray(f)
+
+
+def force_record(force, n_inputs: int, what: str = "force_dofs") -> np.ndarray:
+    """Force samples of shape (n_samples, n_inputs), n_samples >= 1, finite, float, C-contiguous
+    (a 1-D array is one column when n_inputs is 1); ``what`` names the DOF list in errors."""
+    f = np.asarray(force, dtype=float)
+    if f.ndim == 1 and n_inputs == 1:
+        f = f[:, None]
+    if f.ndim != 2 or f.shape[1] != n_inputs or f.shape[0] < 1:
+        raise ValueError(f"force has shape {np.shape(force)}, expected (n_samples, len({what})) "
+                         f"= (n_samples, {n_inputs}) with n_samples >= 1")
+    bad = ~np.isfinite(f)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} is not finite")
+    return np.ascontiguousarray(f)
