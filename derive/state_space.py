@@ -9,9 +9,10 @@ multiplied on the left by M instead, and M a_i = f_i - C v_i - K q_i substituted
 
     E1 y_{n+1} = E0 y_n + G0 f_n + G1 f_{n+1},     E1 = diag(M, M) Ass1, E0 = diag(M, M) Ass0, ...
 
-with no inverse of M anywhere: E1 is invertible whenever M + gamma dt C + beta dt^2 K is (its
-Schur complement), so massless DOFs are allowed. M, C, K, the identity and the vectors are
-non-commutative symbols; each block comes out as sum(scalar * {I, M, C, K}).
+with no inverse of M anywhere. det E1 = det M det(M + gamma dt C + beta dt^2 K), so E1 is
+singular exactly when M is: with massless DOFs no [q; q'] model exists, and the runtime
+realizes the Newmark recursion with the state [q; q'; q''] instead. M, C, K, the identity and
+the vectors are non-commutative symbols; each block comes out as sum(scalar * {I, M, C, K}).
 """
 from __future__ import annotations
 

@@ -39,6 +39,54 @@ def foh_matrices(A: np.ndarray, B: np.ndarray, dt: float):
     return Phi, gam_a - gam_b, gam_b
 
 
+
+def _reduced_form(M, C, K, loaded):
+    r"""``(A, B, Vz, Vf, m)``: ``z' = A z + B f``, ``q' = Vz z + Vf f``, ``m`` the DOFs whose
+    velocity is a state (z = [q; q'_m]).
+
+    Nonsingular M: z = [q; q'], the first-order form (`first_order_form`), Vz = [0 I], Vf = 0.
+    Massless DOFs (zero rows and columns of M, index set z; the others m): their equations
+    C_zz q_z' = f_z - C_zm q_m' - K_z q are first order, so z = [q; q_m'] and
+
+        q_z' = C_zz^-1 (f_z - C_zm q_m' - K_z q),
+        M_mm q_m'' = f_m - C_mm q_m' - C_mz q_z' - K_m q,
+
+    which needs C_zz nonsingular (each massless DOF has damping that fixes its velocity).
+    """
+    N = M.shape[0]
+    massless = np.flatnonzero(~M.any(axis=1))
+    L = np.eye(N)[:, loaded]
+    if massless.size == 0:
+        A, B_all = first_order_form(M, C, K)
+        Vz = np.hstack([np.zeros((N, N)), np.eye(N)])
+        return A, B_all[:, loaded], Vz, np.zeros((N, len(loaded))), np.arange(N)
+    z, m = massless, np.flatnonzero(M.any(axis=1))
+    if M[:, z].any():
+        raise ValueError(f"M has zero rows {z.tolist()} but not zero columns there: exact_response "
+                         "handles massless DOFs (zero row and column) only")
+    solve_m = (linalg.solver(M[np.ix_(m, m)], "M without its massless DOFs",
+                             "exact_response needs it nonsingular") if m.size else None)
+    solve_z = linalg.solver(C[np.ix_(z, z)], f"C at the massless DOFs {z.tolist()}",
+                            "their velocity is fixed by C_zz q_z' = f_z - C_zm q_m' - K_z q")
+    nm = m.size
+    # q' = Vz [q; q_m'] + Vf f
+    Vz = np.zeros((N, N + nm))
+    Vf = np.zeros((N, len(loaded)))
+    Vz[m, N + np.arange(nm)] = 1.0
+    Vz[z, :N] = -solve_z(K[z])
+    Vz[z, N:] = -solve_z(C[np.ix_(z, m)])
+    Vf[z] = solve_z(L[z])
+    # z' = [q'; q_m'']
+    A = np.zeros((N + nm, N + nm))
+    B = np.zeros((N + nm, len(loaded)))
+    A[:N], B[:N] = Vz, Vf
+    if solve_m is None:  # no mass at all: C q' + K q = f
+        return A, B, Vz, Vf, m
+    A[N:] = -solve_m(np.hstack([K[m], C[np.ix_(m, m)]]) + C[np.ix_(m, z)] @ Vz[z])
+    B[N:] = solve_m(L[m] - C[np.ix_(m, z)] @ Vf[z])
+    return A, B, Vz, Vf, m
+
+
 def exact_response(M, C, K, force, dt, n_steps, loaded=None, outputs=None, x0=None, v0=None
                    ) -> Response:
     r"""Exact response of ``M q'' + C q' + K q = L f(t)`` to a piecewise-linear force.
@@ -51,7 +99,8 @@ def exact_response(M, C, K, force, dt, n_steps, loaded=None, outputs=None, x0=No
     ----------
     M, C, K : (N, N) array_like or scipy.sparse matrix
         Mass, damping and stiffness matrices (converted to dense; intended for small and
-        medium N). ``M`` must be nonsingular.
+        medium N). ``M`` must be nonsingular, or singular only through massless DOFs (zero
+        rows and columns) whose damping block ``C[z, z]`` is nonsingular: see Notes.
     force : (n_steps + 1, len(loaded)) array_like
         Force samples :math:`f_0 \dots f_n`; column ``j`` acts on DOF ``loaded[j]``. A 1-D array
         is accepted when a single DOF is loaded.
@@ -115,6 +164,13 @@ def exact_response(M, C, K, force, dt, n_steps, loaded=None, outputs=None, x0=No
     Accelerations come from the equation of motion at each sample,
     :math:`\ddot q_n = M^{-1}(L f_n - C \dot q_n - K q_n)`.
 
+    Massless DOFs (set :math:`z`, the others :math:`m`): their rows
+    :math:`C_{zz}\dot q_z = L_z f - C_{zm}\dot q_m - K_z q` are first order, so the state is
+    :math:`[q;\ \dot q_m]` and the same exponential applies to that ODE. Their velocity follows
+    from these rows at each sample; their acceleration uses the slope of the force segment
+    ending at :math:`t_n` (it jumps where the force has a kink). A given ``v0`` must satisfy
+    these rows at :math:`t_0`.
+
     References
     ----------
     C. F. Van Loan, "Computing integrals involving the matrix exponential", IEEE Trans.
@@ -133,33 +189,40 @@ def exact_response(M, C, K, force, dt, n_steps, loaded=None, outputs=None, x0=No
     q0 = np.zeros(N) if x0 is None else validate.vector("x0", x0, length=N)
     qd0 = np.zeros(N) if v0 is None else validate.vector("v0", v0, length=N)
 
-    A, B_all = first_order_form(M, C, K)
-    B = B_all[:, loaded]
-    ns = 2 * N
-
+    A, B, Vz, Vf, m = _reduced_form(M, C, K, loaded)
+    ns = A.shape[0]
     Phi, G0, G1 = foh_matrices(A, B, dt)
 
     # Input contribution of every step at once, then the state recursion.
-    g = f[:-1] @ G0.T + f[1:] @ G1.T            # (n_steps, 2N)
+    g = f[:-1] @ G0.T + f[1:] @ G1.T            # (n_steps, ns)
     Z = np.empty((n_steps + 1, ns))
     Z[0, :N] = q0
-    Z[0, N:] = qd0
+    Z[0, N:] = qd0[m]
+    if m.size < N:  # massless DOFs: their initial velocity follows from their equilibrium
+        v_start = Vz @ Z[0] + Vf @ f[0]
+        if v0 is not None and not np.allclose(qd0, v_start, rtol=1e-10, atol=1e-300):
+            i = int(np.argmax(np.abs(qd0 - v_start)))
+            raise ValueError(f"v0[{i}] = {qd0[i]:g} is not consistent with the equilibrium of the "
+                             f"massless DOFs (it must be {v_start[i]:g})")
     PhiT = np.ascontiguousarray(Phi.T)
     z = Z[0]
     for n in range(n_steps):
         z = z @ PhiT + g[n]
         Z[n + 1] = z
 
-    # a = M^-1 (L f - C v - K q) = rows N.. of (A z + B f), for the stored DOFs only.
-    rows = N + outputs
-    acc = Z @ A[rows].T + f @ B[rows].T
+    # q' = Vz z + Vf f and q'' = Vz (A z + B f) + Vf f', for the stored DOFs only; f' is the
+    # slope of the force segment ending at t_n (the first segment at t_0).
+    Vz_o, Vf_o = Vz[outputs], Vf[outputs]
+    vel = Z @ Vz_o.T + f @ Vf_o.T
+    slope = np.diff(f, axis=0, prepend=2 * f[:1] - f[1:2]) / dt
+    acc = Z @ (Vz_o @ A).T + f @ (Vz_o @ B).T + slope @ Vf_o.T
 
     t = dt * np.arange(n_steps + 1)
     return Response(
         t=t,
         outputs=outputs,
         x=np.ascontiguousarray(Z[:, outputs]),
-        v=np.ascontiguousarray(Z[:, N + outputs]),
+        v=vel,
         a=acc,
         info={"method": METHOD, "run_time": time.perf_counter() - start},
     )

@@ -1,7 +1,8 @@
 """Discrete-time state-space models of M q'' + C q' + K q = f, and a fast time loop for them.
 
 - `newmark_ss`: SHARPy's model (reference.md section 5), built from the M-multiplied blocks
-  derived in dtdyn.derive.state_space, so M is never inverted and massless DOFs are allowed.
+  derived in dtdyn.derive.state_space, so M is never inverted; with massless DOFs (singular M)
+  it returns the same recursion with the state [q; q'; q''].
 - `discrete_state_space`: the same kind of model for any scheme of the integrator library, from
   its generated coefficients; state = the scheme's history (x, v, a and lags), output
   [q; q'] or [q; q'; q''].
@@ -39,12 +40,17 @@ def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False):
 
         Ass = E1^-1 E0,  Dss = E1^-1 G1,  Bss = E1^-1 (G0 + E0 Dss),  Css = I,
 
-    equal to SHARPy's Ass1^-1 Ass0 etc. (reference.md section 5) without forming M^-1. A singular
-    M still has no such model: for a massless DOF both rows reduce to its equilibrium at t_{n+1}
-    (M's row is zero), so E1 is singular; the error says so and points to
-    `discrete_state_space`, whose state [q; q'; q''] needs only M + Dv C + Dx K invertible.
+    equal to SHARPy's Ass1^-1 Ass0 etc. (reference.md section 5) without forming M^-1.
     ``M_is_SPD`` is kept for SHARPy's signature; when True, M is checked to be symmetric positive
     definite (Cholesky) and a ValueError names it otherwise.
+
+    Singular M (massless DOFs): det E1 = det M det(M + gamma dt C + beta dt^2 K), so no model
+    with state [q; q'] and Css = I exists (SHARPy's formula fails there too: it needs M^-1). The
+    Newmark recursion itself is well defined wherever M + gamma dt C + beta dt^2 K is invertible,
+    so newmark_ss then returns that recursion with the same input f_n and output [q_n; q'_n],
+    realized with the state [q; q'; q''] of `discrete_state_space` (3n states, Css selects q and
+    q'). It agrees with `simulate_mck` and converges to `exact_response` at second order
+    (tests/test_state_space.py).
 
     Output y_n = Css x_n + Dss f_n = [q_n; q'_n]; input f on every DOF.
     """
@@ -65,18 +71,12 @@ def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False):
             raise ValueError("M_is_SPD=True but M is not positive definite") from None
     n = M.shape[0]
     beta, gamma = _blocks.sharpy_params(num_damp)
+    if np.linalg.matrix_rank(M) < n:
+        return discrete_state_space(M, C, K, dt, scheme="newmark", beta=beta, gamma=gamma)
     E1, E0, G0, G1 = (np.block(b) for b in _blocks.blocks(M, C, K, np.eye(n), np.zeros((n, n)),
                                                            dt, beta, gamma))
-    try:
-        solve = linalg.solver(E1, "the Newmark matrix [[M + beta dt^2 K, beta dt^2 C], "
-                                  "[gamma dt K, M + gamma dt C]]", "no discrete model at this dt")
-    except ValueError:
-        if np.linalg.matrix_rank(M) < n:
-            raise ValueError("M is singular: with a massless DOF the two Newmark rows of that DOF "
-                             "both reduce to its equilibrium at t_n+1, so no [q; q'] model exists; "
-                             "use discrete_state_space(M, C, K, dt, scheme='newmark', beta=..., "
-                             "gamma=...), whose state carries q''") from None
-        raise
+    solve = linalg.solver(E1, "the Newmark matrix [[M + beta dt^2 K, beta dt^2 C], "
+                              "[gamma dt K, M + gamma dt C]]", "no discrete model at this dt")
     Ass = solve(E0)
     Dss = solve(G1)
     Bss = solve(G0 + E0 @ Dss)

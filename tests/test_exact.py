@@ -188,11 +188,22 @@ def test_force_wrong_shape():
         exact_response(M2, C2, K2, np.ones((10, 2)), 0.1, 10)
 
 
-@pytest.mark.parametrize("Mbad", [np.zeros((2, 2)), np.array([[1.0, 2.0], [2.0, 4.0]]),
-                                  np.diag([1.0, 1e-30])])
+@pytest.mark.parametrize("Mbad", [np.array([[1.0, 2.0], [2.0, 4.0]]), np.diag([1.0, 1e-30])])
 def test_singular_mass(Mbad):
+    """Singular M that is not a set of massless DOFs (zero rows and columns) is refused."""
     with pytest.raises(ValueError, match="M is singular"):
         exact_response(Mbad, C2, K2, np.ones((11, 2)), 0.1, 10)
+
+
+def test_no_mass_at_all():
+    """M = 0 leaves C q' + K q = f: one DOF under a step, q = f/k (1 - exp(-k t / c))."""
+    c, k, dt, n = 2.0, 5.0, 0.01, 300
+    r = exact_response([[0.0]], [[c]], [[k]], np.ones(n + 1), dt, n)
+    t = r.t
+    np.testing.assert_allclose(r.x[:, 0], (1 - np.exp(-k * t / c)) / k, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(r.v[:, 0], np.exp(-k * t / c) / c, rtol=0, atol=1e-14)
+    with pytest.raises(ValueError, match="C at the massless DOFs"):
+        exact_response(np.zeros((2, 2)), np.zeros((2, 2)), K2, np.ones((11, 2)), 0.1, 10)
 
 
 def test_mismatched_K_shape():

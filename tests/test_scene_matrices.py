@@ -385,3 +385,16 @@ def test_two_story_example(tmp_path, capsys):
     assert report["max_rel_error"] < 2e-2
     assert main(["simulate", str(path), "--out", str(tmp_path / "b.npz")]) == 0
     assert "error against the exact response" in capsys.readouterr().out
+
+
+def test_massless_dof_scene_reports_its_error(tmp_path):
+    """A massless DOF with damping: simulate_mck runs it and exact_response reduces it."""
+    M = np.diag([1.0, 0.0])
+    C = np.array([[0.0, 0.0], [0.0, 2.0]])
+    s = load_scene(write_scene(tmp_path, inline_model(M=M, C=C),
+                               loads='[[load]]\ndof = 0\nkind = "step"\n',
+                               scheme='[scheme]\nname = "average_acceleration"\n'))
+    response, report = run_scene(s)
+    assert np.isfinite(response.x).all()
+    # average acceleration at dt = 0.02 against omega ~ 6.5 rad/s: (omega dt)^2 / 12 ~ 1e-3
+    assert report["max_rel_error"] is not None and report["max_rel_error"] < 1e-2

@@ -5,6 +5,7 @@ import scipy.linalg as sla
 import scipy.signal as sig
 
 from dtdyn.runtime.discretize import first_order_form
+from dtdyn.runtime.exact import exact_response
 from dtdyn.runtime.mck import simulate_mck
 from dtdyn.runtime.state_space import discrete_state_space, newmark_ss, state_space_response
 
@@ -135,26 +136,57 @@ def _massless_truth(M, C, K, F, dt, n_steps):
     return np.array(out)
 
 
+def _massless_force(t):
+    return np.stack([np.sin(3 * t) * t, 0 * t, 0.5 * (1 - np.cos(5 * t))], 1)
+
+
+def test_exact_response_with_a_massless_dof():
+    """exact_response eliminates the massless DOF as the oracle does; its velocity and
+    acceleration satisfy the equations of motion at the samples."""
+    M, C, K = _massless_system()
+    dt, n = 0.01, 200
+    t = np.arange(n + 1) * dt
+    F = _massless_force(t)
+    r = exact_response(M, C, K, F, dt, n)
+    truth = _massless_truth(M, C, K, F, dt, n)
+    np.testing.assert_allclose(r.x, truth, rtol=0, atol=1e-12 * np.abs(truth).max())
+    resid = r.a @ M.T + r.v @ C.T + r.x @ K.T - F
+    assert np.abs(resid).max() < 1e-10 * np.abs(F).max()
+    # q1'' from the force's slope: the central difference of q1' agrees to O(dt^2)
+    a1 = np.gradient(r.v[:, 1], dt)
+    assert np.abs(a1[2:-2] - r.a[2:-2, 1]).max() < 1e-3 * np.abs(r.a[:, 1]).max()
+    with pytest.raises(ValueError, match=r"C at the massless DOFs \[1\]"):
+        exact_response(M, np.zeros((3, 3)), K, F, dt, n)
+    with pytest.raises(ValueError, match=r"v0\[1\]"):
+        exact_response(M, C, K, F, dt, n, v0=[0.0, 1.0, 0.0])
+
+
 def test_massless_dof():
+    """SHARPy's formula needs M^-1; newmark_ss realizes the same recursion with the state
+    [q; q'; q''], equals simulate_mck and converges at second order to exact_response."""
     M, C, K = _massless_system()
     T = 2.0
-    force = lambda t: np.stack([np.sin(3 * t) * t, 0 * t, 0.5 * (1 - np.cos(5 * t))], 1)  # noqa: E731
-    with pytest.raises(ValueError, match="discrete_state_space"):
-        newmark_ss(M, C, K, 0.01, num_damp=0.0)
-    errs = []
-    dts = [0.02, 0.01, 0.005]
-    for dt in dts:
-        n = int(round(T / dt))
-        F = force(np.arange(n + 1) * dt)
-        ref = simulate_mck(M, C, K, F, dt, n, scheme="average_acceleration")
-        A, B, Cm, D = discrete_state_space(M, C, K, dt, scheme="average_acceleration")
-        assert not F[0].any()  # f_0 = 0: the shifted initial state is zero too
-        y = state_space_response(A, B, Cm, D, F)
-        np.testing.assert_allclose(y[:, :3], ref.x, rtol=0, atol=1e-12 * np.abs(ref.x).max())
-        truth = _massless_truth(M, C, K, F, dt, n)
-        errs.append(np.abs(ref.x - truth).max() / np.abs(truth).max())
-    slope = np.polyfit(np.log(dts), np.log(errs), 1)[0]
-    assert abs(slope - 2.0) < 0.25, (errs, slope)  # average acceleration is second order
+    with pytest.raises(np.linalg.LinAlgError):
+        sharpy_newmark_ss(M, C, K, 0.01, 0.0)
+    for num_damp, order in ((0.0, 2.0), (0.1, 1.0)):
+        errs = []
+        dts = [0.02, 0.01, 0.005]
+        for dt in dts:
+            n = int(round(T / dt))
+            F = _massless_force(np.arange(n + 1) * dt)
+            gamma, beta = 0.5 + num_damp, 0.25 * (1 + num_damp) ** 2
+            ref = simulate_mck(M, C, K, F, dt, n, scheme="newmark", beta=beta, gamma=gamma)
+            A, B, Cm, D = newmark_ss(M, C, K, dt, num_damp=num_damp)
+            assert A.shape == (9, 9) and Cm.shape == (6, 9)
+            assert not F[0].any()  # f_0 = 0: the shifted initial state is zero too
+            y = state_space_response(A, B, Cm, D, F)
+            np.testing.assert_allclose(y[:, :3], ref.x, rtol=0, atol=1e-12 * np.abs(ref.x).max())
+            np.testing.assert_allclose(y[:, 3:], ref.v, rtol=0, atol=1e-12 * np.abs(ref.v).max())
+            truth = exact_response(M, C, K, F, dt, n).x
+            errs.append(np.abs(ref.x - truth).max() / np.abs(truth).max())
+        slope = np.polyfit(np.log(dts), np.log(errs), 1)[0]
+        # gamma = 1/2 + num_damp: second order without numerical damping, first order with it
+        assert abs(slope - order) < 0.25, (num_damp, errs, slope)
 
 
 def test_state_space_response_equals_dlsim():
