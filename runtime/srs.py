@@ -124,7 +124,8 @@ _MAX_CANDIDATES = 128
 #: rows x columns per chunk of the exact-peak candidate sweep (temporaries stay in cache)
 _CHUNK_ELEMS = 1 << 16
 _CHUNK_MIN_ROWS = 1024
-#: bytes of filter output per run_bank call (larger blocks write strided columns: slower)
+#: bytes of filter output per run_bank call: frequencies are filtered in blocks of this size, so
+#: the working memory stays bounded however many frequencies are asked for
 _BLOCK_BYTES = 4 << 20
 
 
