@@ -321,7 +321,8 @@ _RECORDS: dict = {}
 
 
 def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_iter, compiled):
-    """F(x_aug, [f_n; f_{n+1}] columns) -> (x_aug', out columns, [|r|; |u|] columns).
+    """F(x_aug, [f_n; f_{n+1}] columns) -> (x_aug', out columns, [|r|; |u|; theta per
+    sub-step] columns).
 
     x_aug = [x; u; g; z'] (state, last solution, forces, rates); one column per sample, the
     record padded to n_blocks * BLOCK samples; the step's matrices are constants of the graph.
@@ -345,8 +346,11 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     # failures are not raised inside CasADi: every step's final residual is checked afterwards
     opts = {"abstol": 1e-300, "abstolStep": tol, "max_iter": max_iter, "error_on_fail": False}
     rf = ca.rootfinder("rf", solver, {"x": e["u"], "p": p, "g": e["r"]}, opts)
+    # theta = |J_yy - I|_inf = |B0 dg/dy|_inf, as the C loop measures it (THETA_LIMIT)
+    J_yy = ca.jacobian(e["r"][:sz.ne], e["u"][:sz.ne]) - ca.SX.eye(sz.ne)
+    theta = ca.mmax(ca.sum2(ca.fabs(J_yy)))
     post = ca.Function("post", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]],
-                       [e["r"], e["g"], e["rate"]])
+                       [e["r"], e["g"], e["rate"], theta])
     MX = ca.MX
     A, Bf, Bg, Cw, Dwf, Dwg, Co, Dof, Dog = (ca.DM(m) for m in mats)
     h = step.h
@@ -358,21 +362,22 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     x, u = xa[:ns], xa[ns:ns + nu]
     g, rate = xa[ns + nu:ns + nu + sz.ne], part(xa, ns + nu + sz.ne, sz.nz)
     par = ca.vertcat(ca.vec(Dwg), h)
-    worst, unorm, out = MX(0), MX(0), None
+    worst, unorm, thetas, out = MX(0), MX(0), [], None
     for j in range(S):
         f = ff[:nf] + (j / S) * (ff[nf:] - ff[:nf])
         Q = ca.mtimes(Cw, x) + ca.mtimes(Dwf, f)
         zold = part(u, sz.nw, sz.nz)
         guess = ca.vertcat(Q + ca.mtimes(Dwg, g), zold + h * rate)
         u = rf(guess, ca.vertcat(Q, zold, rate, par))
-        r, g, rate = post(u, Q, zold, rate, par)
+        r, g, rate, theta = post(u, Q, zold, rate, par)
         worst = ca.fmax(worst, ca.norm_inf(r))
+        thetas.append(theta)
         unorm = ca.fmax(unorm, ca.norm_inf(u))
         if j == 0:
             out = ca.mtimes(Co, x) + ca.mtimes(Dof, f) + ca.mtimes(Dog, g)
         x = ca.mtimes(A, x) + ca.mtimes(Bf, f) + ca.mtimes(Bg, g)
     one = ca.Function("nl_step", [xa, ff], [ca.vertcat(x, u, g, rate), out,
-                                             ca.vertcat(worst, unorm)])
+                                             ca.vertcat(worst, unorm, *thetas)])
     inner = one.mapaccum("nl_block", BLOCK, [0], [0])
     record = inner.mapaccum("nl_record", n_blocks, [0], [0])
     t1 = time.perf_counter()
@@ -406,7 +411,7 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa):
     _, out, check = record(xa, ff)
     t_run = time.perf_counter() - t0
     out, check = np.asarray(out).T[:n], np.asarray(check)[:, :n]
-    return out, check[0], check[1], t_build, t_compile, t_run
+    return out, check[0], check[1], check[2:], t_build, t_compile, t_run
 
 
 # ----------------------------------------------------------------------------------------------
@@ -516,14 +521,19 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
         worst, theta = float(stats[2]), float(stats[4])
     else:
         xa = np.concatenate([x, u, g0, rate0])
-        out, resid, unorm, t_build, t_compile, t_run = _run_casadi(
+        out, resid, unorm, thetas, t_build, t_compile, t_run = _run_casadi(
             elements, step, sz, f, S, solver, tol, max_iter, compiled, xa)
         limit = 10.0 * tol * max(1.0, unorm.max())  # tol is CasADi's absolute abstolStep
         bad = np.flatnonzero(~((resid <= limit) | (resid == 0)) | ~np.isfinite(out).all(axis=1))
+        # the whole record has run: report the first failure, as the C loop stops at it
+        unstable = np.flatnonzero(~(thetas.T <= THETA_LIMIT.get(method, np.inf)).ravel())
+        if unstable.size and (not bad.size or unstable[0] < (bad[0] + 1) * S):
+            k = int(unstable[0])  # step n S + j
+            _stability_error(method, k, S, fs, float(thetas.T.ravel()[k]))
         if bad.size:
             k = int(bad[0])
             _newton_error(k * S, S, fs, float(resid[k]), max_iter)
-        iters, worst, theta = None, float(resid.max()), None
+        iters, worst, theta = None, float(resid.max()), float(thetas.max())
     no = outputs.size
     return Response(np.arange(f.shape[0]) / fs, outputs, x=out[:, :no], v=out[:, no:2 * no],
                     a=out[:, 2 * no:],

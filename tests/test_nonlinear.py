@@ -195,13 +195,13 @@ def test_bouc_wen_hysteresis_matches_reference():
 
 # --- failures are loud --------------------------------------------------------------------------
 
-def _impact(method, substeps, smoothing=1e-4, stiffness=1e12):
+def _impact(method, substeps, smoothing=1e-4, stiffness=1e12, backend="c"):
     M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
     fs, n = 100.0, 200
     f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]
     return NL.nonlinear_response(f, fs, M, C, K, [0], [Gap(0, gap=1e-2, stiffness=stiffness,
                                                            smoothing=smoothing)],
-                                 method=method, substeps=substeps)
+                                 method=method, substeps=substeps, backend=backend)
 
 
 def test_newton_failure_names_the_step_and_substeps_cure_it():
@@ -211,9 +211,17 @@ def test_newton_failure_names_the_step_and_substeps_cure_it():
     assert np.isfinite(r.x).all() and np.abs(r.x).max() < 1.1e-2
 
 
-def test_modal_method_beyond_its_stability_limit_is_refused():
-    with pytest.raises(NL.DtdynStepStabilityError, match=r"unstable at step \d+ .*substeps >="):
-        _impact("modal_ramp", 1, smoothing=0.0, stiffness=1e8)
+@pytest.mark.parametrize("substeps", [1, 3])
+def test_modal_method_beyond_its_stability_limit_is_refused(substeps):
+    """Both backends measure theta = |B0 dg/dy| at every step and stop at the same one."""
+    messages = []
+    for backend in ("c", "casadi"):
+        with pytest.raises(NL.DtdynStepStabilityError,
+                           match=r"unstable at step \d+ .*substeps >=") as info:
+            _impact("modal_ramp", substeps, smoothing=0.0, stiffness=1e8 * substeps**2,
+                    backend=backend)
+        messages.append(str(info.value))
+    assert messages[0] == messages[1]
 
 
 def test_casadi_backend_checks_every_step():
