@@ -47,10 +47,15 @@ PY_ARRAY = _names({"m": "mn", "kappa": "kp", "S_R": "SR", "Delta": "Dl", "F_n": 
 
 
 def _lin(prefix: str, coeffs: dict, array: str = "", zero: str = "0.0") -> str:
-    """C text of sum_h prefix_h * h[i] (h = "u" is the primary unknown u[i]), ``zero`` when
-    empty; ``array`` is prepended to the array names ("e": the plain sweep's error histories
-    ex0, ..., and eu)."""
-    return " + ".join(f"{prefix}_{h} * {array}{h}[i]" for h in coeffs) or zero
+    """C text of sum_h prefix_h * h[i] (h = "u" is the primary unknown u[i]; an increment dx0 is
+    (x0[i] - xm1[i]), kernels.in_increments), ``zero`` when empty; ``array`` is prepended to the
+    array names ("e": the plain sweep's error histories ex0, ..., and eu)."""
+    def term(h):
+        if h.startswith("d"):
+            new, old = kernels.increment_pair(h)
+            return f"({array}{new}[i] - {array}{old}[i])"
+        return f"{array}{h}[i]"
+    return " + ".join(f"{prefix}_{h} * {term(h)}" for h in coeffs) or zero
 
 
 def _shift_lines(history, array: str = ""):

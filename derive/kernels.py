@@ -49,6 +49,39 @@ def _linear(expr, variables, what):
 U = sp.Symbol("u")
 
 
+def increment_pair(name: str) -> tuple[str, str]:
+    """The two history rows of an increment: dx0 = x0 - xm1, dxm1 = xm1 - xm2 (the same for v)."""
+    base = name[1:]
+    lag = 0 if base[1:] == "0" else int(base[2:])
+    return base, f"{base[0]}m{lag + 1}"
+
+
+def in_increments(terms: dict, history: tuple) -> dict:
+    """Write the zero-sum combinations of a quantity's lags in increments.
+
+    c0 x0 + c1 xm1 + c2 xm2 = c0 (x0 - xm1) + (c0 + c1) (xm1 - xm2) when c0 + c1 + c2 = 0: the
+    key "dx0" stands for x0 - xm1, "dxm1" for xm1 - xm2 (`increment_pair`). The increments are
+    differences of nearby numbers, so a coefficient of size 1/dt^2 multiplies |x_n - x_n-1|,
+    not |x| (dtdyn.derive.dttmm, displacement form). Keys keep the history's order; a
+    combination whose coefficients do not sum to zero is left as it is.
+    """
+    out = dict(terms)
+    for qty in "xv":
+        group = [h for h in history if h[0] == qty]  # x0, xm1, xm2, ... (lag order)
+        coeffs = [terms.get(h, 0) for h in group]
+        if sum(1 for cf in coeffs if cf != 0) < 2 or sp.simplify(sum(coeffs)) != 0:
+            continue
+        partial = 0
+        for h, cf in zip(group[:-1], coeffs):
+            partial = sp.simplify(partial + cf)
+            out.pop(h, None)
+            if partial != 0:
+                out["d" + h] = partial
+        out.pop(group[-1], None)
+    order = [h for name in history for h in ("d" + name, name)] + ["u"]
+    return {h: out[h] for h in order if h in out}
+
+
 def scheme_spec(name: str) -> SchemeSpec:
     der = I.derive_scheme(name)
     scheme = der.scheme
@@ -58,14 +91,19 @@ def scheme_spec(name: str) -> SchemeSpec:
         if form == "displacement" and der.explicit:
             continue
         maps = dttmm.form_maps(form, der)
-        primary = I.xe if form == "displacement" else I.ae
-        upd = der.update_x if form == "displacement" else der.update_a
-        # the primary unknown is called u in the kernels, and its term comes last
+        # the primary unknown is called u in the kernels, and its term comes last; in the
+        # displacement form u = xe - x0 (dtdyn.derive.dttmm)
+        if form == "displacement":
+            upd, primary, shifted = der.update_x, I.xe, U + I.x0
+            steps = lambda terms: in_increments(terms, scheme.history)  # noqa: E731
+        else:
+            upd, primary, shifted = der.update_a, I.ae, U
+            steps = lambda terms: terms  # noqa: E731
         forms[form] = FormSpec(
             form,
             {n: sp.simplify(maps[n]) for n in ("p", "r", "alpha_u")},
-            {n: _linear(maps[n], hist, f"{name}.{form}.{n}") for n in ("q", "s", "b")},
-            {n: _linear(upd[n].subs(primary, U), hist + [U], f"{name}.{form}.{n}")
+            {n: steps(_linear(maps[n], hist, f"{name}.{form}.{n}")) for n in ("q", "s", "b")},
+            {n: steps(_linear(upd[n].subs(primary, shifted), hist + [U], f"{name}.{form}.{n}"))
              for n in ("x1", "v1", "a1")},
         )
     return SchemeSpec(name, scheme, der, scheme.params, scheme.history, der.w0, der.w1, forms)

@@ -75,28 +75,24 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
     const double k0 = 1.0/dt;
     const double k1 = 6*k0;
     const double k2 = 12/(dt*dt);
-    const double k3 = -k1;
-    const double k4 = -2*dt;
-    const double k5 = -k2;
-    const double k6 = -12*k0;
+    const double k3 = -2*dt;
+    const double k4 = -12*k0;
     const double w0 = 0;
     const double w1 = 1;
     const double p = 1;
     const double r = k1;
     const double alpha_u = k2;
-    const double s_x0 = k3;
+    const double q_x0 = 1;
     const double s_v0 = -5;
-    const double s_a0 = k4;
-    const double b_x0 = k5;
-    const double b_v0 = k6;
+    const double s_a0 = k3;
+    const double b_v0 = k4;
     const double b_a0 = -5;
+    const double x1_x0 = 1;
     const double x1_u = 1;
-    const double v1_x0 = k3;
     const double v1_v0 = -5;
-    const double v1_a0 = k4;
+    const double v1_a0 = k3;
     const double v1_u = k1;
-    const double a1_x0 = k5;
-    const double a1_v0 = k6;
+    const double a1_v0 = k4;
     const double a1_a0 = -5;
     const double a1_u = k2;
     double *x0 = hist + 0 * N;
@@ -194,9 +190,9 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
         for (i = 0; i < N; ++i) {
-            q[i] = 0.0;
-            s[i] = s_x0 * x0[i] + s_v0 * v0[i] + s_a0 * a0[i];
-            b[i] = b_x0 * x0[i] + b_v0 * v0[i] + b_a0 * a0[i];
+            q[i] = q_x0 * x0[i];
+            s[i] = s_v0 * v0[i] + s_a0 * a0[i];
+            b[i] = b_v0 * v0[i] + b_a0 * a0[i];
         }
         for (n = 0; n < N; ++n) {
             const double qp = n ? q[n - 1] : 0.0, sp = n ? s[n - 1] : 0.0;
@@ -222,9 +218,9 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
             /* the error histories' terms (error estimate, see the header); their Riccati passes
                run inside the solution's two passes (independent recurrences) */
             for (i = 0; i < N; ++i) {
-                const pair eq = zero2;
-                const pair es = s_x0 * ex0[i] + s_v0 * ev0[i] + s_a0 * ea0[i];
-                eb[i] = b_x0 * ex0[i] + b_v0 * ev0[i] + b_a0 * ea0[i];
+                const pair eq = q_x0 * ex0[i];
+                const pair es = s_v0 * ev0[i] + s_a0 * ea0[i];
+                eb[i] = b_v0 * ev0[i] + b_a0 * ea0[i];
                 eDl[i] = k[i] * (eq - eqp) + c[i] * (es - esp);
                 eqp = eq;
                 esp = es;
@@ -255,9 +251,9 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
         }
         if (sweep == 0) {
             for (i = 0; i < N; ++i) {
-                const double x1 = x1_u * u[i];
-                const double v1 = v1_x0 * x0[i] + v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
-                const double a1 = a1_x0 * x0[i] + a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i];
+                const double x1 = x1_x0 * x0[i] + x1_u * u[i];
+                const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
+                const double a1 = a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i];
                 x0[i] = x1;
                 v0[i] = v1;
                 a0[i] = a1;
@@ -265,12 +261,12 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
         } else {
             double ms = 0.0, mr = 0.0;
             for (i = 0; i < N; ++i) {
-                const pair ex1 = x1_u * eu[i];
-                const pair ev1 = v1_x0 * ex0[i] + v1_v0 * ev0[i] + v1_a0 * ea0[i] + v1_u * eu[i];
-                const pair ea1 = a1_x0 * ex0[i] + a1_v0 * ev0[i] + a1_a0 * ea0[i] + a1_u * eu[i];
-                const double x1 = x1_u * u[i];
-                const double v1 = v1_x0 * x0[i] + v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
-                const double a1 = a1_x0 * x0[i] + a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i];
+                const pair ex1 = x1_x0 * ex0[i] + x1_u * eu[i];
+                const pair ev1 = v1_v0 * ev0[i] + v1_a0 * ea0[i] + v1_u * eu[i];
+                const pair ea1 = a1_v0 * ev0[i] + a1_a0 * ea0[i] + a1_u * eu[i];
+                const double x1 = x1_x0 * x0[i] + x1_u * u[i];
+                const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
+                const double a1 = a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i];
                 x0[i] = x1;
                 v0[i] = v1;
                 a0[i] = a1;

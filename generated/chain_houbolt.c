@@ -76,31 +76,26 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
     const double k1 = ((11.0/6.0))*k0;
     const double k2 = (1.0/(dt*dt));
     const double k3 = 2*k2;
-    const double k4 = -3*k0;
-    const double k5 = ((3.0/2.0))*k0;
-    const double k6 = -(1.0/3.0)*k0;
-    const double k7 = -5*k2;
-    const double k8 = 4*k2;
-    const double k9 = -k2;
+    const double k4 = -(7.0/6.0)*k0;
+    const double k5 = ((1.0/3.0))*k0;
+    const double k6 = -3*k2;
     const double w0 = 0;
     const double w1 = 1;
     const double p = 1;
     const double r = k1;
     const double alpha_u = k3;
-    const double s_x0 = k4;
-    const double s_xm1 = k5;
-    const double s_xm2 = k6;
-    const double b_x0 = k7;
-    const double b_xm1 = k8;
-    const double b_xm2 = k9;
+    const double q_x0 = 1;
+    const double s_dx0 = k4;
+    const double s_dxm1 = k5;
+    const double b_dx0 = k6;
+    const double b_dxm1 = k2;
+    const double x1_x0 = 1;
     const double x1_u = 1;
-    const double v1_x0 = k4;
-    const double v1_xm1 = k5;
-    const double v1_xm2 = k6;
+    const double v1_dx0 = k4;
+    const double v1_dxm1 = k5;
     const double v1_u = k1;
-    const double a1_x0 = k7;
-    const double a1_xm1 = k8;
-    const double a1_xm2 = k9;
+    const double a1_dx0 = k6;
+    const double a1_dxm1 = k2;
     const double a1_u = k3;
     double *x0 = hist + 0 * N;
     double *v0 = hist + 1 * N;
@@ -201,9 +196,9 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
         for (i = 0; i < N; ++i) {
-            q[i] = 0.0;
-            s[i] = s_x0 * x0[i] + s_xm1 * xm1[i] + s_xm2 * xm2[i];
-            b[i] = b_x0 * x0[i] + b_xm1 * xm1[i] + b_xm2 * xm2[i];
+            q[i] = q_x0 * x0[i];
+            s[i] = s_dx0 * (x0[i] - xm1[i]) + s_dxm1 * (xm1[i] - xm2[i]);
+            b[i] = b_dx0 * (x0[i] - xm1[i]) + b_dxm1 * (xm1[i] - xm2[i]);
         }
         for (n = 0; n < N; ++n) {
             const double qp = n ? q[n - 1] : 0.0, sp = n ? s[n - 1] : 0.0;
@@ -229,9 +224,9 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
             /* the error histories' terms (error estimate, see the header); their Riccati passes
                run inside the solution's two passes (independent recurrences) */
             for (i = 0; i < N; ++i) {
-                const pair eq = zero2;
-                const pair es = s_x0 * ex0[i] + s_xm1 * exm1[i] + s_xm2 * exm2[i];
-                eb[i] = b_x0 * ex0[i] + b_xm1 * exm1[i] + b_xm2 * exm2[i];
+                const pair eq = q_x0 * ex0[i];
+                const pair es = s_dx0 * (ex0[i] - exm1[i]) + s_dxm1 * (exm1[i] - exm2[i]);
+                eb[i] = b_dx0 * (ex0[i] - exm1[i]) + b_dxm1 * (exm1[i] - exm2[i]);
                 eDl[i] = k[i] * (eq - eqp) + c[i] * (es - esp);
                 eqp = eq;
                 esp = es;
@@ -262,9 +257,9 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
         }
         if (sweep == 0) {
             for (i = 0; i < N; ++i) {
-                const double x1 = x1_u * u[i];
-                const double v1 = v1_x0 * x0[i] + v1_xm1 * xm1[i] + v1_xm2 * xm2[i] + v1_u * u[i];
-                const double a1 = a1_x0 * x0[i] + a1_xm1 * xm1[i] + a1_xm2 * xm2[i] + a1_u * u[i];
+                const double x1 = x1_x0 * x0[i] + x1_u * u[i];
+                const double v1 = v1_dx0 * (x0[i] - xm1[i]) + v1_dxm1 * (xm1[i] - xm2[i]) + v1_u * u[i];
+                const double a1 = a1_dx0 * (x0[i] - xm1[i]) + a1_dxm1 * (xm1[i] - xm2[i]) + a1_u * u[i];
                 xm2[i] = xm1[i];
                 xm1[i] = x0[i];
                 x0[i] = x1;
@@ -274,12 +269,12 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
         } else {
             double ms = 0.0, mr = 0.0;
             for (i = 0; i < N; ++i) {
-                const pair ex1 = x1_u * eu[i];
-                const pair ev1 = v1_x0 * ex0[i] + v1_xm1 * exm1[i] + v1_xm2 * exm2[i] + v1_u * eu[i];
-                const pair ea1 = a1_x0 * ex0[i] + a1_xm1 * exm1[i] + a1_xm2 * exm2[i] + a1_u * eu[i];
-                const double x1 = x1_u * u[i];
-                const double v1 = v1_x0 * x0[i] + v1_xm1 * xm1[i] + v1_xm2 * xm2[i] + v1_u * u[i];
-                const double a1 = a1_x0 * x0[i] + a1_xm1 * xm1[i] + a1_xm2 * xm2[i] + a1_u * u[i];
+                const pair ex1 = x1_x0 * ex0[i] + x1_u * eu[i];
+                const pair ev1 = v1_dx0 * (ex0[i] - exm1[i]) + v1_dxm1 * (exm1[i] - exm2[i]) + v1_u * eu[i];
+                const pair ea1 = a1_dx0 * (ex0[i] - exm1[i]) + a1_dxm1 * (exm1[i] - exm2[i]) + a1_u * eu[i];
+                const double x1 = x1_x0 * x0[i] + x1_u * u[i];
+                const double v1 = v1_dx0 * (x0[i] - xm1[i]) + v1_dxm1 * (xm1[i] - xm2[i]) + v1_u * u[i];
+                const double a1 = a1_dx0 * (x0[i] - xm1[i]) + a1_dxm1 * (xm1[i] - xm2[i]) + a1_u * u[i];
                 xm2[i] = xm1[i];
                 xm1[i] = x0[i];
                 x0[i] = x1;

@@ -77,37 +77,31 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
     const double k1 = 1.0/theta;
     const double k2 = 1.0/dt;
     const double k3 = k1*k2;
-    const double k4 = 3*k3;
-    const double k5 = (1.0/(theta*theta));
-    const double k6 = (dt*dt);
-    const double k7 = 6/k6;
-    const double k8 = k5*k7;
-    const double k9 = (1.0/(theta*theta*theta));
-    const double k10 = 3*k2*k9;
-    const double k11 = k7*k9;
+    const double k4 = (dt*dt);
+    const double k5 = 1.0/k4;
+    const double k6 = (1.0/(theta*theta));
+    const double k7 = 6*k6;
+    const double k8 = (1.0/(theta*theta*theta));
     const double w0 = -k0;
     const double w1 = theta;
     const double p = 1;
-    const double r = k4;
-    const double alpha_u = k8;
-    const double s_x0 = -k4;
+    const double r = 3*k3;
+    const double alpha_u = k5*k7;
+    const double q_x0 = 1;
     const double s_v0 = -2;
     const double s_a0 = -(1.0/2.0)*dt*theta;
-    const double b_x0 = -k8;
     const double b_v0 = -6*k3;
     const double b_a0 = -2;
-    const double x1_x0 = 1 - k9;
-    const double x1_v0 = -dt*k5 + dt;
-    const double x1_a0 = ((1.0/2.0))*k0*k1*k6;
-    const double x1_u = k9;
-    const double v1_x0 = -k10;
-    const double v1_v0 = 1 - 3*k5;
+    const double x1_x0 = 1;
+    const double x1_v0 = -dt*k6 + dt;
+    const double x1_a0 = ((1.0/2.0))*k0*k1*k4;
+    const double x1_u = k8;
+    const double v1_v0 = 1 - 3*k6;
     const double v1_a0 = -(3.0/2.0)*dt*k1 + dt;
-    const double v1_u = k10;
-    const double a1_x0 = -k11;
-    const double a1_v0 = -6*k2*k5;
+    const double v1_u = 3*k2*k8;
+    const double a1_v0 = -k2*k7;
     const double a1_a0 = k1*(theta - 3);
-    const double a1_u = k11;
+    const double a1_u = 6*k5*k8;
     double *x0 = hist + 0 * N;
     double *v0 = hist + 1 * N;
     double *a0 = hist + 2 * N;
@@ -203,9 +197,9 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
         for (i = 0; i < N; ++i) {
-            q[i] = 0.0;
-            s[i] = s_x0 * x0[i] + s_v0 * v0[i] + s_a0 * a0[i];
-            b[i] = b_x0 * x0[i] + b_v0 * v0[i] + b_a0 * a0[i];
+            q[i] = q_x0 * x0[i];
+            s[i] = s_v0 * v0[i] + s_a0 * a0[i];
+            b[i] = b_v0 * v0[i] + b_a0 * a0[i];
         }
         for (n = 0; n < N; ++n) {
             const double qp = n ? q[n - 1] : 0.0, sp = n ? s[n - 1] : 0.0;
@@ -231,9 +225,9 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
             /* the error histories' terms (error estimate, see the header); their Riccati passes
                run inside the solution's two passes (independent recurrences) */
             for (i = 0; i < N; ++i) {
-                const pair eq = zero2;
-                const pair es = s_x0 * ex0[i] + s_v0 * ev0[i] + s_a0 * ea0[i];
-                eb[i] = b_x0 * ex0[i] + b_v0 * ev0[i] + b_a0 * ea0[i];
+                const pair eq = q_x0 * ex0[i];
+                const pair es = s_v0 * ev0[i] + s_a0 * ea0[i];
+                eb[i] = b_v0 * ev0[i] + b_a0 * ea0[i];
                 eDl[i] = k[i] * (eq - eqp) + c[i] * (es - esp);
                 eqp = eq;
                 esp = es;
@@ -265,8 +259,8 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
         if (sweep == 0) {
             for (i = 0; i < N; ++i) {
                 const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * u[i];
-                const double v1 = v1_x0 * x0[i] + v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
-                const double a1 = a1_x0 * x0[i] + a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i];
+                const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
+                const double a1 = a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i];
                 x0[i] = x1;
                 v0[i] = v1;
                 a0[i] = a1;
@@ -275,11 +269,11 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
             double ms = 0.0, mr = 0.0;
             for (i = 0; i < N; ++i) {
                 const pair ex1 = x1_x0 * ex0[i] + x1_v0 * ev0[i] + x1_a0 * ea0[i] + x1_u * eu[i];
-                const pair ev1 = v1_x0 * ex0[i] + v1_v0 * ev0[i] + v1_a0 * ea0[i] + v1_u * eu[i];
-                const pair ea1 = a1_x0 * ex0[i] + a1_v0 * ev0[i] + a1_a0 * ea0[i] + a1_u * eu[i];
+                const pair ev1 = v1_v0 * ev0[i] + v1_a0 * ea0[i] + v1_u * eu[i];
+                const pair ea1 = a1_v0 * ev0[i] + a1_a0 * ea0[i] + a1_u * eu[i];
                 const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * u[i];
-                const double v1 = v1_x0 * x0[i] + v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
-                const double a1 = a1_x0 * x0[i] + a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i];
+                const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
+                const double a1 = a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i];
                 x0[i] = x1;
                 v0[i] = v1;
                 a0[i] = a1;

@@ -85,10 +85,22 @@ def shift_history(H, names, new):
         H[index[qty + "0"]] = new[qty]
 
 
+def _previous(name):
+    """The history row one step older: x0 -> xm1, xm1 -> xm2."""
+    return f"{name[0]}m{_lag(name) + 1}"
+
+
 def combine(K, prefix, H, names, extra=None):
-    """sum_h K[prefix_h] H[h] (+ extra, added last as the C kernels do, so both round alike)."""
+    """sum_h K[prefix_h] H[h] (+ extra, added last as the C kernels do, so both round alike).
+
+    A key prefix_dh is the coefficient of the increment H[h] - H[older h] (the displacement form
+    writes zero-sum combinations of lags so, dtdyn.derive.kernels.in_increments)."""
     out = np.zeros(H.shape[1])
+    index = {nm: i for i, nm in enumerate(names)}
     for i, nm in enumerate(names):
+        cf = K.get(f"{prefix}_d{nm}")
+        if cf is not None:
+            out += cf * (H[i] - H[index[_previous(nm)]])
         cf = K.get(f"{prefix}_{nm}")
         if cf is not None:
             out += cf * H[i]
@@ -97,11 +109,18 @@ def combine(K, prefix, H, names, extra=None):
     return out
 
 
+def plain_coefficient(K, key, nm):
+    """The coefficient of H[nm] in sum_h K[key_h] H[h], increments expanded."""
+    newer = f"{key}_d{nm[0]}0" if _lag(nm) == 1 else f"{key}_d{nm[0]}m{_lag(nm) - 1}"
+    return (K.get(f"{key}_{nm}", 0.0) + K.get(f"{key}_d{nm}", 0.0)
+            - (K.get(newer, 0.0) if _lag(nm) > 0 else 0.0))
+
+
 def error_history_maps(K, names):
     """The step on the plain sweep's error history E as matrices (an estimate: it need not round
     as the solution does). q, s, b = L_qsb @ E; x1, v1, a1 = L_upd @ E + c_u u_E; then the lags
     are shifted, E[d] = E[s] for (d, s) in ``shifts`` in order, and E[rows] = x1, v1, a1."""
-    L = np.array([[K.get(f"{pre}_{nm}", 0.0) for nm in names]
+    L = np.array([[plain_coefficient(K, pre, nm) for nm in names]
                   for pre in ("q", "s", "b", "x1", "v1", "a1")])
     c_u = np.array([K.get(f"{qty}1_u", 0.0) for qty in "xva"])[:, None]
     lagged = sorted((nm for nm in names if _lag(nm) > 0), key=_lag, reverse=True)

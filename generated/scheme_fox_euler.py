@@ -27,22 +27,19 @@ def coefficients(form, dt):
         k0 = 2.0/dt
         k1 = 2.0/(dt*dt)
         k2 = -k0
-        k3 = -k1
         return {
             "w0": 0.0,
             "w1": 1.0,
             "p": 1.0,
             "r": k0,
             "alpha_u": k1,
-            "s_x0": k2,
+            "q_x0": 1.0,
             "s_v0": -1.0,
-            "b_x0": k3,
             "b_v0": k2,
+            "x1_x0": 1.0,
             "x1_u": 1.0,
-            "v1_x0": k2,
             "v1_v0": -1.0,
             "v1_u": k0,
-            "a1_x0": k3,
             "a1_v0": k2,
             "a1_u": k1,
         }

@@ -29,42 +29,35 @@ def coefficients(form, dt, rho_inf):
         k2 = 2.0*rho_inf
         k3 = (rho_inf*rho_inf)
         k4 = -k3
-        k5 = k2 + k4 + 3.0
-        k6 = 1.0/dt
-        k7 = ((1.0/2.0))*k6
-        k8 = (1.0/(dt*dt))
-        k9 = 3.0*rho_inf
-        k10 = (rho_inf*rho_inf*rho_inf)
-        k11 = -k10
-        k12 = k11 + k9 + 2.0
-        k13 = ((1.0/2.0))*rho_inf
-        k14 = k3 + 1.0
-        k15 = ((1.0/4.0))*dt*(k14 - k2)
-        k16 = k11 + k3 + 5.0*rho_inf + 3.0
-        k17 = ((1.0/2.0))*k3
-        k18 = k10 + 3.0*k3 + k9 + 1.0
+        k5 = 1.0/dt
+        k6 = ((1.0/2.0))*k5
+        k7 = (1.0/(dt*dt))
+        k8 = 3.0*rho_inf
+        k9 = (rho_inf*rho_inf*rho_inf)
+        k10 = -k9
+        k11 = ((1.0/2.0))*rho_inf
+        k12 = k3 + 1.0
+        k13 = ((1.0/4.0))*dt*(k12 - k2)
+        k14 = ((1.0/2.0))*k3
         return {
             "w0": k1*rho_inf,
             "w1": k1,
             "p": 1.0,
-            "r": k5*k7,
-            "alpha_u": k12*k8,
-            "s_x0": -k5*k7,
-            "s_v0": k13 + (-1.0/2.0),
-            "s_a0": k1*k15,
-            "b_x0": -k12*k8,
-            "b_v0": k6*(-k4 - rho_inf - 2.0),
-            "b_a0": k13*(rho_inf - 1.0),
-            "x1_x0": -rho_inf,
+            "r": k6*(k2 + k4 + 3.0),
+            "alpha_u": k7*(k10 + k8 + 2.0),
+            "q_x0": 1.0,
+            "s_v0": k11 + (-1.0/2.0),
+            "s_a0": k1*k13,
+            "b_v0": k5*(-k4 - rho_inf - 2.0),
+            "b_a0": k11*(rho_inf - 1.0),
+            "x1_x0": 1.0,
             "x1_u": k0,
-            "v1_x0": -k16*k7,
-            "v1_v0": k17 - rho_inf + (-1.0/2.0),
-            "v1_a0": k15,
-            "v1_u": k16*k7,
-            "a1_x0": -k18*k8,
-            "a1_v0": k6*(-k14 - k2),
-            "a1_a0": -k17 - rho_inf + (1.0/2.0),
-            "a1_u": k18*k8,
+            "v1_v0": k14 - rho_inf + (-1.0/2.0),
+            "v1_a0": k13,
+            "v1_u": k6*(k10 + k3 + 5.0*rho_inf + 3.0),
+            "a1_v0": k5*(-k12 - k2),
+            "a1_a0": -k14 - rho_inf + (1.0/2.0),
+            "a1_u": k7*(3.0*k3 + k8 + k9 + 1.0),
         }
     if form == "acceleration":
         k0 = rho_inf + 1.0

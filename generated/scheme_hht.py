@@ -27,44 +27,37 @@ def coefficients(form, dt, alpha):
         k0 = -alpha
         k1 = alpha + 1.0
         k2 = 2.0*alpha
-        k3 = k2 - 1.0
-        k4 = -k3
-        k5 = (alpha*alpha)
-        k6 = 1.0/(-k2 + k5 + 1.0)
-        k7 = 1.0/dt
-        k8 = k6*k7
-        k9 = 2.0*k8
-        k10 = 1.0 - k5
-        k11 = 1.0/((alpha*alpha*alpha) + k0 + k10)
-        k12 = 4.0*k11/(dt*dt)
-        k13 = dt*k5*k6
-        k14 = -k12
-        k15 = -4.0*k8
-        k16 = k6*(-k10 - k2)
-        k17 = 1.0/k1
-        k18 = 2.0*k11*k7
+        k3 = (alpha*alpha)
+        k4 = 1.0/(-k2 + k3 + 1.0)
+        k5 = 1.0/dt
+        k6 = k4*k5
+        k7 = k2 - 1.0
+        k8 = -2.0*k7
+        k9 = 1.0 - k3
+        k10 = 1.0/((alpha*alpha*alpha) + k0 + k9)
+        k11 = 4.0*k10/(dt*dt)
+        k12 = dt*k3*k4
+        k13 = -4.0*k6
+        k14 = k4*(-k2 - k9)
         return {
             "w0": k0,
             "w1": k1,
             "p": 1.0,
-            "r": k4*k9,
-            "alpha_u": k12,
-            "s_x0": k3*k9,
-            "s_v0": k6*(5.0*k5 - 1.0),
-            "s_a0": k1*k13,
-            "b_x0": k14,
-            "b_v0": k15,
-            "b_a0": k16,
-            "x1_x0": alpha*k17,
-            "x1_u": k17,
-            "v1_x0": k18*k3,
-            "v1_v0": k6*(k3 + k5),
-            "v1_a0": k13,
-            "v1_u": k18*k4,
-            "a1_x0": k14,
-            "a1_v0": k15,
-            "a1_a0": k16,
-            "a1_u": k12,
+            "r": k6*k8,
+            "alpha_u": k11,
+            "q_x0": 1.0,
+            "s_v0": k4*(5.0*k3 - 1.0),
+            "s_a0": k1*k12,
+            "b_v0": k13,
+            "b_a0": k14,
+            "x1_x0": 1.0,
+            "x1_u": 1.0/k1,
+            "v1_v0": k4*(k3 + k7),
+            "v1_a0": k12,
+            "v1_u": k10*k5*k8,
+            "a1_v0": k13,
+            "a1_a0": k14,
+            "a1_u": k11,
         }
     if form == "acceleration":
         k0 = -alpha

@@ -28,32 +28,28 @@ def coefficients(form, dt, beta, gamma):
         k1 = k0/dt
         k2 = gamma*k1
         k3 = k0/(dt*dt)
-        k4 = -k2
-        k5 = k0*(beta - gamma)
-        k6 = -(1.0/2.0)*dt*gamma*k0 + dt
-        k7 = -k3
-        k8 = -k1
-        k9 = k0*(beta + (-1.0/2.0))
+        k4 = k0*(beta - gamma)
+        k5 = -(1.0/2.0)*dt*gamma*k0 + dt
+        k6 = -k1
+        k7 = k0*(beta + (-1.0/2.0))
         return {
             "w0": 0.0,
             "w1": 1.0,
             "p": 1.0,
             "r": k2,
             "alpha_u": k3,
-            "s_x0": k4,
-            "s_v0": k5,
-            "s_a0": k6,
-            "b_x0": k7,
-            "b_v0": k8,
-            "b_a0": k9,
+            "q_x0": 1.0,
+            "s_v0": k4,
+            "s_a0": k5,
+            "b_v0": k6,
+            "b_a0": k7,
+            "x1_x0": 1.0,
             "x1_u": 1.0,
-            "v1_x0": k4,
-            "v1_v0": k5,
-            "v1_a0": k6,
+            "v1_v0": k4,
+            "v1_a0": k5,
             "v1_u": k2,
-            "a1_x0": k7,
-            "a1_v0": k8,
-            "a1_a0": k9,
+            "a1_v0": k6,
+            "a1_a0": k7,
             "a1_u": k3,
         }
     if form == "acceleration":

@@ -28,38 +28,32 @@ def coefficients(form, dt, theta):
         k1 = 1.0/theta
         k2 = 1.0/dt
         k3 = k1*k2
-        k4 = 3.0*k3
-        k5 = (1.0/(theta*theta))
-        k6 = (dt*dt)
-        k7 = 6.0/k6
-        k8 = k5*k7
-        k9 = (1.0/(theta*theta*theta))
-        k10 = 3.0*k2*k9
-        k11 = k7*k9
+        k4 = (dt*dt)
+        k5 = 1.0/k4
+        k6 = (1.0/(theta*theta))
+        k7 = 6.0*k6
+        k8 = (1.0/(theta*theta*theta))
         return {
             "w0": -k0,
             "w1": theta,
             "p": 1.0,
-            "r": k4,
-            "alpha_u": k8,
-            "s_x0": -k4,
+            "r": 3.0*k3,
+            "alpha_u": k5*k7,
+            "q_x0": 1.0,
             "s_v0": -2.0,
             "s_a0": -(1.0/2.0)*dt*theta,
-            "b_x0": -k8,
             "b_v0": -6.0*k3,
             "b_a0": -2.0,
-            "x1_x0": 1.0 - k9,
-            "x1_v0": -dt*k5 + dt,
-            "x1_a0": ((1.0/2.0))*k0*k1*k6,
-            "x1_u": k9,
-            "v1_x0": -k10,
-            "v1_v0": 1.0 - 3.0*k5,
+            "x1_x0": 1.0,
+            "x1_v0": -dt*k6 + dt,
+            "x1_a0": ((1.0/2.0))*k0*k1*k4,
+            "x1_u": k8,
+            "v1_v0": 1.0 - 3.0*k6,
             "v1_a0": -(3.0/2.0)*dt*k1 + dt,
-            "v1_u": k10,
-            "a1_x0": -k11,
-            "a1_v0": -6.0*k2*k5,
+            "v1_u": 3.0*k2*k8,
+            "a1_v0": -k2*k7,
             "a1_a0": k1*(theta - 3.0),
-            "a1_u": k11,
+            "a1_u": 6.0*k5*k8,
         }
     if form == "acceleration":
         k0 = theta - 1.0

@@ -52,7 +52,9 @@ def _show(args) -> int:
         subs = {dttmm.p: maps["p"], dttmm.r: maps["r"], dttmm.alpha: maps["alpha_u"],
                 dttmm.b_n: maps["b"]}
         T = dttmm.station_step().subs(subs)
-        print(f"\nDT-TMM station matrix, {form} form, [u_n-1, f_n, 1] -> [u_n, f_n+1, 1]:")
+        unknown = "u = xe - x0, the increment" if form == "displacement" else "u = ae"
+        print(f"\nDT-TMM station matrix, {form} form ({unknown}), "
+              "[u_n-1, f_n, 1] -> [u_n, f_n+1, 1]:")
         sp.pprint(T, use_unicode=False)
         print(f"  kappa = {sp.sstr(sp.simplify(dttmm.KAPPA.subs(subs)))}, "
               "Delta = k (q_n - q_n-1) + c (s_n - s_n-1) with, at each mass,\n"

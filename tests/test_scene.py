@@ -1,7 +1,6 @@
 """Scenes: TOML layout, load kinds, field-naming errors, atomic result files."""
 from __future__ import annotations
 
-import os
 import textwrap
 from pathlib import Path
 
