@@ -160,6 +160,10 @@ def scheme_blocks(M, C, K, dt, scheme="newmark", acceleration=False, **scheme_pa
     return Phi, G0, G1, S
 
 
+#: steps per block of `state_space_response`
+SS_BLOCK = 4096
+
+
 @lru_cache(maxsize=None)
 def _c_loop():
     source = resources.files("dtdyn.generated").joinpath("ss_response.c").read_text()
@@ -167,7 +171,7 @@ def _c_loop():
     if lib is None:
         return None
     fn = lib.dtdyn_ss_states
-    fn.argtypes = [ctypes.c_long] * 2 + [ctypes.c_void_p] * 5
+    fn.argtypes = [ctypes.c_long] * 2 + [ctypes.c_void_p] * 3
     fn.restype = ctypes.c_int
     return fn
 
@@ -175,10 +179,11 @@ def _c_loop():
 def state_space_response(Ad, Bd, Cd, Dd, force, x0=None, backend="c"):
     """Response of x_{n+1} = Ad x_n + Bd f_n, y_n = Cd x_n + Dd f_n for n = 0 .. n_steps - 1.
 
-    ``force`` has shape (n_steps, n_inputs); returns y of shape (n_steps, n_outputs). The input
-    and output maps run as two matrix-matrix products over the whole record; only the recursion
-    x_{n+1} = Ad x_n + w_n is sequential, in a generated C kernel (a NumPy loop when no compiler
-    exists). Memory: the states, n_steps x n_states doubles.
+    ``force`` has shape (n_steps, n_inputs); returns y of shape (n_steps, n_outputs). The record
+    runs in blocks of `SS_BLOCK` steps: per block the input and output maps are matrix-matrix
+    products and only the recursion x_{n+1} = Ad x_n + w_n is sequential, in a generated C
+    kernel (a NumPy loop when no compiler exists). Memory: y, plus one block of states and
+    inputs (the block keeps them in cache between the products and the recursion).
     """
     A = np.asarray(Ad, dtype=float)
     B, Cm, D = (np.atleast_2d(np.asarray(X, dtype=float)) for X in (Bd, Cd, Dd))
@@ -195,20 +200,29 @@ def state_space_response(Ad, Bd, Cd, Dd, force, x0=None, backend="c"):
             raise ValueError(f"{name} has shape {X.shape}, expected {shape}")
         if not np.all(np.isfinite(X)):
             raise ValueError(f"{name} has a non-finite entry")
-    x = np.zeros(ns) if x0 is None else validate.vector("x0", x0, length=ns).copy()
+    x = np.zeros(ns) if x0 is None else validate.vector("x0", x0, length=ns)
     n_steps = f.shape[0]
-    w = np.ascontiguousarray(f @ B.T)
-    X = np.empty((n_steps, ns))
     fn = _c_loop() if backend == "c" else None
-    if fn is None:
-        for k in range(n_steps):
-            X[k] = x
-            x = A @ x + w[k]
-    else:
-        At = np.ascontiguousarray(A.T)
-        fn(ns, n_steps, At.ctypes.data, w.ctypes.data, x.ctypes.data, X.ctypes.data,
-           np.empty(ns).ctypes.data)
-    y = X.copy() if Cm.shape == (ns, ns) and np.array_equal(Cm, np.eye(ns)) else X @ Cm.T
-    if D.any():
-        y += f @ D.T
+    At = np.ascontiguousarray(A.T)
+    identity = Cm.shape == (ns, ns) and np.array_equal(Cm, np.eye(ns))
+    y = np.empty((n_steps, no))
+    X = np.empty((min(n_steps, SS_BLOCK) + 1, ns))  # row 0: the state entering the block
+    X[0] = x
+    for start in range(0, n_steps, SS_BLOCK):
+        fb = f[start:start + SS_BLOCK]
+        nb = fb.shape[0]
+        w = np.ascontiguousarray(fb @ B.T)
+        if fn is None:
+            for k in range(nb):
+                X[k + 1] = A @ X[k] + w[k]
+        else:
+            fn(ns, nb, At.ctypes.data, w.ctypes.data, X.ctypes.data)
+        yb = y[start:start + nb]
+        if identity:
+            yb[:] = X[:nb]
+        else:
+            np.matmul(X[:nb], Cm.T, out=yb)
+        if D.any():
+            yb += fb @ D.T
+        X[0] = X[nb]
     return y

@@ -8,10 +8,12 @@
 - the generated Laplace-domain element matrices against reference section 2.
 
 Meaning of the coefficient names (dtdyn.derive.kernels, dtdyn.derive.dttmm): with u the primary
-unknown (u = xe in the displacement form, u = ae in the acceleration form) and h the history,
+unknown (u = xe - x0, the increment, in the displacement form; u = ae in the acceleration form)
+and h the history,
     xe = p u + q.h,   ve = r u + s.h,   ae = alpha_u u + b.h,
     x1 = x1_u u + x1.h,   v1 = v1_u u + v1.h,   a1 = a1_u u + a1.h,
-and the equilibrium is enforced with the force w0 F_n + w1 F_{n+1}.
+and the equilibrium is enforced with the force w0 F_n + w1 F_{n+1}. A coefficient named with an
+increment, q_dx0 or q_dxm1, multiplies x0 - xm1 or xm1 - xm2; `plain` expands it here.
 """
 from __future__ import annotations
 
@@ -71,6 +73,7 @@ def e(name):
 
 U = e("u")
 X0, V0, A0, XM1, XM2, VM1, VM2 = (e(n) for n in ("x0", "v0", "a0", "xm1", "xm2", "vm1", "vm2"))
+XE_DISPLACEMENT = U + X0  # the displacement form's unknown is the increment u = xe - x0
 
 
 def newmark_hand(dt, b, g):
@@ -90,7 +93,7 @@ def alpha_family(form, dt, b, g, af, am):
     """
     if form == "displacement":
         A, B, D, E = newmark_hand(dt, b, g)
-        x1 = (U - af * X0) / (1.0 - af)
+        x1 = (XE_DISPLACEMENT - af * X0) / (1.0 - af)
         a1 = A * x1 + B
         v1 = D * x1 + E
     else:
@@ -110,7 +113,8 @@ def wilson(form, dt, theta):
     D = 3.0 / td
     E = V0 + td / 2.0 * (A0 + B)
     if form == "displacement":
-        xe, ae, ve = U, A * U + B, D * U + E
+        xe = XE_DISPLACEMENT
+        ae, ve = A * xe + B, D * xe + E
     else:
         ae = U
         xe = X0 + td * V0 + td**2 / 6.0 * (ae + 2.0 * A0)
@@ -122,8 +126,9 @@ def wilson(form, dt, theta):
 
 
 def multistep(form, A, B, D, E):
-    """x1 = xe, v1 = ve = D x1 + E, a1 = ae = A x1 + B (u = x1, or u = a1 with x1 = (u - B)/A)."""
-    x1 = U if form == "displacement" else (U - B) / A
+    """x1 = xe, v1 = ve = D x1 + E, a1 = ae = A x1 + B (u = x1 - x0, or u = a1 with
+    x1 = (u - B)/A)."""
+    x1 = XE_DISPLACEMENT if form == "displacement" else (U - B) / A
     v1 = D * x1 + E
     a1 = A * x1 + B
     return x1, v1, a1, x1, v1, a1, (0.0, 1.0)
@@ -185,7 +190,23 @@ def expected_coefficients(name, form, dt, params, history):
     return out
 
 
+def plain(got):
+    """Coefficients with the increments expanded: c_dx0 (x0 - xm1) + c_dxm1 (xm1 - xm2)."""
+    out = {}
+    for key, val in got.items():
+        prefix, _, name = key.rpartition("_")
+        if name in ("dx0", "dxm1", "dv0", "dvm1"):
+            newer = name[1:]
+            older = newer[0] + ("m1" if newer.endswith("0") else "m2")
+            out[f"{prefix}_{newer}"] = out.get(f"{prefix}_{newer}", 0.0) + val
+            out[f"{prefix}_{older}"] = out.get(f"{prefix}_{older}", 0.0) - val
+        else:
+            out[key] = out.get(key, 0.0) + val
+    return out
+
+
 def check_coefficients(got, want, what):
+    got = plain(got)
     assert set(got) <= set(want), sorted(set(got) - set(want))
     for key in sorted(want):
         val, mag = want[key]
@@ -376,3 +397,15 @@ def test_tmm_two_dof_product_matches_closed_form():
              + (k2 * m2 + k1 * m2 + k2 * m1 + c1 * c2) * s**2 + (k2 * c1 + k1 * c2) * s + k1 * k2)
         assert_allclose(x1 / F, (m2 * s**2 + c2 * s + k2) / P, rtol=1e-10)
         assert_allclose(x2 / F, (c2 * s + k2) / P, rtol=1e-10)
+
+
+@pytest.mark.parametrize("name", [n for n, f in CASES if f == "displacement"])
+def test_displacement_form_reads_displacements_as_increments(name):
+    """The velocity and acceleration maps of the displacement form never multiply a stored
+    displacement (size |x|, times 1/dt or 1/dt^2), only increments x0 - xm1, ... or the
+    unknown u = xe - x0 (dtdyn.derive.dttmm): that is what keeps the form accurate as dt -> 0."""
+    mod = module(name)
+    got = mod.coefficients("displacement", 1e-3, *(mod.DEFAULTS[p] for p in mod.PARAMS))
+    absolute = [k for k in got if k.split("_")[0] in ("s", "b", "v1", "a1")
+                and k.split("_", 1)[1] in ("x0", "xm1", "xm2")]
+    assert not absolute, absolute
