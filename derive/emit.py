@@ -160,6 +160,23 @@ def _latex_rows(der: I.Derived) -> list[tuple[str, str]]:
     return [(n, sp.latex(e)) for n, e in rows]
 
 
+def _increment_rows(spec: kernels.SchemeSpec) -> list[tuple[str, str]]:
+    """B_u = A x_0 + B and E_u = D x_0 + E as the displacement-form kernels evaluate them: in
+    the increment u = x_e - x_0, with lags of x as increments (kernels.in_increments)."""
+    fs = spec.forms.get("displacement")
+    if fs is None:
+        return []
+
+    def symbol(h):
+        if h.startswith("d"):
+            new, old = kernels.increment_pair(h)
+            return sp.Symbol(rf"\Delta {new[0]}_{{{new[1:]}}}")  # new - old
+        return sp.Symbol(h)
+    return [(name, sp.latex(sp.Add(*(cf * symbol(h) for h, cf in fs.hist_terms[key].items()),
+                                   evaluate=False)))
+            for name, key in (("B_u", "b"), ("E_u", "s"))]
+
+
 def _tmm_context() -> dict:
     m1, m2 = sp.symbols("m1 m2")
     return {
@@ -264,7 +281,8 @@ def render_all() -> dict[str, str]:
         render("numpy/scheme.py.jinja", f"scheme_{name}.py", src, **ctx, forms=ctx["forms_py"])
         render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, forms=ctx["forms_c"])
         render("markdown/scheme.md.jinja", f"scheme_{name}.md", src, **ctx,
-               latex=_latex_rows(ctx["derived"]), relations=[sp.latex(r) for r in
+               latex=_latex_rows(ctx["derived"]),
+               increments=_increment_rows(kernels.scheme_spec(name)), relations=[sp.latex(r) for r in
                                                              ctx["derived"].scheme.relations],
                substitutions=[(sp.latex(k), sp.latex(v)) for k, v in
                               ctx["derived"].scheme.substitutions.items()])
