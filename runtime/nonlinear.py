@@ -27,7 +27,8 @@ Backends: "c" (generated loop dtdyn_nl_run of generated/nl_loop.c, with the elem
 residual and Jacobian from CasADi code generation; compiled once and cached), "casadi" (the same
 step as a CasADi rootfinder inside Function.mapaccum over the record; `compiled=True` generates
 and compiles it). Both check every step: a Newton failure raises NewtonError naming the step,
-the time and the residual.
+the time and the residual; a modal step beyond its stability limit for the elements' tangent
+stiffness (THETA_LIMIT) raises DtdynStepStabilityError.
 """
 from __future__ import annotations
 
@@ -320,9 +321,10 @@ BLOCK = 256
 _RECORDS: dict = {}
 
 
-def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_iter, compiled):
-    """F(x_aug, [f_n; f_{n+1}] columns) -> (x_aug', out columns, [|r|; |u|; theta per
-    sub-step] columns).
+def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_iter, compiled,
+                   with_theta):
+    """F(x_aug, [f_n; f_{n+1}] columns) -> (x_aug', out columns, check columns), check =
+    [max |u|; |r| per sub-step; theta per sub-step (``with_theta`` only)].
 
     x_aug = [x; u; g; z'] (state, last solution, forces, rates); one column per sample, the
     record padded to n_blocks * BLOCK samples; the step's matrices are constants of the graph.
@@ -334,7 +336,7 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, step.Co, step.Dof, step.Dog]
     digest = hashlib.sha256(b"".join(np.ascontiguousarray(m).tobytes() for m in mats)
                             + repr([m.shape for m in mats] + [step.h]).encode()).hexdigest()
-    key = (elements, digest, S, n_blocks, solver, tol, max_iter, compiled)
+    key = (elements, digest, S, n_blocks, solver, tol, max_iter, compiled, with_theta)
     if key in _RECORDS:
         return _RECORDS[key][0], 0.0, 0.0
     t0 = time.perf_counter()
@@ -344,7 +346,8 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     nu = sz.nw + sz.nz
     p = ca.vertcat(e["Q"], e["zold"], e["rold"], e["par"])
     # failures are not raised inside CasADi: every step's final residual is checked afterwards
-    opts = {"abstol": 1e-300, "abstolStep": tol, "max_iter": max_iter, "error_on_fail": False}
+    opts = {"abstol": 1e-300, "abstolStep": tol, "max_iter": max_iter, "error_on_fail": False,
+            "show_eval_warnings": False}
     rf = ca.rootfinder("rf", solver, {"x": e["u"], "p": p, "g": e["r"]}, opts)
     # theta = |J_yy - I|_inf = |B0 dg/dy|_inf, as the C loop measures it (THETA_LIMIT)
     J_yy = ca.jacobian(e["r"][:sz.ne], e["u"][:sz.ne]) - ca.SX.eye(sz.ne)
@@ -362,7 +365,7 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     x, u = xa[:ns], xa[ns:ns + nu]
     g, rate = xa[ns + nu:ns + nu + sz.ne], part(xa, ns + nu + sz.ne, sz.nz)
     par = ca.vertcat(ca.vec(Dwg), h)
-    worst, unorm, thetas, out = MX(0), MX(0), [], None
+    resid, unorm, thetas, out = [], MX(0), [], None
     for j in range(S):
         f = ff[:nf] + (j / S) * (ff[nf:] - ff[:nf])
         Q = ca.mtimes(Cw, x) + ca.mtimes(Dwf, f)
@@ -370,14 +373,15 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
         guess = ca.vertcat(Q + ca.mtimes(Dwg, g), zold + h * rate)
         u = rf(guess, ca.vertcat(Q, zold, rate, par))
         r, g, rate, theta = post(u, Q, zold, rate, par)
-        worst = ca.fmax(worst, ca.norm_inf(r))
-        thetas.append(theta)
+        resid.append(ca.norm_inf(r))
+        if with_theta:
+            thetas.append(theta)
         unorm = ca.fmax(unorm, ca.norm_inf(u))
         if j == 0:
             out = ca.mtimes(Co, x) + ca.mtimes(Dof, f) + ca.mtimes(Dog, g)
         x = ca.mtimes(A, x) + ca.mtimes(Bf, f) + ca.mtimes(Bg, g)
     one = ca.Function("nl_step", [xa, ff], [ca.vertcat(x, u, g, rate), out,
-                                             ca.vertcat(worst, unorm, *thetas)])
+                                             ca.vertcat(unorm, *resid, *thetas)])
     inner = one.mapaccum("nl_block", BLOCK, [0], [0])
     record = inner.mapaccum("nl_record", n_blocks, [0], [0])
     t1 = time.perf_counter()
@@ -400,18 +404,23 @@ def _compile_casadi(fn):
     return ca.external(fn.name(), lib._name)
 
 
-def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa):
+def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, with_theta):
+    """(out, |u| per sample, |r| and theta per step (n S + j; theta empty without
+    ``with_theta``), build, compile and run times)."""
     n = f.shape[0]
     n_blocks = -(-n // BLOCK)
     record, t_build, t_compile = _casadi_record(elements, step, S, n_blocks, solver, tol,
-                                                max_iter, compiled)
+                                                max_iter, compiled, with_theta)
     padded = np.vstack([f, np.repeat(f[-1:], n_blocks * BLOCK - n + 1, axis=0)])
     ff = np.hstack([padded[:-1], padded[1:]]).T
     t0 = time.perf_counter()
     _, out, check = record(xa, ff)
     t_run = time.perf_counter() - t0
     out, check = np.asarray(out).T[:n], np.asarray(check)[:, :n]
-    return out, check[0], check[1], check[2:], t_build, t_compile, t_run
+    # (sample n, sub-step j) -> step n S + j; the last sample runs one step, as in the C loop
+    per_step = lambda rows: rows.T.ravel()[:(n - 1) * S + 1]  # noqa: E731
+    return (out, check[0], per_step(check[1:S + 1]), per_step(check[S + 1:]), t_build,
+            t_compile, t_run)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -521,19 +530,24 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
         worst, theta = float(stats[2]), float(stats[4])
     else:
         xa = np.concatenate([x, u, g0, rate0])
-        out, resid, unorm, thetas, t_build, t_compile, t_run = _run_casadi(
-            elements, step, sz, f, S, solver, tol, max_iter, compiled, xa)
-        limit = 10.0 * tol * max(1.0, unorm.max())  # tol is CasADi's absolute abstolStep
-        bad = np.flatnonzero(~((resid <= limit) | (resid == 0)) | ~np.isfinite(out).all(axis=1))
-        # the whole record has run: report the first failure, as the C loop stops at it
-        unstable = np.flatnonzero(~(thetas.T <= THETA_LIMIT.get(method, np.inf)).ravel())
-        if unstable.size and (not bad.size or unstable[0] < (bad[0] + 1) * S):
-            k = int(unstable[0])  # step n S + j
-            _stability_error(method, k, S, fs, float(thetas.T.ravel()[k]))
+        out, unorm, resid, thetas, t_build, t_compile, t_run = _run_casadi(
+            elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, method in THETA_LIMIT)
+        # the whole record has run: report the first failure at step k = n S + j, as the C loop
+        # stops at it (Newton before stability at the same step); tol is CasADi's absolute
+        # abstolStep, scaled here by the largest |u| so far as the C loop scales its test
+        steps = resid.size
+        scale = np.repeat(np.maximum.accumulate(np.maximum(1.0, unorm)), S)[:steps]
+        bad = ~((resid <= 10.0 * tol * scale) | (resid == 0))
+        bad |= np.repeat(~np.isfinite(out).all(axis=1), S)[:steps]
+        bad = np.flatnonzero(bad)
+        unstable = np.flatnonzero(thetas > THETA_LIMIT.get(method, np.inf))
+        if unstable.size and (not bad.size or unstable[0] < bad[0]):
+            _stability_error(method, int(unstable[0]), S, fs, float(thetas[unstable[0]]))
         if bad.size:
             k = int(bad[0])
-            _newton_error(k * S, S, fs, float(resid[k]), max_iter)
-        iters, worst, theta = None, float(resid.max()), float(thetas.max())
+            _newton_error(k, S, fs, float(resid[k]), max_iter)
+        iters, worst = None, float(resid.max())
+        theta = float(thetas.max()) if thetas.size else None
     no = outputs.size
     return Response(np.arange(f.shape[0]) / fs, outputs, x=out[:, :no], v=out[:, no:2 * no],
                     a=out[:, 2 * no:],

@@ -224,6 +224,23 @@ def test_modal_method_beyond_its_stability_limit_is_refused(substeps):
     assert messages[0] == messages[1]
 
 
+@pytest.mark.parametrize("method", ["newmark", "modal_ramp"])
+@pytest.mark.parametrize("level", [1e9, 1e150])
+def test_backends_report_the_same_failure(method, level):
+    """A diverging Newton (1e9) or an overflowing element force (1e150: theta is NaN): both
+    backends raise NewtonError naming the same step, not a stability error or a KeyError."""
+    M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
+    f = np.zeros((50, 1))
+    f[1:] = level
+    messages = []
+    for backend in ("c", "casadi"):
+        with pytest.raises(NL.NewtonError) as info:
+            NL.nonlinear_response(f, 100.0, M, C, K, [0], [Cubic(0, k3=1e14)], method=method,
+                                  backend=backend)
+        messages.append(str(info.value).split(": residual")[0])
+    assert messages[0] == messages[1]
+
+
 def test_casadi_backend_checks_every_step():
     M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
     fs, n = 100.0, 200
