@@ -61,9 +61,10 @@ def main():
         "(dtdyn.derive.dttmm). With x_e itself (the source's state [x, f, 1]) the history term "
         "B of a = A x_e + B, A = 1/(beta dt^2), holds terms of size |x| / dt^2 that cancel, and "
         "its rounding reached 5.7e-10 in x on P3 (this script's output at commit 99ff3e0, "
-        "Park); in the increment the terms are of size |v| / dt. The largest differences are Houbolt's: its absolute-x "
-        "recursion has a double root at z = 1, so the rounding of the stored displacements "
-        "enters both the DT-TMM and the reference.\n")
+        "Park); in the increment the terms are of size |v| / dt. The largest differences are "
+        "Houbolt's, in both forms: its recursion in x has a double root at z = 1 "
+        "((z - 1)^2 (2 z - 1)), so a rounding of one stored displacement acts like a velocity "
+        "kick (our reading; a Houbolt history kept in increments would remove it).\n")
 
 
 if __name__ == "__main__":

@@ -104,7 +104,7 @@ def main():
             lines.append(f"| {method} | {B0:.3e} | " + " | ".join(f"{c:+.1e}" for c in cells)
                          + " |")
         lines.append("")
-    lines += ["theta = B0 k_t = Omega_t^2 B0 / h^2; the C loop stops with "
+    lines += ["theta = B0 k_t = Omega_t^2 B0 / h^2; both backends stop with "
               "DtdynStepStabilityError above theta = "
               + ", ".join(f"{k} for {m}" for m, k in NL.THETA_LIMIT.items()) + ".", ""]
     ref, w_ref, runs, g_of = bouc_wen()

@@ -124,7 +124,7 @@ def _scheme_context(name: str) -> dict:
         "startup_steps": sch.startup_steps, "order": sch.order, "explicit": spec.derived.explicit,
         "forms_py": forms_py, "forms_c": forms_c, "shift": _shift_lines(spec.history),
         "random_spread": repr(float(dttmm.RANDOM_SPREAD)),
-        "derived": spec.derived,
+        "derived": spec.derived, "spec": spec,
     }
 
 
@@ -282,7 +282,7 @@ def render_all() -> dict[str, str]:
         render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, forms=ctx["forms_c"])
         render("markdown/scheme.md.jinja", f"scheme_{name}.md", src, **ctx,
                latex=_latex_rows(ctx["derived"]),
-               increments=_increment_rows(kernels.scheme_spec(name)), relations=[sp.latex(r) for r in
+               increments=_increment_rows(ctx["spec"]), relations=[sp.latex(r) for r in
                                                              ctx["derived"].scheme.relations],
                substitutions=[(sp.latex(k), sp.latex(v)) for k, v in
                               ctx["derived"].scheme.substitutions.items()])

@@ -6,6 +6,9 @@ per run and each step is a few multiply-adds per mass:
 
     q, s, b   = L_qsb . h                       (per form, see dttmm.form_maps)
     x1, v1, a1 = c_u u + L_upd . h              (u the primary unknown of the form)
+
+In the displacement form the lags of x enter through increments (dx0 = x0 - xm1, ...:
+`in_increments`).
 """
 from __future__ import annotations
 

@@ -109,19 +109,22 @@ def combine(K, prefix, H, names, extra=None):
     return out
 
 
-def plain_coefficient(K, key, nm):
-    """The coefficient of H[nm] in sum_h K[key_h] H[h], increments expanded."""
-    newer = f"{key}_d{nm[0]}0" if _lag(nm) == 1 else f"{key}_d{nm[0]}m{_lag(nm) - 1}"
-    return (K.get(f"{key}_{nm}", 0.0) + K.get(f"{key}_d{nm}", 0.0)
-            - (K.get(newer, 0.0) if _lag(nm) > 0 else 0.0))
+def expanded(K, prefix, names):
+    """The coefficients of the rows H[nm] in sum_h K[prefix_h] H[h], increments expanded."""
+    row = [K.get(f"{prefix}_{nm}", 0.0) for nm in names]
+    for i, nm in enumerate(names):
+        cf = K.get(f"{prefix}_d{nm}")
+        if cf is not None:
+            row[i] += cf
+            row[names.index(_previous(nm))] -= cf
+    return row
 
 
 def error_history_maps(K, names):
     """The step on the plain sweep's error history E as matrices (an estimate: it need not round
     as the solution does). q, s, b = L_qsb @ E; x1, v1, a1 = L_upd @ E + c_u u_E; then the lags
     are shifted, E[d] = E[s] for (d, s) in ``shifts`` in order, and E[rows] = x1, v1, a1."""
-    L = np.array([[plain_coefficient(K, pre, nm) for nm in names]
-                  for pre in ("q", "s", "b", "x1", "v1", "a1")])
+    L = np.array([expanded(K, pre, names) for pre in ("q", "s", "b", "x1", "v1", "a1")])
     c_u = np.array([K.get(f"{qty}1_u", 0.0) for qty in "xva"])[:, None]
     lagged = sorted((nm for nm in names if _lag(nm) > 0), key=_lag, reverse=True)
     shifts = [(names.index(nm), names.index(nm[0] + ("0" if _lag(nm) == 1 else f"m{_lag(nm) - 1}")))

@@ -7,7 +7,9 @@ rho_inf in [0, 1]: spectral radius at infinite frequency.
 
 Per DOF the step is linear in the history h = (x0, v0, a0):
 q, s, b = L_qsb . h and x1, v1, a1 = c_u u + L_upd . h, u the primary unknown of the form
-(displacement form: u = xe; acceleration form: u = ae). See dtdyn.derive.kernels.
+(displacement form: u = xe - x0, the increment; acceleration form: u = ae); a coefficient
+named with an increment (q_dx0, q_dxm1) multiplies x0 - xm1 or xm1 - xm2. See
+dtdyn.derive.kernels.
 """
 
 NAME = "generalized_alpha"

@@ -49,8 +49,8 @@ def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False):
     Newmark recursion itself is well defined wherever M + gamma dt C + beta dt^2 K is invertible,
     so newmark_ss then returns that recursion with the same input f_n and output [q_n; q'_n],
     realized with the state [q; q'; q''] of `discrete_state_space` (3n states, Css selects q and
-    q'). It agrees with `simulate_mck` and converges to `exact_response` at second order
-    (tests/test_state_space.py).
+    q'). It agrees with `simulate_mck` and converges to `exact_response` at second order for
+    num_damp = 0, first order otherwise (gamma > 1/2; tests/test_state_space.py).
 
     Output y_n = Css x_n + Dss f_n = [q_n; q'_n]; input f on every DOF.
     """

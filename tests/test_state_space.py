@@ -159,6 +159,11 @@ def test_exact_response_with_a_massless_dof():
         exact_response(M, np.zeros((3, 3)), K, F, dt, n)
     with pytest.raises(ValueError, match=r"v0\[1\]"):
         exact_response(M, C, K, F, dt, n, v0=[0.0, 1.0, 0.0])
+    # a consistent v0, computed in floating point: accepted
+    vm = np.array([0.3, -0.2])
+    v1 = -(C[1, [0, 2]] @ vm) / C[1, 1]
+    r0 = exact_response(M, C, K, F, dt, n, v0=[vm[0], v1, vm[1]])
+    assert r0.v[0] == pytest.approx([vm[0], v1, vm[1]], rel=1e-12)
 
 
 def test_massless_dof():
@@ -187,6 +192,24 @@ def test_massless_dof():
         slope = np.polyfit(np.log(dts), np.log(errs), 1)[0]
         # gamma = 1/2 + num_damp: second order without numerical damping, first order with it
         assert abs(slope - order) < 0.25, (num_damp, errs, slope)
+
+
+@pytest.mark.parametrize("backend", ["c", "numpy"])
+def test_state_space_response_across_blocks(monkeypatch, backend):
+    """The record runs in blocks of SS_BLOCK steps; the state carried from block to block gives
+    the same response as one block (here SS_BLOCK = 7 against 40 steps: 5 full blocks and 5)."""
+    import dtdyn.runtime.state_space as ss
+    rng = np.random.default_rng(8)
+    ns, ni, no = 6, 2, 3
+    A = rng.standard_normal((ns, ns))
+    A *= 0.9 / np.max(np.abs(np.linalg.eigvals(A)))
+    B, Cm, D = (rng.standard_normal(s) for s in ((ns, ni), (no, ns), (no, ni)))
+    u = rng.standard_normal((40, ni))
+    x0 = rng.standard_normal(ns)
+    _, y_ref, _ = sig.dlsim((A, B, Cm, D, 1.0), u, x0=x0)
+    monkeypatch.setattr(ss, "SS_BLOCK", 7)
+    y = ss.state_space_response(A, B, Cm, D, u, x0=x0, backend=backend)
+    np.testing.assert_allclose(y, y_ref, rtol=0, atol=1e-12 * np.abs(y_ref).max())
 
 
 def test_state_space_response_equals_dlsim():
