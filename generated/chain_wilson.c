@@ -72,6 +72,9 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
                             const long *out_idx, double *xo, double *vo, double *ao, double *work,
                             double *ehist, double *err)
 {
+    const int reuse = sweep == 2; /* the stable sweep with the factors already in work */
+    if (reuse)
+        sweep = 0;
     const double theta = params[0];
     const double k0 = theta - 1;
     const double k1 = 1.0/theta;
@@ -142,7 +145,7 @@ static int run_displacement(int sweep, long N, long n_steps, const double *m, co
     (void)T22;
     (void)T13;
     (void)T23;
-    {   /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
+    if (!reuse) {   /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
         double S_R = 0.0;
         for (n = N - 1; n >= 0; --n) {
             const double mn = m[n], kp = k[n] * p + c[n] * r;
@@ -307,6 +310,9 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
                             const long *out_idx, double *xo, double *vo, double *ao, double *work,
                             double *ehist, double *err)
 {
+    const int reuse = sweep == 2; /* the stable sweep with the factors already in work */
+    if (reuse)
+        sweep = 0;
     const double theta = params[0];
     const double k0 = theta - 1;
     const double k1 = (dt*dt);
@@ -375,7 +381,7 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
     (void)T22;
     (void)T13;
     (void)T23;
-    {   /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
+    if (!reuse) {   /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
         double S_R = 0.0;
         for (n = N - 1; n >= 0; --n) {
             const double mn = m[n], kp = k[n] * p + c[n] * r;
@@ -534,7 +540,9 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
     return 0;
 }
 
-/* form: 0 displacement, 1 acceleration; sweep: 0 stable, 1 plain. Returns 0, or -1 for an absent form. */
+/* form: 0 displacement, 1 acceleration; sweep: 0 stable, 1 plain, 2 stable reusing the Riccati
+   factors a previous call (same chain, dt, scheme and form) left in work. Returns 0, or -1 for
+   an absent form. */
 int dtdyn_chain_wilson(int form, int sweep, long N, long n_steps, const double *m, const double *k,
                    const double *c, double dt, const double *params, long n_loaded,
                    const long *loaded, const double *force, double *hist, long n_out,

@@ -40,6 +40,7 @@ static inline void matvec_add(long rows, long cols, const double *restrict A,
     }
 }
 
+/* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
 /* Solve J d = -r in place (J column-major n x n, from CasADi) by LU with partial pivoting. */
 static int lu_solve(long n, double *restrict J, double *restrict r)
 {
@@ -107,7 +108,6 @@ static inline void zero(long n, double *restrict dst)
     for (i = 0; i < n; ++i)
         dst[i] = 0.0;
 }
-
 /*
  * dims: ns, nf, ne, nw, nz, no (checked against the compile-time sizes NL_NS .. NL_NO, which
  * let the compiler unroll the small products), n_samples, substeps, max_iter.

@@ -83,6 +83,11 @@ def _p(a):
     return None if a is None else a.ctypes.data
 
 
+def params_array(scheme) -> np.ndarray:
+    """The scheme's parameters in the order its C kernel reads them (one 0.0 when none)."""
+    return np.array([scheme.params[p] for p in scheme.module.PARAMS] or [0.0])
+
+
 def chain_advance(backend, scheme, coeffs, form, sweep, m, k, c, dt, loaded, out_idx,
                   tracker: PlainSweepError | None = None):
     """An ``advance(force_rows, H, xo, vo, ao) -> error estimate of the run so far`` for
@@ -101,7 +106,7 @@ def chain_advance(backend, scheme, coeffs, form, sweep, m, k, c, dt, loaded, out
             return tracker.estimate if plain else 0.0
         return advance
     N = m.size
-    params = np.array([scheme.params[p] for p in scheme.module.PARAMS] or [0.0])
+    params = params_array(scheme)
     loaded64 = np.ascontiguousarray(loaded, dtype=np.int64)
     out64 = np.ascontiguousarray(out_idx, dtype=np.int64)
     work = np.empty(WORK_ROWS[sweep] * N)

@@ -317,6 +317,33 @@ def test_chain_equals_mck_path(form, scheme, params, elements):
         assert np.abs(getattr(a, q) - getattr(b, q)).max() <= 1e-12 * np.abs(getattr(b, q)).max()
 
 
+@pytest.mark.parametrize("elements", [[Cubic(0, k3=2e7), Cubic(1, 2, k3=2e7)],
+                                      [BoucWen(1, 2, stiffness=1e4, beta=50.0, gamma=50.0),
+                                       Cubic(3, k3=2e7)]])
+def test_chain_c_loop_equals_python_loop(monkeypatch, elements):
+    """generated/nl_chain.c runs the same steps as the Python loop around the same C sweep and
+    the same compiled residual: equal bitwise (measured), held to 1e-14; and a Newton failure
+    names the same step."""
+    import dtdyn.runtime.nonlinear_chain as NC
+    m, k, c, f = _chain_case()
+    a = NC.nonlinear_chain_response(m, k, c, f, 1000.0, [3], elements, substeps=2)
+    monkeypatch.setattr(NC, "_c_driver", lambda *args: None)
+    b = NC.nonlinear_chain_response(m, k, c, f, 1000.0, [3], elements, substeps=2)
+    assert (a.info["loop"], b.info["loop"]) == ("c", "python")
+    assert a.info["newton_iterations"] == b.info["newton_iterations"]
+    for q in "xva":
+        assert np.abs(getattr(a, q) - getattr(b, q)).max() <= 1e-14 * np.abs(getattr(b, q)).max()
+    monkeypatch.undo()
+    messages = []
+    for driver in (NC._c_driver, lambda *args: None):
+        monkeypatch.setattr(NC, "_c_driver", driver)
+        with pytest.raises(NL.NewtonError) as info:
+            NC.nonlinear_chain_response(m, k, c, 1e9 * f, 1000.0, [3], [Cubic(0, k3=1e14)],
+                                        max_iter=3)
+        messages.append(str(info.value))
+    assert messages[0] == messages[1] and "step" in messages[0]
+
+
 def test_long_chain_linear_limit_equals_simulate_chain():
     """20,000 masses: with zero nonlinear stiffness the chain path is simulate_chain's sweep."""
     from dtdyn.runtime import simulate_chain
