@@ -39,7 +39,6 @@ def foh_matrices(A: np.ndarray, B: np.ndarray, dt: float):
     return Phi, gam_a - gam_b, gam_b
 
 
-
 class SingularMassError(ValueError):
     """M is singular in a way `exact_response` cannot reduce (see its Notes)."""
 

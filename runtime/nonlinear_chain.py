@@ -69,7 +69,6 @@ def nonlinear_chain_response(mass, stiffness, damping, force, fs, force_dofs, el
                          "one-step scheme (newmark, hht, generalized_alpha, ...)")
     h = 1.0 / (fs * S)
     sz = _sizes(elements)
-    fn = _residual_evaluator(elements, sz, backend)
 
     # loads at the loaded masses: external forces and -L^T g
     ei = np.array([el.i for el in elements])
@@ -129,6 +128,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, fs, force_dofs, el
         iters, total, worst = _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h,
                                      tol, S)
     else:
+        fn = _residual_evaluator(elements, sz, backend)
         scale, iters, worst, total = 0.0, 0, 0.0, 0
         for n in range(n_samples):
             for q, i in zip("xva", (ix, iv, ia)):
