@@ -194,36 +194,34 @@ def test_massless_dof():
         assert abs(slope - order) < 0.25, (num_damp, errs, slope)
 
 
+def _dlsim_case(seed, ns, ni, no, n_steps, radius):
+    """A random stable model (spectral radius ``radius``), input, x0 and dlsim's response."""
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((ns, ns))
+    A *= radius / np.max(np.abs(np.linalg.eigvals(A)))
+    B, Cm, D = (rng.standard_normal(s) for s in ((ns, ni), (no, ns), (no, ni)))
+    u = rng.standard_normal((n_steps, ni))
+    x0 = rng.standard_normal(ns)
+    _, y_ref, _ = sig.dlsim((A, B, Cm, D, 1.0), u, x0=x0)
+    return (A, B, Cm, D, u), x0, y_ref
+
+
 @pytest.mark.parametrize("backend", ["c", "numpy"])
 def test_state_space_response_across_blocks(monkeypatch, backend):
     """The record runs in blocks of SS_BLOCK steps; the state carried from block to block gives
     the same response as one block (here SS_BLOCK = 7 against 40 steps: 5 full blocks and 5)."""
     import dtdyn.runtime.state_space as ss
-    rng = np.random.default_rng(8)
-    ns, ni, no = 6, 2, 3
-    A = rng.standard_normal((ns, ns))
-    A *= 0.9 / np.max(np.abs(np.linalg.eigvals(A)))
-    B, Cm, D = (rng.standard_normal(s) for s in ((ns, ni), (no, ns), (no, ni)))
-    u = rng.standard_normal((40, ni))
-    x0 = rng.standard_normal(ns)
-    _, y_ref, _ = sig.dlsim((A, B, Cm, D, 1.0), u, x0=x0)
+    model, x0, y_ref = _dlsim_case(8, 6, 2, 3, 40, 0.9)
     monkeypatch.setattr(ss, "SS_BLOCK", 7)
-    y = ss.state_space_response(A, B, Cm, D, u, x0=x0, backend=backend)
+    y = ss.state_space_response(*model, x0=x0, backend=backend)
     np.testing.assert_allclose(y, y_ref, rtol=0, atol=1e-12 * np.abs(y_ref).max())
 
 
-def test_state_space_response_equals_dlsim():
-    rng = np.random.default_rng(5)
-    ns, ni, no = 12, 3, 4
-    A = rng.standard_normal((ns, ns))
-    A *= 0.95 / np.max(np.abs(np.linalg.eigvals(A)))
-    B, Cm, D = (rng.standard_normal(s) for s in ((ns, ni), (no, ns), (no, ni)))
-    u = rng.standard_normal((500, ni))
-    x0 = rng.standard_normal(ns)
-    _, y_ref, _ = sig.dlsim((A, B, Cm, D, 1.0), u, x0=x0)
-    for backend in ("c", "numpy"):
-        y = state_space_response(A, B, Cm, D, u, x0=x0, backend=backend)
-        np.testing.assert_allclose(y, y_ref, rtol=0, atol=1e-12 * np.abs(y_ref).max())
+@pytest.mark.parametrize("backend", ["c", "numpy"])
+def test_state_space_response_equals_dlsim(backend):
+    model, x0, y_ref = _dlsim_case(5, 12, 3, 4, 500, 0.95)
+    y = state_space_response(*model, x0=x0, backend=backend)
+    np.testing.assert_allclose(y, y_ref, rtol=0, atol=1e-12 * np.abs(y_ref).max())
 
 
 def test_bad_input():
