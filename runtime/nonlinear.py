@@ -264,16 +264,13 @@ def _forces_at_rest(elements, sz: _Sizes):
 def _c_runner(elements, dims):
     """(runner or None, construct time, compile time) for these elements and sizes (ns, nf, ne,
     nw, nz, no); cached, so a second run pays neither."""
-    import casadi as ca
     t0 = time.perf_counter()
     sz = _sizes(elements)
     fn = _residual_function(elements, sz)
-    cg = ca.CodeGenerator("nl_residual", {"with_header": False})
-    cg.add(fn)
     sizes = "".join(f"#define NL_{k} {int(v)}\n" for k, v in zip(("NS", "NF", "NE", "NW", "NZ",
                                                                      "NO"), dims))
     loop = resources.files("dtdyn.generated").joinpath("nl_loop.c").read_text()
-    source = sizes + loop + "\n" + cg.dump()
+    source = sizes + loop + "\n" + _c_source(fn)
     t1 = time.perf_counter()
     lib = cbuild.load_library(source, "nl_loop")
     t2 = time.perf_counter()
@@ -349,11 +346,11 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     opts = {"abstol": 1e-300, "abstolStep": tol, "max_iter": max_iter, "error_on_fail": False,
             "show_eval_warnings": False}
     rf = ca.rootfinder("rf", solver, {"x": e["u"], "p": p, "g": e["r"]}, opts)
-    # theta = |J_yy - I|_inf = |B0 dg/dy|_inf, as the C loop measures it (THETA_LIMIT)
-    J_yy = ca.jacobian(e["r"][:sz.ne], e["u"][:sz.ne]) - ca.SX.eye(sz.ne)
-    theta = ca.mmax(ca.sum2(ca.fabs(J_yy)))
-    post = ca.Function("post", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]],
-                       [e["r"], e["g"], e["rate"], theta])
+    outs = [e["r"], e["g"], e["rate"]]
+    if with_theta:  # theta = |J_yy - I|_inf = |B0 dg/dy|_inf, as the C loop measures it
+        J_yy = ca.jacobian(e["r"][:sz.ne], e["u"][:sz.ne]) - ca.SX.eye(sz.ne)
+        outs.append(ca.mmax(ca.sum2(ca.fabs(J_yy))))
+    post = ca.Function("post", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]], outs)
     MX = ca.MX
     A, Bf, Bg, Cw, Dwf, Dwg, Co, Dof, Dog = (ca.DM(m) for m in mats)
     h = step.h
@@ -372,10 +369,9 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
         zold = part(u, sz.nw, sz.nz)
         guess = ca.vertcat(Q + ca.mtimes(Dwg, g), zold + h * rate)
         u = rf(guess, ca.vertcat(Q, zold, rate, par))
-        r, g, rate, theta = post(u, Q, zold, rate, par)
+        r, g, rate, *theta = post(u, Q, zold, rate, par)
         resid.append(ca.norm_inf(r))
-        if with_theta:
-            thetas.append(theta)
+        thetas += theta
         unorm = ca.fmax(unorm, ca.norm_inf(u))
         if j == 0:
             out = ca.mtimes(Co, x) + ca.mtimes(Dof, f) + ca.mtimes(Dog, g)
@@ -396,12 +392,19 @@ def _compile_casadi(fn):
 
     Only the "fast_newton" rootfinder can be code-generated (CasADi's "newton" cannot)."""
     import casadi as ca
-    cg = ca.CodeGenerator(fn.name(), {"with_header": False})
-    cg.add(fn)
-    lib = cbuild.load_library(cg.dump(), fn.name())
+    lib = cbuild.load_library(_c_source(fn), fn.name())
     if lib is None:
         return fn
     return ca.external(fn.name(), lib._name)
+
+
+def _c_source(fn) -> str:
+    """C source of the CasADi Function ``fn`` (no header): compiled alone, or appended to a
+    generated loop that calls it (nl_loop.c, nl_chain.c)."""
+    import casadi as ca
+    cg = ca.CodeGenerator(fn.name(), {"with_header": False})
+    cg.add(fn)
+    return cg.dump()
 
 
 def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, with_theta):

@@ -27,7 +27,7 @@ import numpy as np
 from . import kernels, validate
 from .chain import chain_parameters
 from .elements import check_elements
-from .nonlinear import NewtonError, _forces_at_rest, _residual_function, _sizes
+from .nonlinear import NewtonError, _c_source, _forces_at_rest, _residual_function, _sizes
 from .result import Response
 from .schemes import get_scheme
 
@@ -184,14 +184,10 @@ def _newton_error(kk, S, h, rn, max_iter):
 def _c_driver(elements, sz):
     """(dtdyn_nl_chain, CasADi work sizes) from generated/nl_chain.c with the elements' residual
     appended, or None without a compiler."""
-    import casadi as ca
-
     from . import cbuild
     fn = _residual_function(elements, sz)
-    cg = ca.CodeGenerator("nl_residual", {"with_header": False})
-    cg.add(fn)
     loop = resources.files("dtdyn.generated").joinpath("nl_chain.c").read_text()
-    lib = cbuild.load_library(loop + "\n" + cg.dump(), "nl_chain")
+    lib = cbuild.load_library(loop + "\n" + _c_source(fn), "nl_chain")
     if lib is None:
         return None
     run = lib.dtdyn_nl_chain
@@ -230,16 +226,12 @@ def _residual_evaluator(elements, sz, backend):
     """(u, Q, z_old, z'_old, par) -> (r, J, g, z') as float arrays: the CasADi residual of
     dtdyn.runtime.nonlinear, code-generated and called through ctypes (a few us per call) when
     C is available, else the CasADi Function."""
-    import casadi as ca
-
     from . import cbuild
     fn = _residual_function(elements, sz)
     nu = sz.nw + sz.nz
     lib = None
     if backend == "c":
-        cg = ca.CodeGenerator("nl_residual", {"with_header": False})
-        cg.add(fn)
-        lib = cbuild.load_library(cg.dump(), "nl_residual")
+        lib = cbuild.load_library(_c_source(fn), "nl_residual")
     if lib is None:
         def evaluate(u, Q, zold, rold, par):
             r, J, g, rate = (np.asarray(a, dtype=float) for a in fn(u, Q, zold, rold, par))
