@@ -16,9 +16,10 @@ import time
 
 import numpy as np
 
-from dtdyn.runtime import cbuild, kernels
-from dtdyn.runtime.chain import chain_matrices, simulate_chain
-from dtdyn.runtime.mck import simulate_mck
+from dtdyn._engine import cbuild
+from dtdyn._engine import kernels
+from dtdyn.linear.chain import chain_matrices, simulate_chain
+from dtdyn.linear.mck import simulate_mck
 
 
 def best_of(fn, repeats):

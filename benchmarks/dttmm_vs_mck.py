@@ -13,8 +13,8 @@ import pathlib
 import numpy as np
 
 from dtdyn.generated import SCHEMES
-from dtdyn.runtime.chain import chain_matrices, simulate_chain
-from dtdyn.runtime.mck import simulate_mck
+from dtdyn.linear.chain import chain_matrices, simulate_chain
+from dtdyn.linear.mck import simulate_mck
 
 PROBLEMS = {
     "P1": ([2.0], [12.0], [3.0], 10.0),

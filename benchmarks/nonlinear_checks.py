@@ -22,9 +22,9 @@ import pathlib
 
 import numpy as np
 
-from dtdyn.runtime import nonlinear as NL
-from dtdyn.runtime.elements import BoucWen
-from dtdyn.runtime.nl_reference import reference_response
+from dtdyn.nonlinear import response as NL
+from dtdyn.nonlinear.elements import BoucWen
+from dtdyn.nonlinear.reference import reference_response
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 OMEGAS = (0.01, 0.1, 0.3, 0.5, 1.0, 2.0, 3.4, 3.6, 10.0)
@@ -69,9 +69,9 @@ def bouc_wen():
 def chain_scaling():
     import time
 
-    from dtdyn.runtime import simulate_chain
-    from dtdyn.runtime.elements import Cubic
-    from dtdyn.runtime.nonlinear_chain import nonlinear_chain_response
+    from dtdyn import simulate_chain
+    from dtdyn.nonlinear.elements import Cubic
+    from dtdyn.nonlinear.chain import nonlinear_chain_response
     rows = []
     n_steps = 100
     f = (np.random.default_rng(1).standard_normal(n_steps + 1) * 100.0)[:, None]

@@ -10,7 +10,7 @@ default parameters through the DT-TMM chain solver (`simulate_chain`, stable Ric
 backend, displacement form). Central difference is explicit, so it only has the acceleration form,
 and there the DT-TMM spring row divides by c Dv = 0 on an undamped chain (the runtime raises a
 ValueError naming the damping): it is run instead on the assembled matrices with
-`dtdyn.runtime.mck.simulate_mck`, the same generated integrator, and marked as such.
+`dtdyn.linear.mck.simulate_mck`, the same generated integrator, and marked as such.
 
 Error: max over time (and over the 15 masses) of |x - x_exact|, divided by max |x_exact| over
 the same set; x_exact from `exact_response` with the same force samples (exact for them).
@@ -28,9 +28,9 @@ import time
 import numpy as np
 
 from dtdyn.generated import SCHEMES
-from dtdyn.runtime.chain import chain_matrices, simulate_chain
-from dtdyn.runtime.exact import exact_response
-from dtdyn.runtime.mck import simulate_mck
+from dtdyn.linear.chain import chain_matrices, simulate_chain
+from dtdyn.linear.exact import exact_response
+from dtdyn.linear.mck import simulate_mck
 
 MASS = [10, 9, 8, 7, 6, 6, 5.5, 5, 4.5, 4, 3.5, 4, 2.5, 2, 2]
 STIFFNESS = [55000, 50000, 45000, 40000, 40000, 35000, 30000, 25000, 20000, 15000, 10000, 9000,
@@ -142,7 +142,7 @@ def main():
         "parameters through `simulate_chain` (DT-TMM, stable Riccati sweep, C backend, "
         "displacement form). Central difference is explicit and P3 is undamped: its DT-TMM "
         "acceleration form divides by c Dv = 0 and raises, so it is run on the assembled "
-        "matrices with `dtdyn.runtime.mck.simulate_mck` (same generated integrator). "
+        "matrices with `dtdyn.linear.mck.simulate_mck` (same generated integrator). "
         "Run time: the whole solver call, minimum of "
         f"{REPEATS} after a warm-up (includes the per-run setup; the exact reference takes "
         f"{t_exact * 1e3:.1f} ms).",

@@ -1,4 +1,4 @@
-"""Shock response spectrum speed: dtdyn.runtime.srs against pyyeti.srs.srs, measured in one run.
+"""Shock response spectrum speed: dtdyn.modal.srs against pyyeti.srs.srs, measured in one run.
 
 1,000,000 samples (10 s at 100 kHz: a train of half-sine and decaying-sine shocks in noise) at
 200 log-spaced frequencies, 10 Hz .. 10 kHz (>= 10 points per cycle, so neither code upsamples),
@@ -29,7 +29,7 @@ import scipy
 import scipy.signal as sig
 
 from dtdyn.generated import modal_filters as coef
-from dtdyn.runtime.srs import _poles_residues, shock_response_spectrum
+from dtdyn.modal.srs import _poles_residues, shock_response_spectrum
 
 
 def record(fs=100e3, n=1_000_000, seed=0):

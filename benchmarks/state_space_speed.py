@@ -14,8 +14,8 @@ import time
 import numpy as np
 import scipy.signal as sig
 
-from dtdyn.runtime.chain import chain_matrices
-from dtdyn.runtime.state_space import newmark_ss, state_space_response
+from dtdyn.linear.chain import chain_matrices
+from dtdyn.linear.state_space import newmark_ss, state_space_response
 
 
 def best_of(fn, repeats):

@@ -257,7 +257,7 @@ def render_all() -> dict[str, str]:
     render("numpy/newmark_ss.py.jinja", "newmark_ss.py", "dtdyn.derive.state_space",
            **_newmark_ss_context())
     render("c/ss_response.c.jinja", "ss_response.c", "the discrete state-space recursion")
-    render("c/nl_chain.c.jinja", "nl_chain.c", "dtdyn.runtime.nonlinear_chain (its loop)")
+    render("c/nl_chain.c.jinja", "nl_chain.c", "dtdyn.nonlinear.chain (its loop)")
     render("numpy/modal_filters.py.jinja", "modal_filters.py", "dtdyn.derive.modal_filters",
            **_modal_filters_context())
     render("c/filter_bank.c.jinja", "filter_bank.c", "dtdyn.derive.modal_filters (sections)")

@@ -1,33 +1,59 @@
-"""dtdyn runtime: what users import (NumPy, SciPy, CasADi; no SymPy or jinja2).
+"""dtdyn: discrete-time structural dynamics, derived with SymPy and run as generated NumPy and C.
 
-The main entry points are importable from here; each module loads on first use:
+Everything a user needs is importable from here::
 
-    from dtdyn.runtime import simulate_chain, simulate_mck, exact_response
+    import dtdyn as dd
+    r = dd.simulate_chain(mass, stiffness, damping, force, dt, force_dofs=[14])
+
+The package is organized in rooms: `dtdyn.linear` (chains, M/C/K time histories, exact and
+state-space discretizations, TMM, stability), `dtdyn.modal` (modal models, modal digital filters,
+their errors, the shock response spectrum), `dtdyn.nonlinear` (localized elements, the nonlinear
+time histories and their ODE reference), `dtdyn.app` (scenes, the `dtdyn` command, benchmarks,
+the reference problems) and the private engine `dtdyn._engine`. The generated kernels live in
+`dtdyn.generated`, the SymPy derivations in `dtdyn.derive` (needs the ``[derive]`` extra).
 """
-from importlib import import_module
+from dtdyn._engine.errors import (DtdynAccuracyWarning, DtdynFallbackWarning,
+                                  DtdynStabilityWarning, DtdynStepStabilityError, NewtonError,
+                                  SingularMassError, SRSSamplingWarning)
+from dtdyn._engine.result import Response
+from dtdyn.app.problems import p1, p2, p3, p4
+from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
+from dtdyn.linear.chain import chain_matrices, simulate_chain
+from dtdyn.linear.discretize import discretize, first_order_form, to_control, to_dlti
+from dtdyn.linear.exact import exact_response
+from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.stability import Stability, critical_omega_dt, stability
+from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
+from dtdyn.linear.tmm import frequency_response, undamped_poles
+from dtdyn.modal.filter_errors import (continuous_frequency_response, discrete_frequency_response,
+                                       ramp_bias, truncation_error)
+from dtdyn.modal.filters import modal_filter_response, to_sos
+from dtdyn.modal.model import ModalModel, from_poles_residues, modal_model
+from dtdyn.modal.srs import SRS, load_record, sdof_response, shock_response_spectrum
+from dtdyn.nonlinear.chain import nonlinear_chain_response
+from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
+from dtdyn.nonlinear.reference import check_reference, reference_response
+from dtdyn.nonlinear.response import nonlinear_response
 
-_EXPORTS = {
-    "simulate_chain": "chain", "chain_matrices": "chain",
-    "simulate_mck": "mck",
-    "exact_response": "exact",
-    "newmark_ss": "state_space", "discrete_state_space": "state_space",
-    "state_space_response": "state_space",
-    "discretize": "discretize", "to_dlti": "discretize", "to_control": "discretize",
-    "modal_model": "modal", "from_poles_residues": "modal",
-    "modal_filter_response": "modal_filters",
-    "shock_response_spectrum": "srs",
-    "nonlinear_response": "nonlinear", "NewtonError": "nonlinear",
-    "nonlinear_chain_response": "nonlinear_chain",
-    "Cubic": "elements", "Polynomial": "elements", "Gap": "elements", "Law": "elements",
-    "BoucWen": "elements",
-    "reference_response": "nl_reference",
-    "load_scene": "scene", "run_scene": "scene",
-    "Response": "result",
-}
-__all__ = sorted(_EXPORTS)
+__version__ = "0.1.0"
 
-
-def __getattr__(name):
-    if name in _EXPORTS:
-        return getattr(import_module(f"{__name__}.{_EXPORTS[name]}"), name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__all__ = [
+    # linear time histories and discrete models
+    "simulate_chain", "chain_matrices", "simulate_mck", "exact_response",
+    "newmark_ss", "discrete_state_space", "state_space_response",
+    "discretize", "first_order_form", "to_dlti", "to_control",
+    "frequency_response", "undamped_poles", "stability", "critical_omega_dt", "Stability",
+    # modal
+    "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",
+    "discrete_frequency_response", "continuous_frequency_response", "ramp_bias",
+    "truncation_error", "shock_response_spectrum", "sdof_response", "SRS", "load_record",
+    # nonlinear
+    "nonlinear_response", "nonlinear_chain_response", "reference_response", "check_reference",
+    "Cubic", "Polynomial", "Gap", "Law", "BoucWen",
+    # scenes, results, reference problems
+    "Scene", "load_scene", "scene_from_dict", "run_scene", "Response", "p1", "p2", "p3", "p4",
+    # errors and warnings
+    "NewtonError", "DtdynStepStabilityError", "SingularMassError", "DtdynAccuracyWarning",
+    "DtdynStabilityWarning", "DtdynFallbackWarning", "SRSSamplingWarning",
+    "__version__",
+]

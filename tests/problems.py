@@ -33,7 +33,7 @@ def p4(n_samples=100_000):
     (numpy default_rng(0)).
 
     The cubic forces matter: they are tens of percent of the linear ones in RMS and comparable
-    at the peaks. Measured with dtdyn.runtime.nl_reference over all 100,000 samples
+    at the peaks. Measured with dtdyn.nonlinear.reference over all 100,000 samples
     (y = relative displacement of the spring):
 
         spring             max|k3 y^3| / max|k y|    rms(k3 y^3) / rms(k y)    max |y|
@@ -42,5 +42,5 @@ def p4(n_samples=100_000):
 
     (first 5000 samples: peak ratios 0.72 and 0.51; tests/test_nl_reference.py checks them.)
     """
-    from dtdyn.runtime.problems import p4 as runtime_p4
+    from dtdyn.app.problems import p4 as runtime_p4
     return runtime_p4(n_samples)

@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from dtdyn.runtime import bench
+from dtdyn.app import bench
 
 
 @pytest.fixture(scope="module")

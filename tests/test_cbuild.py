@@ -1,4 +1,4 @@
-"""Tests for dtdyn.runtime.cbuild: compile-on-first-use C libraries."""
+"""Tests for dtdyn._engine.cbuild: compile-on-first-use C libraries."""
 from __future__ import annotations
 
 import ctypes
@@ -10,7 +10,7 @@ import warnings
 import pytest
 
 try:
-    from dtdyn.runtime import cbuild
+    from dtdyn._engine import cbuild
 except ImportError as exc:  # pragma: no cover - setup problem, not a test failure
     raise ImportError(
         "dtdyn is not importable; install it first: `pip install -e . --no-deps`"
@@ -78,7 +78,7 @@ def test_cache_hit(_isolated):
 
 def _race_child(env, source, barrier, queue):
     os.environ.update(env)
-    from dtdyn.runtime import cbuild as cb
+    from dtdyn._engine import cbuild as cb
 
     barrier.wait(timeout=60)
     lib = cb.load_library(source, "axpy_race")

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dtdyn.runtime.cli import main
+from dtdyn.app.cli import main
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -53,6 +53,6 @@ def test_simulate_malformed_scene_writes_nothing(tmp_path, capsys):
 
 
 def test_console_script_runs():
-    proc = subprocess.run([sys.executable, "-m", "dtdyn.runtime.cli", "show", "fox_euler"],
+    proc = subprocess.run([sys.executable, "-m", "dtdyn.app.cli", "show", "fox_euler"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "Fox-Euler" in proc.stdout

@@ -40,8 +40,8 @@ import numpy as np
 import pytest
 
 from dtdyn.generated import SCHEMES
-from dtdyn.runtime.chain import chain_matrices, simulate_chain
-from dtdyn.runtime.exact import exact_response
+from dtdyn.linear.chain import chain_matrices, simulate_chain
+from dtdyn.linear.exact import exact_response
 
 SLOPE_TOL = 0.25  # see the module docstring
 

@@ -14,9 +14,9 @@ import warnings
 import numpy as np
 import pytest
 
-from dtdyn.runtime.chain import DtdynAccuracyWarning, chain_matrices, simulate_chain
-from dtdyn.runtime.mck import simulate_mck
-from dtdyn.runtime.schemes import NAMES
+from dtdyn.linear.chain import DtdynAccuracyWarning, chain_matrices, simulate_chain
+from dtdyn.linear.mck import simulate_mck
+from dtdyn._engine.schemes import NAMES
 
 from problems import P1, P2, P3, PROBLEMS, rel_error, uniform_chain
 

@@ -27,8 +27,8 @@ from numpy.testing import assert_allclose
 
 import dtdyn.generated as G
 from dtdyn.generated import tmm as gtmm
-from dtdyn.runtime import kernels
-from dtdyn.runtime.chain import DtdynAccuracyWarning, simulate_chain
+from dtdyn._engine import kernels
+from dtdyn.linear.chain import DtdynAccuracyWarning, simulate_chain
 
 RTOL = 1e-13
 N_DRAWS = 25

@@ -23,14 +23,14 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from dtdyn.runtime.chain import DtdynAccuracyWarning, chain_matrices, simulate_chain
-from dtdyn.runtime.exact import exact_response
-from dtdyn.runtime.mck import simulate_mck
-from dtdyn.runtime.modal import modal_model
-from dtdyn.runtime.modal_filters import modal_filter_response
-from dtdyn.runtime.schemes import NAMES, get_scheme
-from dtdyn.runtime.stability import stability
-from dtdyn.runtime.state_space import discrete_state_space, state_space_response
+from dtdyn.linear.chain import DtdynAccuracyWarning, chain_matrices, simulate_chain
+from dtdyn.linear.exact import exact_response
+from dtdyn.linear.mck import simulate_mck
+from dtdyn.modal.model import modal_model
+from dtdyn.modal.filters import modal_filter_response
+from dtdyn._engine.schemes import NAMES, get_scheme
+from dtdyn.linear.stability import stability
+from dtdyn.linear.state_space import discrete_state_space, state_space_response
 
 from problems import rel_error
 
@@ -513,9 +513,9 @@ def _duffing(n=1000):
 
 @pytest.mark.parametrize("method", ["average_acceleration", "modal_ramp", "generalized_alpha"])
 def test_strong_hardening_converges_at_second_order(method):
-    from dtdyn.runtime.elements import Cubic
-    from dtdyn.runtime.nl_reference import reference_response
-    from dtdyn.runtime.nonlinear import nonlinear_response
+    from dtdyn.nonlinear.elements import Cubic
+    from dtdyn.nonlinear.reference import reference_response
+    from dtdyn.nonlinear.response import nonlinear_response
     M, C, K, f, fs = _duffing()
     els = [Cubic(0, k3=1e8)]
     ref = reference_response(f, fs, M, C, K, [0], els, cache=False)
@@ -537,9 +537,9 @@ def test_stiff_contact_at_large_step():
     stability limit) and runs with the sub-steps it asks for."""
     import re
 
-    from dtdyn.runtime.elements import Gap
-    from dtdyn.runtime.nl_reference import reference_response
-    from dtdyn.runtime.nonlinear import DtdynStepStabilityError, nonlinear_response
+    from dtdyn.nonlinear.elements import Gap
+    from dtdyn.nonlinear.reference import reference_response
+    from dtdyn.nonlinear.response import DtdynStepStabilityError, nonlinear_response
     M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
     fs, n = 1000.0, 1000
     f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]

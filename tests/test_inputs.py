@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from dtdyn.runtime.chain import simulate_chain
-from dtdyn.runtime.mck import simulate_mck
+from dtdyn.linear.chain import simulate_chain
+from dtdyn.linear.mck import simulate_mck
 
 M, K, C = [2.0, 3.0], [20.0, 15.0], [5.0, 6.0]
 F = np.ones((11, 1))

@@ -11,11 +11,11 @@ import sympy as sp
 
 from dtdyn.derive import modal_filters as D
 from dtdyn.generated import modal_filters as G
-from dtdyn.runtime.chain import chain_matrices
-from dtdyn.runtime.discretize import first_order_form
-from dtdyn.runtime.exact import exact_response
-from dtdyn.runtime.modal import from_poles_residues, modal_model
-from dtdyn.runtime.modal_filters import (modal_filter_response, modal_states, run_bank, run_modes,
+from dtdyn.linear.chain import chain_matrices
+from dtdyn.linear.discretize import first_order_form
+from dtdyn.linear.exact import exact_response
+from dtdyn.modal.model import from_poles_residues, modal_model
+from dtdyn.modal.filters import (modal_filter_response, modal_states, run_bank, run_modes,
                                          sections, to_sos)
 
 from problems import P2, P3
@@ -371,7 +371,7 @@ def test_bad_input(kw, words):
 def test_ramp_starts_at_rest_under_a_nonzero_first_sample(method, quantity, key):
     """P3 under a unit step plus a slow sine (f_0 = 1): at rest at t_0, like exact_response
     (without the correction the filters would start from a ramp at t_{-1}: 5e-3 here)."""
-    from dtdyn.runtime.problems import p3
+    from dtdyn.app.problems import p3
     P = p3()
     dt, n = 1e-3, 800
     f = (1.0 + np.sin(0.01 * np.arange(n + 1)))[:, None]

@@ -9,10 +9,10 @@ import time
 import numpy as np
 import pytest
 
-from dtdyn.runtime import nl_reference
-from dtdyn.runtime.elements import BoucWen, Cubic
-from dtdyn.runtime.exact import exact_response
-from dtdyn.runtime.nl_reference import check_reference, reference_response
+from dtdyn.nonlinear import reference as nl_reference
+from dtdyn.nonlinear.elements import BoucWen, Cubic
+from dtdyn.linear.exact import exact_response
+from dtdyn.nonlinear.reference import check_reference, reference_response
 from problems import p4, rel_error
 
 

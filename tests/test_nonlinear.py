@@ -9,10 +9,11 @@ import pytest
 import sympy as sp
 
 from dtdyn.derive import nonlinear as DN
-from dtdyn.runtime import exact_response, simulate_mck
-from dtdyn.runtime import nonlinear as NL
-from dtdyn.runtime.elements import BoucWen, Cubic, Gap, Law, Polynomial
-from dtdyn.runtime.nl_reference import reference_response
+from dtdyn import exact_response
+from dtdyn import simulate_mck
+from dtdyn.nonlinear import response as NL
+from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
+from dtdyn.nonlinear.reference import reference_response
 from problems import p4
 
 N_SHORT = 3000
@@ -73,8 +74,8 @@ def test_parabola_coefficient_series_and_closed_form():
 
 def test_step_matrices_match_hand_B0(P4):
     """The runtime's -Dwg equals the hand B0 of both families (numbers, not the code itself)."""
-    from dtdyn.runtime.elements import element_matrix
-    from dtdyn.runtime.modal import modal_factors
+    from dtdyn.nonlinear.elements import element_matrix
+    from dtdyn.modal.model import modal_factors
     M, C, K = P4["M"], P4["C"], P4["K"]
     L = element_matrix(P4["elements"], 4)
     h = 1e-3
@@ -305,8 +306,8 @@ def test_chain_equals_mck_path(form, scheme, params, elements):
     """The O(N) DT-TMM path and the M, C, K path solve the same per-step problem: equal to
     round-off in both forms (measured <= 1.1e-13; the displacement form solves for the increment,
     tests/test_dttmm.py)."""
-    from dtdyn.runtime.chain import chain_matrices
-    from dtdyn.runtime.nonlinear_chain import nonlinear_chain_response
+    from dtdyn.linear.chain import chain_matrices
+    from dtdyn.nonlinear.chain import nonlinear_chain_response
     m, k, c, f = _chain_case()
     M, C, K = chain_matrices(m, k, c, sparse=False)
     a = nonlinear_chain_response(m, k, c, f, 1000.0, [3], elements, scheme=scheme, form=form,
@@ -324,7 +325,7 @@ def test_chain_c_loop_equals_python_loop(monkeypatch, elements):
     """generated/nl_chain.c runs the same steps as the Python loop around the same C sweep and
     the same compiled residual: equal bitwise (measured), held to 1e-14; and a Newton failure
     names the same step."""
-    import dtdyn.runtime.nonlinear_chain as NC
+    import dtdyn.nonlinear.chain as NC
     m, k, c, f = _chain_case()
     a = NC.nonlinear_chain_response(m, k, c, f, 1000.0, [3], elements, substeps=2)
     monkeypatch.setattr(NC, "_c_driver", lambda *args: None)
@@ -346,8 +347,8 @@ def test_chain_c_loop_equals_python_loop(monkeypatch, elements):
 
 def test_long_chain_linear_limit_equals_simulate_chain():
     """20,000 masses: with zero nonlinear stiffness the chain path is simulate_chain's sweep."""
-    from dtdyn.runtime import simulate_chain
-    from dtdyn.runtime.nonlinear_chain import nonlinear_chain_response
+    from dtdyn import simulate_chain
+    from dtdyn.nonlinear.chain import nonlinear_chain_response
     n = 20_000
     m, k, c = np.ones(n), np.full(n, 1e4), np.full(n, 1.0)
     f = (np.random.default_rng(1).standard_normal(30) * 100.0)[:, None]
@@ -360,7 +361,7 @@ def test_long_chain_linear_limit_equals_simulate_chain():
 
 
 def test_chain_refuses_multistep_and_bad_elements():
-    from dtdyn.runtime.nonlinear_chain import nonlinear_chain_response
+    from dtdyn.nonlinear.chain import nonlinear_chain_response
     m, k, c, f = _chain_case(10)
     with pytest.raises(ValueError, match="multistep"):
         nonlinear_chain_response(m, k, c, f, 1000.0, [3], [Cubic(0, k3=1.0)], scheme="houbolt")

@@ -9,10 +9,11 @@ sys.modules["sympy"] = None  # any import of SymPy or jinja2 now raises ImportEr
 sys.modules["jinja2"] = None
 import warnings
 import numpy as np
-from dtdyn.runtime.chain import simulate_chain
-from dtdyn.runtime.mck import simulate_mck
-from dtdyn.runtime.exact import exact_response
-from dtdyn.runtime import scene, tmm
+from dtdyn.linear.chain import simulate_chain
+from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.exact import exact_response
+from dtdyn.app import scene
+from dtdyn.linear import tmm
 F = np.ones((101, 1))
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from dtdyn.runtime import scene as scene_mod
-from dtdyn.runtime.loads import sample_load
-from dtdyn.runtime.result import Response
-from dtdyn.runtime.scene import load_scene, plot_response, run_scene, save_results
+from dtdyn.app import scene as scene_mod
+from dtdyn.app.loads import sample_load
+from dtdyn._engine.result import Response
+from dtdyn.app.scene import load_scene, plot_response, run_scene, save_results
 
 # reference problem P3 (shared/reference.md section 7)
 P3_MASS = [10, 9, 8, 7, 6, 6, 5.5, 5, 4.5, 4, 3.5, 4, 2.5, 2, 2]
@@ -320,15 +320,15 @@ def test_plot_response_writes_png(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
-# end to end (runs once dtdyn.runtime.chain.simulate_chain and exact.exact_response exist)
+# end to end (runs once dtdyn.linear.chain.simulate_chain and exact.exact_response exist)
 
 def _require_solvers():
-    chain = pytest.importorskip("dtdyn.runtime.chain")
-    exact = pytest.importorskip("dtdyn.runtime.exact")
+    chain = pytest.importorskip("dtdyn.linear.chain")
+    exact = pytest.importorskip("dtdyn.linear.exact")
     if not hasattr(chain, "simulate_chain") or not hasattr(chain, "chain_matrices"):
-        pytest.skip("dtdyn.runtime.chain.simulate_chain is not written yet")
+        pytest.skip("dtdyn.linear.chain.simulate_chain is not written yet")
     if not hasattr(exact, "exact_response"):
-        pytest.skip("dtdyn.runtime.exact.exact_response is not written yet")
+        pytest.skip("dtdyn.linear.exact.exact_response is not written yet")
 
 
 def test_run_default_scene_against_exact(tmp_path):

@@ -13,9 +13,9 @@ import scipy.linalg
 import scipy.sparse as sps
 from numpy.testing import assert_allclose, assert_array_equal
 
-from dtdyn.runtime.cli import main
-from dtdyn.runtime.mck import simulate_mck
-from dtdyn.runtime.scene import load_scene, plot_response, run_scene, save_results
+from dtdyn.app.cli import main
+from dtdyn.linear.mck import simulate_mck
+from dtdyn.app.scene import load_scene, plot_response, run_scene, save_results
 
 M2 = np.array([[2.0, 0.5], [0.5, 1.0]])          # consistent-mass-like: not diagonal
 K2 = np.array([[30.0, -10.0], [-10.0, 10.0]])
@@ -369,7 +369,7 @@ def test_cli_reports_a_bad_matrices_scene(tmp_path, capsys):
 
 
 def test_two_story_example(tmp_path, capsys):
-    path = importlib.resources.files("dtdyn.runtime").joinpath("scenes/two_story.toml")
+    path = importlib.resources.files("dtdyn.app").joinpath("scenes/two_story.toml")
     s = load_scene(Path(str(path)))
     assert s.kind == "matrices" and s.n_dof == 3
     assert s.dof_names == ("floor_1", "floor_2", "roof")

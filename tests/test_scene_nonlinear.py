@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from dtdyn.runtime import problems
-from dtdyn.runtime.chain import chain_matrices
-from dtdyn.runtime.cli import main
-from dtdyn.runtime.elements import Cubic, Gap, Law
-from dtdyn.runtime.nl_reference import reference_response
-from dtdyn.runtime.nonlinear import DtdynStepStabilityError, NewtonError, nonlinear_response
-from dtdyn.runtime.scene import load_scene, run_scene
+from dtdyn.app import problems
+from dtdyn.linear.chain import chain_matrices
+from dtdyn.app.cli import main
+from dtdyn.nonlinear.elements import Cubic, Gap, Law
+from dtdyn.nonlinear.reference import reference_response
+from dtdyn.nonlinear.response import DtdynStepStabilityError, NewtonError, nonlinear_response
+from dtdyn.app.scene import load_scene, run_scene
 
-P4_FILE = Path(str(importlib.resources.files("dtdyn.runtime").joinpath("scenes/p4.toml")))
+P4_FILE = Path(str(importlib.resources.files("dtdyn.app").joinpath("scenes/p4.toml")))
 
 # P4 (reference problem, runtime/problems.py) as a matrices model, 2000 samples at 1 kHz
 P4_MODEL = """

@@ -14,9 +14,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
-from dtdyn.runtime import srs as S
-from dtdyn.runtime.cli import main
-from dtdyn.runtime.srs import SRSSamplingWarning, sdof_response, shock_response_spectrum
+from dtdyn.modal import srs as S
+from dtdyn.app.cli import main
+from dtdyn.modal.srs import SRSSamplingWarning, sdof_response, shock_response_spectrum
 
 G = 9.80665
 
@@ -392,7 +392,7 @@ def test_cli_srs_csv_record_and_errors(tmp_path, capsys):
 def test_cli_response_choices_match_runtime():
     import inspect
 
-    from dtdyn.runtime import cli
+    from dtdyn.app import cli
 
     src = inspect.getsource(cli.main)
     for name in S.RESPONSES:
@@ -405,7 +405,7 @@ def test_runtime_srs_without_sympy_and_jinja2():
 
     code = ("import sys; sys.modules['sympy'] = None; sys.modules['jinja2'] = None\n"
             "import numpy as np\n"
-            "from dtdyn.runtime.srs import shock_response_spectrum\n"
+            "from dtdyn.modal.srs import shock_response_spectrum\n"
             "r = shock_response_spectrum(np.sin(np.arange(100) / 4.0), 1000.0, [20.0, 60.0],"
             " exact_peaks=True)\n"
             "print(r.info['backend'], r.maximax.size)\n")

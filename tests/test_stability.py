@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from dtdyn.runtime.cli import main
-from dtdyn.runtime.scene import run_scene, scene_from_dict
-from dtdyn.runtime.stability import (DtdynStabilityWarning, critical_omega_dt, stability,
+from dtdyn.app.cli import main
+from dtdyn.app.scene import run_scene, scene_from_dict
+from dtdyn.linear.stability import (DtdynStabilityWarning, critical_omega_dt, stability,
                                      warn_if_unstable)
 
 BIG = np.geomspace(1e-2, 1e6, 300)

@@ -4,10 +4,10 @@ import pytest
 import scipy.linalg as sla
 import scipy.signal as sig
 
-from dtdyn.runtime.discretize import first_order_form
-from dtdyn.runtime.exact import exact_response
-from dtdyn.runtime.mck import simulate_mck
-from dtdyn.runtime.state_space import discrete_state_space, newmark_ss, state_space_response
+from dtdyn.linear.discretize import first_order_form
+from dtdyn.linear.exact import exact_response
+from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
 
 
 def random_system(n, rng):
@@ -210,7 +210,7 @@ def _dlsim_case(seed, ns, ni, no, n_steps, radius):
 def test_state_space_response_across_blocks(monkeypatch, backend):
     """The record runs in blocks of SS_BLOCK steps; the state carried from block to block gives
     the same response as one block (here SS_BLOCK = 7 against 40 steps: 5 full blocks and 5)."""
-    import dtdyn.runtime.state_space as ss
+    import dtdyn.linear.state_space as ss
     model, x0, y_ref = _dlsim_case(8, 6, 2, 3, 40, 0.9)
     monkeypatch.setattr(ss, "SS_BLOCK", 7)
     y = ss.state_space_response(*model, x0=x0, backend=backend)
@@ -252,8 +252,8 @@ def test_bad_input():
 def test_rest_state_starts_at_rest_under_a_step():
     """With f_0 != 0 the shifted state of a system at rest is not 0: rest_state gives it, and the
     model then equals simulate_mck (same scheme) to round-off."""
-    from dtdyn.runtime import simulate_mck
-    from dtdyn.runtime.state_space import rest_state
+    from dtdyn import simulate_mck
+    from dtdyn.linear.state_space import rest_state
     M, C, K = np.diag([2.0, 1.0]), np.array([[0.3, -0.1], [-0.1, 0.1]]), \
         np.array([[30.0, -10.0], [-10.0, 10.0]])
     dt, n = 0.01, 400

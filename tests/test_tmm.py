@@ -2,8 +2,8 @@
 import numpy as np
 import scipy.linalg as sla
 
-from dtdyn.runtime.chain import chain_matrices
-from dtdyn.runtime.tmm import frequency_response, undamped_poles
+from dtdyn.linear.chain import chain_matrices
+from dtdyn.linear.tmm import frequency_response, undamped_poles
 
 from problems import P2, P3
 

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import problems
-from .atomic import write_atomic
+from dtdyn.app import problems
+from dtdyn._engine.atomic import write_atomic
 
 
 @dataclass
@@ -80,11 +80,11 @@ def bench_p3(quick=False, log=print):
     from scipy import signal
     from scipy.integrate import solve_ivp
 
-    from .chain import simulate_chain
-    from .discretize import discretize, first_order_form
-    from .exact import exact_response
-    from .modal_filters import modal_filter_response
-    from .state_space import discrete_state_space, rest_state, state_space_response
+    from dtdyn.linear.chain import simulate_chain
+    from dtdyn.linear.discretize import discretize, first_order_form
+    from dtdyn.linear.exact import exact_response
+    from dtdyn.modal.filters import modal_filter_response
+    from dtdyn.linear.state_space import discrete_state_space, rest_state, state_space_response
     P = problems.p3()
     M, C, K, T, out = P["M"], P["C"], P["K"], P["T"], P["output"]
     dts = (2e-3, 1e-3, 5e-4) if quick else (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4)
@@ -162,8 +162,8 @@ P4_METHODS = [("modal_parabolic", {}), ("modal_ramp", {}), ("newmark", {}),
 def bench_p4(quick=False, log=print):
     from scipy.integrate import solve_ivp
 
-    from .nl_reference import check_reference, reference_response
-    from .nonlinear import nonlinear_response
+    from dtdyn.nonlinear.reference import check_reference, reference_response
+    from dtdyn.nonlinear.response import nonlinear_response
     n = 10_000 if quick else 100_000
     P = problems.p4(n)
     out = P["output"]

@@ -11,7 +11,7 @@ reference problem P3)::
     damping = [...]                     # N s/m, >= 0, optional (zeros)
     [[load]]                            # one or more; loads on the same dof add up
     dof = 14                            # 0-based mass index
-    kind = "step"                       # and that kind's fields, see dtdyn.runtime.loads
+    kind = "step"                       # and that kind's fields, see dtdyn.app.loads
     amplitude = 1.0
     [scheme]
     name = "newmark"                    # plus that scheme's parameters: beta = 0.25, gamma = 0.5
@@ -50,7 +50,7 @@ are 0-based indices or names from ``model.dofs``. It runs with ``simulate_mck`` 
 acceleration form, dense or sparse); ``scheme.form``, ``scheme.sweep`` and ``scheme.backend``
 belong to chains and are rejected.
 
-Nonlinear elements (dtdyn.runtime.elements) join the model, chain or matrices; any
+Nonlinear elements (dtdyn.nonlinear.elements) join the model, chain or matrices; any
 ``[[element]]`` table makes the scene nonlinear (``scenes/p4.toml``, reference problem P4)::
 
     [[element]]                         # zero or more, in the order given
@@ -76,7 +76,7 @@ element classes)::
     gap         gap (m, >= 0), stiffness (N/m, > 0), smoothing (m, >= 0) [0.0],
                 side ("both", "positive", "negative") ["both"]
     law         expression = "k*x**3 + c*v"         g(x, v): x = y, v = y'; arithmetic and the
-                [element.constants]                 functions of dtdyn.runtime.expressions (parsed,
+                [element.constants]                 functions of dtdyn.nonlinear.expressions (parsed,
                 k = 2e7                             never evaluated as Python); constants: a table
                 c = 0.5                             of numbers [none]
     bouc_wen    stiffness (> 0), beta, gamma, alpha (>= 0) [0.1], A [1.0], n (>= 1) [1.0]
@@ -108,10 +108,10 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sps
 
-from . import validate
-from .atomic import write_atomic
-from .loads import finite_number, sample_load
-from .result import Response
+from dtdyn._engine import validate
+from dtdyn._engine.atomic import write_atomic
+from dtdyn.app.loads import finite_number, sample_load
+from dtdyn._engine.result import Response
 
 __all__ = ["Scene", "load_scene", "scene_from_dict", "run_scene", "save_results", "plot_response",
            "SCHEMES", "FORMS", "SWEEPS", "BACKENDS", "QUANTITIES", "EXACT_MAX_DOF", "MODEL_KINDS",
@@ -151,7 +151,7 @@ _TIME_KEYS = ("dt", "duration")
 _OUTPUT_KEYS = ("dofs", "quantities")
 _SCHEME_COMMON = ("name", "form", "sweep", "backend")
 
-#: element kind -> (class in dtdyn.runtime.elements, required fields, optional fields); the
+#: element kind -> (class in dtdyn.nonlinear.elements, required fields, optional fields); the
 #: optional fields' defaults are the classes' own
 ELEMENT_KINDS: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
     "cubic": ("Cubic", ("k3",), ()),
@@ -189,7 +189,7 @@ class Scene:
     name per DOF; ``form = "acceleration"``, ``sweep = None``, ``backend`` ``"numpy"`` or
     ``"scipy.sparse"``).
 
-    A nonlinear scene has ``elements`` (dtdyn.runtime.elements objects, DOFs checked),
+    A nonlinear scene has ``elements`` (dtdyn.nonlinear.elements objects, DOFs checked),
     ``scheme`` the method (``"modal_ramp"``, ``"modal_parabolic"`` or a one-step scheme),
     ``scheme_params`` that scheme's parameters, ``nonlinear`` the ``[nonlinear]`` options the
     file gives (``substeps``, ``tol``, ``max_iter``, ``modes``, ``backend``; the others take
@@ -651,7 +651,7 @@ def _element_field(name: str, value, what):
 
 def _parse_element(k: int, spec, n_dof: int, names: tuple[str, ...] | None):
     """The element of ``[[element]]`` number k (0-based), built from checked fields."""
-    from . import elements as el_mod
+    from dtdyn.nonlinear import elements as el_mod
 
     name = f"element[{k}]"
     if not isinstance(spec, dict):
@@ -679,7 +679,7 @@ def _parse_element(k: int, spec, n_dof: int, names: tuple[str, ...] | None):
     fields = {key: _element_field(f"{name}.{key}", spec[key], _ELEMENT_FIELDS[key])
               for key in (*required, *optional) if key in spec}
     if kind == "law":  # parsed here so that a refused expression names this field
-        from .expressions import parse_expression
+        from dtdyn.nonlinear.expressions import parse_expression
 
         constants = fields.pop("constants", {})
         parse_expression(fields["expression"], variables=("x", "v"), constants=tuple(constants),
@@ -698,14 +698,14 @@ def _parse_elements(tables, n_dof: int, names: tuple[str, ...] | None) -> tuple:
 
 
 def _nonlinear_methods() -> tuple[str, ...]:
-    from .nonlinear import MODAL, MULTISTEP
+    from dtdyn.nonlinear.response import MODAL, MULTISTEP
 
     return MODAL + tuple(s for s in SCHEMES if s not in MULTISTEP)
 
 
 def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
     """(method, scheme parameters, options, backend) of a nonlinear scene (module docstring)."""
-    from .nonlinear import MODAL
+    from dtdyn.nonlinear.response import MODAL
 
     _table("nonlinear", tbl, _NONLINEAR_KEYS)
     methods = _nonlinear_methods()
@@ -898,8 +898,8 @@ def load_scene(path: str | os.PathLike | None = None) -> Scene:
     15
     """
     if path is None:
-        resource = importlib.resources.files("dtdyn.runtime").joinpath(DEFAULT_SCENE)
-        source = f"dtdyn.runtime/{DEFAULT_SCENE}"
+        resource = importlib.resources.files("dtdyn.app").joinpath(DEFAULT_SCENE)
+        source = f"dtdyn.app/{DEFAULT_SCENE}"
         text = resource.read_text(encoding="utf-8")
         base_dir = Path(str(resource)).parent if isinstance(resource, Path) else Path.cwd()
     else:
@@ -952,7 +952,7 @@ def check_stability(scene: Scene) -> bool:
     method is a scheme (the modal methods are exact for the linear part; nonlinear_response
     checks the elements' tangent stiffness as it runs).
     """
-    from .stability import warn_if_unstable
+    from dtdyn.linear.stability import warn_if_unstable
 
     dt = scene.dt
     if not scene.linear:
@@ -970,14 +970,14 @@ def scene_matrices(scene: Scene):
     """(M, C, K) of a scene: a chain's from ``chain_matrices`` (dense), else as held."""
     if scene.kind == "matrices":
         return scene.M, scene.C, scene.K
-    from .chain import chain_matrices
+    from dtdyn.linear.chain import chain_matrices
 
     return chain_matrices(scene.mass, scene.stiffness, scene.damping, sparse=False)
 
 
 def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
     """``nonlinear_response`` on the scene; errors get the scene file's name."""
-    from . import nonlinear
+    from dtdyn.nonlinear import response as nonlinear
 
     M, C, K = scene_matrices(scene)
     start = time.perf_counter()
@@ -1042,7 +1042,7 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
     Raises
     ------
     NewtonError, DtdynStepStabilityError
-        A nonlinear scene's step failed (dtdyn.runtime.nonlinear); the message starts with the
+        A nonlinear scene's step failed (dtdyn.nonlinear.response); the message starts with the
         scene file and names the step, its time and the residual (or the tangent stiffness).
     """
     check_stability(scene)
@@ -1050,7 +1050,7 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
         return _run_nonlinear(scene)
     start = time.perf_counter()
     if scene.kind == "matrices":
-        from . import mck
+        from dtdyn.linear import mck
 
         response = mck.simulate_mck(
             scene.M, scene.C, scene.K, scene.force, scene.dt, scene.n_steps, loaded=scene.loaded,
@@ -1058,7 +1058,7 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
             progress=progress, **scene.scheme_params)
         response.info.setdefault("backend", scene.backend)
     else:
-        from . import chain  # imported here: chain may compile kernels on first use
+        from dtdyn.linear import chain  # imported here: chain may compile kernels on first use
 
         response = chain.simulate_chain(
             scene.mass, scene.stiffness, scene.damping, scene.force, scene.dt, scene.n_steps,
@@ -1074,7 +1074,7 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
         "run_time_s": run_time, "exact_time_s": None, "max_rel_error": None,
     }
     if scene.linear and scene.n_dof <= EXACT_MAX_DOF and response.x is not None:
-        from . import exact
+        from dtdyn.linear import exact
 
         if scene.kind == "matrices":
             matrices = (scene.M, scene.C, scene.K)

@@ -11,9 +11,11 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse
 
-from . import linalg, validate
-from .discretize import first_order_form
-from .result import Response
+from dtdyn._engine import linalg
+from dtdyn._engine import validate
+from dtdyn.linear.discretize import first_order_form
+from dtdyn._engine.result import Response
+from dtdyn._engine.errors import SingularMassError
 
 __all__ = ["SingularMassError", "exact_response", "foh_matrices"]
 
@@ -37,10 +39,6 @@ def foh_matrices(A: np.ndarray, B: np.ndarray, dt: float):
     gam_a = E[:ns, ns:ns + ni]       # int_0^dt e^{A(dt-s)} ds B
     gam_b = E[:ns, ns + ni:]         # int_0^dt e^{A(dt-s)} (s/dt) ds B
     return Phi, gam_a - gam_b, gam_b
-
-
-class SingularMassError(ValueError):
-    """M is singular in a way `exact_response` cannot reduce (see its Notes)."""
 
 
 def _reduced_form(M, C, K, loaded):

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import validate
+from dtdyn._engine import validate
 
 __all__ = ["LOAD_KINDS", "sample_load", "finite_number"]
 

@@ -64,8 +64,8 @@ def _show(args) -> int:
 
 def _simulate_nonlinear(args, sc) -> int:
     """`dtdyn simulate` of a scene with [[element]]: run, store, print times and Newton stats."""
-    from dtdyn.runtime import scene as scenes
-    from dtdyn.runtime.nonlinear import DtdynStepStabilityError, NewtonError
+    from dtdyn.app import scene as scenes
+    from dtdyn.nonlinear.response import DtdynStepStabilityError, NewtonError
 
     params = "".join(f", {k} = {v:g}" for k, v in sc.scheme_params.items())
     substeps = sc.nonlinear.get("substeps", 1)
@@ -100,7 +100,7 @@ def _simulate_nonlinear(args, sc) -> int:
 
 
 def _simulate(args) -> int:
-    from dtdyn.runtime import scene as scenes
+    from dtdyn.app import scene as scenes
 
     sc = scenes.load_scene(args.scene)
     if not sc.linear:
@@ -115,7 +115,7 @@ def _simulate(args) -> int:
     if sc.backend == "c":
         import time
 
-        from dtdyn.runtime import kernels
+        from dtdyn._engine import kernels
 
         t0 = time.perf_counter()
         kernels.c_chain_function(sc.scheme)
@@ -141,7 +141,7 @@ def _stability(args) -> int:
     import numpy as np
 
     from dtdyn.generated import SCHEMES
-    from dtdyn.runtime.stability import critical_omega_dt, stability
+    from dtdyn.linear.stability import critical_omega_dt, stability
 
     names = args.schemes or list(SCHEMES)
     omega = np.geomspace(1e-2, 1e3, 400)
@@ -185,7 +185,7 @@ def _stability(args) -> int:
 
 
 def _bench(args) -> int:
-    from dtdyn.runtime import bench
+    from dtdyn.app import bench
     command = "dtdyn bench " + " ".join(args.problems) + (" --quick" if args.quick else "")
     bench.run(args.problems, args.out, quick=args.quick, command=command)
     return 0
@@ -196,7 +196,7 @@ def _srs(args) -> int:
 
     import numpy as np
 
-    from dtdyn.runtime import srs as S
+    from dtdyn.modal import srs as S
 
     accel = S.load_record(args.record, args.column)
     if not args.fs > 0.0 or not np.isfinite(args.fs):

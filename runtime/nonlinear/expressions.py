@@ -20,7 +20,7 @@ Grammar accepted (Python's own precedence and associativity; ``**`` binds right)
               | ("min" | "max") "(" expr "," expr ")"
 
 Functions (`FUNCTIONS`), each with the attribute of the math namespace ``ops`` it calls
-(`dtdyn.runtime.elements.NUMPY_OPS` or `~dtdyn.runtime.elements.casadi_ops`) and its SymPy
+(`dtdyn.nonlinear.elements.NUMPY_OPS` or `~dtdyn.nonlinear.elements.casadi_ops`) and its SymPy
 counterpart::
 
     sqrt exp log sin cos tan sinh cosh tanh      ops.<same name>     sympy.<same name>
@@ -38,7 +38,7 @@ undeclared names, empty text, text longer than `MAX_LENGTH` characters and nesti
 
 Example
 -------
->>> from dtdyn.runtime.elements import NUMPY_OPS
+>>> from dtdyn.nonlinear.elements import NUMPY_OPS
 >>> law = parse_expression("k*x**3 + c*v", constants=("k", "c"), name="Law.expression")
 >>> sorted(law.names)
 ['c', 'k', 'v', 'x']
@@ -299,7 +299,7 @@ class ParsedExpression:
         Parameters
         ----------
         ops : namespace
-            The math functions: `dtdyn.runtime.elements.NUMPY_OPS` (floats and arrays; Python
+            The math functions: `dtdyn.nonlinear.elements.NUMPY_OPS` (floats and arrays; Python
             int/float values and the literals are computed as numpy.float64, so ``1/x`` at 0 is
             inf and ``x**0.5`` at x < 0 is nan, with NumPy's warnings) or
             ``casadi_ops()`` (CasADi SX/MX symbols or numbers).

@@ -186,7 +186,7 @@ class Gap(Element):
 class Law(Element):
     """A user force law g(x, v): an arithmetic expression in x, v and named constants.
 
-    The text is parsed by `dtdyn.runtime.expressions` (arithmetic, x, v, the constants given
+    The text is parsed by `dtdyn.nonlinear.expressions` (arithmetic, x, v, the constants given
     and a fixed list of functions); anything else is refused here, before anything runs.
     """
 
@@ -201,7 +201,7 @@ class Law(Element):
         self.__post_init__()
 
     def __post_init__(self):
-        from .expressions import parse_expression
+        from dtdyn.nonlinear.expressions import parse_expression
         super().__post_init__()
         consts = {str(k): _number(f"Law constant {k}", c) for k, c in self.constants.items()}
         object.__setattr__(self, "constants", consts)

@@ -15,9 +15,11 @@ import scipy.sparse as sps
 
 from dtdyn.generated.dttmm_sweep import combine, shift_history
 
-from . import linalg, stepping, validate
-from .result import Response
-from .schemes import get_scheme
+from dtdyn._engine import linalg
+from dtdyn._engine import stepping
+from dtdyn._engine import validate
+from dtdyn._engine.result import Response
+from dtdyn._engine.schemes import get_scheme
 
 
 def _initial_acceleration(M, f0):

@@ -12,8 +12,8 @@ from typing import Callable
 
 import numpy as np
 
-from .result import Response
-from .schemes import SchemeInfo, get_scheme
+from dtdyn._engine.result import Response
+from dtdyn._engine.schemes import SchemeInfo, get_scheme
 
 #: a stepper: (scheme, coefficients) -> advance(force_rows, H, xo, vo, ao) -> error estimate of
 #: the run so far (not of the call: an estimate that propagates through the steps is not a sum

@@ -15,7 +15,8 @@ import scipy.linalg
 import scipy.signal
 import scipy.sparse
 
-from . import linalg, validate
+from dtdyn._engine import linalg
+from dtdyn._engine import validate
 
 __all__ = ["HOLDS", "first_order_form", "discretize", "to_dlti", "to_control"]
 
@@ -148,7 +149,7 @@ def discretize(M, C, K, dt, hold="zoh"):
     so :math:`y_n = x_n + \Gamma_2 f_n = z_n`; a simulation from :math:`z_0` starts at
     :math:`x_0 = z_0 - \Gamma_2 f_0` (the same device as the Newmark state space of
     reference.md section 5, :math:`x_n = y_n - A_{ss1}^{-1}B_{ss1} f_n`). (:math:`\Gamma_1, \Gamma_2` are
-    :math:`\Gamma_a, \Gamma_b` of :func:`dtdyn.runtime.exact.foh_matrices`.)
+    :math:`\Gamma_a, \Gamma_b` of :func:`dtdyn.linear.exact.foh_matrices`.)
 
     **Impulse invariance** (``"impulse"``; the discrete impulse response is :math:`\Delta t`
     times the sampled continuous impulse response :math:`C e^{At}B`, including the

@@ -23,8 +23,10 @@ import scipy.linalg as sla
 
 from dtdyn.generated import newmark_ss as _blocks
 
-from . import cbuild, linalg, validate
-from .schemes import get_scheme
+from dtdyn._engine import cbuild
+from dtdyn._engine import linalg
+from dtdyn._engine import validate
+from dtdyn._engine.schemes import get_scheme
 
 
 def _shift_feedthrough(Phi, G0, G1, S):
@@ -107,7 +109,7 @@ def rest_state(M, C, K, dt, f0, scheme="newmark", **scheme_params):
     x_0 = z_0 - Gamma1 f_0. (For `discretize` with Cd = I the same reasoning gives
     x_0 = -Dd f_0.) Pass it as ``state_space_response(..., x0=rest_state(...))``.
     """
-    from .mck import _initial_acceleration
+    from dtdyn.linear.mck import _initial_acceleration
     M, C, K = linalg.mck(M, C, K)
     n = M.shape[0]
     f0 = validate.vector("f0", f0, length=n)

@@ -15,16 +15,15 @@ import warnings
 import numpy as np
 import scipy.sparse as sps
 
-from . import kernels, stepping, validate
-from .result import Response
-from .schemes import get_scheme
+from dtdyn._engine import kernels
+from dtdyn._engine import stepping
+from dtdyn._engine import validate
+from dtdyn._engine.result import Response
+from dtdyn._engine.schemes import get_scheme
+from dtdyn._engine.errors import DtdynAccuracyWarning
 
 #: the plain sweep warns above this estimated relative error
 PLAIN_SWEEP_TOLERANCE = 1e-6
-
-
-class DtdynAccuracyWarning(RuntimeWarning):
-    """A result whose estimated error is large (e.g. the plain DT-TMM sweep on a long chain)."""
 
 
 def chain_parameters(mass, stiffness, damping):

@@ -21,10 +21,11 @@ import scipy
 import scipy.integrate
 import scipy.linalg
 
-from . import linalg, validate
-from .atomic import write_atomic
-from .elements import NUMPY_OPS, check_elements, element_matrix
-from .result import Response
+from dtdyn._engine import linalg
+from dtdyn._engine import validate
+from dtdyn._engine.atomic import write_atomic
+from dtdyn.nonlinear.elements import NUMPY_OPS, check_elements, element_matrix
+from dtdyn._engine.result import Response
 
 __all__ = ["reference_response", "check_reference", "reference_cache_dir"]
 
@@ -34,9 +35,9 @@ METHODS = {"DOP853": scipy.integrate.DOP853, "Radau": scipy.integrate.Radau}
 
 
 def reference_cache_dir() -> Path:
-    """``<dtdyn cache>/reference/``, created: the folder of `dtdyn.runtime.cbuild.cache_dir`
+    """``<dtdyn cache>/reference/``, created: the folder of `dtdyn._engine.cbuild.cache_dir`
     (``$DTDYN_CACHE``, else ``$XDG_CACHE_HOME/dtdyn``, else ``~/.cache/dtdyn``)."""
-    from .cbuild import cache_dir
+    from dtdyn._engine.cbuild import cache_dir
     path = cache_dir() / "reference"
     path.mkdir(parents=True, exist_ok=True)
     return path
@@ -295,7 +296,7 @@ def reference_response(force, fs, M, C, K, force_dofs, elements=(), outputs=None
     force_dofs : sequence of int
         0-based DOFs the force columns act on.
     elements : sequence of Element
-        Nonlinear elements (`dtdyn.runtime.elements`); empty for a linear structure.
+        Nonlinear elements (`dtdyn.nonlinear.elements`); empty for a linear structure.
     outputs : sequence of int, optional
         DOFs whose x, v, a are returned (all by default).
     method : {"DOP853", "Radau"}
@@ -343,7 +344,7 @@ def reference_response(force, fs, M, C, K, force_dofs, elements=(), outputs=None
 
     Example
     -------
-    >>> from dtdyn.runtime.elements import Cubic
+    >>> from dtdyn.nonlinear.elements import Cubic
     >>> r = reference_response(f, 1000.0, M, C, K, [3], [Cubic(0, k3=2e7)])  # doctest: +SKIP
     """
     start = time.perf_counter()

@@ -1,5 +1,9 @@
-"""The reference problems of shared/reference.md section 7, as data (for `dtdyn bench`).
+"""The reference problems P1-P4, as data: one home for the tests, the benchmarks, `dtdyn bench`
+and the scenes.
 
+P1: 1-DOF, m = 2 kg, k = 12 N/m, c = 3 N s/m, unit step force, dt = 0.02 s, T = 10 s.
+P2: 2-DOF chain, m = [2, 3] kg, k = [20, 15] N/m, c = [5, 6] N s/m, unit step on the last mass,
+dt = 0.02 s, T = 10 s.
 P3: 15-DOF chain of Kumar & Sankar (1986), undamped, unit step on mass 15, T = 0.8 s.
 P4: the nonlinear 4-DOF chain (the shape of Ahlin's example):
 
@@ -18,8 +22,23 @@ P3_STIFFNESS = [55000, 50000, 45000, 40000, 40000, 35000, 30000, 25000, 20000, 1
                 9000, 8000, 7000, 6000]
 
 
+def _chain(mass, stiffness, damping, **extra) -> dict:
+    from dtdyn.linear.chain import chain_matrices
+    mass, stiffness, damping = (np.array(v, float) for v in (mass, stiffness, damping))
+    M, C, K = chain_matrices(mass, stiffness, damping, sparse=False)
+    return dict(mass=mass, stiffness=stiffness, damping=damping, M=M, C=C, K=K, **extra)
+
+
+def p1() -> dict:
+    return _chain([2.0], [12.0], [3.0], dt=0.02, T=10.0, loaded=[0], output=0)
+
+
+def p2() -> dict:
+    return _chain([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], dt=0.02, T=10.0, loaded=[1], output=1)
+
+
 def p3() -> dict:
-    from .chain import chain_matrices
+    from dtdyn.linear.chain import chain_matrices
     mass, stiffness = np.array(P3_MASS, float), np.array(P3_STIFFNESS, float)
     damping = np.zeros(15)
     M, C, K = chain_matrices(mass, stiffness, damping, sparse=False)
@@ -28,8 +47,8 @@ def p3() -> dict:
 
 
 def p4(n_samples: int = 100_000) -> dict:
-    from .chain import chain_matrices
-    from .elements import Cubic
+    from dtdyn.linear.chain import chain_matrices
+    from dtdyn.nonlinear.elements import Cubic
     k, k3 = 1e4, 2e7
     M, _, K = chain_matrices(np.ones(4), np.full(4, k), np.zeros(4), sparse=False)
     C = 1.0 * M + 2e-4 * K

@@ -25,7 +25,7 @@ H_z(s) = -1 / ((s - s1)(s - conj s1)), R_z = -1 / (s1 - conj s1) = j / (2 omega_
 
 The real second-order section of each frequency comes from the *generated* coefficients
 ``dtdyn.generated.modal_filters.pair_sections("ramp", s1, R, T)``; the sections run over the
-record in the generated C kernel ``run_bank`` of :mod:`dtdyn.runtime.modal_filters`. The section
+record in the generated C kernel ``run_bank`` of :mod:`dtdyn.modal.filters`. The section
 output is y_n = 2 Re q_n where q' = s1 q + R a(t) (the complex modal coordinate), which is what
 lets this module rebuild the continuous state between samples (below).
 
@@ -102,9 +102,10 @@ import numpy as np
 
 from dtdyn.generated import modal_filters as coef
 
-from . import validate
-from .atomic import write_atomic
-from .modal_filters import _c_bank, run_bank
+from dtdyn._engine import validate
+from dtdyn._engine.atomic import write_atomic
+from dtdyn.modal.filters import _c_bank, run_bank
+from dtdyn._engine.errors import SRSSamplingWarning
 
 __all__ = ["RESPONSES", "WINDOWS", "SRS", "SRSSamplingWarning", "shock_response_spectrum",
            "sdof_response", "load_record", "peak_error_bound", "bias_error_bound", "plot_srs",
@@ -127,10 +128,6 @@ _CHUNK_MIN_ROWS = 1024
 #: bytes of filter output per run_bank call: frequencies are filtered in blocks of this size, so
 #: the working memory stays bounded however many frequencies are asked for
 _BLOCK_BYTES = 4 << 20
-
-
-class SRSSamplingWarning(RuntimeWarning):
-    """The sampling limits the accuracy of the spectrum at the highest frequencies."""
 
 
 @dataclass

@@ -10,7 +10,7 @@ from scipy.optimize import brentq
 
 from dtdyn.generated import tmm as elements
 
-from .chain import chain_parameters
+from dtdyn.linear.chain import chain_parameters
 
 
 def system_matrix(m, k, c, s: complex) -> np.ndarray:

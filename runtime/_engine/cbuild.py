@@ -25,6 +25,7 @@ import tempfile
 import threading
 import warnings
 from pathlib import Path
+from dtdyn._engine.errors import DtdynFallbackWarning
 
 try:  # POSIX only; without it the C backend is reported as unavailable.
     import fcntl
@@ -66,10 +67,6 @@ _lock = threading.RLock()
 _memo: dict[tuple[str, str], ctypes.CDLL | None] = {}
 _compilers: dict[tuple[str | None, str | None], tuple[tuple[str, ...], str]] = {}
 _warned = False
-
-
-class DtdynFallbackWarning(RuntimeWarning):
-    """The C backend is unavailable and the NumPy implementation is used instead."""
 
 
 class _Unavailable(Exception):

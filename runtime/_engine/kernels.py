@@ -9,8 +9,8 @@ import numpy as np
 
 from dtdyn.generated import dttmm_sweep
 
-from . import cbuild
-from .stepping import history_from_states
+from dtdyn._engine import cbuild
+from dtdyn._engine.stepping import history_from_states
 
 FORM_CODE = {"displacement": 0, "acceleration": 1}
 SWEEP_CODE = {"stable": 0, "plain": 1}

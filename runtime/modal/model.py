@@ -37,8 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from . import linalg, validate
-from .chain import DtdynAccuracyWarning
+from dtdyn._engine import linalg
+from dtdyn._engine import validate
+from dtdyn.linear.chain import DtdynAccuracyWarning
 
 #: a pole with |s| below this times max |s| is a rigid-body (zero) pole
 ZERO_POLE_TOLERANCE = 1e-8

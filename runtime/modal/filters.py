@@ -44,9 +44,10 @@ import numpy as np
 
 from dtdyn.generated import modal_filters as coef
 
-from . import cbuild, validate
-from .modal import ModalModel, modal_model
-from .result import Response
+from dtdyn._engine import cbuild
+from dtdyn._engine import validate
+from dtdyn.modal.model import ModalModel, modal_model
+from dtdyn._engine.result import Response
 
 QUANTITIES = ("displacement", "velocity", "acceleration")
 METHODS = ("auto", "modes", "sections")

@@ -1,6 +1,6 @@
 """Frequency-domain errors of the modal digital filters (reference.md section 6).
 
-The bank of `dtdyn.runtime.modal_filters` replaces the continuous receptance
+The bank of `dtdyn.modal.filters` replaces the continuous receptance
 H(s) = sum_r R_r/(s - s_r) + conj(R_r)/(s - conj(s_r)) (+ real poles) by a sum of digital
 sections. This module evaluates what that replacement does to the frequency response, and what
 dropping modes does. Notation: T = 1/fs, omega = 2 pi f, omega_s = 2 pi fs, x = f/fs,
@@ -73,9 +73,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import validate
-from .modal import QUANTITY_POWER, ModalModel, modal_model
-from .modal_filters import quantity_residues, sections
+from dtdyn._engine import validate
+from dtdyn.modal.model import QUANTITY_POWER, ModalModel, modal_model
+from dtdyn.modal.filters import quantity_residues, sections
 
 __all__ = ["INVARIANTS", "discrete_frequency_response", "continuous_frequency_response",
            "ramp_bias", "alias_sum", "AliasSum", "truncation_error", "TruncationError"]

@@ -40,9 +40,12 @@ from importlib import resources
 
 import numpy as np
 
-from . import cbuild, linalg, validate
-from .elements import casadi_ops, check_elements, element_matrix
-from .result import Response
+from dtdyn._engine import cbuild
+from dtdyn._engine import linalg
+from dtdyn._engine import validate
+from dtdyn.nonlinear.elements import casadi_ops, check_elements, element_matrix
+from dtdyn._engine.result import Response
+from dtdyn._engine.errors import DtdynStepStabilityError, NewtonError
 
 MULTISTEP = ("houbolt", "park")
 MODAL = ("modal_ramp", "modal_parabolic")
@@ -55,10 +58,6 @@ MODAL = ("modal_ramp", "modal_parabolic")
 #: theta = 0.03 without damping (docs/nonlinear.md), so it is held to theta <= 0.01.
 #: The implicit schemes (average acceleration, HHT, generalized-alpha) have no such limit.
 THETA_LIMIT = {"modal_ramp": 2.0, "modal_parabolic": 0.01}
-
-
-class NewtonError(RuntimeError):
-    """The per-step Newton iteration failed (not converged, singular Jacobian or non-finite)."""
 
 
 @dataclass
@@ -116,7 +115,7 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> Li
     from dtdyn.generated.modal_filters import forced_coefficients
     from dtdyn.generated.nl_modal import parabola_coefficient
 
-    from .modal import _pair_poles, modal_factors
+    from dtdyn.modal.model import _pair_poles, modal_factors
     s_all, Psi_q, X_f = modal_factors(M, C, K)
     keep, osc = _pair_poles(s_all)
     order = np.argsort(np.abs(s_all[keep]), kind="stable")
@@ -165,7 +164,7 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> Li
 def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearStep:
     """The scheme's one-step model (`scheme_blocks`), history [x0; v0; a0] per DOF, with
     a_0 = M^+ U u_0 at rest (M^+: pseudo-inverse, = M^-1 when M is nonsingular)."""
-    from .state_space import scheme_blocks
+    from dtdyn.linear.state_space import scheme_blocks
     if scheme in MULTISTEP:
         raise ValueError(f"method {scheme!r} is a multistep scheme whose start-up is not a single "
                          "linear step; use 'newmark', 'hht', 'generalized_alpha' or 'modal_ramp'")
@@ -248,7 +247,7 @@ def _residual_function(elements, sz: _Sizes):
 
 def _forces_at_rest(elements, sz: _Sizes):
     """g and z' at y = y' = 0, z = 0 (the state at t_0)."""
-    from .elements import NUMPY_OPS
+    from dtdyn.nonlinear.elements import NUMPY_OPS
     g = np.array([float(el.force(0.0, 0.0, np.zeros(el.n_internal), NUMPY_OPS))
                   for el in elements])
     rate = [float(r) for el in elements for r in el.rate(0.0, 0.0, np.zeros(el.n_internal),
@@ -448,7 +447,7 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
     force_dofs : sequence of int
         0-based loaded DOFs.
     elements : sequence of elements
-        `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen` (dtdyn.runtime.elements).
+        `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen` (dtdyn.nonlinear.elements).
     modes : sequence of int, optional
         Modal methods only: the modes kept (indices into the modes sorted by |s|).
     outputs : sequence of int, optional
@@ -561,10 +560,6 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
                           "newton_iterations": iters, "max_residual": worst,
                           "max_theta": theta,
                           **({"scheme_params": scheme_params} if scheme_params else {})})
-
-
-class DtdynStepStabilityError(ValueError):
-    """The elements' tangent stiffness is beyond the method's stability limit at this step."""
 
 
 def _stability_error(method, k, S, fs, theta):

@@ -15,7 +15,8 @@ import numpy as np
 
 from dtdyn.generated import stability as _amp
 
-from .schemes import get_scheme
+from dtdyn._engine.schemes import get_scheme
+from dtdyn._engine.errors import DtdynStabilityWarning
 
 
 @dataclass
@@ -27,10 +28,6 @@ class Stability:
     spectral_radius: np.ndarray
     period_elongation: np.ndarray  # NaN where the principal pair is real (no oscillation)
     algorithmic_damping: np.ndarray
-
-
-class DtdynStabilityWarning(RuntimeWarning):
-    """The scheme is unstable at this dt for some mode of the model."""
 
 
 def stability(scheme, omega_dt, zeta=0.0, **scheme_params) -> Stability:

@@ -1,0 +1,31 @@
+"""Every exception and warning dtdyn raises of its own, in one place (all re-exported by `dtdyn`)."""
+
+__all__ = ["NewtonError", "DtdynStepStabilityError", "DtdynStabilityWarning", "DtdynAccuracyWarning", "SingularMassError", "SRSSamplingWarning", "DtdynFallbackWarning"]
+
+
+class NewtonError(RuntimeError):
+    """The per-step Newton iteration failed (not converged, singular Jacobian or non-finite)."""
+
+
+class DtdynStepStabilityError(ValueError):
+    """The elements' tangent stiffness is beyond the method's stability limit at this step."""
+
+
+class DtdynStabilityWarning(RuntimeWarning):
+    """The scheme is unstable at this dt for some mode of the model."""
+
+
+class DtdynAccuracyWarning(RuntimeWarning):
+    """A result whose estimated error is large (e.g. the plain DT-TMM sweep on a long chain)."""
+
+
+class SingularMassError(ValueError):
+    """M is singular in a way `exact_response` cannot reduce (see its Notes)."""
+
+
+class SRSSamplingWarning(RuntimeWarning):
+    """The sampling limits the accuracy of the spectrum at the highest frequencies."""
+
+
+class DtdynFallbackWarning(RuntimeWarning):
+    """The C backend is unavailable and the NumPy implementation is used instead."""
