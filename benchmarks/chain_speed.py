@@ -47,9 +47,9 @@ def main(quick=False):
     F = np.ones((steps + 1, 1))
     out = [0, n // 2, n - 1]
     M, C, K = chain_matrices(m, k, c, sparse=True)
-    t_c, rc = best_of(lambda: simulate_chain(m, k, c, F, dt, steps, loaded=[n - 1], outputs=out,
+    t_c, rc = best_of(lambda: simulate_chain(m, k, c, F, dt, force_dofs=[n - 1], outputs=out,
                                              backend="c", quantities=("x",)), 5)
-    t_mck, rm = best_of(lambda: simulate_mck(M, C, K, F, dt, steps, loaded=[n - 1], outputs=out,
+    t_mck, rm = best_of(lambda: simulate_mck(M, C, K, F, dt, force_dofs=[n - 1], outputs=out,
                                              quantities=("x",)), 1 if quick else 3)
     diff = np.max(np.abs(rc.x - rm.x)) / np.max(np.abs(rm.x))
     print(f"1) {n} masses x {steps} steps, Newmark average acceleration")
@@ -64,7 +64,7 @@ def main(quick=False):
         m, k, c = chain(N)
         s = 1000
         F = np.ones((s + 1, 1))
-        t, _ = best_of(lambda: simulate_chain(m, k, c, F, dt, s, loaded=[N - 1], outputs=[N - 1],
+        t, _ = best_of(lambda: simulate_chain(m, k, c, F, dt, force_dofs=[N - 1], outputs=[N - 1],
                                               quantities=("x",)), 3)
         per.append(t / s)
         print(f"   N = {N:>7d}: {t / s * 1e6:10.2f} us/step  {t / s / N * 1e9:7.2f} ns per mass-step")
@@ -80,8 +80,8 @@ def main(quick=False):
         forms = ("acceleration",) if scheme == "central_difference" else tuple(worst)
         for form in forms:
             kw = dict(loaded=[10, 500, 999], scheme=scheme, form=form, quantities=("x",))
-            a = simulate_chain(m, k, c, F, 1e-4, 1000, backend="c", **kw)
-            b = simulate_chain(m, k, c, F, 1e-4, 1000, backend="numpy", **kw)
+            a = simulate_chain(m, k, c, F, 1e-4, backend="c", **kw)
+            b = simulate_chain(m, k, c, F, 1e-4, backend="numpy", **kw)
             d = np.max(np.abs(a.x - b.x)) / np.max(np.abs(b.x))
             if d > worst[form][0]:
                 worst[form] = (d, scheme)

@@ -38,8 +38,8 @@ def main():
                 for scheme in SCHEMES:
                     if scheme == "central_difference":
                         continue
-                    ref = simulate_mck(M, C, K, F, dt, n, loaded=[len(m) - 1], scheme=scheme)
-                    r = simulate_chain(m, k, c, F, dt, n, loaded=[len(m) - 1], scheme=scheme,
+                    ref = simulate_mck(M, C, K, F, dt, force_dofs=[len(m) - 1], scheme=scheme)
+                    r = simulate_chain(m, k, c, F, dt, force_dofs=[len(m) - 1], scheme=scheme,
                                        form=form)
                     for q in "xva":
                         a, b = getattr(r, q), getattr(ref, q)

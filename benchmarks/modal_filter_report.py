@@ -54,7 +54,7 @@ def rel_error(x, ref):
 # --- (a) frequency responses -----------------------------------------------------------------
 def part_a():
     M, C, K = matrices(P2)
-    model = modal_model(M, C, K, inputs=[1], outputs=[1])
+    model = modal_model(M, C, K, force_dofs=[1], outputs=[1])
     print("## (a) Frequency response of the bank, P2\n")
     print("Driving-point receptance of P2 (force and displacement at DOF 1, 0-based). Undamped "
           "natural frequencies " + ", ".join(f"{w:.4f}" for w in model.frequencies / (2 * np.pi))
@@ -65,12 +65,12 @@ def part_a():
     for col, fs in enumerate(fss):
         f = np.logspace(-3, np.log10(0.5), 400) * fs
         H = fe.continuous_frequency_response(model, f)[:, 0, 0]
-        bias = fe.ramp_bias(f, fs)
+        bias = fe.ramp_bias(f, 1 / fs)
         ax0, ax1, ax2 = axes[:, col]
         ax0.loglog(f, np.abs(H), "k", lw=2, label="continuous H(j omega)")
         ax0.loglog(f, np.abs(H) * bias, "k--", lw=1, label="H(j omega) sinc^2(f/fs)")
         for inv in INVARIANTS:
-            Hd = fe.discrete_frequency_response(model, fs, f, inv)[:, 0, 0]
+            Hd = fe.discrete_frequency_response(model, 1 / fs, f, inv)[:, 0, 0]
             ax0.loglog(f, np.abs(Hd), color=COLORS[inv], label=f"{inv} invariant")
             ax1.semilogx(f, np.abs(Hd / H), color=COLORS[inv], label=f"{inv}")
             ax2.semilogx(f, np.degrees(np.angle(Hd / H)), color=COLORS[inv], label=f"{inv}")
@@ -94,14 +94,14 @@ def part_a():
     for fs in fss:
         f = xs * fs
         H = fe.continuous_frequency_response(model, f)[:, 0, 0]
-        Hd = {inv: fe.discrete_frequency_response(model, fs, f, inv)[:, 0, 0]
+        Hd = {inv: fe.discrete_frequency_response(model, 1 / fs, f, inv)[:, 0, 0]
               for inv in INVARIANTS}
         print(f"fs = {fs:g} Hz: ratio to the continuous FRF at a few f/fs (phases in degrees; "
               "the step column subtracts the half-sample lag -180 f/fs):\n")
         print("| f/fs | f (Hz) | sinc^2(f/fs) | ramp abs(H_d/H) | ramp arg | "
               "step abs(H_d/H) | step arg + 180 f/fs | impulse abs(H_d/H) | impulse arg |")
         print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-        bias = fe.ramp_bias(f, fs)
+        bias = fe.ramp_bias(f, 1 / fs)
         for i, x in enumerate(xs):
             r = {inv: Hd[inv][i] / H[i] for inv in INVARIANTS}
             print(f"| {x:g} | {f[i]:.4g} | {bias[i]:.6f} | {abs(r['ramp']):.6f} | "
@@ -113,8 +113,8 @@ def part_a():
         grid = np.linspace(0, 0.5, 101) * fs
         worst = []
         for inv in INVARIANTS:
-            d = fe.discrete_frequency_response(model, fs, grid, inv)
-            a = fe.alias_sum(model, fs, grid, inv, n_alias=2000)
+            d = fe.discrete_frequency_response(model, 1 / fs, grid, inv)
+            a = fe.alias_sum(model, 1 / fs, grid, inv, n_alias=2000)
             worst.append((inv, np.max(np.abs(a.value - d) / np.abs(d)),
                           np.max(a.tail_bound / np.abs(d))))
         print(f"Poisson alias-sum identities at fs = {fs:g} Hz (filter_errors.alias_sum, |k| <= "
@@ -138,10 +138,10 @@ def time_case(fs, over=64, T_end=10.0):
     t = np.arange(n) / fs
     fine = (n - 1) * over
     tf = np.arange(fine + 1) / (fs * over)
-    truth = exact_response(M, C, K, smooth_force(tf)[:, None], 1 / (fs * over), fine,
-                           loaded=[1], outputs=[1]).x[:, 0]
-    ys = {inv: modal_filter_response(smooth_force(t)[:, None], fs, M, C, K, [1], [1],
-                                     invariant=inv).x[:, 0] for inv in INVARIANTS}
+    truth = exact_response(M, C, K, smooth_force(tf)[:, None], 1 / (fs * over), force_dofs=[1],
+                           outputs=[1]).x[:, 0]
+    ys = {inv: modal_filter_response(M, C, K, smooth_force(t)[:, None], 1 / fs, force_dofs=[1],
+                                     outputs=[1], invariant=inv, quantities=("x",)).x[:, 0] for inv in INVARIANTS}
     at = truth[::over]
     half = truth[over // 2::over][: n - 1]  # truth at t_n - T/2 for n = 1..n-1
     scale = np.max(np.abs(at))
@@ -224,9 +224,10 @@ def part_c():
             N = int(round(prob["T"] * fs)) + 1
             f = np.random.default_rng(1).standard_normal(N)
             f[0] = 0.0
-            ex = exact_response(M, C, K, f[:, None], 1 / fs, N - 1, loaded=prob["loaded"])
-            e = [rel_error(modal_filter_response(f[:, None], fs, M, C, K, prob["loaded"],
-                                                 list(range(n)), invariant=inv).x, ex.x)
+            ex = exact_response(M, C, K, f[:, None], 1 / fs, force_dofs=prob["force_dofs"])
+            e = [rel_error(modal_filter_response(M, C, K, f[:, None], 1 / fs,
+                                                 force_dofs=prob["force_dofs"], outputs=list(range(n)),
+                                                 invariant=inv, quantities=("x",)).x, ex.x)
                  for inv in INVARIANTS]
             print(f"| {name} | {fs:g} | {N} | {e[0]:.2e} | {e[1]:.2e} | {e[2]:.2e} |")
     print("\nThe ramp invariant is exact for this force (round-off only). Its round-off grows "

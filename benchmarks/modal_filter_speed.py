@@ -185,8 +185,9 @@ def main():
         print(f"      scipy.signal.lsim              {ms(t_ls_full)}  (extrapolated; measured "
               f"{t_ls * 1e3:.1f} ms on {N_LSIM:,} samples)")
         for method in ("modes", "sections", "auto"):
-            t_mf, r = best_of(lambda: modal_filter_response(x, FS, M, C, K, [LOADED], outputs,
-                                                            method=method),
+            t_mf, r = best_of(lambda: modal_filter_response(M, C, K, x, 1 / FS, force_dofs=[LOADED],
+                                                            outputs=outputs, algorithm=method,
+                                                            quantities=("x",)),
                               3 if n_out == 1 else 2)
             diff = rel_diff(r.x[:N_LSIM], y_ls)
             print(f"      method={method + ',':10s} {r.info['filters']:8s}  {ms(t_mf)}  "
@@ -201,16 +202,18 @@ def main():
     truth = extended_precision_truth(model, force)
     t_truth = time.perf_counter() - t0
     t0 = time.perf_counter()
-    ex = exact_response(M, C, K, x, 1 / FS, N - 1, loaded=[LOADED], outputs=[LOADED]).x[:, 0]
+    ex = exact_response(M, C, K, x, 1 / FS, force_dofs=[LOADED], outputs=[LOADED]).x[:, 0]
     t_ex = time.perf_counter() - t0
     ys = {
-        "modes (C, increment form)": modal_filter_response(x, FS, M, C, K, [LOADED], [LOADED],
-                                                           method="modes").x[:, 0],
-        "modes (lfilter, pole e^sT)": modal_filter_response(x, FS, M, C, K, [LOADED], [LOADED],
-                                                            method="modes",
-                                                            backend="numpy").x[:, 0],
-        "sections (C)": modal_filter_response(x, FS, M, C, K, [LOADED], [LOADED],
-                                              method="sections").x[:, 0],
+        "modes (C, increment form)": modal_filter_response(M, C, K, x, 1 / FS, force_dofs=[LOADED],
+                                                           outputs=[LOADED], algorithm="modes",
+                                                           quantities=("x",)).x[:, 0],
+        "modes (lfilter, pole e^sT)": modal_filter_response(M, C, K, x, 1 / FS, force_dofs=[LOADED],
+                                                            outputs=[LOADED], algorithm="modes",
+                                                            backend="numpy", quantities=("x",)).x[:, 0],
+        "sections (C)": modal_filter_response(M, C, K, x, 1 / FS, force_dofs=[LOADED],
+                                              outputs=[LOADED], algorithm="sections",
+                                              quantities=("x",)).x[:, 0],
         "exact_response": ex,
     }
     print(f"\n(c) accuracy, DOF 14, max |y - truth| over the first n samples / max |truth| "

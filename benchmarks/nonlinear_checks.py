@@ -52,7 +52,7 @@ def bouc_wen():
     t = np.arange(n) / fs
     f = (50.0 * np.sin(2 * np.pi * t))[:, None]
     els = [BoucWen(0, stiffness=1e4, alpha=0.1, beta=50.0, gamma=50.0)]
-    ref = reference_response(f, fs, M, C, K, [0], els)
+    ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els)
 
     def g_of(r):  # the element force from the equation of motion
         return f[:, 0] - M[0, 0] * r.a[:, 0] - C[0, 0] * r.v[:, 0] - K[0, 0] * r.x[:, 0]
@@ -60,7 +60,8 @@ def bouc_wen():
     out = []
     for method in ("modal_ramp", "modal_parabolic", "newmark"):
         for S in (1, 2, 4, 8):
-            r = NL.nonlinear_response(f, fs, M, C, K, [0], els, method=method, substeps=S)
+            r = NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els,
+                                      scheme=method, substeps=S)
             err = np.abs(r.x - ref.x).max() / np.abs(ref.x).max()
             out.append((method, S, err, np.trapezoid(g_of(r), r.x[:, 0]), r))
     return ref, np.trapezoid(g_of(ref), ref.x[:, 0]), out, g_of
@@ -79,10 +80,11 @@ def chain_scaling():
         m, k, c = np.ones(n), np.full(n, 1e4), np.full(n, 1.0)
         els = [Cubic(0, k3=2e7), Cubic(n - 3, n - 2, k3=2e7)]
         times = []
-        for run in (lambda: simulate_chain(m, k, c, f, 1e-3, n_steps, loaded=[n - 1],
-                                           outputs=[n - 1], form="acceleration"),
-                    lambda: nonlinear_chain_response(m, k, c, f, 1000.0, [n - 1], els,
-                                                     outputs=[n - 1], form="acceleration")):
+        for run in (lambda: simulate_chain(m, k, c, f, 1e-3, force_dofs=[n - 1], outputs=[n - 1],
+                                           form="acceleration"),
+                    lambda: nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[n - 1],
+                                                     elements=els, outputs=[n - 1],
+                                                     form="acceleration")):
             run()
             t0 = time.perf_counter()
             run()

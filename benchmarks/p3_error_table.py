@@ -70,18 +70,19 @@ def main():
     force = np.ones((n_steps + 1, 1))
     M, C, K = chain_matrices(MASS, STIFFNESS, DAMPING)
     omega = np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(M, K)).real))
-    ref, t_exact = best_time(lambda: exact_response(M, C, K, force, DT, n_steps, loaded=LOADED))
+    ref, t_exact = best_time(lambda: exact_response(M, C, K, force, DT, force_dofs=LOADED))
 
     rows = []
     for name in SCHEMES:
         if name == "central_difference":
-            call = lambda: simulate_mck(M, C, K, force, DT, n_steps, loaded=LOADED,  # noqa: E731
-                                        scheme=name, quantities=("x",))
+            call = lambda: simulate_mck(M, C, K, force, DT, force_dofs=LOADED, scheme=name,
+                                        quantities=("x",))
             how = "assembled M, C, K (`simulate_mck`), acceleration form"
         else:
-            call = lambda name=name: simulate_chain(  # noqa: E731
-                MASS, STIFFNESS, DAMPING, force, DT, n_steps, loaded=LOADED, scheme=name,
-                form="displacement", sweep="stable", backend="c", quantities=("x",))
+            call = lambda name=name: simulate_chain(MASS, STIFFNESS, DAMPING, force, DT,
+                                                    force_dofs=LOADED, scheme=name,
+                                                    form="displacement", sweep="stable",
+                                                    backend="c", quantities=("x",))
             how = None
         res, t_run = best_time(call)
         if how is None:
@@ -93,7 +94,7 @@ def main():
 
     # the DT-TMM acceleration form of central difference on this undamped chain
     try:
-        simulate_chain(MASS, STIFFNESS, DAMPING, force, DT, n_steps, loaded=LOADED,
+        simulate_chain(MASS, STIFFNESS, DAMPING, force, DT, force_dofs=LOADED,
                        scheme="central_difference", form="acceleration")
         cd_note = "DT-TMM acceleration form ran (unexpected on an undamped chain)."
     except ValueError as exc:
@@ -120,9 +121,9 @@ def main():
     for dt in fg_dts:
         n = int(round(T_END / dt))
         f = np.ones((n + 1, 1))
-        x = simulate_chain(MASS, STIFFNESS, DAMPING, f, dt, n, loaded=LOADED,
-                           scheme="fox_goodwin", quantities=("x",)).x
-        fg_err.append(rel_error(x, exact_response(M, C, K, f, dt, n, loaded=LOADED).x))
+        x = simulate_chain(MASS, STIFFNESS, DAMPING, f, dt, force_dofs=LOADED, scheme="fox_goodwin",
+                           quantities=("x",)).x
+        fg_err.append(rel_error(x, exact_response(M, C, K, f, dt, force_dofs=LOADED).x))
     fg_slope = float(np.polyfit(np.log(fg_dts), np.log(fg_err), 1)[0])
     fg_text = ", ".join(f"{e:.1e}" for e in fg_err)
 

@@ -31,11 +31,14 @@ def best_of(fn, repeats):
 def main():
     n_dof, n_steps, dt = 25, 100_000, 1e-3
     M, C, K = chain_matrices(np.ones(n_dof), np.full(n_dof, 1e4), np.full(n_dof, 2.0), sparse=False)
-    A, B, Cm, D = newmark_ss(M, C, K, dt, num_damp=1e-4)
+    model = newmark_ss(M, C, K, dt, num_damp=1e-4)
+    A, B, Cm, D = model
     u = np.random.default_rng(0).standard_normal((n_steps, n_dof))
-    t_c, y_c = best_of(lambda: state_space_response(A, B, Cm, D, u), 5)
-    t_np, y_np = best_of(lambda: state_space_response(A, B, Cm, D, u[:20_000], backend="numpy"), 1)
-    t_ref, (_, y_ref, _) = best_of(lambda: sig.dlsim((A, B, Cm, D, dt), u), 2)
+    t_c, r = best_of(lambda: state_space_response(model, u), 5)  # from rest at t_0
+    y_c = np.hstack([r.x, r.v])
+    t_np, _ = best_of(lambda: state_space_response(model, u[:20_000], backend="numpy"), 1)
+    x0 = model.initial_state(f0=u[0])  # the same start for dlsim (the state is shifted)
+    t_ref, (_, y_ref, _) = best_of(lambda: sig.dlsim((A, B, Cm, D, dt), u, x0=x0), 2)
     diff = np.max(np.abs(y_c - y_ref)) / np.max(np.abs(y_ref))
     print(f"{A.shape[0]}-state model, {n_steps} steps, {B.shape[1]} inputs, {Cm.shape[0]} outputs")
     print(f"   state_space_response (C)  {t_c * 1e3:9.2f} ms  ({t_c / n_steps * 1e9:.0f} ns/step)")

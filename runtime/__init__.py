@@ -19,7 +19,8 @@ from dtdyn._engine.result import Response
 from dtdyn.app.problems import p1, p2, p3, p4
 from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
 from dtdyn.linear.chain import chain_matrices, simulate_chain
-from dtdyn.linear.discretize import discretize, first_order_form, to_control, to_dlti
+from dtdyn.linear.discrete_model import DiscreteModel
+from dtdyn.linear.discretize import discretize, first_order_form
 from dtdyn.linear.exact import exact_response
 from dtdyn.linear.mck import simulate_mck
 from dtdyn.linear.stability import Stability, critical_omega_dt, stability
@@ -41,7 +42,7 @@ __all__ = [
     # linear time histories and discrete models
     "simulate_chain", "chain_matrices", "simulate_mck", "exact_response",
     "newmark_ss", "discrete_state_space", "state_space_response",
-    "discretize", "first_order_form", "to_dlti", "to_control",
+    "discretize", "first_order_form", "DiscreteModel",
     "frequency_response", "undamped_poles", "stability", "critical_omega_dt", "Stability",
     # modal
     "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",

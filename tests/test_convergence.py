@@ -76,7 +76,7 @@ def p2_force(n_steps):
 def p2_exact(n_steps):
     dt, force = p2_force(n_steps)
     M, C, K = chain_matrices(P2_MASS, P2_STIFF, P2_DAMP)
-    return exact_response(M, C, K, force, dt, n_steps, loaded=P2_LOADED)
+    return exact_response(M, C, K, force, dt, force_dofs=P2_LOADED)
 
 
 def rel_error(approx, exact):
@@ -95,7 +95,7 @@ def p2_sweep(scheme, form, backend="c", sweep="stable", **params):
     dts, ex, ev = [], [], []
     for n in P2_STEPS:
         dt, force = p2_force(n)
-        res = simulate_chain(P2_MASS, P2_STIFF, P2_DAMP, force, dt, n, loaded=P2_LOADED,
+        res = simulate_chain(P2_MASS, P2_STIFF, P2_DAMP, force, dt, force_dofs=P2_LOADED,
                              scheme=scheme, form=form, sweep=sweep, backend=backend, **params)
         ref = p2_exact(n)
         assert res.x.shape == ref.x.shape == (n + 1, 2)
@@ -189,7 +189,7 @@ def test_acceleration_order_p2(scheme):
     dts, e_plain, e_shift = [], [], []
     for n in P2_STEPS:
         dt, force = p2_force(n)
-        res = simulate_chain(P2_MASS, P2_STIFF, P2_DAMP, force, dt, n, loaded=P2_LOADED,
+        res = simulate_chain(P2_MASS, P2_STIFF, P2_DAMP, force, dt, force_dofs=P2_LOADED,
                              scheme=scheme, form=form, quantities=("a",))
         ref = p2_exact(n)
         jerk = np.gradient(ref.a, dt, axis=0)  # O(dt^2) accurate, multiplied by lag * dt below
@@ -219,9 +219,9 @@ def test_order_p3_average_acceleration(form):
     for dt in P3_DTS:
         n = int(round(P3_T / dt))
         force = np.ones((n + 1, 1))
-        res = simulate_chain(P3_MASS, P3_STIFF, np.zeros(15), force, dt, n, loaded=[14],
+        res = simulate_chain(P3_MASS, P3_STIFF, np.zeros(15), force, dt, force_dofs=[14],
                              scheme="average_acceleration", form=form, quantities=("x",))
-        ref = exact_response(M, C, K, force, dt, n, loaded=[14])
+        ref = exact_response(M, C, K, force, dt, force_dofs=[14])
         assert res.x.shape == ref.x.shape == (n + 1, 15)
         errors.append(rel_error(res.x, ref.x))
         last.append(rel_error(res.x[:, 14], ref.x[:, 14]))
@@ -235,5 +235,5 @@ def test_p3_central_difference_acceleration_form_needs_damping():
     # P3 is undamped: the explicit scheme's acceleration-form spring row divides by c Dv = 0
     force = np.ones((11, 1))
     with pytest.raises(ValueError, match="damping"):
-        simulate_chain(P3_MASS, P3_STIFF, np.zeros(15), force, 1e-3, 10, loaded=[14],
+        simulate_chain(P3_MASS, P3_STIFF, np.zeros(15), force, 1e-3, force_dofs=[14],
                        scheme="central_difference", form="acceleration")

@@ -9,7 +9,8 @@ import pytest
 import scipy.signal
 import scipy.sparse
 
-from dtdyn.linear.discretize import discretize, first_order_form, to_control, to_dlti
+from dtdyn.linear.discrete_model import DiscreteModel
+from dtdyn.linear.discretize import discretize, first_order_form
 from dtdyn.linear.exact import exact_response
 
 SIZES = (1, 3, 10)
@@ -122,7 +123,7 @@ def test_foh_response_equals_exact(n):
     n_steps = 200
     f = rng.standard_normal((n_steps + 1, n))          # piecewise-linear force samples
     q0, v0 = rng.standard_normal(n), rng.standard_normal(n)
-    ex = exact_response(M, C, K, f, DT, n_steps, x0=q0, v0=v0)
+    ex = exact_response(M, C, K, f, DT, x0=q0, v0=v0)
 
     Ad, Bd, Cd, Dd = discretize(M, C, K, DT, hold="foh")
     z0 = np.concatenate([q0, v0])
@@ -138,7 +139,7 @@ def test_zoh_response_to_constant_force_equals_exact(n):
     M, C, K = system(n)
     n_steps = 100
     f = np.tile(np.linspace(1.0, 2.0, n), (n_steps + 1, 1))   # constant: zoh == foh exactly
-    ex = exact_response(M, C, K, f, DT, n_steps)
+    ex = exact_response(M, C, K, f, DT)
     y = simulate(*discretize(M, C, K, DT, "zoh"), f, np.zeros(2 * n))
     ref = np.hstack([ex.x, ex.v])
     assert np.max(np.abs(y - ref)) <= 1e-10 * np.max(np.abs(ref))
@@ -156,7 +157,7 @@ def test_impulse_response_is_dt_times_sampled_impulse_response(n):
     y = simulate(Ad, Bd, Cd, Dd, f, np.zeros(2 * n))
     # continuous impulse on DOF j = free response from q = 0, q' = M^{-1} e_j
     v0 = np.linalg.solve(M, np.eye(n)[j])
-    ex = exact_response(M, C, K, np.zeros((n_steps + 1, n)), DT, n_steps, v0=v0)
+    ex = exact_response(M, C, K, np.zeros((n_steps + 1, n)), DT, v0=v0)
     ref = DT * np.hstack([ex.x, ex.v])
     assert np.max(np.abs(y - ref)) <= 1e-10 * np.max(np.abs(ref))
 
@@ -190,7 +191,7 @@ def test_tustin_dlti_freqresp_siso(n):
         warnings.simplefilter("ignore", scipy.signal.BadCoefficients)
         for i, j in ((0, 0), (ns - 1, n - 1), (n, 0)):
             sl = (slice(None), slice(j, j + 1))
-            ours = to_dlti(Ad, Bd[sl], Cd[i:i + 1], Dd[i:i + 1, j:j + 1], DT)
+            ours = DiscreteModel(Ad, Bd[sl], Cd[i:i + 1], Dd[i:i + 1, j:j + 1], DT).to_dlti()
             theirs = scipy.signal.dlti(ref[0], ref[1][sl], ref[2][i:i + 1],
                                        ref[3][i:i + 1, j:j + 1], dt=DT)
             _, h1 = ours.freqresp(w=w)
@@ -246,7 +247,7 @@ def test_bad_dt(dt):
     with pytest.raises(ValueError, match="^dt "):
         discretize(M, C, K, dt)
     with pytest.raises(ValueError, match="^dt "):
-        to_dlti(*discretize(M, C, K, DT), dt)
+        DiscreteModel(*discretize(M, C, K, DT), dt)
 
 
 @pytest.mark.parametrize("hold", ("euler", "gbt", "backward_diff", "", None, 1))
@@ -259,8 +260,9 @@ def test_unknown_hold(hold):
 # ------------------------------------------------------------- wrappers
 def test_to_dlti():
     M, C, K = system(3)
-    Ad, Bd, Cd, Dd = discretize(M, C, K, DT, "foh")
-    sys_d = to_dlti(Ad, Bd, Cd, Dd, DT)
+    model = discretize(M, C, K, DT, "foh")
+    Ad, Bd, Cd, Dd = model
+    sys_d = model.to_dlti()
     assert isinstance(sys_d, scipy.signal.dlti)
     assert isinstance(sys_d, scipy.signal.StateSpace)
     assert sys_d.dt == DT
@@ -271,24 +273,25 @@ def test_to_dlti():
     x0 = rng.standard_normal(6)
     _, y, _ = scipy.signal.dlsim(sys_d, f, x0=x0)
     np.testing.assert_allclose(y, simulate(Ad, Bd, Cd, Dd, f, x0), rtol=1e-12, atol=1e-12)
-    with pytest.raises(ValueError, match="^Dd has shape"):
-        to_dlti(Ad, Bd, Cd, Dd[:, :2], DT)
-    with pytest.raises(ValueError, match="^Bd has"):
-        to_dlti(Ad, Bd[:5], Cd, Dd, DT)
+    with pytest.raises(ValueError, match="^D has shape"):
+        DiscreteModel(Ad, Bd, Cd, Dd[:, :2], DT)
+    with pytest.raises(ValueError, match="^B has"):
+        DiscreteModel(Ad, Bd[:5], Cd, Dd, DT)
 
 
 def test_to_control_missing_package(monkeypatch):
     monkeypatch.setitem(sys.modules, "control", None)        # import control -> ImportError
     M, C, K = system(1)
     with pytest.raises(ImportError, match="pip install control"):
-        to_control(*discretize(M, C, K, DT), DT)
+        discretize(M, C, K, DT).to_control()
 
 
 def test_to_control():
     control = pytest.importorskip("control")
     M, C, K = system(3)
-    Ad, Bd, Cd, Dd = discretize(M, C, K, DT, "zoh")
-    sys_c = to_control(Ad, Bd, Cd, Dd, DT)
+    model = discretize(M, C, K, DT, "zoh")
+    Ad, Bd, Cd, Dd = model
+    sys_c = model.to_control()
     assert isinstance(sys_c, control.StateSpace)
     assert sys_c.dt == DT and control.isdtime(sys_c, strict=True)
     for a, b in zip((sys_c.A, sys_c.B, sys_c.C, sys_c.D), (Ad, Bd, Cd, Dd)):

@@ -28,11 +28,11 @@ def _run_both(prob, dt, n_steps, scheme, forms=("displacement", "acceleration"),
               backends=("c", "numpy"), **kw):
     F = np.ones((n_steps + 1, 1))
     M, C, K = chain_matrices(prob["mass"], prob["stiffness"], prob["damping"])
-    ref = simulate_mck(M, C, K, F, dt, n_steps, loaded=prob["loaded"], scheme=scheme, **kw)
+    ref = simulate_mck(M, C, K, F, dt, force_dofs=prob["force_dofs"], scheme=scheme, **kw)
     for form in forms:
         for backend in backends:
-            r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, dt, n_steps,
-                               loaded=prob["loaded"], scheme=scheme, form=form, backend=backend,
+            r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, dt,
+                               force_dofs=prob["force_dofs"], scheme=scheme, form=form, backend=backend,
                                **kw)
             for q in "xva":
                 err = rel_error(getattr(r, q), getattr(ref, q))
@@ -67,13 +67,13 @@ def test_long_uniform_chain(n_mass, backends):
     F = np.ones((n_steps + 1, 1))
     outputs = np.unique(np.r_[0, n_mass // 2, np.arange(n_mass - 50, n_mass)])
     M, C, K = chain_matrices(prob["mass"], prob["stiffness"], prob["damping"], sparse=True)
-    ref = simulate_mck(M, C, K, F, dt, n_steps, loaded=prob["loaded"], scheme="newmark",
-                       outputs=outputs, quantities=("x",))
+    ref = simulate_mck(M, C, K, F, dt, force_dofs=prob["force_dofs"], scheme="newmark", outputs=outputs,
+                       quantities=("x",))
     for form in ("displacement", "acceleration"):
         for backend in backends:
-            r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, dt, n_steps,
-                               loaded=prob["loaded"], outputs=outputs, form=form, backend=backend,
-                               quantities=("x",))
+            r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, dt,
+                               force_dofs=prob["force_dofs"], outputs=outputs, form=form,
+                               backend=backend, quantities=("x",))
             assert r.x.shape == (n_steps + 1, outputs.size)
             assert r.v is None and r.a is None
             assert rel_error(r.x, ref.x) < TOL, (form, backend)
@@ -81,11 +81,11 @@ def test_long_uniform_chain(n_mass, backends):
 
 def _plain_vs_stable(prob, dt, n_steps):
     F = np.ones((n_steps + 1, 1))
-    args = (prob["mass"], prob["stiffness"], prob["damping"], F, dt, n_steps)
-    stable = simulate_chain(*args, loaded=prob["loaded"], scheme="average_acceleration")
+    args = (prob["mass"], prob["stiffness"], prob["damping"], F, dt)
+    stable = simulate_chain(*args, force_dofs=prob["force_dofs"], scheme="average_acceleration")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        plain = simulate_chain(*args, loaded=prob["loaded"], scheme="average_acceleration",
+        plain = simulate_chain(*args, force_dofs=prob["force_dofs"], scheme="average_acceleration",
                                sweep="plain")
     warned = [w for w in caught if issubclass(w.category, DtdynAccuracyWarning)]
     return rel_error(plain.x, stable.x), plain.info["error_estimate"], warned
@@ -127,7 +127,7 @@ def test_plain_sweep_fails_on_p3():
 
 def test_initial_acceleration_and_startup():
     """A step force at t_0 gives a_0 = F/m; multistep schemes still converge at order 2."""
-    r = simulate_chain(P1["mass"], P1["stiffness"], P1["damping"], np.ones((11, 1)), 0.01, 10,
+    r = simulate_chain(P1["mass"], P1["stiffness"], P1["damping"], np.ones((11, 1)), 0.01,
                        scheme="houbolt")
     assert r.a[0, 0] == pytest.approx(0.5)
     assert r.x[0, 0] == 0.0 and r.v[0, 0] == 0.0
@@ -136,10 +136,10 @@ def test_initial_acceleration_and_startup():
 def test_only_loaded_columns_and_requested_outputs():
     prob = uniform_chain(50)
     F = np.random.default_rng(1).standard_normal((101, 2))
-    r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, 1e-3, 100,
-                       loaded=[3, 40], outputs=[7], quantities=("v",))
+    r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, 1e-3,
+                       force_dofs=[3, 40], outputs=[7], quantities=("v",))
     assert r.v.shape == (101, 1) and r.x is None and r.a is None
     full = np.zeros((101, 50))
     full[:, [3, 40]] = F
-    r2 = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], full, 1e-3, 100)
+    r2 = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], full, 1e-3)
     np.testing.assert_allclose(r.v[:, 0], r2.v[:, 7], rtol=1e-13, atol=1e-300)

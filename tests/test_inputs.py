@@ -10,7 +10,7 @@ F = np.ones((11, 1))
 
 
 def run(**kw):
-    args = dict(mass=M, stiffness=K, damping=C, force=F, dt=0.01, n_steps=10, loaded=[1])
+    args = dict(mass=M, stiffness=K, damping=C, force=F, dt=0.01, force_dofs=[1])
     args.update(kw)
     return simulate_chain(**args)
 
@@ -23,11 +23,13 @@ def run(**kw):
     (dict(stiffness=[20.0]), ["stiffness", "length 1"]),
     (dict(force=np.array([[1.0]] * 5 + [[np.nan]] + [[1.0]] * 5)), ["force[5, 0]", "nan"]),
     (dict(force=np.full((11, 1), np.inf)), ["force[0, 0]", "inf"]),
-    (dict(force=np.ones((10, 1))), ["force", "(10, 1)"]),
+    (dict(force=np.ones((1, 1))), ["force", "1 sample"]),
+    (dict(force=np.ones((10, 2))), ["force", "(10, 2)"]),
     (dict(dt=0.0), ["dt", "0.0"]),
     (dict(dt=-1e-3), ["dt", "-0.001"]),
-    (dict(n_steps=0), ["n_steps", "0"]),
-    (dict(loaded=[2]), ["loaded", "[2]"]),
+    (dict(force_dofs=[2]), ["force_dofs", "[2]"]),
+    (dict(x0=[0.0, np.nan]), ["x0[1]", "nan"]),
+    (dict(v0=[0.0]), ["v0", "length 1"]),
     (dict(outputs=[-1]), ["outputs", "[-1]"]),
     (dict(scheme="rk4"), ["unknown scheme", "'rk4'"]),
     (dict(scheme="central_difference"), ["explicit", "acceleration"]),
@@ -53,8 +55,8 @@ def test_chain_errors(kw, words):
 def test_mck_errors():
     Mm, Cm, Km = np.diag(M), np.zeros((2, 2)), np.eye(2)
     with pytest.raises(ValueError, match="M is singular"):
-        simulate_mck(np.zeros((2, 2)), Cm, Km, F, 0.01, 10, loaded=[1])
+        simulate_mck(np.zeros((2, 2)), Cm, Km, F, 0.01, force_dofs=[1])
     with pytest.raises(ValueError, match=r"K has shape \(3, 3\)"):
-        simulate_mck(Mm, Cm, np.eye(3), F, 0.01, 10, loaded=[1])
+        simulate_mck(Mm, Cm, np.eye(3), F, 0.01, force_dofs=[1])
     with pytest.raises(ValueError, match=r"C\[0, 0\] = nan"):
-        simulate_mck(Mm, np.full((2, 2), np.nan), Km, F, 0.01, 10, loaded=[1])
+        simulate_mck(Mm, np.full((2, 2), np.nan), Km, F, 0.01, force_dofs=[1])

@@ -96,7 +96,7 @@ def test_frf_subset_of_dofs(name):
     n = M.shape[0]
     inputs, outputs = [n - 1, 0], [0, n // 2]
     model = modal_model(M, C, K, inputs, outputs)
-    assert model.inputs.tolist() == inputs and model.outputs.tolist() == outputs
+    assert model.force_dofs.tolist() == inputs and model.outputs.tolist() == outputs
     omega = frequency_grid(model)
     ref = direct_frf(M, C, K, omega, inputs, outputs)
     assert max_rel(model.frequency_response(omega), ref) < 1e-10
@@ -214,7 +214,7 @@ def test_select_keeps_the_right_modes():
     np.testing.assert_array_equal(part.poles, full.poles[[0, 3]])
     np.testing.assert_array_equal(part.residues, full.residues[[0, 3]])
     np.testing.assert_array_equal(part.oscillatory, full.oscillatory[[0, 3]])
-    assert part.inputs.tolist() == [4] and part.outputs.tolist() == [0, 4]
+    assert part.force_dofs.tolist() == [4] and part.outputs.tolist() == [0, 4]
     rest = full.select([1, 2, 4])
     omega = np.linspace(1, 150, 20)
     np.testing.assert_allclose(part.frequency_response(omega) + rest.frequency_response(omega),
@@ -233,7 +233,7 @@ def test_from_poles_residues_roundtrip():
     C = C * 0.01  # mixed: oscillatory modes
     for M_, C_, K_ in [(M, C, K), damper_5dof(), overdamped_2dof()]:
         model = modal_model(M_, C_, K_, [0], [0, 1])
-        again = from_poles_residues(model.poles, model.residues, model.inputs, model.outputs)
+        again = from_poles_residues(model.poles, model.residues, model.force_dofs, model.outputs)
         np.testing.assert_array_equal(again.poles, model.poles)
         np.testing.assert_array_equal(again.residues, model.residues)
         np.testing.assert_array_equal(again.oscillatory, model.oscillatory)
@@ -250,7 +250,7 @@ def test_from_poles_residues_siso_and_undamped():
     # one undamped mode (Re s = 0 allowed) and one real pole, 1-D residues
     model = from_poles_residues([-3.0, 10j], [0.5, -0.05j])
     assert model.oscillatory.tolist() == [False, True]  # sorted: |-3| < |10j|
-    assert model.residues.shape == (2, 1, 1) and model.inputs.tolist() == [0]
+    assert model.residues.shape == (2, 1, 1) and model.force_dofs.tolist() == [0]
     np.testing.assert_allclose(model.damping_ratios, [1.0, 0.0])
     s = 1j * np.array([1.0, 2.0])
     ref = 0.5 / (s + 3) + (-0.05j) / (s - 10j) + 0.05j / (s + 10j)
@@ -258,11 +258,11 @@ def test_from_poles_residues_siso_and_undamped():
     # a single-DOF oscillator: x/F = 1/(m (s^2 + 2 zeta w s + w^2))
     w, zeta, m = 7.0, 0.02, 3.0
     p = -zeta * w + 1j * w * np.sqrt(1 - zeta**2)
-    one = from_poles_residues([p], [1 / (2j * m * p.imag)], inputs=[3], outputs=[5])
+    one = from_poles_residues([p], [1 / (2j * m * p.imag)], force_dofs=[3], outputs=[5])
     om = np.array([2.0, 7.0, 11.0])
     ref = 1 / (m * (-(om**2) + 2j * zeta * w * om + w**2))
     np.testing.assert_allclose(one.frequency_response(om)[:, 0, 0], ref, rtol=1e-13)
-    assert one.inputs.tolist() == [3] and one.outputs.tolist() == [5]
+    assert one.force_dofs.tolist() == [3] and one.outputs.tolist() == [5]
     # real pole given a round-off imaginary residue part: dropped
     assert from_poles_residues([-2.0], [1.0 + 1e-17j]).residues[0, 0, 0].imag == 0
 

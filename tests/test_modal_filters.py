@@ -84,7 +84,7 @@ def test_bank_equals_cont2discrete(invariant, method, name):
             C = 1e-3 * K  # P3 is undamped; a light damping keeps the continuous TF finite
     n = M.shape[0]
     fs = 200.0 if name != "P3" else 2000.0
-    model = modal_model(M, C, K, inputs=[n - 1], outputs=[0])
+    model = modal_model(M, C, K, force_dofs=[n - 1], outputs=[0])
     sos, _, _, direct = sections(model, fs, invariant)
     A, B = first_order_form(M, C, K)
     Cm = np.zeros((1, 2 * n))
@@ -116,10 +116,10 @@ def test_ramp_invariant_equals_exact(name, quantity, key, method):
     n = M.shape[0]
     fs, N = (50.0, 2000) if name == "P2" else (1000.0, 2000)
     f = _ramp_force(N, fs)[:, None]
-    r = modal_filter_response(f, fs, M, C, K, inputs=[n - 1], outputs=list(range(n)),
-                              quantity=quantity, method=method)
+    r = modal_filter_response(M, C, K, f, 1 / fs, force_dofs=[n - 1], outputs=list(range(n)),
+                              quantities=(key,), algorithm=method)
     assert r.info["filters"] == method
-    ex = exact_response(M, C, K, f, 1 / fs, N - 1, loaded=[n - 1])
+    ex = exact_response(M, C, K, f, 1 / fs, force_dofs=[n - 1])
     got, ref = getattr(r, key), getattr(ex, key)
     assert np.max(np.abs(got - ref)) / np.max(np.abs(ref)) < 1e-10
 
@@ -143,8 +143,9 @@ def test_non_proportional_damping(inputs, method):
     rng = np.random.default_rng(2)
     f = rng.standard_normal((N, len(inputs)))
     f[0] = 0.0
-    r = modal_filter_response(f, fs, M, C, K, inputs=inputs, outputs=[0, 2, 4], method=method)
-    ex = exact_response(M, C, K, f, 1 / fs, N - 1, loaded=inputs, outputs=[0, 2, 4])
+    r = modal_filter_response(M, C, K, f, 1 / fs, force_dofs=inputs, outputs=[0, 2, 4],
+                              algorithm=method, quantities=("x",))
+    ex = exact_response(M, C, K, f, 1 / fs, force_dofs=inputs, outputs=[0, 2, 4])
     assert np.max(np.abs(r.x - ex.x)) / np.max(np.abs(ex.x)) < 1e-10
 
 
@@ -161,12 +162,12 @@ def test_step_and_impulse_errors_follow_theory():
         force = lambda tt: np.sin(2.1 * tt) ** 3  # noqa: E731  smooth, zero at t = 0
         fine = int(8 * fs) * 16
         tf = np.arange(fine) / (16 * fs)
-        ex = exact_response(M, C, K, force(tf)[:, None], 1 / (16 * fs), fine - 1, loaded=[1],
-                            outputs=[0])
+        ex = exact_response(M, C, K, force(tf)[:, None], 1 / (16 * fs), force_dofs=[1], outputs=[0])
         truth = ex.x[::16, 0]
         truth_half = ex.x[8::16, 0]
         for inv in ("ramp", "step", "impulse"):
-            r = modal_filter_response(force(t)[:, None], fs, M, C, K, [1], [0], invariant=inv)
+            r = modal_filter_response(M, C, K, force(t)[:, None], 1 / fs, force_dofs=[1],
+                                      outputs=[0], invariant=inv, quantities=("x",))
             y = r.x[:, 0]
             if inv == "step":
                 e = np.max(np.abs(y[1:] - truth_half[:len(y) - 1])) / np.max(np.abs(truth))
@@ -179,14 +180,14 @@ def test_step_and_impulse_errors_follow_theory():
 
 def test_sos_export_and_backends_agree():
     M, C, K = _system(P2)
-    model = modal_model(M, C, K, inputs=[1], outputs=[0, 1])
+    model = modal_model(M, C, K, force_dofs=[1], outputs=[0, 1])
     fs = 100.0
     f = _ramp_force(5000, fs, seed=4)[:, None]
     sos, in_col, out_col, direct = sections(model, fs)
     y_c = run_bank(sos, in_col, out_col, direct, f, 2, backend="c")
     y_np = run_bank(sos, in_col, out_col, direct, f, 2, backend="numpy")
     np.testing.assert_allclose(y_c, y_np, rtol=0, atol=1e-12 * np.abs(y_np).max())
-    rows = to_sos(model, fs, output=1, input=0)
+    rows = to_sos(model, 1 / fs, output=1, input=0)
     y_sp = sum(sig.sosfilt(row[None, :], f[:, 0]) for row in rows)
     np.testing.assert_allclose(y_c[:, 1], y_sp, rtol=0, atol=1e-12 * np.abs(y_sp).max())
 
@@ -272,7 +273,7 @@ def test_modes_of_general_residues():
     R = rng.standard_normal((4, 3, 2)) + 1j * rng.standard_normal((4, 3, 2))
     R[1] = 0.0
     R[3] = R[3].real
-    model = from_poles_residues(poles, R, inputs=[0, 1], outputs=[0, 1, 2])
+    model = from_poles_residues(poles, R, force_dofs=[0, 1], outputs=[0, 1, 2])
     fs = 400.0
     st = modal_states(model, fs)
     assert st.n_states == 6  # two factors per rank-two residue, none for the zero one
@@ -299,7 +300,8 @@ def test_long_undamped_record_does_not_drift():
     fs, N = 2000.0, 1_000_000
     f = np.zeros((N, 1))
     f[1, 0] = 1.0
-    r = modal_filter_response(f, fs, M, C, K, [14], [0, 14], method="modes")
+    r = modal_filter_response(M, C, K, f, 1 / fs, force_dofs=[14], outputs=[0, 14],
+                              algorithm="modes", quantities=("x",))
     model = modal_model(M, C, K, [14], [0, 14])
     mpmath.mp.dps = 40
     T = mpmath.mpf(1) / 2000
@@ -315,15 +317,17 @@ def test_long_undamped_record_does_not_drift():
     assert err < (1e-11 if r.info["backend"] == "c" else 1e-10), err
 
 
-def test_auto_method_and_bad_method():
-    """method="auto" picks the per-mode form for P3 with all outputs; unknown methods are
+def test_auto_algorithm_and_bad_algorithm():
+    """algorithm="auto" picks the per-mode form for P3 with all outputs; unknown methods are
     refused."""
     M, C, K = _system(P3)
     f = _ramp_force(500, 1000.0)[:, None]
-    r = modal_filter_response(f, 1000.0, M, C, K, [14], list(range(15)))
+    r = modal_filter_response(M, C, K, f, 0.001, force_dofs=[14], outputs=list(range(15)),
+                              quantities=("x",))
     assert r.info["filters"] == "modes" and r.info["states"] == 15
-    with pytest.raises(ValueError, match="method must be one of"):
-        modal_filter_response(f, 1000.0, M, C, K, [14], [14], method="fast")
+    with pytest.raises(ValueError, match="algorithm must be one of"):
+        modal_filter_response(M, C, K, f, 0.001, force_dofs=[14], outputs=[14],
+                              algorithm="fast", quantities=("x",))
 
 
 @pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None,
@@ -341,23 +345,27 @@ def test_filter_kernels_compile_without_warnings(name, tmp_path):
 def test_mode_selection_keeps_only_those_sections():
     M, C, K = _system(P3)
     C = 1e-3 * K
-    r_all = modal_filter_response(_ramp_force(100, 1000.0)[:, None], 1000.0, M, C, K, [14], [14])
-    r_two = modal_filter_response(_ramp_force(100, 1000.0)[:, None], 1000.0, M, C, K, [14], [14],
-                                  modes=[0, 1], method="modes")
+    r_all = modal_filter_response(M, C, K, _ramp_force(100, 1000.0)[:, None], 0.001,
+                                  force_dofs=[14], outputs=[14], quantities=("x",))
+    r_two = modal_filter_response(M, C, K, _ramp_force(100, 1000.0)[:, None], 0.001,
+                                  force_dofs=[14], outputs=[14], modes=[0, 1], algorithm="modes",
+                                  quantities=("x",))
     assert r_all.info["sections"] == 15 and r_two.info["sections"] == 2
     assert r_two.info["modes"] == 2 and r_two.info["states"] == 2
 
 
 @pytest.mark.parametrize("kw, words", [
-    (dict(fs=0.0), ["fs"]), (dict(fs=-1.0), ["fs"]),
+    (dict(dt=0.0), ["dt"]), (dict(dt=-1.0), ["dt"]),
     (dict(force=np.array([[0.0], [np.nan], [1.0]])), ["force[1, 0]", "nan"]),
     (dict(invariant="cubic"), ["invariant", "'cubic'"]),
-    (dict(quantity="jerk"), ["quantity", "'jerk'"]),
+    (dict(quantities=("jerk",)), ["quantities", "'jerk'"]),
+    (dict(algorithm="fast"), ["algorithm", "'fast'"]),
     (dict(force=np.ones((5, 2))), ["force", "(5, 2)"]),
 ])
 def test_bad_input(kw, words):
     M, C, K = _system(P2)
-    args = dict(force=np.ones((5, 1)), fs=100.0, M=M, C=C, K=K, inputs=[1], outputs=[0])
+    args = dict(force=np.ones((5, 1)), dt=0.01, M=M, C=C, K=K, force_dofs=[1], outputs=[0],
+                quantities=("x",))
     args.update(kw)
     with pytest.raises(ValueError) as exc:
         modal_filter_response(**args)
@@ -375,8 +383,8 @@ def test_ramp_starts_at_rest_under_a_nonzero_first_sample(method, quantity, key)
     P = p3()
     dt, n = 1e-3, 800
     f = (1.0 + np.sin(0.01 * np.arange(n + 1)))[:, None]
-    ex = exact_response(P["M"], P["C"], P["K"], f, dt, n, loaded=[14], outputs=[14, 3])
-    r = modal_filter_response(f, 1 / dt, P["M"], P["C"], P["K"], [14], [14, 3], method=method,
-                              quantity=quantity)
+    ex = exact_response(P["M"], P["C"], P["K"], f, dt, force_dofs=[14], outputs=[14, 3])
+    r = modal_filter_response(P["M"], P["C"], P["K"], f, dt, force_dofs=[14], outputs=[14, 3],
+                              algorithm=method, quantities=(key,))
     want = getattr(ex, key)
     assert np.abs(getattr(r, key) - want).max() <= 1e-10 * np.abs(want).max()

@@ -23,8 +23,8 @@ def private_cache(tmp_path, monkeypatch):
 
 
 def _args(P, elements=None):
-    return (P["force"], P["fs"], P["M"], P["C"], P["K"], P["force_dofs"],
-            P["elements"] if elements is None else elements)
+    return dict(M=P["M"], C=P["C"], K=P["K"], force=P["force"], dt=P["dt"],
+                force_dofs=P["force_dofs"], elements=P["elements"] if elements is None else elements)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -35,9 +35,9 @@ def _args(P, elements=None):
 def test_linear_limit_equals_matrix_exponential(elements):
     n = 2000
     P = p4(n)
-    ref = reference_response(*_args(P, elements), cache=False)
-    ex = exact_response(P["M"], P["C"], P["K"], P["force"], 1.0 / P["fs"], n - 1,
-                        loaded=P["force_dofs"])
+    ref = reference_response(**_args(P, elements), cache=False)
+    ex = exact_response(P["M"], P["C"], P["K"], P["force"], P["dt"],
+                        force_dofs=P["force_dofs"])
     assert ref.x.shape == (n, 4)
     np.testing.assert_allclose(ref.t, ex.t, rtol=0, atol=1e-12)
     for q in "xva":
@@ -49,7 +49,7 @@ def test_linear_limit_equals_matrix_exponential(elements):
 
 def test_p4_dop853_and_radau_agree():
     P = p4(300)
-    assert check_reference(*_args(P), n_samples=300) < 1e-9
+    assert check_reference(**_args(P), n_samples=300) < 1e-9
 
 
 def test_p4_same_force_sampled_twice_as_finely():
@@ -59,17 +59,17 @@ def test_p4_same_force_sampled_twice_as_finely():
     P = p4(n)
     f = P["force"][:, 0]
     f2 = np.interp(np.arange(2 * n - 1) / 2.0, np.arange(n), f)[:, None]
-    a = reference_response(*_args(P), cache=False)
-    b = reference_response(f2, 2 * P["fs"], *_args(P)[2:], rtol=1e-13, cache=False)
+    a = reference_response(**_args(P), cache=False)
+    b = reference_response(**{**_args(P), "force": f2, "dt": P["dt"] / 2}, rtol=1e-13, cache=False)
     for q in "xva":
         assert rel_error(getattr(a, q), getattr(b, q)[::2]) < 1e-10, q
 
 
 def test_p4_cubic_forces_matter():
     """Peak cubic over peak linear force of the two springs: 0.72 and 0.51 over these 5000
-    samples, 1.33 and 0.85 over all 100,000 (tests/problems.py)."""
+    samples, 1.33 and 0.85 over all 100,000 (dtdyn.app.problems.p4)."""
     P = p4(5000)
-    x = reference_response(*_args(P), cache=False).x
+    x = reference_response(**_args(P), cache=False).x
     y = np.stack([x[:, 0], x[:, 1] - x[:, 2]], axis=1)       # the two cubic springs
     ratio = np.max(np.abs(P["k3"] * y ** 3), axis=0) / np.max(np.abs(P["k"] * y), axis=0)
     np.testing.assert_allclose(ratio, [0.718, 0.514], rtol=1e-2)
@@ -77,8 +77,8 @@ def test_p4_cubic_forces_matter():
 
 def test_outputs_and_n_samples():
     P = p4(400)
-    full = reference_response(*_args(P), cache=False)
-    part = reference_response(*_args(P), outputs=[3, 0], n_samples=250, cache=False)
+    full = reference_response(**_args(P), cache=False)
+    part = reference_response(**_args(P), outputs=[3, 0], n_samples=250, cache=False)
     assert part.x.shape == part.v.shape == part.a.shape == (250, 2)
     np.testing.assert_array_equal(part.outputs, [3, 0])
     np.testing.assert_allclose(part.t, np.arange(250) / 1000.0)
@@ -95,13 +95,13 @@ def _bouc_wen_case():
     force = (150.0 * np.sin(2 * np.pi * 2.0 * t))[:, None]
     el = BoucWen(0, None, stiffness=1e4, alpha=0.1, A=1.0, beta=50.0, gamma=50.0, n=1.0)
     # damping 40 N s/m (20 % at the initial stiffness) settles the loop within the first cycle
-    return dict(force=force, fs=fs, M=[[1.0]], C=[[40.0]], K=[[0.0]], force_dofs=[0],
+    return dict(force=force, dt=1 / fs, M=[[1.0]], C=[[40.0]], K=[[0.0]], force_dofs=[0],
                 elements=[el]), t, el
 
 
 def test_bouc_wen_loop():
     P, t, el = _bouc_wen_case()
-    r = reference_response(*_args(P), cache=False)
+    r = reference_response(**_args(P), cache=False)
     y, v, a = r.x[:, 0], r.v[:, 0], r.a[:, 0]
     z = r.info["internal"][:, 0]
     g = el.alpha * el.stiffness * y + (1 - el.alpha) * el.stiffness * z
@@ -133,7 +133,7 @@ def test_bouc_wen_loop():
 
 def test_bouc_wen_dop853_and_radau_agree():
     P, _, _ = _bouc_wen_case()
-    assert check_reference(*_args(P), n_samples=1001) < 1e-8
+    assert check_reference(**_args(P), n_samples=1001) < 1e-8
 
 
 # ---------------------------------------------------------------------------------------------
@@ -146,20 +146,20 @@ def _cache_files():
 def test_cache_reuses_identical_arrays():
     P = p4(1000)
     t0 = time.perf_counter()
-    first = reference_response(*_args(P))
+    first = reference_response(**_args(P))
     t_first = time.perf_counter() - t0
     files = _cache_files()
     assert not first.info["cached"] and len(files) == 1 and files[0].suffix == ".npz"
     t0 = time.perf_counter()
-    second = reference_response(*_args(P))
+    second = reference_response(**_args(P))
     t_second = time.perf_counter() - t0
     assert second.info["cached"]
     for q in "xva":
         np.testing.assert_array_equal(getattr(first, q), getattr(second, q))
     assert t_second < 0.2 * t_first
-    # another output selection reads the same file; another k3 or method does not
-    assert reference_response(*_args(P), outputs=[1]).info["cached"]
-    other = reference_response(*_args(P, [Cubic(0, None, k3=1e7), Cubic(1, 2, k3=2e7)]))
+    # another output selection reads the same file; another k3 or ODE solver does not
+    assert reference_response(**_args(P), outputs=[1]).info["cached"]
+    other = reference_response(**_args(P, [Cubic(0, None, k3=1e7), Cubic(1, 2, k3=2e7)]))
     assert not other.info["cached"]
     assert len(_cache_files()) == 2
 
@@ -167,14 +167,14 @@ def test_cache_reuses_identical_arrays():
 @pytest.mark.parametrize("damage", ["garbage", "truncated"])
 def test_corrupt_cache_file_is_not_read(damage):
     P = p4(200)
-    good = reference_response(*_args(P))
+    good = reference_response(**_args(P))
     path = nl_reference.reference_cache_dir() / good.info["cache_file"].split("/")[-1]
     data = path.read_bytes()
     path.write_bytes(b"not a zip file" if damage == "garbage" else data[: len(data) // 2])
-    again = reference_response(*_args(P))
+    again = reference_response(**_args(P))
     assert not again.info["cached"]
     np.testing.assert_array_equal(again.x, good.x)
-    assert reference_response(*_args(P)).info["cached"]        # rewritten whole
+    assert reference_response(**_args(P)).info["cached"]        # rewritten whole
 
 
 def test_interrupted_write_leaves_no_file(monkeypatch):
@@ -187,9 +187,9 @@ def test_interrupted_write_leaves_no_file(monkeypatch):
     with monkeypatch.context() as patch:
         patch.setattr(nl_reference.np, "savez", crash)
         with pytest.raises(KeyboardInterrupt):
-            reference_response(*_args(P))
+            reference_response(**_args(P))
     assert _cache_files() == []                                # neither the file nor a temp
-    assert not reference_response(*_args(P)).info["cached"]
+    assert not reference_response(**_args(P)).info["cached"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -202,13 +202,13 @@ def _bad(**change):
 
 
 @pytest.mark.parametrize("change, match", [
-    (dict(fs=0.0), "fs"),
-    (dict(fs=-1000.0), "fs"),
+    (dict(dt=0.0), "dt"),
+    (dict(dt=-1e-3), "dt"),
     (dict(force=np.full((20, 1), np.nan)), r"force\[0, 0\]"),
     (dict(force=np.zeros((20, 2))), "force has shape"),
     (dict(force=np.zeros((2, 20, 1))), "force has shape"),
     (dict(force_dofs=[4]), "force_dofs"),
-    (dict(force_dofs=None), "force_dofs"),
+    (dict(force_dofs=None), "force has shape"),
     (dict(M=np.diag([1.0, 1.0, 1.0, 0.0])), "nonsingular mass matrix"),
     (dict(K=np.eye(3)), "K has shape"),
     (dict(elements=[Cubic(0, 4, k3=1.0)]), "outside the model's DOFs"),
@@ -217,11 +217,11 @@ def _bad(**change):
 def test_bad_inputs(change, match):
     P = _bad(**change)
     with pytest.raises(ValueError, match=match):
-        reference_response(*_args(P), cache=False)
+        reference_response(**_args(P), cache=False)
 
 
 @pytest.mark.parametrize("kw, match", [
-    (dict(method="RK45"), "method"),
+    (dict(ode_solver="RK45"), "ode_solver"),
     (dict(rtol=0.0), "rtol"),
     (dict(atol=-1.0), "atol"),
     (dict(atol=[1e-12] * 3), "atol"),
@@ -232,4 +232,4 @@ def test_bad_inputs(change, match):
 def test_bad_options(kw, match):
     P = p4(20)
     with pytest.raises(ValueError, match=match):
-        reference_response(*_args(P), cache=False, **kw)
+        reference_response(**_args(P), cache=False, **kw)

@@ -26,14 +26,14 @@ def P4():
 
 @pytest.fixture(scope="module")
 def P4_ref(P4):
-    return reference_response(P4["force"], P4["fs"], P4["M"], P4["C"], P4["K"],
-                              P4["force_dofs"], P4["elements"], cache=False)
+    return reference_response(P4["M"], P4["C"], P4["K"], P4["force"], P4["dt"],
+                              force_dofs=P4["force_dofs"], elements=P4["elements"], cache=False)
 
 
 def _run(P, **kw):
     kw.setdefault("elements", P["elements"])
-    return NL.nonlinear_response(P["force"], P["fs"], P["M"], P["C"], P["K"], P["force_dofs"],
-                                 **kw)
+    return NL.nonlinear_response(P["M"], P["C"], P["K"], P["force"], P["dt"],
+                                 force_dofs=P["force_dofs"], **kw)
 
 
 def _err(r, ref, dof=3):
@@ -101,10 +101,9 @@ LINEAR = [Cubic(0, k3=0.0), Cubic(1, 2, k3=0.0)]
 def test_g_zero_modal_equals_matrix_exponential(P4, backend, method):
     """Ramp invariant = first-order hold: exact for the piecewise-linear force (1e-12)."""
     n = 1500
-    r = NL.nonlinear_response(P4["force"][:n], P4["fs"], P4["M"], P4["C"], P4["K"], [3], LINEAR,
-                              method=method, backend=backend)
-    ex = exact_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], 1 / P4["fs"], n - 1,
-                        loaded=[3])
+    r = NL.nonlinear_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"],
+                              force_dofs=[3], elements=LINEAR, scheme=method, backend=backend)
+    ex = exact_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"], force_dofs=[3])
     for q in "xva":
         got, want = getattr(r, q), getattr(ex, q)
         assert np.abs(got - want).max() <= 1e-12 * np.abs(want).max(), q
@@ -116,10 +115,11 @@ def test_g_zero_modal_equals_matrix_exponential(P4, backend, method):
                                             ("wilson", {})])
 def test_g_zero_scheme_equals_simulate_mck(P4, backend, method, params):
     n = 1500
-    r = NL.nonlinear_response(P4["force"][:n], P4["fs"], P4["M"], P4["C"], P4["K"], [3], LINEAR,
-                              method=method, backend=backend, **params)
-    mk = simulate_mck(P4["M"], P4["C"], P4["K"], P4["force"][:n], 1 / P4["fs"], n - 1,
-                      loaded=[3], scheme=method, **params)
+    r = NL.nonlinear_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"],
+                              force_dofs=[3], elements=LINEAR, scheme=method, backend=backend,
+                              **params)
+    mk = simulate_mck(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"], force_dofs=[3],
+                      scheme=method, **params)
     for q in "xva":
         got, want = getattr(r, q), getattr(mk, q)
         assert np.abs(got - want).max() <= 1e-12 * np.abs(want).max(), q
@@ -131,7 +131,7 @@ def test_g_zero_scheme_equals_simulate_mck(P4, backend, method, params):
                                            ("newmark", 2), ("generalized_alpha", 2)])
 def test_p4_convergence_order(P4, P4_ref, method, order):
     """Error against the reference falls as h^order with sub-steps (slope fitted over 1, 2, 4)."""
-    errs = [_err(_run(P4, method=method, substeps=S), P4_ref) for S in (1, 2, 4)]
+    errs = [_err(_run(P4, scheme=method, substeps=S), P4_ref) for S in (1, 2, 4)]
     slope = -np.polyfit(np.log([1, 2, 4]), np.log(errs), 1)[0]
     assert order - 0.25 <= slope <= order + 0.35, (errs, slope)
 
@@ -144,9 +144,9 @@ def test_p4_published_prototype_numbers(P4_ref, P4):
 
 
 def test_backends_agree(P4):
-    c = _run(P4, method="newmark", substeps=2)
+    c = _run(P4, scheme="newmark", substeps=2)
     for kw in ({"solver": "newton"}, {"solver": "fast_newton"}):
-        ca = _run(P4, method="newmark", substeps=2, backend="casadi", **kw)
+        ca = _run(P4, scheme="newmark", substeps=2, backend="casadi", **kw)
         assert np.abs(ca.x - c.x).max() <= 1e-12 * np.abs(c.x).max()
 
 
@@ -166,8 +166,8 @@ def test_velocity_law_against_reference():
     fs, n = 500.0, 1500
     f = (np.random.default_rng(3).standard_normal(n) * 50)[:, None]
     els = [Law(0, 1, expression="c*v*abs(v)", c=20.0)]
-    ref = reference_response(f, fs, M, C, K, [1], els, cache=False)
-    errs = [_err(NL.nonlinear_response(f, fs, M, C, K, [1], els, substeps=S), ref, dof=1)
+    ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[1], elements=els, cache=False)
+    errs = [_err(NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[1], elements=els, substeps=S), ref, dof=1)
             for S in (2, 4)]
     assert errs[1] < 2e-3 and 3.0 <= errs[0] / errs[1] <= 5.0, errs
 
@@ -179,10 +179,10 @@ def test_bouc_wen_hysteresis_matches_reference():
     t = np.arange(n) / fs
     f = (50.0 * np.sin(2 * np.pi * t))[:, None]
     els = [BoucWen(0, stiffness=1e4, alpha=0.1, beta=50.0, gamma=50.0)]
-    ref = reference_response(f, fs, M, C, K, [0], els, cache=False)
+    ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, cache=False)
     errs = []
     for S in (4, 8):
-        r = NL.nonlinear_response(f, fs, M, C, K, [0], els, substeps=S)
+        r = NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, substeps=S)
         errs.append(_err(r, ref, dof=0))
     assert errs[1] < 1e-3 and 3.3 <= errs[0] / errs[1] <= 4.7, errs
     # the element force g = f - M a - C v - K y does net work over the closed loops: the
@@ -200,9 +200,10 @@ def _impact(method, substeps, smoothing=1e-4, stiffness=1e12, backend="c"):
     M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
     fs, n = 100.0, 200
     f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]
-    return NL.nonlinear_response(f, fs, M, C, K, [0], [Gap(0, gap=1e-2, stiffness=stiffness,
+    return NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0],
+                                 elements=[Gap(0, gap=1e-2, stiffness=stiffness,
                                                            smoothing=smoothing)],
-                                 method=method, substeps=substeps, backend=backend)
+                                 scheme=method, substeps=substeps, backend=backend)
 
 
 def test_newton_failure_names_the_step_and_substeps_cure_it():
@@ -236,8 +237,8 @@ def test_backends_report_the_same_failure(method, level):
     messages = []
     for backend in ("c", "casadi"):
         with pytest.raises(NL.NewtonError) as info:
-            NL.nonlinear_response(f, 100.0, M, C, K, [0], [Cubic(0, k3=1e14)], method=method,
-                                  backend=backend)
+            NL.nonlinear_response(M, C, K, f, 0.01, force_dofs=[0],
+                                  elements=[Cubic(0, k3=1e14)], scheme=method, backend=backend)
         messages.append(str(info.value).split(": residual")[0])
     assert messages[0] == messages[1]
 
@@ -248,29 +249,29 @@ def test_casadi_backend_checks_every_step():
     f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]
     els = [Gap(0, gap=1e-2, stiffness=1e12, smoothing=1e-4)]
     with pytest.raises(NL.NewtonError, match="step"):
-        NL.nonlinear_response(f, fs, M, C, K, [0], els, method="newmark", backend="casadi",
-                              solver="fast_newton", max_iter=5)
+        NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme="newmark",
+                              backend="casadi", solver="fast_newton", max_iter=5)
 
 
 # --- bad input ----------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("change, match", [
-    ({"fs": 0.0}, "fs"), ({"fs": np.nan}, "fs"),
+    ({"dt": 0.0}, "dt"), ({"dt": np.nan}, "dt"),
     ({"force": np.full((10, 1), np.nan)}, r"force\[0, 0\]"),
     ({"force": np.zeros((10, 2))}, "force has shape"),
     ({"force_dofs": [7]}, "force_dofs"),
     ({"elements": []}, "elements is empty"),
     ({"elements": [Cubic(9, k3=1.0)]}, r"elements\[0\].*outside"),
     ({"elements": ["cubic"]}, "not a dtdyn element"),
-    ({"method": "houbolt"}, "multistep"),
-    ({"method": "nope"}, "unknown scheme"),
-    ({"method": "newmark", "modes": [0]}, "modes"),
+    ({"scheme": "houbolt"}, "multistep"),
+    ({"scheme": "nope"}, "unknown scheme"),
+    ({"scheme": "newmark", "modes": [0]}, "modes"),
     ({"substeps": 0}, "substeps"),
     ({"backend": "fortran"}, "backend"),
     ({"backend": "casadi", "compiled": True, "solver": "newton"}, "fast_newton"),
 ])
 def test_bad_inputs(P4, change, match):
-    kw = dict(force=P4["force"][:10], fs=P4["fs"], M=P4["M"], C=P4["C"], K=P4["K"],
+    kw = dict(force=P4["force"][:10], dt=P4["dt"], M=P4["M"], C=P4["C"], K=P4["K"],
               force_dofs=P4["force_dofs"], elements=P4["elements"])
     kw.update(change)
     with pytest.raises(ValueError, match=match):
@@ -310,10 +311,10 @@ def test_chain_equals_mck_path(form, scheme, params, elements):
     from dtdyn.nonlinear.chain import nonlinear_chain_response
     m, k, c, f = _chain_case()
     M, C, K = chain_matrices(m, k, c, sparse=False)
-    a = nonlinear_chain_response(m, k, c, f, 1000.0, [3], elements, scheme=scheme, form=form,
-                                 substeps=2, **params)
-    b = NL.nonlinear_response(f, 1000.0, M, C, K, [3], elements, method=scheme, substeps=2,
-                              **params)
+    a = nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3], elements=elements,
+                                 scheme=scheme, form=form, substeps=2, **params)
+    b = NL.nonlinear_response(M, C, K, f, 0.001, force_dofs=[3], elements=elements,
+                              scheme=scheme, substeps=2, **params)
     for q in "xva":
         assert np.abs(getattr(a, q) - getattr(b, q)).max() <= 1e-12 * np.abs(getattr(b, q)).max()
 
@@ -327,9 +328,11 @@ def test_chain_c_loop_equals_python_loop(monkeypatch, elements):
     names the same step."""
     import dtdyn.nonlinear.chain as NC
     m, k, c, f = _chain_case()
-    a = NC.nonlinear_chain_response(m, k, c, f, 1000.0, [3], elements, substeps=2)
+    a = NC.nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3], elements=elements,
+                                    substeps=2)
     monkeypatch.setattr(NC, "_c_driver", lambda *args: None)
-    b = NC.nonlinear_chain_response(m, k, c, f, 1000.0, [3], elements, substeps=2)
+    b = NC.nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3], elements=elements,
+                                    substeps=2)
     assert (a.info["loop"], b.info["loop"]) == ("c", "python")
     assert a.info["newton_iterations"] == b.info["newton_iterations"]
     for q in "xva":
@@ -339,8 +342,8 @@ def test_chain_c_loop_equals_python_loop(monkeypatch, elements):
     for driver in (NC._c_driver, lambda *args: None):
         monkeypatch.setattr(NC, "_c_driver", driver)
         with pytest.raises(NL.NewtonError) as info:
-            NC.nonlinear_chain_response(m, k, c, 1e9 * f, 1000.0, [3], [Cubic(0, k3=1e14)],
-                                        max_iter=3)
+            NC.nonlinear_chain_response(m, k, c, 1e9 * f, 0.001, force_dofs=[3],
+                                        elements=[Cubic(0, k3=1e14)], max_iter=3)
         messages.append(str(info.value))
     assert messages[0] == messages[1] and "step" in messages[0]
 
@@ -353,9 +356,9 @@ def test_long_chain_linear_limit_equals_simulate_chain():
     m, k, c = np.ones(n), np.full(n, 1e4), np.full(n, 1.0)
     f = (np.random.default_rng(1).standard_normal(30) * 100.0)[:, None]
     els = [Cubic(0, k3=0.0), Cubic(n - 3, n - 2, k3=0.0)]
-    a = nonlinear_chain_response(m, k, c, f, 1000.0, [n - 1], els, outputs=[0, n - 2, n - 1],
-                                 form="acceleration")
-    s = simulate_chain(m, k, c, f, 1e-3, 29, loaded=[n - 1], outputs=[0, n - 2, n - 1],
+    a = nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[n - 1], elements=els,
+                                 outputs=[0, n - 2, n - 1], form="acceleration")
+    s = simulate_chain(m, k, c, f, 1e-3, force_dofs=[n - 1], outputs=[0, n - 2, n - 1],
                        form="acceleration")
     assert np.abs(a.x - s.x).max() <= 1e-12 * np.abs(s.x).max()
 
@@ -364,6 +367,8 @@ def test_chain_refuses_multistep_and_bad_elements():
     from dtdyn.nonlinear.chain import nonlinear_chain_response
     m, k, c, f = _chain_case(10)
     with pytest.raises(ValueError, match="multistep"):
-        nonlinear_chain_response(m, k, c, f, 1000.0, [3], [Cubic(0, k3=1.0)], scheme="houbolt")
+        nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3],
+                                 elements=[Cubic(0, k3=1.0)], scheme="houbolt")
     with pytest.raises(ValueError, match="outside the chain"):
-        nonlinear_chain_response(m, k, c, f, 1000.0, [3], [Cubic(7, k3=1.0)])
+        nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3],
+                                 elements=[Cubic(7, k3=1.0)])

@@ -17,8 +17,8 @@ from dtdyn.linear import tmm
 F = np.ones((101, 1))
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
-    a = simulate_chain([2, 3], [20, 15], [5, 6], F, 0.01, 100, loaded=[1], backend="c")
-    b = simulate_chain([2, 3], [20, 15], [5, 6], F, 0.01, 100, loaded=[1], backend="c",
+    a = simulate_chain([2, 3], [20, 15], [5, 6], F, 0.01, force_dofs=[1], backend="c")
+    b = simulate_chain([2, 3], [20, 15], [5, 6], F, 0.01, force_dofs=[1], backend="c",
                        scheme="houbolt")
 ours = [w for w in caught if "C backend unavailable" in str(w.message)]
 print(a.info["backend"], len(ours), repr(float(a.x[-1, 1])))

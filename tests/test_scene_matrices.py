@@ -59,7 +59,7 @@ def test_inline_scene_equals_simulate_mck(tmp_path):
     assert_array_equal(s.K, K2)
     assert_array_equal(s.C, C2)
     response, report = run_scene(s)
-    ref = simulate_mck(M2, C2, K2, np.ones((51, 1)), 0.02, 50, loaded=[1], scheme="newmark",
+    ref = simulate_mck(M2, C2, K2, np.ones((51, 1)), 0.02, force_dofs=[1], scheme="newmark",
                        beta=0.3, gamma=0.6)
     for q in "xva":
         assert_array_equal(getattr(response, q), getattr(ref, q))
@@ -189,7 +189,7 @@ def test_named_dofs_in_loads_and_outputs(tmp_path):
     assert_allclose(s.force[:, 1], 1.0 + 2.0 * s.t)
     assert_array_equal(s.outputs, [1, 0])
     response, _ = run_scene(s)
-    ref = simulate_mck(M2, C2, K2, s.force, 0.02, 50, loaded=[0, 1], scheme="newmark",
+    ref = simulate_mck(M2, C2, K2, s.force, 0.02, force_dofs=[0, 1], scheme="newmark",
                        outputs=[1, 0], beta=0.3, gamma=0.6)
     assert_array_equal(response.x, ref.x)
     assert_array_equal(response.v, ref.v)

@@ -108,8 +108,9 @@ def test_p4_scene_equals_direct_nonlinear_response(tmp_path):
     assert sc.n_steps == 1999 and sc.force.shape == (2000, 1)
     response, report = run_scene(sc)
     p = problems.p4(2000)
-    direct = nonlinear_response(p["force"], p["fs"], p["M"], p["C"], p["K"], p["force_dofs"],
-                                p["elements"], outputs=[1, 3], method="modal_ramp", substeps=3)
+    direct = nonlinear_response(p["M"], p["C"], p["K"], p["force"], p["dt"],
+                                force_dofs=p["force_dofs"], elements=p["elements"], outputs=[1, 3],
+                                scheme="modal_ramp", substeps=3)
     assert_array_equal(response.outputs, [1, 3])
     assert_array_equal(response.x, direct.x)
     assert_array_equal(response.a, direct.a)
@@ -130,8 +131,8 @@ def test_p4_scene_against_solve_ivp(tmp_path):
                                 extra=""))
     response, _ = run_scene(sc)
     p = problems.p4(500)
-    ref = reference_response(p["force"], p["fs"], p["M"], p["C"], p["K"], p["force_dofs"],
-                             p["elements"], cache=False)
+    ref = reference_response(p["M"], p["C"], p["K"], p["force"], p["dt"],
+                             force_dofs=p["force_dofs"], elements=p["elements"], cache=False)
     err = np.max(np.abs(response.x - ref.x)) / np.max(np.abs(ref.x))
     assert err < 1e-4  # 1.5e-5: second order in h = 1/3 ms
 
@@ -148,8 +149,9 @@ def test_chain_model_with_elements_uses_chain_matrices(tmp_path):
     assert sc.scheme_params == {"beta": 0.3, "gamma": 0.6}
     response, report = run_scene(sc)
     M, C, K = chain_matrices(sc.mass, sc.stiffness, sc.damping, sparse=False)
-    direct = nonlinear_response(sc.force, 1e3, M, C, K, [2], [Cubic(2, 0, k3=1e7)],
-                                method="newmark", beta=0.3, gamma=0.6)
+    direct = nonlinear_response(M, C, K, sc.force, 0.001, force_dofs=[2],
+                                elements=[Cubic(2, 0, k3=1e7)], scheme="newmark", beta=0.3,
+                                gamma=0.6)
     assert_array_equal(response.x, direct.x)
     assert report["scheme_params"] == {"beta": 0.3, "gamma": 0.6}
 
@@ -158,8 +160,9 @@ def test_modes_are_passed_and_checked(tmp_path):
     nl = NONLINEAR + "modes = [0, 1]\n"
     response, _ = run_scene(load_scene(write_scene(tmp_path, nonlinear=nl)))
     p = problems.p4(2000)
-    direct = nonlinear_response(p["force"], p["fs"], p["M"], p["C"], p["K"], p["force_dofs"],
-                                p["elements"], outputs=[1, 3], substeps=3, modes=[0, 1])
+    direct = nonlinear_response(p["M"], p["C"], p["K"], p["force"], p["dt"],
+                                force_dofs=p["force_dofs"], elements=p["elements"], outputs=[1, 3],
+                                substeps=3, modes=[0, 1])
     assert_array_equal(response.x, direct.x)
     path = write_scene(tmp_path, nonlinear=NONLINEAR + "modes = [0, 7]\n", name="m.toml")
     with pytest.raises(ValueError, match=r"m\.toml: nonlinear\.modes = \[0, 7\]"):
@@ -271,8 +274,8 @@ def test_law_element_in_a_scene(tmp_path):
     assert sc.elements == (Law(3, expression="k3*x**3 + c*v", k3=2e7, c=5.0),)
     response, _ = run_scene(sc)
     p = problems.p4(500)
-    ref = reference_response(p["force"], p["fs"], p["M"], p["C"], p["K"], [3], sc.elements,
-                             cache=False)
+    ref = reference_response(p["M"], p["C"], p["K"], p["force"], p["dt"], force_dofs=[3],
+                             elements=sc.elements, cache=False)
     assert np.max(np.abs(response.x - ref.x)) < 1e-3 * np.max(np.abs(ref.x))  # 1.3e-4
 
 

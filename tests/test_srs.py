@@ -105,7 +105,7 @@ def test_histories_match_solve_ivp(response):
     _, a = _half_sine(fs, 1e-3, 100 * G, 6e-3)
     freqs = [60.0, 700.0, 2500.0, 9000.0]
     ref = IVP(a, fs, freqs, zeta).run(response)
-    _, y = sdof_response(a, fs, freqs, zeta, response)
+    _, y = sdof_response(a, 1 / fs, freqs, zeta, response)
     err = np.abs(y - ref).max(axis=0) / np.abs(ref).max(axis=0)
     assert err.max() < 1e-8, err
 
@@ -117,8 +117,8 @@ def test_exact_peaks_match_dense_solve_ivp_primary():
     _, hi, lo = IVP(a, fs, freqs, zeta).run(peaks="primary")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SRSSamplingWarning)
-        r = shock_response_spectrum(a, fs, freqs, zeta, window="primary", exact_peaks=True)
-        sampled = shock_response_spectrum(a, fs, freqs, zeta, window="primary")
+        r = shock_response_spectrum(a, 1 / fs, freqs, zeta, window="primary", exact_peaks=True)
+        sampled = shock_response_spectrum(a, 1 / fs, freqs, zeta, window="primary")
     scale = np.maximum(hi, -lo)
     assert np.abs(r.positive - hi).max() / scale.max() < 1e-8
     assert np.max(np.abs(r.positive - hi) / scale) < 1e-8
@@ -138,7 +138,7 @@ def test_residual_closed_form_matches_solve_ivp(response):
     for exact in (False, True):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", SRSSamplingWarning)
-            r = shock_response_spectrum(a, fs, freqs, zeta, response, window="residual",
+            r = shock_response_spectrum(a, 1 / fs, freqs, zeta, response, window="residual",
                                         exact_peaks=exact)
         scale = np.maximum(hi, -lo)
         if exact:
@@ -156,8 +156,8 @@ def test_upsampling_is_exact_under_the_model():
     _, a = _half_sine(fs, 1e-3, 1.0, 5e-3)
     a[7] += 0.3  # a kink off the sine
     freqs = np.geomspace(30, 1000, 12)
-    r1 = shock_response_spectrum(a, fs, freqs, 0.05, exact_peaks=True)
-    r4 = shock_response_spectrum(a, fs, freqs, 0.05, exact_peaks=True, points_per_cycle=40)
+    r1 = shock_response_spectrum(a, 1 / fs, freqs, 0.05, exact_peaks=True)
+    r4 = shock_response_spectrum(a, 1 / fs, freqs, 0.05, exact_peaks=True, points_per_cycle=40)
     assert r4.info["upsample"] == 4 and r1.info["upsample"] == 1
     np.testing.assert_allclose(r4.maximax, r1.maximax, rtol=1e-9)
     np.testing.assert_allclose(r4.negative, r1.negative, rtol=1e-9, atol=1e-12)
@@ -194,10 +194,11 @@ def test_half_sine_closed_form():
     pick = 1 - np.cos(np.pi * freqs / fs)
     for exact_peaks in (True, False):
         slack = 0 if exact_peaks else pick
-        p = shock_response_spectrum(a, fs, freqs, 0.0, window="primary", exact_peaks=exact_peaks)
-        r = shock_response_spectrum(a, fs, freqs, 0.0, window="residual",
+        p = shock_response_spectrum(a, 1 / fs, freqs, 0.0, window="primary",
                                     exact_peaks=exact_peaks)
-        tot = shock_response_spectrum(a, fs, freqs, 0.0, exact_peaks=exact_peaks)
+        r = shock_response_spectrum(a, 1 / fs, freqs, 0.0, window="residual",
+                                    exact_peaks=exact_peaks)
+        tot = shock_response_spectrum(a, 1 / fs, freqs, 0.0, exact_peaks=exact_peaks)
         assert np.all(np.abs(p.positive - exact[:, 0]) <= bound + slack * exact[:, 0])
         assert np.all(np.abs(p.negative - exact[:, 1]) <= bound + slack * exact[:, 1])
         for side in (r.positive, r.negative):
@@ -218,11 +219,11 @@ def test_peak_picking_error_upsampling_and_exact_peaks():
     a[1] = 1.0
     freqs = np.linspace(fs / 5.5, fs / 4.5, 41)
     with pytest.warns(SRSSamplingWarning, match=r"1 - cos\(pi f/fs\) = 23\.4 %"):
-        picked = shock_response_spectrum(a, fs, freqs, zeta)
+        picked = shock_response_spectrum(a, 1 / fs, freqs, zeta)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SRSSamplingWarning)
-        exact = shock_response_spectrum(a, fs, freqs, zeta, exact_peaks=True)
-        up = shock_response_spectrum(a, fs, freqs, zeta, points_per_cycle=50)
+        exact = shock_response_spectrum(a, 1 / fs, freqs, zeta, exact_peaks=True)
+        up = shock_response_spectrum(a, 1 / fs, freqs, zeta, points_per_cycle=50)
     bound = 1 - np.cos(np.pi * freqs / fs)  # 18.3 .. 23.4 %
     err = 1 - picked.negative / exact.negative
     assert err.max() > 0.10, err.max()
@@ -251,20 +252,20 @@ def test_against_pyyeti(response):
     freqs = np.geomspace(20, 5000, 25)
     kw = dict(stype=PYYETI[response], rolloff="none", parallel="no")
     Q = 1 / (2 * zeta)
-    ours = shock_response_spectrum(a, fs, freqs, zeta, response, window="primary")
+    ours = shock_response_spectrum(a, 1 / fs, freqs, zeta, response, window="primary")
     scale = ours.maximax.max()
     for peak, mine in (("pos", ours.positive), ("neg", ours.negative), ("abs", ours.maximax)):
         theirs = ps.srs(a, fs, freqs, Q, peak=peak, time="primary", **kw)
         np.testing.assert_allclose(mine, theirs, rtol=1e-8, atol=1e-10 * scale)
     _, resp = ps.srs(a, fs, freqs, Q, time="primary", getresp=True, **kw)
-    _, y = sdof_response(a, fs, freqs, zeta, response)
+    _, y = sdof_response(a, 1 / fs, freqs, zeta, response)
     assert np.abs(resp["hist"][:, 0, :] - y).max() < 1e-8 * np.abs(y).max()
     # pyyeti picks the residual at the samples over one cycle of the lowest frequency; ours is
     # in closed form: pyyeti can only be lower, by at most the peak-picking bound. pyyeti's
     # residual starts at t_N (the first appended zero), ours at the last sample t_{N-1}: one
     # more zero sample aligns them (the input is the same: the record ends in zeros).
     for window in ("residual", "total"):
-        ours = shock_response_spectrum(np.append(a, 0.0), fs, freqs, zeta, response,
+        ours = shock_response_spectrum(np.append(a, 0.0), 1 / fs, freqs, zeta, response,
                                        window=window)
         theirs = ps.srs(a, fs, freqs, Q, peak="abs", time=window, **kw)
         tol = (1 - np.cos(np.pi * freqs / fs)) * ours.maximax + 1e-9 * scale
@@ -287,7 +288,7 @@ def test_against_endaq(mode, response):
     df = pd.DataFrame({"a": a}, index=pd.Index(t, name="time"))
     neg, pos = es.shock_spectrum(df, freqs=freqs, damp=zeta, mode=mode, max_time=None,
                                  two_sided=True)
-    ours = shock_response_spectrum(a, fs, freqs, zeta, response, window="total")
+    ours = shock_response_spectrum(a, 1 / fs, freqs, zeta, response, window="total")
     scale = ours.maximax.max()
     tol = (1 - np.cos(np.pi * freqs / fs)) * ours.maximax + 1e-9 * scale
     for theirs, mine in ((neg["a"].to_numpy(), ours.negative), (pos["a"].to_numpy(),
@@ -295,14 +296,14 @@ def test_against_endaq(mode, response):
         assert np.all(theirs <= mine + 1e-9 * scale)
         assert np.all(mine - theirs <= tol)
     # the primary window alone: the same filter, the same samples
-    prim = shock_response_spectrum(a, fs, freqs, zeta, response, window="primary")
+    prim = shock_response_spectrum(a, 1 / fs, freqs, zeta, response, window="primary")
     one = es.shock_spectrum(df, freqs=freqs, damp=zeta, mode=mode, max_time=None)
     assert np.all(one["a"].to_numpy() >= prim.maximax - 1e-9 * scale)
 
 
 # --- (5) inputs, warnings, backends ---------------------------------------------------------
 @pytest.mark.parametrize("kwargs, name", [
-    (dict(fs=0.0), "fs"), (dict(fs=-5.0), "fs"), (dict(fs=np.nan), "fs"),
+    (dict(dt=0.0), "dt"), (dict(dt=-5.0), "dt"), (dict(dt=np.nan), "dt"),
     (dict(accel=[0.0, 1.0, np.nan, 0.0]), r"accel\[2\]"), (dict(accel=[]), "accel"),
     (dict(accel=np.ones((4, 2))), "accel"),
     (dict(damping=-0.01), "damping"), (dict(damping=1.0), "damping"),
@@ -312,7 +313,7 @@ def test_against_endaq(mode, response):
     (dict(points_per_cycle=0), "points_per_cycle"), (dict(exact_peaks="yes"), "exact_peaks"),
 ])
 def test_bad_inputs_name_the_argument(kwargs, name):
-    args = dict(accel=np.sin(np.arange(50) / 5.0), fs=1000.0, freqs=[10.0, 50.0])
+    args = dict(accel=np.sin(np.arange(50) / 5.0), dt=1e-3, freqs=[10.0, 50.0])
     args.update(kwargs)
     with pytest.raises(ValueError, match=name):
         shock_response_spectrum(**args)
@@ -323,14 +324,14 @@ def test_sampling_warning():
     a = np.sin(np.arange(200) / 3.0)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        shock_response_spectrum(a, 1000.0, [10.0, 100.0])  # 10 points per cycle: quiet
+        shock_response_spectrum(a, 0.001, [10.0, 100.0])  # 10 points per cycle: quiet
     with pytest.warns(SRSSamplingWarning) as rec:
-        r = shock_response_spectrum(a, 1000.0, [10.0, 250.0], window="primary")
+        r = shock_response_spectrum(a, 0.001, [10.0, 250.0], window="primary")
     text = str(rec[0].message)
     assert "29.3 %" in text and "18.9 %" in text  # 1 - cos(pi/4), 1 - sinc^2(1/4)
     assert r.info["peak_error_bound"][1] == pytest.approx(1 - np.cos(np.pi / 4))
     with pytest.warns(SRSSamplingWarning) as rec:  # exact peaks: only the bias is left
-        shock_response_spectrum(a, 1000.0, [250.0], exact_peaks=True)
+        shock_response_spectrum(a, 0.001, [250.0], exact_peaks=True)
     assert "cos" not in str(rec[0].message) and "18.9 %" in str(rec[0].message)
 
 
@@ -338,19 +339,19 @@ def test_backends_threads_and_zero_damping_agree(monkeypatch):
     fs = 5000.0
     _, a = _half_sine(fs, 2e-3, 3.0, 0.05)
     freqs = np.geomspace(5, 500, 17)
-    ref = shock_response_spectrum(a, fs, freqs, exact_peaks=True)
-    sp = shock_response_spectrum(a, fs, freqs, exact_peaks=True, backend="scipy")
+    ref = shock_response_spectrum(a, 1 / fs, freqs, exact_peaks=True)
+    sp = shock_response_spectrum(a, 1 / fs, freqs, exact_peaks=True, backend="scipy")
     np.testing.assert_allclose(sp.maximax, ref.maximax, rtol=1e-10)
     monkeypatch.setattr(S, "_BLOCK_BYTES", 1)  # one section per run_bank call, two threads
-    th = shock_response_spectrum(a, fs, freqs, exact_peaks=True, workers=2)
+    th = shock_response_spectrum(a, 1 / fs, freqs, exact_peaks=True, workers=2)
     assert th.info["workers"] == 2
     np.testing.assert_array_equal(th.maximax, ref.maximax)
     monkeypatch.setattr(S, "_CHUNK_ELEMS", 7)  # many small chunks in the candidate sweep
     monkeypatch.setattr(S, "_CHUNK_MIN_ROWS", 5)
-    ch = shock_response_spectrum(a, fs, freqs, exact_peaks=True)
+    ch = shock_response_spectrum(a, 1 / fs, freqs, exact_peaks=True)
     np.testing.assert_array_equal(ch.maximax, ref.maximax)
     np.testing.assert_array_equal(ch.negative, ref.negative)
-    und = shock_response_spectrum(a, fs, freqs, 0.0)
+    und = shock_response_spectrum(a, 1 / fs, freqs, 0.0)
     assert np.all(und.maximax >= ref.maximax)
 
 
@@ -366,7 +367,7 @@ def test_cli_srs_npy_plot_and_csv(tmp_path, capsys):
     assert "maximax" in out and "largest" in out and str(png) in out
     assert png.stat().st_size > 10_000
     table = np.loadtxt(csv, delimiter=",", skiprows=1)
-    ref = shock_response_spectrum(a, fs, np.geomspace(10, 2000, 40))
+    ref = shock_response_spectrum(a, 1 / fs, np.geomspace(10, 2000, 40))
     np.testing.assert_allclose(table[:, 1], ref.maximax, rtol=1e-9)
     assert [p.name for p in sorted(tmp_path.iterdir())] == ["rec.npy", "srs.csv", "srs.png"]
 

@@ -7,6 +7,7 @@ import scipy.signal as sig
 from dtdyn.linear.discretize import first_order_form
 from dtdyn.linear.exact import exact_response
 from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.discrete_model import DiscreteModel
 from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
 
 
@@ -79,17 +80,21 @@ def test_discrete_state_space_equals_simulate_mck(scheme, params):
     M, C, K = random_system(4, rng)
     dt, n_steps = 0.01, 400
     F = rng.standard_normal((n_steps + 1, 4))
-    ref = simulate_mck(M, C, K, F, dt, n_steps, scheme=scheme, **params)
+    ref = simulate_mck(M, C, K, F, dt, scheme=scheme, **params)
     model = discrete_state_space(M, C, K, dt, scheme=scheme, acceleration=True, **params)
     A, B, Cm, D = model
     assert A.shape[0] == 12  # history (x0, v0, a0), all of it output: S = I, D = Gamma1
     h0 = np.zeros(12)
     h0[8:12] = np.linalg.solve(M, F[0])  # a_0
-    x0 = h0 - D @ F[0]  # the state is shifted by -Gamma1 f_0
-    y = state_space_response(A, B, Cm, D, F, x0=x0)
+    x0 = h0 - D @ F[0]  # the state is shifted by -Gamma1 f_0 (by hand, as the oracle)
+    y = model.simulate(F, state0=x0)
     np.testing.assert_allclose(y[:, :4], ref.x, rtol=0, atol=1e-12 * np.abs(ref.x).max())
     np.testing.assert_allclose(y[:, 4:8], ref.v, rtol=0, atol=1e-12 * np.abs(ref.v).max())
     np.testing.assert_allclose(y[:, 8:], ref.a, rtol=0, atol=1e-11 * np.abs(ref.a).max())
+    np.testing.assert_array_equal(model.initial_state(f0=F[0]), x0)
+    r = state_space_response(model, F)  # the same start, from the model's own convention
+    for q in "xva":
+        np.testing.assert_array_equal(getattr(r, q), y[:, "xva".index(q) * 4:][:, :4])
 
 
 def _massless_system():
@@ -147,7 +152,7 @@ def test_exact_response_with_a_massless_dof():
     dt, n = 0.01, 200
     t = np.arange(n + 1) * dt
     F = _massless_force(t)
-    r = exact_response(M, C, K, F, dt, n)
+    r = exact_response(M, C, K, F, dt)
     truth = _massless_truth(M, C, K, F, dt, n)
     np.testing.assert_allclose(r.x, truth, rtol=0, atol=1e-12 * np.abs(truth).max())
     resid = r.a @ M.T + r.v @ C.T + r.x @ K.T - F
@@ -156,13 +161,13 @@ def test_exact_response_with_a_massless_dof():
     a1 = np.gradient(r.v[:, 1], dt)
     assert np.abs(a1[2:-2] - r.a[2:-2, 1]).max() < 1e-3 * np.abs(r.a[:, 1]).max()
     with pytest.raises(ValueError, match=r"C at the massless DOFs \[1\]"):
-        exact_response(M, np.zeros((3, 3)), K, F, dt, n)
+        exact_response(M, np.zeros((3, 3)), K, F, dt)
     with pytest.raises(ValueError, match=r"v0\[1\]"):
-        exact_response(M, C, K, F, dt, n, v0=[0.0, 1.0, 0.0])
+        exact_response(M, C, K, F, dt, v0=[0.0, 1.0, 0.0])
     # a consistent v0, computed in floating point: accepted
     vm = np.array([0.3, -0.2])
     v1 = -(C[1, [0, 2]] @ vm) / C[1, 1]
-    r0 = exact_response(M, C, K, F, dt, n, v0=[vm[0], v1, vm[1]])
+    r0 = exact_response(M, C, K, F, dt, v0=[vm[0], v1, vm[1]])
     assert r0.v[0] == pytest.approx([vm[0], v1, vm[1]], rel=1e-12)
 
 
@@ -180,14 +185,14 @@ def test_massless_dof():
             n = int(round(T / dt))
             F = _massless_force(np.arange(n + 1) * dt)
             gamma, beta = 0.5 + num_damp, 0.25 * (1 + num_damp) ** 2
-            ref = simulate_mck(M, C, K, F, dt, n, scheme="newmark", beta=beta, gamma=gamma)
-            A, B, Cm, D = newmark_ss(M, C, K, dt, num_damp=num_damp)
+            ref = simulate_mck(M, C, K, F, dt, scheme="newmark", beta=beta, gamma=gamma)
+            model = newmark_ss(M, C, K, dt, num_damp=num_damp)
+            A, B, Cm, D = model
             assert A.shape == (9, 9) and Cm.shape == (6, 9)
-            assert not F[0].any()  # f_0 = 0: the shifted initial state is zero too
-            y = state_space_response(A, B, Cm, D, F)
-            np.testing.assert_allclose(y[:, :3], ref.x, rtol=0, atol=1e-12 * np.abs(ref.x).max())
-            np.testing.assert_allclose(y[:, 3:], ref.v, rtol=0, atol=1e-12 * np.abs(ref.v).max())
-            truth = exact_response(M, C, K, F, dt, n).x
+            r = state_space_response(model, F)
+            np.testing.assert_allclose(r.x, ref.x, rtol=0, atol=1e-12 * np.abs(ref.x).max())
+            np.testing.assert_allclose(r.v, ref.v, rtol=0, atol=1e-12 * np.abs(ref.v).max())
+            truth = exact_response(M, C, K, F, dt).x
             errs.append(np.abs(ref.x - truth).max() / np.abs(truth).max())
         slope = np.polyfit(np.log(dts), np.log(errs), 1)[0]
         # gamma = 1/2 + num_damp: second order without numerical damping, first order with it
@@ -213,14 +218,14 @@ def test_state_space_response_across_blocks(monkeypatch, backend):
     import dtdyn.linear.state_space as ss
     model, x0, y_ref = _dlsim_case(8, 6, 2, 3, 40, 0.9)
     monkeypatch.setattr(ss, "SS_BLOCK", 7)
-    y = ss.state_space_response(*model, x0=x0, backend=backend)
+    y = ss.run_recursion(*model, state0=x0, backend=backend)
     np.testing.assert_allclose(y, y_ref, rtol=0, atol=1e-12 * np.abs(y_ref).max())
 
 
 @pytest.mark.parametrize("backend", ["c", "numpy"])
 def test_state_space_response_equals_dlsim(backend):
-    model, x0, y_ref = _dlsim_case(5, 12, 3, 4, 500, 0.95)
-    y = state_space_response(*model, x0=x0, backend=backend)
+    (A, B, Cm, D, u), x0, y_ref = _dlsim_case(5, 12, 3, 4, 500, 0.95)
+    y = DiscreteModel(A, B, Cm, D, 1.0).simulate(u, state0=x0, backend=backend)
     np.testing.assert_allclose(y, y_ref, rtol=0, atol=1e-12 * np.abs(y_ref).max())
 
 
@@ -242,27 +247,65 @@ def test_bad_input():
         newmark_ss(M, C, K, 0.01, num_damp=-1.0)
     with pytest.raises(ValueError, match="not positive definite"):
         newmark_ss(-M, C, K, 0.01, M_is_SPD=True)
-    with pytest.raises(ValueError, match="Bd has shape"):
-        state_space_response(np.eye(2), np.ones((3, 1)), np.eye(2), np.zeros((2, 1)), np.ones((5, 1)))
+    with pytest.raises(ValueError, match="B has 3 rows"):
+        DiscreteModel(np.eye(2), np.ones((3, 1)), np.eye(2), np.zeros((2, 1)), 0.1)
+    raw = DiscreteModel(np.eye(2), np.ones((2, 1)), np.eye(2), np.zeros((2, 1)), 0.1)
     with pytest.raises(ValueError, match="force has a non-finite"):
-        state_space_response(np.eye(2), np.ones((2, 1)), np.eye(2), np.zeros((2, 1)),
-                             np.full((5, 1), np.nan))
+        raw.simulate(np.full((5, 1), np.nan))
+    with pytest.raises(TypeError, match="DiscreteModel"):
+        state_space_response(tuple(raw), np.ones((5, 1)))
+    with pytest.raises(ValueError, match="no stated meaning"):
+        state_space_response(raw, np.ones((5, 1)))
+    with pytest.raises(ValueError, match="force"):
+        state_space_response(newmark_ss(M, C, K, 0.01), np.ones((5, 2)))
+    with pytest.raises(ValueError, match="outputs"):
+        state_space_response(newmark_ss(M, C, K, 0.01), np.ones((5, 3)), quantities=("a",))
 
 
-def test_rest_state_starts_at_rest_under_a_step():
-    """With f_0 != 0 the shifted state of a system at rest is not 0: rest_state gives it, and the
-    model then equals simulate_mck (same scheme) to round-off."""
-    from dtdyn import simulate_mck
-    from dtdyn.linear.state_space import rest_state
+@pytest.mark.parametrize("build", [
+    lambda M, C, K, dt: newmark_ss(M, C, K, dt, num_damp=0.0),
+    lambda M, C, K, dt: discrete_state_space(M, C, K, dt, scheme="newmark"),
+    lambda M, C, K, dt: discrete_state_space(M, C, K, dt, scheme="generalized_alpha",
+                                             rho_inf=0.7, acceleration=True),
+], ids=["newmark_ss", "discrete_state_space", "generalized_alpha"])
+def test_response_starts_at_rest_under_a_step(build):
+    """The models' states are shifted by the f_0 feedthrough, so a zero state is not rest under a
+    step: state_space_response starts at rest anyway and equals simulate_mck (same scheme) to
+    1e-12 with no initial-state argument; the raw zero-state recursion does not."""
     M, C, K = np.diag([2.0, 1.0]), np.array([[0.3, -0.1], [-0.1, 0.1]]), \
         np.array([[30.0, -10.0], [-10.0, 10.0]])
     dt, n = 0.01, 400
+    model = build(M, C, K, dt)
+    scheme = "generalized_alpha" if "rho_inf=0.7" in model.source else "newmark"
+    params = {"rho_inf": 0.7} if scheme == "generalized_alpha" else {}
+    ref = simulate_mck(M, C, K, np.ones(n + 1), dt, force_dofs=[1], scheme=scheme, **params)
+    r = state_space_response(model, np.ones(n + 1), force_dofs=[1])
+    for q in model.quantities:
+        assert np.abs(getattr(r, q) - getattr(ref, q)).max() <= 1e-12 * np.abs(getattr(ref, q)).max()
     u = np.zeros((n + 1, 2))
     u[:, 1] = 1.0
-    for scheme, params in (("newmark", {}), ("generalized_alpha", {"rho_inf": 0.7})):
-        A, B, Cd, D = discrete_state_space(M, C, K, dt, scheme=scheme, **params)
-        y = state_space_response(A, B, Cd, D, u, x0=rest_state(M, C, K, dt, u[0], scheme=scheme,
-                                                                **params))
-        ref = simulate_mck(M, C, K, u, dt, n, scheme=scheme, **params)
-        assert np.abs(y[:, :2] - ref.x).max() <= 1e-12 * np.abs(ref.x).max()
-        assert np.abs(y[0]).max() == 0.0
+    zero_state = model.simulate(u)[:, :2]
+    assert np.abs(zero_state - ref.x).max() > 1e-3 * np.abs(ref.x).max()
+
+
+def test_response_from_initial_conditions():
+    """x0, v0 map to each model's state: the FOH discretization then equals exact_response (the
+    matrix exponential) from the same initial state to round-off, Newmark equals simulate_mck."""
+    M, C, K = np.diag([2.0, 1.0]), np.array([[0.3, -0.1], [-0.1, 0.1]]), \
+        np.array([[30.0, -10.0], [-10.0, 10.0]])
+    dt, n = 0.01, 300
+    f = np.sin(np.arange(n + 1) * dt * 3.0)
+    x0, v0 = np.array([0.1, -0.2]), np.array([0.0, 0.5])
+    from dtdyn.linear.discretize import discretize
+    ex = exact_response(M, C, K, f, dt, force_dofs=[1], x0=x0, v0=v0)
+    for hold in ("foh", "tustin", "zoh"):
+        r = state_space_response(discretize(M, C, K, dt, hold=hold), f, force_dofs=[1], x0=x0,
+                                 v0=v0)
+        np.testing.assert_allclose(r.x[0], x0, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(r.v[0], v0, rtol=0, atol=1e-14)
+        if hold == "foh":
+            assert np.abs(r.x - ex.x).max() <= 1e-12 * np.abs(ex.x).max()
+    mk = simulate_mck(M, C, K, f, dt, force_dofs=[1], x0=x0, v0=v0, scheme="newmark")
+    r = state_space_response(newmark_ss(M, C, K, dt, num_damp=0.0), f, force_dofs=[1], x0=x0,
+                             v0=v0)
+    assert np.abs(r.x - mk.x).max() <= 1e-12 * np.abs(mk.x).max()

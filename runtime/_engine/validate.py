@@ -56,19 +56,27 @@ def dof_indices(name: str, values, n_dof: int, default_all: bool = True) -> np.n
     return idx.astype(np.int64)
 
 
-def force_samples(force, n_steps: int, loaded: np.ndarray) -> np.ndarray:
-    """Force samples at t_0 .. t_n, shape (n_steps + 1, len(loaded)), finite, C-contiguous."""
-    f = np.asarray(force, dtype=float)
-    if f.ndim == 1 and loaded.size == 1:
-        f = f[:, None]
-    want = (n_steps + 1, loaded.size)
-    if f.shape != want:
-        raise ValueError(f"force has shape {f.shape}, expected (n_steps + 1, len(loaded)) = {want}")
-    bad = ~np.isfinite(f)
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
-        raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} (sample {i}, loaded DOF {loaded[j]}) is not finite")
-    return np.ascontiguousarray(f)
+def time_history(force, dt, force_dofs, n_dof: int, min_samples: int = 2):
+    """The checked inputs every time-history entry point shares (the vocabulary of the README).
+
+    Returns ``(force, dt, force_dofs)``: ``force`` of shape (n_steps + 1, len(force_dofs)),
+    samples at t_k = k dt, finite, C-contiguous (a 1-D array is one column); ``dt`` > 0;
+    ``force_dofs`` 0-based DOF indices, all DOFs when None.
+    """
+    dt = positive_scalar("dt", dt)
+    force_dofs = dof_indices("force_dofs", force_dofs, n_dof)
+    f = force_record(force, force_dofs.size)
+    if f.shape[0] < min_samples:
+        raise ValueError(f"force has {f.shape[0]} sample(s); a time history needs at least "
+                         f"{min_samples} (t_0 .. t_n, n_steps = len(force) - 1)")
+    return f, dt, force_dofs
+
+
+def initial_conditions(x0, v0, n_dof: int):
+    """Initial displacement and velocity of every DOF (zeros when None), checked finite."""
+    x = np.zeros(n_dof) if x0 is None else vector("x0", x0, length=n_dof)
+    v = np.zeros(n_dof) if v0 is None else vector("v0", v0, length=n_dof)
+    return x, v
 
 
 def force_record(force, n_inputs: int, what: str = "force_dofs") -> np.ndarray:
@@ -83,5 +91,13 @@ def force_record(force, n_inputs: int, what: str = "force_dofs") -> np.ndarray:
     bad = ~np.isfinite(f)
     if bad.any():
         i, j = np.argwhere(bad)[0]
-        raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} is not finite")
+        raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} (sample {i}, column {j}) is not finite")
     return np.ascontiguousarray(f)
+
+
+def force_samples(force, n_steps: int, loaded: np.ndarray) -> np.ndarray:
+    """Force samples at t_0 .. t_n, shape (n_steps + 1, len(loaded)) (scenes)."""
+    f = force_record(force, loaded.size)
+    if f.shape[0] != n_steps + 1:
+        raise ValueError(f"force has {f.shape[0]} samples, expected n_steps + 1 = {n_steps + 1}")
+    return f

@@ -84,7 +84,7 @@ def bench_p3(quick=False, log=print):
     from dtdyn.linear.discretize import discretize, first_order_form
     from dtdyn.linear.exact import exact_response
     from dtdyn.modal.filters import modal_filter_response
-    from dtdyn.linear.state_space import discrete_state_space, rest_state, state_space_response
+    from dtdyn.linear.state_space import discrete_state_space, state_space_response
     P = problems.p3()
     M, C, K, T, out = P["M"], P["C"], P["K"], P["T"], P["output"]
     dts = (2e-3, 1e-3, 5e-4) if quick else (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4)
@@ -95,32 +95,32 @@ def bench_p3(quick=False, log=print):
     for dt in dts:
         n = int(round(T / dt))
         f = np.ones((n + 1, 1))
-        ref = exact_response(M, C, K, f, dt, n, loaded=[14], outputs=[out]).x[:, 0]
+        ref = exact_response(M, C, K, f, dt, force_dofs=[14], outputs=[out]).x[:, 0]
         setting = f"dt={dt:g}"
         for name, params in P3_SCHEMES:
-            r, t_run, t_b = _timed(lambda: simulate_chain(
-                P["mass"], P["stiffness"], P["damping"], f, dt, n, loaded=[14], scheme=name,
-                outputs=[out], quantities=("x",), **params), reps)
+            r, t_run, t_b = _timed(lambda: simulate_chain(P["mass"], P["stiffness"], P["damping"],
+                                                          f, dt, force_dofs=[14], scheme=name,
+                                                          outputs=[out], quantities=("x",),
+                                                          **params), reps)
             add(f"DT-TMM {name}", "DT-TMM (C)", setting, r.x[:, 0], ref, t_run, t_b)
 
-        u = np.hstack([np.zeros((n + 1, 14)), f])
-
-        def ss(model, rest):  # at rest at t_0 although f_0 != 0 (the states are shifted)
-            A, B, Cd, D = model()
-            return state_space_response(A, B, Cd, D, u, x0=rest(D))
-        y, t_run, t_b = _timed(lambda: ss(lambda: discrete_state_space(M, C, K, dt),
-                                          lambda D: rest_state(M, C, K, dt, u[0])), reps)
-        add("state space (Newmark)", "state space", setting, y[:, out], ref, t_run, t_b)
-        y, t_run, t_b = _timed(lambda: ss(lambda: discretize(M, C, K, dt, hold="foh"),
-                                          lambda D: -D @ u[0]), reps)
-        add("exact discretization (foh)", "state space", setting, y[:, out], ref, t_run, t_b)
+        def ss(build):  # the model and its response, from rest at t_0 (its state is shifted)
+            return state_space_response(build(), f, force_dofs=[14], outputs=[out],
+                                        quantities=("x",))
+        r, t_run, t_b = _timed(lambda: ss(lambda: discrete_state_space(M, C, K, dt)), reps)
+        add("state space (Newmark)", "state space", setting, r.x[:, 0], ref, t_run, t_b)
+        r, t_run, t_b = _timed(lambda: ss(lambda: discretize(M, C, K, dt, hold="foh")), reps)
+        add("exact discretization (foh)", "state space", setting, r.x[:, 0], ref, t_run, t_b)
         for inv in ("ramp", "step", "impulse"):
-            r, t_run, t_b = _timed(lambda: modal_filter_response(
-                f, 1 / dt, M, C, K, [14], [out], invariant=inv), reps)
+            r, t_run, t_b = _timed(lambda: modal_filter_response(M, C, K, f, dt, force_dofs=[14],
+                                                                 outputs=[out], invariant=inv,
+                                                                 quantities=("x",)), reps)
             add(f"modal filters {inv}", "modal filters", setting, r.x[:, 0], ref, t_run, t_b)
         for keep in (5, 10):
-            r, t_run, t_b = _timed(lambda: modal_filter_response(
-                f, 1 / dt, M, C, K, [14], [out], modes=range(keep), invariant="ramp"), reps)
+            r, t_run, t_b = _timed(lambda: modal_filter_response(M, C, K, f, dt, force_dofs=[14],
+                                                                 outputs=[out], modes=range(keep),
+                                                                 invariant="ramp",
+                                                                 quantities=("x",)), reps)
             add(f"modal filters ramp, {keep} modes", "modal filters", setting, r.x[:, 0], ref,
                 t_run, t_b)
         A, B = first_order_form(M, C, K)[:2]
@@ -133,7 +133,7 @@ def bench_p3(quick=False, log=print):
     dt = 1e-3
     n = int(round(T / dt))
     tt = np.arange(n + 1) * dt
-    ref = exact_response(M, C, K, np.ones((n + 1, 1)), dt, n, loaded=[14], outputs=[out]).x[:, 0]
+    ref = exact_response(M, C, K, np.ones((n + 1, 1)), dt, force_dofs=[14], outputs=[out]).x[:, 0]
     A, B = first_order_form(M, C, K)[:2]
     b = B[:, 14].copy()
 
@@ -167,30 +167,32 @@ def bench_p4(quick=False, log=print):
     n = 10_000 if quick else 100_000
     P = problems.p4(n)
     out = P["output"]
-    args = (P["force"], P["fs"], P["M"], P["C"], P["K"], P["force_dofs"], P["elements"])
+    args = (P["M"], P["C"], P["K"], P["force"], P["dt"])
+    kw = dict(force_dofs=P["force_dofs"], elements=P["elements"])
     t0 = time.perf_counter()
-    ref_r = reference_response(*args)
+    ref_r = reference_response(*args, **kw)
     t_ref = time.perf_counter() - t0
     ref = ref_r.x[:, out]
-    radau = check_reference(*args, n_samples=300)
+    radau = check_reference(*args, **kw, n_samples=300)
     runs = []
     add = _recorder(runs, log)
 
     for method, params in P4_METHODS:
         for S in (1, 2, 3, 4, 8):
-            r, t_run, t_b = _timed(lambda: nonlinear_response(*args, method=method, substeps=S,
+            r, t_run, t_b = _timed(lambda: nonlinear_response(*args, **kw, scheme=method,
+                                                              substeps=S, quantities=("x",),
                                                               **params), 3)
             add(method, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref,
                 r.info["run_time"], t_b)
     for S in (4, 8):
         r, t_run, t_b = _timed(lambda: nonlinear_response(
-            *args, method="newmark", substeps=S, backend="casadi", solver="fast_newton",
-            compiled=True), 1)
+            *args, **kw, scheme="newmark", substeps=S, backend="casadi", solver="fast_newton",
+            compiled=True, quantities=("x",)), 1)
         add("CasADi newmark (compiled)", "peer", f"substeps={S}", r.x[:, out], ref,
             r.info["run_time"], t_b, "fast_newton in mapaccum")
 
     # solve_ivp across the kinks (force interpolated), on a window, extrapolated
-    M, C, K, fs = P["M"], P["C"], P["K"], P["fs"]
+    M, C, K, fs = P["M"], P["C"], P["K"], 1.0 / P["dt"]
     Minv = np.linalg.inv(M)
     L = np.array([[1.0, 0, 0, 0], [0, 1.0, -1.0, 0]])
     k3 = P["k3"]

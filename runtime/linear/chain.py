@@ -55,22 +55,24 @@ def chain_matrices(mass, stiffness, damping, sparse: bool | None = None):
     return (M, C, K) if sparse else (M.toarray(), C.toarray(), K.toarray())
 
 
-def simulate_chain(mass, stiffness, damping, force, dt, n_steps, loaded=None, scheme="newmark",
+def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, scheme="newmark",
                    form="displacement", sweep="stable", backend="c", outputs=None,
-                   quantities=("x", "v", "a"), progress=False, **scheme_params) -> Response:
+                   quantities=("x", "v", "a"), x0=None, v0=None, progress=False,
+                   **scheme_params) -> Response:
     """Time history of a chain by the discrete-time transfer matrix method (DT-TMM).
 
     Parameters
     ----------
     mass, stiffness, damping : (N,) array_like
         m_n > 0, k_n >= 0, c_n >= 0 of station n (0-based).
-    force : array_like, shape (n_steps + 1, len(loaded))
-        Samples at t_0 .. t_n for the masses in ``loaded`` (all masses when None); linear in
-        between where the scheme samples between steps (HHT, generalized-alpha, Wilson).
+    force : array_like, shape (n_steps + 1, len(force_dofs))
+        Samples at t_k = k dt, k = 0 .. n_steps, for the masses in ``force_dofs``; linear in
+        between where the scheme samples between steps (HHT, generalized-alpha, Wilson). A 1-D
+        array is one column.
     dt : float
         Time step, > 0.
-    n_steps : int
-        Number of steps.
+    force_dofs : sequence of int, optional
+        0-based masses the force columns act on (all masses when None).
     scheme : str
         "newmark" (beta, gamma), "average_acceleration", "linear_acceleration", "fox_goodwin",
         "newmark_1_8", "central_difference", "fox_euler", "wilson" (theta), "houbolt", "park",
@@ -91,18 +93,31 @@ def simulate_chain(mass, stiffness, damping, force, dt, n_steps, loaded=None, sc
         Masses whose response is stored (all by default).
     quantities : subset of ("x", "v", "a")
         What is stored; the others are None in the result.
+    x0, v0 : (N,) array_like, optional
+        Initial displacement and velocity (rest when None); the initial acceleration is the
+        consistent one, a_0 = M^-1 (f_0 - C v0 - K x0).
+    progress : bool
+        Show a progress bar (tqdm) on long runs.
 
     Returns
     -------
     Response
-        ``t`` and ``x``, ``v``, ``a`` of shape (n_steps + 1, len(outputs)); zero initial state.
+        ``t`` and ``x``, ``v``, ``a`` of shape (n_steps + 1, len(outputs)).
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> r = dd.simulate_chain([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], np.ones(501), 0.02,
+    ...                       force_dofs=[1], scheme="hht", alpha=-0.1)
+    >>> r.x.shape
+    (501, 2)
 
     Notes
     -----
     Each step: the scheme makes a_e = A x_e + B, v_e = D x_e + E at every mass; the Riccati
     relation f_n = S_n u_{n-1} + R_n is carried from the free end to the base, then the
     displacements forward (dtdyn.derive.dttmm). Only the loaded force columns are read and only
-    the requested outputs stored: memory is O(N + n_steps * (len(loaded) + len(outputs))).
+    the requested outputs stored: memory is O(N + n_steps * (len(force_dofs) + len(outputs))).
 
     References
     ----------
@@ -110,10 +125,8 @@ def simulate_chain(mass, stiffness, damping, force, dt, n_steps, loaded=None, sc
     dynamics. Horner & Pilkey (1978), The Riccati transfer matrix method.
     """
     m, k, c = chain_parameters(mass, stiffness, damping)
-    dt = validate.positive_scalar("dt", dt)
-    n_steps = validate.step_count("n_steps", n_steps)
-    loaded = validate.dof_indices("loaded", loaded, m.size)
-    force = validate.force_samples(force, n_steps, loaded)
+    force, dt, loaded = validate.time_history(force, dt, force_dofs, m.size)
+    x0, v0 = validate.initial_conditions(x0, v0, m.size)
     outputs = validate.dof_indices("outputs", outputs, m.size)
     quantities = stepping.check_quantities(quantities)
     if sweep not in kernels.SWEEP_CODE:
@@ -135,10 +148,12 @@ def simulate_chain(mass, stiffness, damping, force, dt, n_steps, loaded=None, sc
         return kernels.chain_advance(backend, sch, coeffs, form, sweep, m, k, c, dt, loaded,
                                      outputs, tracker)
 
-    a0 = np.zeros(m.size)
-    a0[loaded] = force[0] / m[loaded]  # zero initial displacement and velocity
-    res = stepping.integrate(info, form, dt, force, (np.zeros(m.size), np.zeros(m.size), a0),
-                             make_advance, outputs, quantities, progress)
+    f0 = np.zeros(m.size)
+    f0[loaded] = force[0]
+    _, C, K = chain_matrices(m, k, c, sparse=True)
+    a0 = (f0 - C @ v0 - K @ x0) / m
+    res = stepping.integrate(info, form, dt, force, (x0, v0, a0), make_advance, outputs,
+                             quantities, progress)
     used = "c" if backend == "c" and kernels.c_chain_function(info.name) else "numpy"
     res.info.update(method="DT-TMM", sweep=sweep, backend=used)
     if sweep == "plain" and res.info["error_estimate"] > PLAIN_SWEEP_TOLERANCE:

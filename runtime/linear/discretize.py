@@ -17,8 +17,9 @@ import scipy.sparse
 
 from dtdyn._engine import linalg
 from dtdyn._engine import validate
+from dtdyn.linear.discrete_model import DiscreteModel, shifted
 
-__all__ = ["HOLDS", "first_order_form", "discretize", "to_dlti", "to_control"]
+__all__ = ["HOLDS", "first_order_form", "discretize"]
 
 #: Accepted values of ``hold`` in :func:`discretize` ("bilinear" is an alias of "tustin").
 HOLDS = ("zoh", "foh", "impulse", "tustin", "bilinear")
@@ -75,7 +76,7 @@ def _hold_name(hold) -> str:
     return "tustin" if hold == "bilinear" else hold
 
 
-def discretize(M, C, K, dt, hold="zoh"):
+def discretize(M, C, K, dt, hold="zoh") -> DiscreteModel:
     r"""Discrete-time state space of ``M q'' + C q' + K q = f`` sampled every ``dt``.
 
     The continuous system is :func:`first_order_form`, :math:`\dot z = A z + B f`,
@@ -102,10 +103,9 @@ def discretize(M, C, K, dt, hold="zoh"):
 
     Returns
     -------
-    Ad : (2N, 2N) ndarray
-    Bd : (2N, N) ndarray
-    Cd : (2N, 2N) ndarray
-    Dd : (2N, N) ndarray
+    DiscreteModel
+        Iterable as ``(Ad, Bd, Cd, Dd)``: (2N, 2N), (2N, N), (2N, 2N), (2N, N); outputs
+        [q; q']; it knows its state (below), so `state_space_response` starts at rest.
 
     Raises
     ------
@@ -190,13 +190,18 @@ def discretize(M, C, K, dt, hold="zoh"):
     A, B = first_order_form(M, C, K)
     ns, ni = B.shape
     eye = np.eye(ns)
+    common = dict(quantities=("x", "v"), n_dof=ni, source=f"discretize(hold={hold!r})")
+
+    def z0(q0, v0, f0):
+        return np.concatenate((q0, v0))
 
     if hold == "zoh":
         F = np.zeros((ns + ni, ns + ni))
         F[:ns, :ns] = A
         F[:ns, ns:] = B
         E = scipy.linalg.expm(dt * F)
-        return E[:ns, :ns], E[:ns, ns:], eye, np.zeros((ns, ni))
+        return DiscreteModel(E[:ns, :ns], E[:ns, ns:], eye, np.zeros((ns, ni)), dt,
+                             state="[q; q']", _physical_state=z0, **common)
 
     if hold == "foh":
         F = np.zeros((ns + 2 * ni, ns + 2 * ni))
@@ -204,69 +209,24 @@ def discretize(M, C, K, dt, hold="zoh"):
         F[:ns, ns:ns + ni] = B * dt
         F[ns:ns + ni, ns + ni:] = np.eye(ni)
         E = scipy.linalg.expm(F)
-        Phi = E[:ns, :ns]
-        gam1 = E[:ns, ns:ns + ni]
-        gam2 = E[:ns, ns + ni:]
-        return Phi, gam1 - gam2 + Phi @ gam2, eye, gam2.copy()
+        Phi, gam1, gam2 = E[:ns, :ns], E[:ns, ns:ns + ni], E[:ns, ns + ni:]
+        return shifted(Phi, gam1 - gam2, gam2.copy(), eye, dt, state="[q; q'] - Gamma2 f_n",
+                       physical=z0, **common)
 
-    if hold == "impulse":
+    if hold == "impulse":  # scipy's convention: the zero state is rest (y_0 = dt B f_0)
         Phi = scipy.linalg.expm(A * dt)
-        return Phi, Phi @ B * dt, eye, B * dt
+        return DiscreteModel(Phi, Phi @ B * dt, eye, B * dt, dt, state="impulse-invariant state",
+                             _physical_state=z0, **common)
 
-    # tustin: generalised bilinear transform with alpha = 1/2
+    # tustin: generalised bilinear transform with alpha = 1/2; state E z_n - dt/2 B f_n
     half = 0.5 * dt
     lu_piv = scipy.linalg.lu_factor(eye - half * A, check_finite=False)
     Ad = scipy.linalg.lu_solve(lu_piv, eye + half * A, check_finite=False)
     Bd = scipy.linalg.lu_solve(lu_piv, dt * B, check_finite=False)
     Cd = scipy.linalg.lu_solve(lu_piv, eye, trans=1, check_finite=False).T
-    Dd = 0.5 * Bd
-    return Ad, Bd, Cd, Dd
 
+    def tustin_state(q0, v0, f0):
+        return (eye - half * A) @ z0(q0, v0, f0) - half * (B @ f0)
 
-def _state_space(Ad, Bd, Cd, Dd):
-    Ad = linalg.square_matrix("Ad", Ad)
-    ns = Ad.shape[0]
-    out = [Ad]
-    for name, value in (("Bd", Bd), ("Cd", Cd), ("Dd", Dd)):
-        if scipy.sparse.issparse(value):
-            value = value.toarray()
-        try:
-            arr = np.array(value, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"{name} must be a real numeric matrix, got {type(value).__name__}") from None
-        if arr.ndim != 2:
-            raise ValueError(f"{name} must be a 2-D matrix, got shape {arr.shape}")
-        if not np.all(np.isfinite(arr)):
-            raise ValueError(f"{name} has a non-finite entry")
-        out.append(arr)
-    _, B, C, D = out
-    if B.shape[0] != ns:
-        raise ValueError(f"Bd has {B.shape[0]} rows, expected {ns} to match Ad")
-    if C.shape[1] != ns:
-        raise ValueError(f"Cd has {C.shape[1]} columns, expected {ns} to match Ad")
-    if D.shape != (C.shape[0], B.shape[1]):
-        raise ValueError(f"Dd has shape {D.shape}, expected {(C.shape[0], B.shape[1])} "
-                         "(rows of Cd, columns of Bd)")
-    return out
-
-
-def to_dlti(Ad, Bd, Cd, Dd, dt):
-    """The discrete system as a :class:`scipy.signal.dlti` (a ``StateSpace`` with sample time ``dt``)."""
-    dt = validate.positive_scalar("dt", dt)
-    Ad, Bd, Cd, Dd = _state_space(Ad, Bd, Cd, Dd)
-    return scipy.signal.dlti(Ad, Bd, Cd, Dd, dt=dt)
-
-
-def to_control(Ad, Bd, Cd, Dd, dt):
-    """The discrete system as a python-control ``StateSpace`` with sample time ``dt``.
-
-    python-control is imported only here; ImportError with an install hint when it is missing.
-    """
-    dt = validate.positive_scalar("dt", dt)
-    Ad, Bd, Cd, Dd = _state_space(Ad, Bd, Cd, Dd)
-    try:
-        import control
-    except ImportError as exc:
-        raise ImportError("to_control needs the python-control package, which is not installed; "
-                          "install it with: pip install control") from exc
-    return control.StateSpace(Ad, Bd, Cd, Dd, dt)
+    return DiscreteModel(Ad, Bd, Cd, 0.5 * Bd, dt, state="(I - dt/2 A) [q; q'] - dt/2 B f_n",
+                         _physical_state=tustin_state, **common)

@@ -12,7 +12,7 @@ import scipy.linalg
 import scipy.sparse
 
 from dtdyn._engine import linalg
-from dtdyn._engine import validate
+from dtdyn._engine import stepping, validate
 from dtdyn.linear.discretize import first_order_form
 from dtdyn._engine.result import Response
 from dtdyn._engine.errors import SingularMassError
@@ -88,8 +88,8 @@ def _reduced_form(M, C, K, loaded):
     return A, B, Vz, Vf, m
 
 
-def exact_response(M, C, K, force, dt, n_steps, loaded=None, outputs=None, x0=None, v0=None
-                   ) -> Response:
+def exact_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
+                   quantities=("x", "v", "a"), x0=None, v0=None) -> Response:
     r"""Exact response of ``M q'' + C q' + K q = L f(t)`` to a piecewise-linear force.
 
     The force is known at the samples :math:`t_n = n\,\Delta t` and is taken to be linear in
@@ -102,18 +102,18 @@ def exact_response(M, C, K, force, dt, n_steps, loaded=None, outputs=None, x0=No
         Mass, damping and stiffness matrices (converted to dense; intended for small and
         medium N). ``M`` must be nonsingular, or singular only through massless DOFs (zero
         rows and columns) whose damping block ``C[z, z]`` is nonsingular: see Notes.
-    force : (n_steps + 1, len(loaded)) array_like
-        Force samples :math:`f_0 \dots f_n`; column ``j`` acts on DOF ``loaded[j]``. A 1-D array
-        is accepted when a single DOF is loaded.
+    force : (n_steps + 1, len(force_dofs)) array_like
+        Force samples :math:`f_0 \dots f_n` at :math:`t_k = k\,\Delta t`; column ``j`` acts on
+        DOF ``force_dofs[j]``. A 1-D array is one column.
     dt : float
         Sample interval, > 0.
-    n_steps : int
-        Number of steps, >= 1; the response has ``n_steps + 1`` samples.
-    loaded : sequence of int, optional
+    force_dofs : sequence of int, optional
         0-based DOFs the force columns act on (all DOFs when None). This defines the
         :math:`N \times n_{in}` selection matrix :math:`L`.
     outputs : sequence of int, optional
         0-based DOFs to store (all DOFs when None).
+    quantities : subset of ("x", "v", "a")
+        What is stored; the others are None in the result.
     x0, v0 : (N,) array_like, optional
         Initial displacement and velocity (zero when None).
 
@@ -180,15 +180,13 @@ def exact_response(M, C, K, force, dt, n_steps, loaded=None, outputs=None, x0=No
     3rd ed., Addison-Wesley, 1998.
     """
     start = time.perf_counter()
-    dt = validate.positive_scalar("dt", dt)
-    n_steps = validate.step_count("n_steps", n_steps)
     M, C, K = linalg.mck(M, C, K)
     N = M.shape[0]
-    loaded = validate.dof_indices("loaded", loaded, N)
+    f, dt, loaded = validate.time_history(force, dt, force_dofs, N)
+    n_steps = f.shape[0] - 1
     outputs = validate.dof_indices("outputs", outputs, N)
-    f = validate.force_samples(force, n_steps, loaded)
-    q0 = np.zeros(N) if x0 is None else validate.vector("x0", x0, length=N)
-    qd0 = np.zeros(N) if v0 is None else validate.vector("v0", v0, length=N)
+    quantities = stepping.check_quantities(quantities)
+    q0, qd0 = validate.initial_conditions(x0, v0, N)
 
     try:
         A, B, Vz, Vf, m = _reduced_form(M, C, K, loaded)
@@ -219,16 +217,14 @@ def exact_response(M, C, K, force, dt, n_steps, loaded=None, outputs=None, x0=No
     # q' = Vz z + Vf f and q'' = Vz (A z + B f) + Vf f', for the stored DOFs only; f' is the
     # slope of the force segment ending at t_n (the first segment at t_0).
     Vz_o, Vf_o = Vz[outputs], Vf[outputs]
-    vel = Z @ Vz_o.T + f @ Vf_o.T
-    slope = np.diff(f, axis=0, prepend=2 * f[:1] - f[1:2]) / dt
-    acc = Z @ (Vz_o @ A).T + f @ (Vz_o @ B).T + slope @ Vf_o.T
+    vel = Z @ Vz_o.T + f @ Vf_o.T if "v" in quantities else None
+    acc = None
+    if "a" in quantities:
+        slope = np.diff(f, axis=0, prepend=2 * f[:1] - f[1:2]) / dt
+        acc = Z @ (Vz_o @ A).T + f @ (Vz_o @ B).T + slope @ Vf_o.T
+    disp = np.ascontiguousarray(Z[:, outputs]) if "x" in quantities else None
 
     t = dt * np.arange(n_steps + 1)
-    return Response(
-        t=t,
-        outputs=outputs,
-        x=np.ascontiguousarray(Z[:, outputs]),
-        v=vel,
-        a=acc,
-        info={"method": METHOD, "run_time": time.perf_counter() - start},
-    )
+    return Response(t=t, outputs=outputs, x=disp, v=vel, a=acc,
+                    info={"method": METHOD, "dt": dt, "n_steps": n_steps,
+                          "run_time": time.perf_counter() - start})

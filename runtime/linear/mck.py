@@ -23,9 +23,9 @@ from dtdyn._engine.schemes import get_scheme
 
 
 def _initial_acceleration(M, f0):
-    """a_0 from M a_0 = f_0 (zero initial state). A singular M (massless DOFs) is allowed when
-    f_0 is consistent with it: then a_0 is the minimum-norm solution (its massless components
-    are not physical; each step enforces their equilibrium)."""
+    """a_0 from M a_0 = f_0 (f_0: the force minus C v_0 + K x_0 at t_0). A singular M (massless
+    DOFs) is allowed when f_0 is consistent with it: then a_0 is the minimum-norm solution (its
+    massless components are not physical; each step enforces their equilibrium)."""
     try:
         return linalg.solver(M, "M")(f0)
     except ValueError:
@@ -35,30 +35,61 @@ def _initial_acceleration(M, f0):
         if np.linalg.norm(resid) > 1e-12 * max(np.linalg.norm(f0), np.finfo(float).tiny):
             i = int(np.argmax(np.abs(resid)))
             raise ValueError(f"M is singular and the force at t_0 loads its null space (DOF {i}): "
-                             "a zero initial state is not in equilibrium there") from None
+                             "the initial state is not in equilibrium there") from None
         return a0
 
 
-def simulate_mck(M, C, K, force, dt, n_steps, loaded=None, scheme="newmark", outputs=None,
-                 quantities=("x", "v", "a"), progress=False, **scheme_params) -> Response:
+def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outputs=None,
+                 quantities=("x", "v", "a"), x0=None, v0=None, progress=False,
+                 **scheme_params) -> Response:
     """Time history of M q'' + C q' + K q = L f(t) by one of the generated integrators.
 
-    Same force convention and result as `simulate_chain`: ``force`` has shape
-    (n_steps + 1, len(loaded)) with samples at t_0 .. t_n; zero initial state. M may be singular
-    (massless DOFs) where M + Dv C + Dx K is invertible and f_0 is consistent with it.
+    Parameters
+    ----------
+    M, C, K : (N, N) array_like or scipy.sparse matrix
+        Mass, damping, stiffness (sparse stays sparse: one sparse LU of the effective matrix).
+        M may be singular (massless DOFs) where M + Dv C + Dx K is invertible and the initial
+        state is consistent with it.
+    force : array_like, shape (n_steps + 1, len(force_dofs))
+        Samples at t_k = k dt, k = 0 .. n_steps (a 1-D array is one column).
+    dt : float
+        Time step, > 0.
+    force_dofs : sequence of int, optional
+        0-based DOFs the force columns act on (all DOFs when None).
+    scheme : str
+        Any scheme of `simulate_chain`; parameters as keywords.
+    outputs : sequence of int, optional
+        DOFs whose response is stored (all by default).
+    quantities : subset of ("x", "v", "a")
+        What is stored; the others are None in the result.
+    x0, v0 : (N,) array_like, optional
+        Initial displacement and velocity (rest when None); a_0 = M^-1 (f_0 - C v0 - K x0).
+    progress : bool
+        Show a progress bar on long runs.
+
+    Returns
+    -------
+    Response
+        ``x``, ``v``, ``a`` of shape (n_steps + 1, len(outputs)).
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> M, C, K = np.diag([2.0, 1.0]), np.zeros((2, 2)), np.array([[30.0, -10], [-10, 10]])
+    >>> r = dd.simulate_mck(M, C, K, np.ones(101), 0.01, force_dofs=[1], scheme="wilson")
+    >>> r.x.shape
+    (101, 2)
     """
     M, C, K = linalg.mck(M, C, K, keep_sparse=True)
     n = M.shape[0]
-    dt = validate.positive_scalar("dt", dt)
-    n_steps = validate.step_count("n_steps", n_steps)
-    loaded = validate.dof_indices("loaded", loaded, n)
-    force = validate.force_samples(force, n_steps, loaded)
+    force, dt, loaded = validate.time_history(force, dt, force_dofs, n)
+    x0, v0 = validate.initial_conditions(x0, v0, n)
     outputs = validate.dof_indices("outputs", outputs, n)
     quantities = stepping.check_quantities(quantities)
     info = get_scheme(scheme, **scheme_params)
     f0 = np.zeros(n)
     f0[loaded] = force[0]
-    a0 = _initial_acceleration(M, f0)
+    a0 = _initial_acceleration(M, f0 - C @ v0 - K @ x0)
 
     def make_advance(sch, K_):
         solve = linalg.solver(M + K_["r"] * C + K_["p"] * K, "the effective matrix M + Dv C + Dx K")
@@ -78,8 +109,8 @@ def simulate_mck(M, C, K, force, dt, n_steps, loaded=None, scheme="newmark", out
             return 0.0
         return advance
 
-    res = stepping.integrate(info, "acceleration", dt, force, (np.zeros(n), np.zeros(n), a0),
-                             make_advance, outputs, quantities, progress)
+    res = stepping.integrate(info, "acceleration", dt, force, (x0, v0, a0), make_advance,
+                             outputs, quantities, progress)
     res.info.update(method="assembled matrices", sparse=sps.issparse(M),
                     backend="scipy.sparse" if sps.issparse(M) else "numpy")
     return res

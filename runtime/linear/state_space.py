@@ -6,15 +6,18 @@
 - `discrete_state_space`: the same kind of model for any scheme of the integrator library, from
   its generated coefficients; state = the scheme's history (x, v, a and lags), output
   [q; q'] or [q; q'; q''].
-- `state_space_response`: x_{n+1} = A x_n + B f_n, y_n = C x_n + D f_n in a generated C loop.
+- `state_space_response`: the response of such a model to a force record, from rest (or given
+  x0, v0) at t_0, run as x_{n+1} = A x_n + B f_n, y_n = C x_n + D f_n in a generated C loop.
 
 Every model here removes the direct dependence on f_{n+1} as SHARPy does: with
 z_{n+1} = Phi z_n + Gamma0 f_n + Gamma1 f_{n+1}, the state x_n = z_n - Gamma1 f_n gives
-A = Phi, B = Gamma0 + Phi Gamma1, and the outputs y_n = S z_n = S x_n + S Gamma1 f_n.
+A = Phi, B = Gamma0 + Phi Gamma1, and the outputs y_n = S z_n = S x_n + S Gamma1 f_n. Each is a
+`DiscreteModel`, which knows that shift: a zero state is not rest when f_0 != 0.
 """
 from __future__ import annotations
 
 import ctypes
+import time
 from functools import lru_cache
 from importlib import resources
 
@@ -26,16 +29,14 @@ from dtdyn.generated import newmark_ss as _blocks
 from dtdyn._engine import cbuild
 from dtdyn._engine import linalg
 from dtdyn._engine import validate
+from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
+from dtdyn._engine.stepping import check_quantities
+from dtdyn.linear.discrete_model import DiscreteModel, shifted
 
 
-def _shift_feedthrough(Phi, G0, G1, S):
-    """(A, B, C, D) for the state x_n = z_n - G1 f_n (see the module docstring)."""
-    return Phi, G0 + Phi @ G1, S, S @ G1
-
-
-def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False):
-    """SHARPy's Newmark discrete-time state space: ``(Ass, Bss, Css, Dss)``.
+def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False) -> DiscreteModel:
+    """SHARPy's Newmark discrete-time state space, iterable as ``(Ass, Bss, Css, Dss)``.
 
     gamma = 1/2 + num_damp, beta = (1 + num_damp)^2 / 4. With y = [q; q'] and the derived
     M-multiplied blocks ``E1 y_{n+1} = E0 y_n + G0 f_n + G1 f_{n+1}``,
@@ -54,7 +55,16 @@ def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False):
     q'). It agrees with `simulate_mck` and converges to `exact_response` at second order for
     num_damp = 0, first order otherwise (gamma > 1/2; tests/test_state_space.py).
 
-    Output y_n = Css x_n + Dss f_n = [q_n; q'_n]; input f on every DOF.
+    Output y_n = Css x_n + Dss f_n = [q_n; q'_n]; input f on every DOF; state
+    x_n = [q_n; q'_n] - Dss f_n, so the state at rest under f_0 is -Dss f_0
+    (`DiscreteModel.initial_state`; `state_space_response` starts there).
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> Ass, Bss, Css, Dss = dd.newmark_ss(np.eye(2), np.zeros((2, 2)), 4 * np.eye(2), 0.1)
+    >>> Ass.shape, Dss.shape
+    ((4, 4), (4, 2))
     """
     M, C, K = linalg.mck(M, C, K)
     dt = validate.positive_scalar("dt", dt)
@@ -82,11 +92,18 @@ def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False):
     Ass = solve(E0)
     Dss = solve(G1)
     Bss = solve(G0 + E0 @ Dss)
-    return Ass, Bss, np.eye(2 * n), Dss
+
+    def initial(q0, v0, f0):
+        return np.concatenate((q0, v0)) - Dss @ f0
+
+    return DiscreteModel(Ass, Bss, np.eye(2 * n), Dss, dt, state="[q; q'] - Dss f_n",
+                         quantities=("x", "v"), n_dof=n,
+                         source=f"newmark_ss(num_damp={num_damp!r})", _physical_state=initial)
 
 
-def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False, **scheme_params):
-    """State-space model ``(A, B, C, D)`` of one step of any scheme of the integrator library.
+def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False,
+                         **scheme_params) -> DiscreteModel:
+    """State-space model of one step of any scheme of the integrator library.
 
     State: the scheme's history per DOF (x, v, a and, for multistep schemes, the lags), shifted
     by the f_{n+1} feedthrough; input f on every DOF; output [q; q'] (and q'' when
@@ -96,29 +113,33 @@ def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False, **sc
         h_{n+1} = c_u a_e + L h_n,
 
     with the generated coefficients; no inverse of M is formed. For Houbolt and Park this is the
-    main recursion: the start-up steps of `simulate_mck` are not part of the LTI model.
-    """
-    return _shift_feedthrough(*scheme_blocks(M, C, K, dt, scheme, acceleration, **scheme_params))
+    main recursion: the start-up steps of `simulate_mck` are not part of the LTI model (their
+    lags start equal to the initial state).
 
-
-def rest_state(M, C, K, dt, f0, scheme="newmark", **scheme_params):
-    """Initial state of `discrete_state_space` for a system at rest at t_0 loaded by f_0.
-
-    The model's state is shifted by the f_{n+1} feedthrough (module docstring), so a zero state
-    is not rest when f_0 != 0: rest is z_0 = [q = 0; q' = 0; q'' = M^-1 f_0] (lags 0), and
-    x_0 = z_0 - Gamma1 f_0. (For `discretize` with Cd = I the same reasoning gives
-    x_0 = -Dd f_0.) Pass it as ``state_space_response(..., x0=rest_state(...))``.
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> model = dd.discrete_state_space(np.eye(1), np.zeros((1, 1)), np.eye(1), 0.1,
+    ...                                 scheme="hht", alpha=-0.1, acceleration=True)
+    >>> model.quantities
+    ('x', 'v', 'a')
     """
     from dtdyn.linear.mck import _initial_acceleration
     M, C, K = linalg.mck(M, C, K)
     n = M.shape[0]
-    f0 = validate.vector("f0", f0, length=n)
-    Phi, G0, G1, S = scheme_blocks(M, C, K, dt, scheme, **scheme_params)
-    names = get_scheme(scheme, **scheme_params).history
-    z0 = np.zeros(Phi.shape[0])
-    i = names.index("a0")
-    z0[i * n:(i + 1) * n] = _initial_acceleration(M, f0)
-    return z0 - G1 @ f0
+    info = get_scheme(scheme, **scheme_params)
+    names = info.history
+
+    def physical(q0, v0, f0):
+        state = {"x": q0, "v": v0, "a": _initial_acceleration(M, f0 - C @ v0 - K @ q0)}
+        return np.concatenate([state[h[0]] for h in names])
+
+    params = "".join(f", {k}={v!r}" for k, v in info.params.items())
+    return shifted(*scheme_blocks(M, C, K, dt, scheme, acceleration, **scheme_params), dt,
+                   state=f"history [{', '.join(names)}] per DOF - Gamma1 f_n",
+                   quantities=("x", "v", "a") if acceleration else ("x", "v"), n_dof=n,
+                   source=f"discrete_state_space(scheme={info.name!r}{params})",
+                   physical=physical)
 
 
 def scheme_blocks(M, C, K, dt, scheme="newmark", acceleration=False, **scheme_params):
@@ -178,15 +199,88 @@ def _c_loop():
     return fn
 
 
-def state_space_response(Ad, Bd, Cd, Dd, force, x0=None, backend="c"):
-    """Response of x_{n+1} = Ad x_n + Bd f_n, y_n = Cd x_n + Dd f_n for n = 0 .. n_steps - 1.
+def state_space_response(model: DiscreteModel, force, *, force_dofs=None, outputs=None,
+                         quantities=None, x0=None, v0=None,
+                         backend="c") -> Response:
+    """Response of a discrete model (`newmark_ss`, `discrete_state_space`, `discretize`) to a
+    force record, starting from rest at t_0 (or from ``x0``, ``v0``) whatever the model's state
+    convention.
 
-    ``force`` has shape (n_steps, n_inputs); returns y of shape (n_steps, n_outputs). The record
-    runs in blocks of `SS_BLOCK` steps: per block the input and output maps are matrix-matrix
-    products and only the recursion x_{n+1} = Ad x_n + w_n is sequential, in a generated C
-    kernel (a NumPy loop when no compiler exists). Memory: y, plus one block of states and
-    inputs (the block keeps them in cache between the products and the recursion).
+    Parameters
+    ----------
+    model : DiscreteModel
+        The model; its ``dt`` is the sample step of ``force``.
+    force : array_like, shape (n_steps + 1, len(force_dofs))
+        Samples at t_k = k dt (a 1-D array is one column).
+    force_dofs : sequence of int, optional
+        0-based DOFs the force columns act on (all DOFs when None).
+    outputs : sequence of int, optional
+        DOFs whose response is stored (all by default).
+    quantities : subset of ("x", "v", "a"), optional
+        What is stored (default: every quantity the model outputs); "a" needs a model with
+        accelerations among its outputs.
+    x0, v0 : (N,) array_like, optional
+        Initial displacement and velocity (rest when None), mapped to the model's state by
+        `DiscreteModel.initial_state` (the state of these models is shifted by the feedthrough
+        of f_0, so a zero state is not rest under a nonzero first force sample).
+    backend : {"c", "numpy"}
+        The generated C recursion or a NumPy loop.
+
+    Returns
+    -------
+    Response
+        ``x``, ``v``, ``a`` of shape (n_steps + 1, len(outputs)).
+
+    Notes
+    -----
+    The record runs in blocks of `SS_BLOCK` steps: per block the input and output maps are
+    matrix-matrix products and only the recursion x_{n+1} = A x_n + w_n is sequential, in a
+    generated C kernel (a NumPy loop when no compiler exists). Memory: the outputs asked for,
+    plus one block of states and inputs. For raw matrices use `DiscreteModel.simulate`.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> M, C, K = np.diag([2.0, 1.0]), np.zeros((2, 2)), np.array([[30.0, -10], [-10, 10]])
+    >>> r = dd.state_space_response(dd.discretize(M, C, K, 0.01, hold="foh"), np.ones(201),
+    ...                             force_dofs=[1], quantities=("x",))
+    >>> r.v is None
+    True
     """
+    if not isinstance(model, DiscreteModel):
+        raise TypeError("model must be a DiscreteModel (from newmark_ss, discrete_state_space or "
+                        f"discretize), got {type(model).__name__}; for raw (A, B, C, D) matrices "
+                        "use DiscreteModel(A, B, C, D, dt).simulate(force)")
+    if not model.quantities:
+        raise ValueError("this model's outputs have no stated meaning: use model.simulate(force)")
+    n = model.n_dof
+    f, dt, dofs = validate.time_history(force, model.dt, force_dofs, n, min_samples=1)
+    outputs = validate.dof_indices("outputs", outputs, n)
+    quantities = check_quantities(model.quantities if quantities is None else quantities)
+    missing = [q for q in quantities if q not in model.quantities]
+    if missing:
+        raise ValueError(f"quantities = {quantities}: this model outputs {model.quantities} only "
+                         "(discrete_state_space(..., acceleration=True) adds 'a')")
+    f0 = np.zeros(n)
+    f0[dofs] = f[0]
+    state0 = model.initial_state(x0, v0, f0)
+    rows = np.concatenate([model.quantities.index(q) * n + outputs for q in quantities])
+    start = time.perf_counter()
+    y = run_recursion(model.A, model.B[:, dofs], model.C[rows], model.D[rows][:, dofs], f,
+                      state0, backend)
+    run_time = time.perf_counter() - start
+    k = outputs.size
+    store = {q: np.ascontiguousarray(y[:, i * k:(i + 1) * k]) for i, q in enumerate(quantities)}
+    return Response(dt * np.arange(f.shape[0]), outputs, store.get("x"), store.get("v"),
+                    store.get("a"), info={"method": model.source, "dt": dt,
+                                          "n_steps": f.shape[0] - 1, "run_time": run_time,
+                                          "backend": "c" if backend == "c" and _c_loop() else
+                                          "numpy"})
+
+
+def run_recursion(Ad, Bd, Cd, Dd, force, state0=None, backend="c") -> np.ndarray:
+    """y_n of x_{n+1} = Ad x_n + Bd f_n, y_n = Cd x_n + Dd f_n for n = 0 .. len(force) - 1,
+    from the state ``state0`` (zero when None): shape (len(force), rows of Cd)."""
     A = np.asarray(Ad, dtype=float)
     B, Cm, D = (np.atleast_2d(np.asarray(X, dtype=float)) for X in (Bd, Cd, Dd))
     ns = A.shape[0]
@@ -202,7 +296,7 @@ def state_space_response(Ad, Bd, Cd, Dd, force, x0=None, backend="c"):
             raise ValueError(f"{name} has shape {X.shape}, expected {shape}")
         if not np.all(np.isfinite(X)):
             raise ValueError(f"{name} has a non-finite entry")
-    x = np.zeros(ns) if x0 is None else validate.vector("x0", x0, length=ns)
+    x = np.zeros(ns) if state0 is None else validate.vector("state0", state0, length=ns)
     n_steps = f.shape[0]
     fn = _c_loop() if backend == "c" else None
     At = np.ascontiguousarray(A.T)

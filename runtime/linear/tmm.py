@@ -10,6 +10,7 @@ from scipy.optimize import brentq
 
 from dtdyn.generated import tmm as elements
 
+from dtdyn._engine import validate
 from dtdyn.linear.chain import chain_parameters
 
 
@@ -21,9 +22,21 @@ def system_matrix(m, k, c, s: complex) -> np.ndarray:
     return U
 
 
-def frequency_response(mass, stiffness, damping, omega, load: int, output: int) -> np.ndarray:
-    """x_output / F_load at s = j omega (0-based masses), by TMM with the boundary conditions."""
+def frequency_response(mass, stiffness, damping, omega, force_dof: int, output: int) -> np.ndarray:
+    """x_output / F at s = j omega for a unit force on mass ``force_dof`` (0-based masses), by
+    the Laplace-domain transfer matrices with the boundary conditions x_base = 0, f_end = 0.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> H = dd.frequency_response([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], np.array([1.0, 2.0]),
+    ...                           force_dof=1, output=0)
+    >>> H.shape
+    (2,)
+    """
     m, k, c = chain_parameters(mass, stiffness, damping)
+    for name, value in (("force_dof", force_dof), ("output", output)):
+        validate.dof_indices(name, [value], m.size)
     out = np.empty(np.size(omega), dtype=complex)
     for i, w in enumerate(np.atleast_1d(omega)):
         s = 1j * w
@@ -31,7 +44,7 @@ def frequency_response(mass, stiffness, damping, omega, load: int, output: int) 
         partial = []
         for n, (mn, kn, cn) in enumerate(zip(m, k, c)):
             U = elements.mass(mn, s) @ elements.spring_damper(kn, cn, s) @ U
-            if n == load:
+            if n == force_dof:
                 U = elements.force(1.0) @ U
             partial.append(U)
         f_base = -U[1, 2] / U[1, 1]

@@ -74,7 +74,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dtdyn._engine import validate
-from dtdyn.modal.model import QUANTITY_POWER, ModalModel, modal_model
+from dtdyn.modal.model import QUANTITY_POWER, ModalModel, modal_model, quantity_name
 from dtdyn.modal.filters import quantity_residues, sections
 
 __all__ = ["INVARIANTS", "discrete_frequency_response", "continuous_frequency_response",
@@ -99,14 +99,12 @@ def _invariant(invariant: str) -> str:
 
 
 def _quantity(quantity: str) -> str:
-    if quantity not in QUANTITY_POWER:
-        raise ValueError(f"quantity must be one of {sorted(QUANTITY_POWER)}, got {quantity!r}")
-    return quantity
+    return quantity_name(quantity)
 
 
-def discrete_frequency_response(model: ModalModel, fs: float, freqs_hz, invariant: str,
-                                quantity: str = "displacement") -> np.ndarray:
-    """The bank's frequency response H(e^{j 2 pi f / fs}): complex (n_f, n_out, n_in).
+def discrete_frequency_response(model: ModalModel, dt: float, freqs_hz, invariant: str,
+                                quantity: str = "x") -> np.ndarray:
+    """The bank's frequency response H(e^{j 2 pi f / fs}), fs = 1/dt: complex (n_f, n_out, n_in).
 
     The sum over the sections of `modal_filters.sections(model, fs, invariant, quantity)` of
     (b0 + b1 w + b2 w^2)/(1 + a1 w + a2 w^2), w = e^{-j 2 pi f / fs}, plus the direct term: the
@@ -116,10 +114,10 @@ def discrete_frequency_response(model: ModalModel, fs: float, freqs_hz, invarian
     error ~ 1e-16 / (|s_r| T)^2 near that mode, the same sensitivity the bank has to its
     rounded coefficients.
     """
-    fs = validate.positive_scalar("fs", fs)
+    fs = 1.0 / validate.positive_scalar("dt", dt)
     f = _freqs(freqs_hz)
     sos, in_col, out_col, direct = sections(model, fs, _invariant(invariant), _quantity(quantity))
-    n_out, n_in = model.outputs.size, model.inputs.size
+    n_out, n_in = model.outputs.size, model.force_dofs.size
     w = np.exp(-2j * np.pi * f / fs)[:, None]
     b0, b1, b2, a1, a2 = (sos[:, j][None, :] for j in range(5))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -131,7 +129,7 @@ def discrete_frequency_response(model: ModalModel, fs: float, freqs_hz, invarian
 
 
 def continuous_frequency_response(model: ModalModel, freqs_hz,
-                                  quantity: str = "displacement") -> np.ndarray:
+                                  quantity: str = "x") -> np.ndarray:
     """The continuous truncated modal sum at s = j 2 pi f: complex (n_f, n_out, n_in).
 
     `ModalModel.frequency_response(2 pi f, quantity)`; see the module docstring for how it
@@ -140,10 +138,10 @@ def continuous_frequency_response(model: ModalModel, freqs_hz,
     return model.frequency_response(2.0 * np.pi * _freqs(freqs_hz), _quantity(quantity))
 
 
-def ramp_bias(freqs_hz, fs: float) -> np.ndarray:
-    """(sin(pi f/fs)/(pi f/fs))^2 = numpy.sinc(f/fs)^2: the ramp invariant's input-spectrum
-    factor (real, zero phase, system independent, 1 at f = 0 and 0 at f = fs)."""
-    fs = validate.positive_scalar("fs", fs)
+def ramp_bias(freqs_hz, dt: float) -> np.ndarray:
+    """(sin(pi f/fs)/(pi f/fs))^2 = numpy.sinc(f/fs)^2, fs = 1/dt: the ramp invariant's
+    input-spectrum factor (real, zero phase, system independent, 1 at f = 0 and 0 at f = fs)."""
+    fs = 1.0 / validate.positive_scalar("dt", dt)
     return np.sinc(_freqs(freqs_hz) / fs) ** 2
 
 
@@ -204,14 +202,14 @@ def _power_tail(invariant, n, x, K):
     return Z(n)
 
 
-def alias_sum(model: ModalModel, fs: float, freqs_hz, invariant: str,
-              quantity: str = "displacement", n_alias: int = 2000, n_moments: int = 3,
+def alias_sum(model: ModalModel, dt: float, freqs_hz, invariant: str,
+              quantity: str = "x", n_alias: int = 2000, n_moments: int = 3,
               chunk: int = 4096) -> AliasSum:
     """The Poisson alias sum of the module docstring over all k, with a bound on its error.
 
     Parameters
     ----------
-    model, fs, freqs_hz, invariant, quantity
+    model, dt, freqs_hz, invariant, quantity
         As `discrete_frequency_response`, which the infinite sum equals.
     n_alias : int
         Aliases summed term by term: k = -n_alias..n_alias (symmetric). Needs
@@ -241,7 +239,7 @@ def alias_sum(model: ModalModel, fs: float, freqs_hz, invariant: str,
         i.e. O(n_alias^-(m + q)). It takes no credit for the cancellations inside a conjugate
         pair, so it is pessimistic.
     """
-    fs = validate.positive_scalar("fs", fs)
+    fs = 1.0 / validate.positive_scalar("dt", dt)
     f = _freqs(freqs_hz)
     invariant, quantity = _invariant(invariant), _quantity(quantity)
     n_alias, n_moments = int(n_alias), int(n_moments)
@@ -339,15 +337,15 @@ class TruncationError:
                 "n_modes": self.n_modes, "quantity": self.quantity, "skipped": self.skipped}
 
 
-def truncation_error(M, C, K, inputs, outputs, modes, freqs_hz,
-                     quantity: str = "displacement") -> TruncationError:
+def truncation_error(M, C, K, force_dofs, outputs, modes, freqs_hz,
+                     quantity: str = "x") -> TruncationError:
     """The FRF error of keeping only ``modes``: H_full - H_kept relative to H_full.
 
     Parameters
     ----------
     M, C, K : (n, n) array_like
         As `modal.modal_model`.
-    inputs, outputs : sequence of int
+    force_dofs, outputs : sequence of int
         Force and response DOFs.
     modes : sequence of int
         Kept modes (indices into the modes sorted by |s_r|, as `ModalModel.select`).
@@ -364,7 +362,7 @@ def truncation_error(M, C, K, inputs, outputs, modes, freqs_hz,
     """
     quantity = _quantity(quantity)
     f = _freqs(freqs_hz)
-    full = modal_model(M, C, K, inputs, outputs)
+    full = modal_model(M, C, K, force_dofs, outputs)
     kept = full.select(modes)
     kept_idx = tuple(int(i) for i in np.sort(np.asarray(modes).ravel()))
     H_full = continuous_frequency_response(full, f, quantity)

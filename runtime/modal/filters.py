@@ -28,7 +28,7 @@ sum_r 2 Re R_r; acceleration s_r^2 R_r plus sum_r 2 Re(s_r R_r) (= M^-1 with eve
 remaining term of the acceleration, s sum_r 2 Re R_r, is zero for a complete mode set of a
 mechanical system and is dropped for a truncated one (part of the truncation error).
 
-Force convention: samples x_n at t_n = n / fs, shape (n_samples, len(inputs)); the filters start
+Force convention: samples x_n at t_n = n dt (fs = 1 / dt), shape (n_samples, len(force_dofs)); the filters start
 at rest with x_{-1} = 0 (the ramp invariant then assumes the force ramps up from 0 over the sample
 before t_0: start records at zero force to compare with `exact_response`).
 """
@@ -46,8 +46,9 @@ from dtdyn.generated import modal_filters as coef
 
 from dtdyn._engine import cbuild
 from dtdyn._engine import validate
-from dtdyn.modal.model import ModalModel, modal_model
 from dtdyn._engine.result import Response
+from dtdyn._engine.stepping import check_quantities
+from dtdyn.modal.model import ModalModel, modal_model, quantity_name
 
 QUANTITIES = ("displacement", "velocity", "acceleration")
 METHODS = ("auto", "modes", "sections")
@@ -69,13 +70,14 @@ def quantity_residues(model: ModalModel, quantity: str):
     s = model.poles[:, None, None]
     R = model.residues
     weight = np.where(model.oscillatory, 2.0, 1.0)[:, None, None]  # a pair counts twice
+    quantity = quantity_name(quantity)
     if quantity == "displacement":
         return R, np.zeros(R.shape[1:])
     if quantity == "velocity":
         return s * R, np.sum(weight * R.real, axis=0)
     if quantity == "acceleration":
         return s * s * R, np.sum(weight * (s * R).real, axis=0)
-    raise ValueError(f"quantity must be one of {QUANTITIES}, got {quantity!r}")
+    raise AssertionError(quantity)  # quantity_name refused anything else
 
 
 def sections(model: ModalModel, fs: float, invariant="ramp", quantity="displacement"):
@@ -100,14 +102,17 @@ def sections(model: ModalModel, fs: float, invariant="ramp", quantity="displacem
             np.tile(out_col.ravel(), n_modes).astype(np.int64), direct)
 
 
-def to_sos(model: ModalModel, fs: float, output: int = 0, input: int = 0, invariant="ramp",
-           quantity="displacement") -> np.ndarray:
+def to_sos(model: ModalModel, dt: float, output: int = 0, input: int = 0, invariant="ramp",
+           quantity="x") -> np.ndarray:
     """The sections of one (output, input) pair as a scipy.signal sos array (n_sections, 6).
 
-    The bank adds these sections in parallel (plus the direct term); scipy's sosfilt cascades
-    its rows, so filter each row separately and sum to reproduce the bank.
+    ``dt`` is the sample step, ``output``, ``input`` index ``model.outputs``,
+    ``model.force_dofs``; ``quantity`` is "x", "v" or "a". The bank adds these sections in
+    parallel (plus the direct term); scipy's sosfilt cascades its rows, so filter each row
+    separately and sum to reproduce the bank.
     """
-    sos, in_col, out_col, _ = sections(model, fs, invariant, quantity)
+    sos, in_col, out_col, _ = sections(model, 1.0 / validate.positive_scalar("dt", dt),
+                                       invariant, quantity)
     keep = (in_col == input) & (out_col == output)
     rows = sos[keep]
     return np.column_stack([rows[:, :3], np.ones(len(rows)), rows[:, 3:]])
@@ -343,79 +348,98 @@ def choose_method(states: ModalStates, n_sections: int, backend="c") -> str:
     return "modes" if modes <= cost["section"] * n_sections else "sections"
 
 
-def modal_filter_response(force, fs, M, C, K, inputs, outputs, modes=None, invariant="ramp",
-                          quantity="displacement", backend="c", method="auto") -> Response:
+def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
+                          quantities=("x", "v", "a"), modes=None, invariant="ramp",
+                          algorithm="auto", backend="c") -> Response:
     """Response of M q'' + C q' + K q = f by modal digital filters.
 
     Parameters
     ----------
-    force : array_like, shape (n_samples, len(inputs))
-        Force samples at t_n = n / fs on the 0-based DOFs ``inputs``; the system is at rest at
-        t_0 (also when force[0] != 0).
-    fs : float
-        Sampling rate, Hz.
-    inputs, outputs : sequence of int
-        Loaded DOFs and response DOFs.
+    M, C, K : (N, N) array_like
+        Mass (nonsingular), damping (general), stiffness.
+    force : array_like, shape (n_steps + 1, len(force_dofs))
+        Force samples at t_k = k dt on the 0-based DOFs ``force_dofs`` (all DOFs when None); the
+        system is at rest at t_0 (also when force[0] != 0).
+    dt : float
+        Sample step, s (the filters' sampling rate is 1 / dt).
+    force_dofs, outputs : sequence of int, optional
+        Loaded DOFs and stored DOFs (all DOFs when None).
+    quantities : subset of ("x", "v", "a")
+        What is stored; each quantity is one run of the filters (its own residues).
     modes : sequence of int, optional
         Indices of the modes to keep, sorted by frequency (all by default).
     invariant : {"ramp", "step", "impulse"}
         How the force is rebuilt between samples: linear (exact for a piecewise-linear force;
-        spectrum bias (sin(pi f/fs)/(pi f/fs))^2, no phase error), held (half-sample lag),
+        spectrum bias (sin(pi f dt)/(pi f dt))^2, no phase error), held (half-sample lag),
         impulses (aliasing).
-    quantity : {"displacement", "velocity", "acceleration"}
-    backend : {"c", "numpy"}
-        The generated C kernels, or scipy.signal.lfilter (also used when no compiler is found).
-    method : {"auto", "modes", "sections"}
+    algorithm : {"auto", "modes", "sections"}
         One recursion per mode, outputs combined by a matrix product ("modes"), or one
         second-order section per mode, output and input ("sections", the filters of `to_sos`);
         "auto": the one `choose_method` estimates to be the faster. Same results to round-off
         over short records; "modes" drifts less over long ones (module docstring).
+    backend : {"c", "numpy"}
+        The generated C kernels, or scipy.signal.lfilter (also used when no compiler is found).
 
     Returns
     -------
     Response
-        ``t`` and ``x``, ``v`` or ``a`` (the asked quantity) of shape (n_samples, len(outputs));
-        ``info`` says which method and backend ran ("filters", "states", "sections") and times.
+        ``t`` and ``x``, ``v``, ``a`` (those asked for) of shape (n_steps + 1, len(outputs));
+        ``info`` says which algorithm and backend ran ("filters": "modes" or "sections") and
+        the times.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> M, C, K = np.diag([2.0, 1.0]), np.diag([0.5, 0.2]), np.array([[30.0, -10], [-10, 10]])
+    >>> r = dd.modal_filter_response(M, C, K, np.ones(1001), 0.01, force_dofs=[1],
+    ...                              quantities=("x",))
+    >>> r.x.shape
+    (1001, 2)
 
     References
     ----------
     Ahlin, Magnevall & Josefsson (2006), Simulation of forced response in linear and nonlinear
     mechanical systems using digital filters, ISMA.
     """
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    model = modal_model(M, C, K, inputs, outputs)
+    if algorithm not in METHODS:
+        raise ValueError(f"algorithm must be one of {METHODS}, got {algorithm!r}")
+    quantities = check_quantities(quantities)
+    model = modal_model(M, C, K, force_dofs, outputs)
     if modes is not None:
         model = model.select(modes)
-    fs = validate.positive_scalar("fs", fs)
-    f = validate.force_record(force, model.inputs.size, "inputs")
-    n_out, n_in = model.outputs.size, model.inputs.size
-    t0 = time.perf_counter()
-    states = modal_states(model, fs, invariant, quantity) if method != "sections" else None
+    dt = validate.positive_scalar("dt", dt)
+    f = validate.force_record(force, model.force_dofs.size)
+    fs = 1.0 / dt
+    n_out, n_in = model.outputs.size, model.force_dofs.size
     n_sec = model.n_modes * n_out * n_in
-    use = choose_method(states, n_sec, backend) if method == "auto" else method
     # at rest at t_0 under f_0: the ramp invariant's filters would start from a ramp from 0 at
     # t_{-1} (run_modes); the step invariant is at rest already, the impulse one models an
     # impulse T f_0 at t_0 (cont2discrete's "impulse" convention)
     rest = f[0] if invariant == "ramp" and np.any(f[0]) else None
-    if use == "modes":
-        t1 = time.perf_counter()
-        y = run_modes(states, f, backend, at_rest_under=rest)
-        c_ok = _c_modes() is not None
-    else:
-        sos, in_col, out_col, direct = sections(model, fs, invariant, quantity)
-        t1 = time.perf_counter()
-        y = run_bank(sos, in_col, out_col, direct, f, n_out, backend)
-        if rest is not None:  # the free response that brings the bank to rest at t_0
-            states = modal_states(model, fs, invariant, quantity)
-            y = y + run_modes(states, np.zeros_like(f), backend, at_rest_under=rest)
-        c_ok = _c_bank() is not None
-    t2 = time.perf_counter()
-    key = {"displacement": "x", "velocity": "v", "acceleration": "a"}[quantity]
-    return Response(np.arange(f.shape[0]) / fs, model.outputs, **{key: y},
+    store, setup, run = {}, 0.0, 0.0
+    for q in quantities:
+        quantity = quantity_name(q)
+        t0 = time.perf_counter()
+        states = modal_states(model, fs, invariant, quantity) if algorithm != "sections" else None
+        use = choose_method(states, n_sec, backend) if algorithm == "auto" else algorithm
+        if use == "modes":
+            t1 = time.perf_counter()
+            store[q] = run_modes(states, f, backend, at_rest_under=rest)
+            c_ok = _c_modes() is not None
+        else:
+            sos, in_col, out_col, direct = sections(model, fs, invariant, quantity)
+            t1 = time.perf_counter()
+            store[q] = run_bank(sos, in_col, out_col, direct, f, n_out, backend)
+            if rest is not None:  # the free response that brings the bank to rest at t_0
+                states = modal_states(model, fs, invariant, quantity)
+                store[q] += run_modes(states, np.zeros_like(f), backend, at_rest_under=rest)
+            c_ok = _c_bank() is not None
+        setup += t1 - t0
+        run += time.perf_counter() - t1
+    return Response(dt * np.arange(f.shape[0]), model.outputs, store.get("x"), store.get("v"),
+                    store.get("a"),
                     info={"method": f"modal filters ({invariant} invariant)", "filters": use,
-                          "fs": fs, "modes": int(model.poles.size),
+                          "dt": dt, "n_steps": f.shape[0] - 1, "modes": int(model.poles.size),
                           "states": states.n_states if use == "modes" else None,
-                          "sections": n_sec,
-                          "setup_time": t1 - t0, "run_time": t2 - t1,
+                          "sections": n_sec, "setup_time": setup, "run_time": run,
                           "backend": "c" if backend == "c" and c_ok else "scipy.lfilter"})

@@ -50,6 +50,20 @@ UNDAMPED_TOLERANCE = 1e-12
 WARN_ERROR, REFUSE_ERROR = 1e-8, 1e-3
 
 QUANTITY_POWER = {"displacement": 0, "velocity": 1, "acceleration": 2}
+#: the vocabulary's quantity names ("x", "v", "a") and the long names used inside the modal code
+QUANTITY_NAMES = {"x": "displacement", "v": "velocity", "a": "acceleration"}
+
+
+def quantity_name(quantity) -> str:
+    """"displacement", "velocity" or "acceleration" for ``quantity`` given as "x", "v", "a" (or
+    already in long form); ValueError naming the value otherwise."""
+    if isinstance(quantity, str):
+        if quantity in QUANTITY_NAMES:
+            return QUANTITY_NAMES[quantity]
+        if quantity in QUANTITY_POWER:
+            return quantity
+    raise ValueError(f"quantity must be one of 'x', 'v', 'a' (displacement, velocity, "
+                     f"acceleration), got {quantity!r}")
 
 
 def _index_array(name: str, values, n: int | None, what: str) -> np.ndarray:
@@ -85,8 +99,8 @@ class ModalModel:
         R_r of each pole (real, i.e. imaginary part 0, for a real pole).
     oscillatory : bool ndarray, shape (n_modes,)
         True where the mode is a conjugate pair (Im s_r > 0).
-    inputs, outputs : int64 ndarray
-        0-based DOF indices of the force inputs and displacement outputs.
+    force_dofs, outputs : int64 ndarray
+        0-based DOF indices of the force inputs and the displacement outputs.
 
     Construct with `modal_model` (from M, C, K) or `from_poles_residues` (experimental data);
     direct construction validates but does not sort. The arrays are read-only copies.
@@ -95,11 +109,11 @@ class ModalModel:
     poles: np.ndarray
     residues: np.ndarray
     oscillatory: np.ndarray
-    inputs: np.ndarray
+    force_dofs: np.ndarray
     outputs: np.ndarray
 
     def __post_init__(self):
-        inputs = _index_array("inputs", self.inputs, None, "DOF")
+        inputs = _index_array("force_dofs", self.force_dofs, None, "DOF")
         outputs = _index_array("outputs", self.outputs, None, "DOF")
         poles = np.asarray(self.poles)
         if poles.ndim != 1 or poles.size == 0 or not np.issubdtype(poles.dtype, np.number):
@@ -136,7 +150,7 @@ class ModalModel:
             raise ValueError(f"poles must be sorted by |s| ascending: |poles[{r}]| = {freq[r]:.6g}"
                              f" > |poles[{r + 1}]| = {freq[r + 1]:.6g} (from_poles_residues sorts)")
         for name, value in (("poles", poles), ("residues", residues), ("oscillatory", osc),
-                            ("inputs", inputs), ("outputs", outputs)):
+                            ("force_dofs", inputs), ("outputs", outputs)):
             object.__setattr__(self, name, _frozen(value))
 
     @property
@@ -157,16 +171,15 @@ class ModalModel:
         """The model with only ``modes`` (indices into the sorted modes, kept in sorted order)."""
         idx = np.sort(_index_array("modes", modes, self.n_modes, "mode"))
         return ModalModel(self.poles[idx], self.residues[idx], self.oscillatory[idx],
-                          self.inputs, self.outputs)
+                          self.force_dofs, self.outputs)
 
-    def frequency_response(self, omega, quantity: str = "displacement") -> np.ndarray:
+    def frequency_response(self, omega, quantity: str = "x") -> np.ndarray:
         """The truncated modal sum at s = j omega: complex array (len(omega), n_out, n_in).
 
         ``quantity`` "velocity" multiplies the displacement receptance by s, "acceleration" by
         s^2. No residual terms for the modes left out. At an undamped pole the result is inf.
         """
-        if quantity not in QUANTITY_POWER:
-            raise ValueError(f"quantity must be one of {sorted(QUANTITY_POWER)}, got {quantity!r}")
+        quantity = quantity_name(quantity)
         omega = validate.vector("omega", np.atleast_1d(np.asarray(omega, dtype=float)))
         s = 1j * omega[:, None]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -198,7 +211,7 @@ def _check_poles(poles: np.ndarray) -> None:
                          " by its pole with Im s > 0 (the conjugate pole and residue are implied)")
 
 
-def from_poles_residues(poles, residues, inputs=(0,), outputs=(0,)) -> ModalModel:
+def from_poles_residues(poles, residues, force_dofs=(0,), outputs=(0,)) -> ModalModel:
     """A ModalModel from poles and residues (e.g. identified from measured FRFs).
 
     Parameters
@@ -210,12 +223,12 @@ def from_poles_residues(poles, residues, inputs=(0,), outputs=(0,)) -> ModalMode
         input and one output
         Displacement-receptance residues (module docstring); a real pole's must be real (an
         imaginary part up to 1e-12 of its magnitude is dropped as round-off).
-    inputs, outputs : sequence of int
-        0-based DOF labels of the inputs and outputs.
+    force_dofs, outputs : sequence of int
+        0-based DOF labels of the inputs (loaded DOFs) and outputs.
 
     The modes are sorted by |s| ascending (stable).
     """
-    inputs = _index_array("inputs", inputs, None, "DOF")
+    inputs = _index_array("force_dofs", force_dofs, None, "DOF")
     outputs = _index_array("outputs", outputs, None, "DOF")
     try:
         p = np.atleast_1d(np.asarray(poles, dtype=complex))
@@ -248,14 +261,14 @@ def from_poles_residues(poles, residues, inputs=(0,), outputs=(0,)) -> ModalMode
     return ModalModel(p[order], R[order], p[order].imag > 0, inputs, outputs)
 
 
-def modal_model(M, C, K, inputs, outputs, modes=None) -> ModalModel:
+def modal_model(M, C, K, force_dofs=None, outputs=None, modes=None) -> ModalModel:
     """Poles and displacement-receptance residues of M q'' + C q' + K q = f (general damping).
 
     Parameters
     ----------
     M, C, K : (n, n) array_like (scipy.sparse is densified)
         Mass (nonsingular), damping, stiffness; need not be symmetric or proportional.
-    inputs, outputs : sequence of int or None
+    force_dofs, outputs : sequence of int or None
         0-based force and displacement DOFs (None: all DOFs).
     modes : sequence of int, optional
         Keep only these modes (indices into the modes sorted by |s_r|), as ModalModel.select.
@@ -283,7 +296,7 @@ def modal_model(M, C, K, inputs, outputs, modes=None) -> ModalModel:
     """
     M, C, K = linalg.mck(M, C, K)
     n = M.shape[0]
-    inputs = validate.dof_indices("inputs", inputs, n)
+    inputs = validate.dof_indices("force_dofs", force_dofs, n)
     outputs = validate.dof_indices("outputs", outputs, n)
     s, Psi_q, X_f = modal_factors(M, C, K)
     R_all = np.einsum("or,ri->roi", Psi_q[outputs], X_f[:, inputs])

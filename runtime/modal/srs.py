@@ -169,9 +169,10 @@ def _check_record(accel) -> np.ndarray:
     return a
 
 
-def _check_common(accel, fs, freqs, damping, response, points_per_cycle):
+def _check_common(accel, dt, freqs, damping, response, points_per_cycle):
+    """Checked (record, fs = 1/dt, freqs, zeta, points_per_cycle)."""
     a = _check_record(accel)
-    fs = validate.positive_scalar("fs", fs)
+    fs = 1.0 / validate.positive_scalar("dt", dt)
     f = validate.vector("freqs", np.atleast_1d(np.asarray(freqs, dtype=float)), positive=True)
     try:
         zeta = float(damping)
@@ -398,7 +399,7 @@ def _workers(workers, n_tasks, work):
 
 
 # --- public API -----------------------------------------------------------------------------
-def shock_response_spectrum(accel, fs, freqs, damping=0.05, response="absolute_acceleration",
+def shock_response_spectrum(accel, dt, freqs, damping=0.05, response="absolute_acceleration",
                             window="total", points_per_cycle=None, exact_peaks=False, *,
                             backend="c", workers=None) -> SRS:
     """Shock response spectrum of a base-acceleration record.
@@ -406,11 +407,11 @@ def shock_response_spectrum(accel, fs, freqs, damping=0.05, response="absolute_a
     Parameters
     ----------
     accel : array_like, shape (n,)
-        Base acceleration samples a_n at t_n = n / fs (any unit; the spectrum of
+        Base acceleration samples a_n at t_n = n dt (any unit; the spectrum of
         absolute_acceleration and pseudo_acceleration is in the same unit). Linear between
         samples, from rest at t_{-1} (a_{-1} = 0) and back to 0 at t_N (see the module notes).
-    fs : float
-        Sampling rate, Hz.
+    dt : float
+        Sample step, s (sampling rate fs = 1 / dt).
     freqs : array_like
         Natural frequencies of the oscillators, Hz, > 0.
     damping : float
@@ -440,7 +441,7 @@ def shock_response_spectrum(accel, fs, freqs, damping=0.05, response="absolute_a
     Raises
     ------
     ValueError
-        Naming the argument: non-finite samples, fs <= 0, freqs <= 0, damping outside [0, 1),
+        Naming the argument: non-finite samples, dt <= 0, freqs <= 0, damping outside [0, 1),
         unknown response or window, points_per_cycle <= 0.
 
     Warns
@@ -449,7 +450,7 @@ def shock_response_spectrum(accel, fs, freqs, damping=0.05, response="absolute_a
         When the peak-picking bound 1 - cos(pi f / fs_eff) (not with exact_peaks) or the
         band-limited bias bound 1 - sinc^2(f / fs) exceeds 5 % at the highest frequency.
     """
-    a, fs, f, zeta, ppc = _check_common(accel, fs, freqs, damping, response, points_per_cycle)
+    a, fs, f, zeta, ppc = _check_common(accel, dt, freqs, damping, response, points_per_cycle)
     if window not in WINDOWS:
         raise ValueError(f"window must be one of {WINDOWS}, got {window!r}")
     if not isinstance(exact_peaks, (bool, np.bool_)):
@@ -519,13 +520,13 @@ def _warn_sampling(f, fs, fs_e, peak_err, bias, exact):
     warnings.warn(" ".join(parts), SRSSamplingWarning, stacklevel=3)
 
 
-def sdof_response(accel, fs, freqs, damping=0.05, response="absolute_acceleration",
+def sdof_response(accel, dt, freqs, damping=0.05, response="absolute_acceleration",
                   points_per_cycle=None, *, backend="c"):
     """Response histories at the (upsampled) samples t_0 .. t_{N-1}: ``(t, y)``, y (n_t, n_freqs).
 
     The same filters as :func:`shock_response_spectrum` (no extremes, no windows).
     """
-    a, fs, f, zeta, ppc = _check_common(accel, fs, freqs, damping, response, points_per_cycle)
+    a, fs, f, zeta, ppc = _check_common(accel, dt, freqs, damping, response, points_per_cycle)
     u = _upsample_factor(float(f.max()), fs, ppc)
     e = _extended_input(a, u)
     s1, R = _poles_residues(f, zeta, response)

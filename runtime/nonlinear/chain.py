@@ -30,30 +30,43 @@ from dtdyn.linear.chain import chain_parameters
 from dtdyn.nonlinear.elements import check_elements
 from dtdyn.nonlinear.response import NewtonError, _c_source, _forces_at_rest, _residual_function, _sizes
 from dtdyn._engine.result import Response
+from dtdyn._engine.stepping import check_quantities
 from dtdyn._engine.schemes import get_scheme
 
 
-def nonlinear_chain_response(mass, stiffness, damping, force, fs, force_dofs, elements,
-                             outputs=None, scheme="newmark", form="displacement", substeps=1,
-                             backend="c", tol=1e-12, max_iter=30, **scheme_params) -> Response:
+def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, force_dofs=None,
+                             scheme="newmark", form="displacement", substeps=1, outputs=None,
+                             quantities=("x", "v", "a"), backend="c", tol=1e-12, max_iter=30,
+                             **scheme_params) -> Response:
     """Forced response of a chain with nonlinear elements by the DT-TMM (module docstring).
 
-    Parameters as `simulate_chain` (chain data, ``scheme``, ``form``, ``backend``) and
-    `nonlinear_response` (``force`` of shape (n_samples, len(force_dofs)) at t_n = n / fs, linear
-    between samples; ``elements``; ``substeps``; ``tol``, ``max_iter``). One-step schemes only.
+    Parameters as `simulate_chain` (chain data, ``force`` of shape (n_steps + 1,
+    len(force_dofs)) at t_k = k dt, linear between samples, ``scheme``, ``form``, ``outputs``,
+    ``quantities``, ``backend``) and `nonlinear_response` (``elements``, ``substeps``,
+    ``tol``, ``max_iter``). One-step schemes only.
 
     Returns
     -------
     Response
-        ``t``, ``x``, ``v``, ``a`` of shape (n_samples, len(outputs)); ``info`` with the run time
-        and the Newton statistics.
+        ``t``, ``x``, ``v``, ``a`` of shape (n_steps + 1, len(outputs)); ``info`` with the run
+        time and the Newton statistics.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> r = dd.nonlinear_chain_response(np.ones(50), np.full(50, 1e4), np.full(50, 0.5),
+    ...                                 np.ones(1001), 1e-3, force_dofs=[49],
+    ...                                 elements=[dd.Cubic(0, k3=1e7)], quantities=("x",))
+    >>> r.x.shape
+    (1001, 50)
     """
     t0 = time.perf_counter()
     m, k, c = chain_parameters(mass, stiffness, damping)
     N = m.size
-    fs = validate.positive_scalar("fs", fs)
-    force_dofs = validate.dof_indices("force_dofs", force_dofs, N, default_all=False)
+    dt = validate.positive_scalar("dt", dt)
+    force_dofs = validate.dof_indices("force_dofs", force_dofs, N)
     outputs = validate.dof_indices("outputs", outputs, N)
+    quantities = check_quantities(quantities)
     elements = check_elements(elements)
     if not elements:
         raise ValueError("elements is empty: use simulate_chain for a linear chain")
@@ -68,7 +81,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, fs, force_dofs, el
     if info.startup_steps:
         raise ValueError(f"scheme {info.name!r} is multistep; the nonlinear chain needs a "
                          "one-step scheme (newmark, hht, generalized_alpha, ...)")
-    h = 1.0 / (fs * S)
+    h = dt / S
     sz = _sizes(elements)
 
     # loads at the loaded masses: external forces and -L^T g
@@ -160,11 +173,12 @@ def nonlinear_chain_response(mass, stiffness, damping, force, fs, force_dofs, el
                 g, rate = g_new, rate_new
                 H += np.tensordot(g, U, axes=1)
     t2 = time.perf_counter()
-    return Response(np.arange(n_samples) / fs, outputs, x=store["x"], v=store["v"],
-                    a=store["a"],
+    return Response(dt * np.arange(n_samples), outputs,
+                    **{q: store[q] if q in quantities else None for q in ("x", "v", "a")},
                     info={"method": f"DT-TMM {info.name} ({form} form, stable sweep)",
-                          "substeps": S, "backend": backend,
-                          "loop": "c" if chain is not None else "python", "fs": fs,
+                          "scheme": info.name, "params": dict(info.params), "dt": dt,
+                          "n_steps": n_samples - 1, "substeps": S, "backend": backend,
+                          "loop": "c" if chain is not None else "python",
                           "elements": [el.describe() for el in elements],
                           "setup_time": t1 - t0, "run_time": t2 - t1,
                           "newton_iterations": {"max": iters,

@@ -46,11 +46,11 @@ def reference_cache_dir() -> Path:
 # ----------------------------------------------------------------------------------------------
 # inputs
 
-def _check_inputs(force, fs, M, C, K, force_dofs, elements, outputs, n_samples):
-    fs = validate.positive_scalar("fs", fs)
+def _check_inputs(force, dt, M, C, K, force_dofs, elements, outputs, n_samples):
+    fs = 1.0 / validate.positive_scalar("dt", dt)
     M, C, K = linalg.mck(M, C, K)
     N = M.shape[0]
-    force_dofs = validate.dof_indices("force_dofs", force_dofs, N, default_all=False)
+    force_dofs = validate.dof_indices("force_dofs", force_dofs, N)
     outputs = validate.dof_indices("outputs", outputs, N)
     elements = check_elements(() if elements is None else elements)
     L = element_matrix(elements, N)
@@ -267,8 +267,8 @@ def _cache_store(path: Path, key: str, S, n_steps):
 # ----------------------------------------------------------------------------------------------
 # entry points
 
-def reference_response(force, fs, M, C, K, force_dofs, elements=(), outputs=None,
-                       method="DOP853", rtol=1e-12, atol=None, cache=True, n_samples=None
+def reference_response(M, C, K, force, dt, *, elements=(), force_dofs=None, outputs=None,
+                       ode_solver="DOP853", rtol=1e-12, atol=None, cache=True, n_samples=None
                        ) -> Response:
     r"""Reference response of a structure with localized nonlinear elements.
 
@@ -282,24 +282,24 @@ def reference_response(force, fs, M, C, K, force_dofs, elements=(), outputs=None
     where :math:`L` (`element_matrix`) gives each element's relative displacement
     :math:`y_e = q_i - q_j`, :math:`g_e` its force law and :math:`h` the internal-state rates
     (Bouc-Wen), and :math:`B` puts force column ``j`` on DOF ``force_dofs[j]``. The force is
-    known at :math:`t_k = k / f_s` and linear in between (the same first-order hold as
+    known at :math:`t_k = k\,\Delta t` and linear in between (the same first-order hold as
     `exact_response`, whose answer this equals when there are no elements).
 
     Parameters
     ----------
-    force : (n_samples, len(force_dofs)) array_like
-        Force samples at :math:`t_0 \dots t_{n-1}`, finite; 1-D when one DOF is loaded.
-    fs : float
-        Sample rate, Hz (> 0).
     M, C, K : (N, N) array_like
         Mass (nonsingular), damping and stiffness matrices of the linear part.
-    force_dofs : sequence of int
-        0-based DOFs the force columns act on.
+    force : (n_steps + 1, len(force_dofs)) array_like
+        Force samples at :math:`t_0 \dots t_n`, finite; 1-D when one DOF is loaded.
+    dt : float
+        Sample step, s (> 0).
+    force_dofs : sequence of int, optional
+        0-based DOFs the force columns act on (all DOFs when None).
     elements : sequence of Element
         Nonlinear elements (`dtdyn.nonlinear.elements`); empty for a linear structure.
     outputs : sequence of int, optional
         DOFs whose x, v, a are returned (all by default).
-    method : {"DOP853", "Radau"}
+    ode_solver : {"DOP853", "Radau"}
         SciPy solver class used on each interval.
     rtol : float
         Relative tolerance (default 1e-12).
@@ -348,11 +348,12 @@ def reference_response(force, fs, M, C, K, force_dofs, elements=(), outputs=None
     >>> r = reference_response(f, 1000.0, M, C, K, [3], [Cubic(0, k3=2e7)])  # doctest: +SKIP
     """
     start = time.perf_counter()
+    method = ode_solver
     if method not in METHODS:
-        raise ValueError(f"method must be one of {sorted(METHODS)}, got {method!r}")
+        raise ValueError(f"ode_solver must be one of {sorted(METHODS)}, got {method!r}")
     rtol = validate.positive_scalar("rtol", rtol)
     f, fs, M, C, K, force_dofs, elements, outputs, L, solve_M = _check_inputs(
-        force, fs, M, C, K, force_dofs, elements, outputs, n_samples)
+        force, dt, M, C, K, force_dofs, elements, outputs, n_samples)
     N = M.shape[0]
     B = np.zeros((N, force_dofs.size))
     B[force_dofs, np.arange(force_dofs.size)] = 1.0
@@ -381,7 +382,7 @@ def reference_response(force, fs, M, C, K, force_dofs, elements=(), outputs=None
     g = system.element_forces(S)
     acc = solve_M((f @ B.T - qd @ C.T - q @ K.T - g @ L).T).T
     return Response(
-        t=np.arange(n) / fs,
+        t=np.arange(n) / fs,  # fs = 1 / dt
         outputs=outputs,
         x=np.ascontiguousarray(q[:, outputs]),
         v=np.ascontiguousarray(qd[:, outputs]),
@@ -395,8 +396,8 @@ def reference_response(force, fs, M, C, K, force_dofs, elements=(), outputs=None
     )
 
 
-def check_reference(force, fs, M, C, K, force_dofs, elements=(), outputs=None, n_samples=2000,
-                    rtol=1e-12, atol=None, cache=False) -> float:
+def check_reference(M, C, K, force, dt, *, elements=(), force_dofs=None, outputs=None,
+                    n_samples=2000, rtol=1e-12, atol=None, cache=False) -> float:
     """Self-check of the reference: DOP853 against Radau on the first ``n_samples`` samples.
 
     Returns
@@ -408,10 +409,11 @@ def check_reference(force, fs, M, C, K, force_dofs, elements=(), outputs=None, n
     """
     n_total = np.shape(force)[0] if np.ndim(force) >= 1 else 0
     n_samples = min(validate.step_count("n_samples", n_samples), max(n_total, 1))
-    args = (force, fs, M, C, K, force_dofs, elements, outputs)
-    kw = dict(rtol=rtol, atol=atol, cache=cache, n_samples=n_samples)
-    a = reference_response(*args, method="DOP853", **kw).x
-    b = reference_response(*args, method="Radau", **kw).x
+    args = (M, C, K, force, dt)
+    kw = dict(elements=elements, force_dofs=force_dofs, outputs=outputs, rtol=rtol, atol=atol,
+              cache=cache, n_samples=n_samples)
+    a = reference_response(*args, ode_solver="DOP853", **kw).x
+    b = reference_response(*args, ode_solver="Radau", **kw).x
     peak = np.max(np.abs(b), axis=0)
     live = peak > 0
     if not live.any():

@@ -45,6 +45,7 @@ from dtdyn._engine import linalg
 from dtdyn._engine import validate
 from dtdyn.nonlinear.elements import casadi_ops, check_elements, element_matrix
 from dtdyn._engine.result import Response
+from dtdyn._engine.stepping import check_quantities
 from dtdyn._engine.errors import DtdynStepStabilityError, NewtonError
 
 MULTISTEP = ("houbolt", "park")
@@ -166,7 +167,7 @@ def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearSte
     a_0 = M^+ U u_0 at rest (M^+: pseudo-inverse, = M^-1 when M is nonsingular)."""
     from dtdyn.linear.state_space import scheme_blocks
     if scheme in MULTISTEP:
-        raise ValueError(f"method {scheme!r} is a multistep scheme whose start-up is not a single "
+        raise ValueError(f"scheme {scheme!r} is a multistep scheme whose start-up is not a single "
                          "linear step; use 'newmark', 'hht', 'generalized_alpha' or 'modal_ramp'")
     Phi, G0, G1, S = scheme_blocks(M, C, K, h, scheme, acceleration=True, **params)
     n = M.shape[0]
@@ -183,12 +184,12 @@ def linear_step(method, M, C, K, h, force_dofs, L, outputs, modes=None, need_v=F
     U = np.hstack([np.eye(n)[:, force_dofs], -L.T])  # DOF forces of u = [f; g]
     if method in MODAL:
         if scheme_params:
-            raise ValueError(f"method {method!r} takes no scheme parameters, got "
+            raise ValueError(f"scheme {method!r} takes no scheme parameters, got "
                              f"{', '.join(sorted(scheme_params))}")
         return _modal_step(M, C, K, h, U, L, outputs, modes, need_v, len(force_dofs),
                            parabolic=method == "modal_parabolic")
     if modes is not None:
-        raise ValueError(f"modes selects modal filters; method {method!r} integrates all DOFs")
+        raise ValueError(f"modes selects modal filters; scheme {method!r} integrates all DOFs")
     return _scheme_step(M, C, K, h, U, L, outputs, method, scheme_params, need_v,
                         len(force_dofs))
 
@@ -429,34 +430,38 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, w
 # public entry point
 
 
-def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, outputs=None,
-                       method="modal_ramp", substeps=1, backend="c", tol=1e-12, max_iter=30,
-                       solver="newton", compiled=False, **scheme_params) -> Response:
+def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme="modal_ramp",
+                       substeps=1, outputs=None, quantities=("x", "v", "a"), modes=None,
+                       backend="c", tol=1e-12, max_iter=30, solver="newton", compiled=False,
+                       **scheme_params) -> Response:
     """Forced response of M q'' + C q' + K q + L^T g = f with localized nonlinear elements.
 
     The equivalent of the source's ``nonlindxmck(F, fs, M, C, K, FD, nID, modes, resps)``.
 
     Parameters
     ----------
-    force : array_like, shape (n_samples, len(force_dofs))
-        Force samples at t_n = n / fs, linear between samples; the system starts at rest.
-    fs : float
-        Sampling rate, Hz.
     M, C, K : (n, n) array_like
         The linear part (M nonsingular for the modal methods).
-    force_dofs : sequence of int
-        0-based loaded DOFs.
+    force : array_like, shape (n_steps + 1, len(force_dofs))
+        Force samples at t_k = k dt, linear between samples; the system starts at rest.
+    dt : float
+        Sample step, s.
     elements : sequence of elements
         `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen` (dtdyn.nonlinear.elements).
-    modes : sequence of int, optional
-        Modal methods only: the modes kept (indices into the modes sorted by |s|).
+    force_dofs : sequence of int, optional
+        0-based loaded DOFs (all DOFs when None).
+    scheme : str
+        "modal_ramp", "modal_parabolic", or a one-step scheme of the integrator library ("newmark",
+        "average_acceleration", "hht", "generalized_alpha", "wilson", ...); its parameters as
+        keywords.
+    substeps : int
+        Steps per sample (h = dt / substeps); the force is interpolated linearly.
     outputs : sequence of int, optional
         Response DOFs (all by default).
-    method : str
-        "modal_ramp", "modal_parabolic", or a one-step scheme of the integrator library ("newmark",
-        "average_acceleration", "hht", "generalized_alpha", "wilson", ...).
-    substeps : int
-        Steps per sample (h = 1 / (fs substeps)); the force is interpolated linearly.
+    quantities : subset of ("x", "v", "a")
+        What is stored; the others are None in the result.
+    modes : sequence of int, optional
+        Modal schemes only: the modes kept (indices into the modes sorted by |s|).
     backend : {"c", "casadi"}
         "c": the generated loop (falls back to "casadi", with one warning, without a compiler).
     tol : float
@@ -471,22 +476,36 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
     Returns
     -------
     Response
-        ``t``, ``x``, ``v``, ``a`` of shape (n_samples, len(outputs)); ``info`` holds the method,
-        the construction, compile and run times, and the Newton statistics (iterations per
-        step, largest final residual).
+        ``t``, ``x``, ``v``, ``a`` of shape (n_steps + 1, len(outputs)); ``info`` holds the
+        scheme, the construction, compile and run times, and the Newton statistics (iterations
+        per step, largest final residual).
 
     Raises
     ------
     NewtonError
         A step did not converge (or went non-finite): the message names the step, its time and
         the residual. More ``substeps`` (or a ``Gap`` with ``smoothing``) usually cure it.
+    DtdynStepStabilityError
+        A modal step beyond its stability limit for the elements' tangent stiffness.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> M, C, K = np.eye(2), 0.1 * np.eye(2), np.array([[2e3, -1e3], [-1e3, 1e3]])
+    >>> r = dd.nonlinear_response(M, C, K, np.ones(2001), 1e-3, force_dofs=[1],
+    ...                           elements=[dd.Cubic(0, k3=1e6)], scheme="modal_parabolic")
+    >>> r.x.shape
+    (2001, 2)
     """
     t0 = time.perf_counter()
     M, C, K = linalg.mck(M, C, K)
     n = M.shape[0]
-    fs = validate.positive_scalar("fs", fs)
-    force_dofs = validate.dof_indices("force_dofs", force_dofs, n, default_all=False)
+    method = scheme
+    dt = validate.positive_scalar("dt", dt)
+    fs = 1.0 / dt
+    force_dofs = validate.dof_indices("force_dofs", force_dofs, n)
     outputs = validate.dof_indices("outputs", outputs, n)
+    quantities = check_quantities(quantities)
     elements = check_elements(elements)
     if not elements:
         raise ValueError("elements is empty: use simulate_mck or modal_filter_response for a "
@@ -504,7 +523,7 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
     f = validate.force_record(force, force_dofs.size)
     L = element_matrix(elements, n)
     sz = _sizes(elements)
-    h = 1.0 / (fs * S)
+    h = dt / S
     step = linear_step(method, M, C, K, h, force_dofs, L, outputs, modes, sz.need_v,
                        **scheme_params)
     g0, rate0 = _forces_at_rest(elements, sz)
@@ -551,15 +570,17 @@ def nonlinear_response(force, fs, M, C, K, force_dofs, elements, modes=None, out
         iters, worst = None, float(resid.max())
         theta = float(thetas.max()) if thetas.size else None
     no = outputs.size
-    return Response(np.arange(f.shape[0]) / fs, outputs, x=out[:, :no], v=out[:, no:2 * no],
-                    a=out[:, 2 * no:],
-                    info={"method": method, "substeps": S, "backend": used, "fs": fs,
+    store = {q: out[:, i * no:(i + 1) * no] if q in quantities else None
+             for i, q in enumerate(("x", "v", "a"))}
+    return Response(dt * np.arange(f.shape[0]), outputs, **store,
+                    info={"scheme": method, "substeps": S, "backend": used, "dt": dt,
+                          "n_steps": f.shape[0] - 1,
                           "elements": [el.describe() for el in elements],
                           "setup_time": t1 - t0, "construct_time": t_build,
                           "compile_time": t_compile, "run_time": t_run,
                           "newton_iterations": iters, "max_residual": worst,
                           "max_theta": theta,
-                          **({"scheme_params": scheme_params} if scheme_params else {})})
+                          **({"params": scheme_params} if scheme_params else {})})
 
 
 def _stability_error(method, k, S, fs, theta):
@@ -568,9 +589,9 @@ def _stability_error(method, k, S, fs, theta):
     limit = THETA_LIMIT[method]
     more = int(np.ceil(S * np.sqrt(theta / limit)))
     raise DtdynStepStabilityError(
-        f"method {method!r} is unstable at step {k} ({where}, t = {k / (fs * S):.6g} s): the "
+        f"scheme {method!r} is unstable at step {k} ({where}, t = {k / (fs * S):.6g} s): the "
         f"elements' tangent stiffness gives theta = |B0 dg/dy| = {theta:.3g} > {limit:g}; use "
-        f"substeps >= {more} or an unconditionally stable scheme (method='newmark')")
+        f"substeps >= {more} or an unconditionally stable scheme (scheme='newmark')")
 
 
 def _newton_error(k, S, fs, resid, max_iter):
