@@ -12,17 +12,13 @@ import pathlib
 
 import numpy as np
 
+from dtdyn.app import problems
 from dtdyn.generated import SCHEMES
 from dtdyn.linear.chain import chain_matrices, simulate_chain
 from dtdyn.linear.mck import simulate_mck
 
-PROBLEMS = {
-    "P1": ([2.0], [12.0], [3.0], 10.0),
-    "P2": ([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], 10.0),
-    "P3": ([10, 9, 8, 7, 6, 6, 5.5, 5, 4.5, 4, 3.5, 4, 2.5, 2, 2],
-           [55000, 50000, 45000, 40000, 40000, 35000, 30000, 25000, 20000, 15000, 10000, 9000,
-            8000, 7000, 6000], [0.0] * 15, 0.8),
-}
+PROBLEMS = {name: (p["mass"], p["stiffness"], p["damping"], p["T"])
+            for name, p in (("P1", problems.p1()), ("P2", problems.p2()), ("P3", problems.p3()))}
 DTS = (1e-2, 1e-3, 1e-4, 1e-5)
 
 

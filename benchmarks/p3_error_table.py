@@ -27,16 +27,14 @@ import time
 
 import numpy as np
 
+from dtdyn.app import problems
 from dtdyn.generated import SCHEMES
 from dtdyn.linear.chain import chain_matrices, simulate_chain
 from dtdyn.linear.exact import exact_response
 from dtdyn.linear.mck import simulate_mck
 
-MASS = [10, 9, 8, 7, 6, 6, 5.5, 5, 4.5, 4, 3.5, 4, 2.5, 2, 2]
-STIFFNESS = [55000, 50000, 45000, 40000, 40000, 35000, 30000, 25000, 20000, 15000, 10000, 9000,
-             8000, 7000, 6000]
-DAMPING = [0.0] * 15
-LOADED = [14]
+MASS, STIFFNESS, DAMPING, LOADED = (problems.p3()[key]
+                                    for key in ("mass", "stiffness", "damping", "force_dofs"))
 DT = 1e-3
 T_END = 0.8
 REPEATS = 5

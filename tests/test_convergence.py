@@ -42,6 +42,7 @@ import pytest
 from dtdyn.generated import SCHEMES
 from dtdyn.linear.chain import chain_matrices, simulate_chain
 from dtdyn.linear.exact import exact_response
+from dtdyn.app.problems import P3_MASS, P3_STIFFNESS
 
 SLOPE_TOL = 0.25  # see the module docstring
 
@@ -55,9 +56,7 @@ P2_STEPS = (80, 160, 320, 640, 1280)
 P2_LOADED = [1]  # last mass, 0-based
 
 # ---------------------------------------------------------------------------------------- P3
-P3_MASS = [10, 9, 8, 7, 6, 6, 5.5, 5, 4.5, 4, 3.5, 4, 2.5, 2, 2]
-P3_STIFF = [55000, 50000, 45000, 40000, 40000, 35000, 30000, 25000, 20000, 15000, 10000, 9000,
-            8000, 7000, 6000]
+P3_STIFF = P3_STIFFNESS  # P3_MASS, P3_STIFFNESS: dtdyn.app.problems
 P3_T = 0.8
 P3_DTS = (2e-3, 1e-3, 5e-4, 2.5e-4)
 
