@@ -13,10 +13,7 @@ from dtdyn.app.loads import sample_load
 from dtdyn._engine.result import Response
 from dtdyn.app.scene import load_scene, plot_response, run_scene, save_results
 
-# reference problem P3 (shared/reference.md section 7)
-P3_MASS = [10, 9, 8, 7, 6, 6, 5.5, 5, 4.5, 4, 3.5, 4, 2.5, 2, 2]
-P3_STIFFNESS = [55000, 50000, 45000, 40000, 40000, 35000, 30000, 25000, 20000, 15000, 10000, 9000,
-                8000, 7000, 6000]
+from dtdyn.app.problems import P3_MASS, P3_STIFFNESS  # the scene file must hold P3
 
 MODEL = """
 [model]
@@ -207,7 +204,7 @@ BAD_SCENES = {
     "load as a table": (dict(loads='[load]\ndof = 0\nkind = "step"\n'), r"\[\[load\]\]"),
     "bad output quantity": (dict(extra='[output]\nquantities = ["x", "f"]\n'),
                             r"output\.quantities\[1\] = 'f'"),
-    "bad output dof": (dict(extra='[output]\ndofs = [0, 7]\n'), r"output\.dofs = \[0, 7\]"),
+    "bad output dof": (dict(extra='[output]\noutputs = [0, 7]\n'), r"output\.outputs = \[0, 7\]"),
 }
 
 
@@ -264,7 +261,7 @@ def fake_response(scene) -> Response:
 
 
 def test_save_results_stores_requested_quantities(tmp_path):
-    s = load_scene(write_scene(tmp_path, extra='[output]\ndofs = [2, 0]\nquantities = ["x", "a"]\n'))
+    s = load_scene(write_scene(tmp_path, extra='[output]\noutputs = [2, 0]\nquantities = ["x", "a"]\n'))
     r = fake_response(s)
     out = tmp_path / "res.npz"
     save_results(out, r, s)
@@ -353,7 +350,7 @@ def test_run_scene_error_shrinks_with_dt(tmp_path):
     errors = []
     for dt in (0.02, 0.01):
         time = f"[time]\ndt = {dt}\nduration = 2.0\n"
-        s = load_scene(write_scene(tmp_path, time=time, extra='[output]\ndofs = [0, 2]\n'))
+        s = load_scene(write_scene(tmp_path, time=time, extra='[output]\noutputs = [0, 2]\n'))
         response, report = run_scene(s)
         assert response.x.shape == (s.n_steps + 1, 2)
         errors.append(report["max_rel_error"])

@@ -182,7 +182,7 @@ def test_named_dofs_in_loads_and_outputs(tmp_path):
              '[[load]]\ndof = "floor"\nkind = "step"\namplitude = 0.5\n')
     model = inline_model(extra='dofs = ["floor", "roof"]\n')
     s = load_scene(write_scene(tmp_path, model, loads=loads,
-                               extra='[output]\ndofs = ["roof", 0]\nquantities = ["x", "v"]\n'))
+                               extra='[output]\noutputs = ["roof", 0]\nquantities = ["x", "v"]\n'))
     assert s.dof_names == ("floor", "roof")
     assert_array_equal(s.loaded, [0, 1])
     assert_array_equal(s.force[:, 0], 0.5)
@@ -281,9 +281,9 @@ BAD = {
     "load dof index out of range": (inline_model(), r"load\[0\]\.dof = 2: must be a DOF index in 0\.\.1 "
                                                     r"or a DOF name", '[[load]]\ndof = 2\nkind = "step"\n'),
     "unknown output dof name": (inline_model(extra='dofs = ["floor", "roof"]\n'),
-                                r"output\.dofs\[1\] = 'cellar': unknown DOF name"),
+                                r"output\.outputs\[1\] = 'cellar': unknown DOF name"),
     "repeated output dof": (inline_model(extra='dofs = ["floor", "roof"]\n'),
-                            r"output\.dofs = \['roof', 1\]: entry 1 \(1\) repeats DOF 1 \('roof'\)"),
+                            r"output\.outputs = \['roof', 1\]: entry 1 \(1\) repeats DOF 1 \('roof'\)"),
     "chain-only form": (inline_model(), r"scheme\.form = 'displacement': only for chain models",
                         None, '[scheme]\nname = "newmark"\nform = "displacement"\n'),
     "chain-only sweep": (inline_model(), r"scheme\.sweep = 'plain': only for chain models",
@@ -291,8 +291,8 @@ BAD = {
     "chain-only backend": (inline_model(), r"scheme\.backend = 'c': only for chain models",
                            None, '[scheme]\nname = "houbolt"\nbackend = "c"\n'),
 }
-OUTPUTS = {"unknown output dof name": '[output]\ndofs = ["roof", "cellar"]\n',
-           "repeated output dof": '[output]\ndofs = ["roof", 1]\n'}
+OUTPUTS = {"unknown output dof name": '[output]\noutputs = ["roof", "cellar"]\n',
+           "repeated output dof": '[output]\noutputs = ["roof", 1]\n'}
 
 
 @pytest.mark.parametrize("case", list(BAD))

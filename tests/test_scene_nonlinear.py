@@ -49,8 +49,9 @@ std = 100.0
 seed = 0
 """
 NONLINEAR = """
+[scheme]
+name = "modal_ramp"
 [nonlinear]
-method = "modal_ramp"
 substeps = 3
 """
 TIME = """
@@ -60,7 +61,7 @@ duration = 1.999
 """
 OUTPUT = """
 [output]
-dofs = ["m1", 3]
+outputs = ["m1", 3]
 quantities = ["x", "a"]
 """
 
@@ -116,7 +117,7 @@ def test_p4_scene_equals_direct_nonlinear_response(tmp_path):
     assert_array_equal(response.a, direct.a)
     assert response.v is None  # the scene asks for x and a only
     assert_allclose(response.t, sc.t, rtol=1e-12)
-    assert report["method"] == report["scheme"] == "modal_ramp" and report["substeps"] == 3
+    assert report["scheme"] == "modal_ramp" and report["substeps"] == 3
     assert report["max_rel_error"] is None and report["n_dof"] == 4 and report["n_outputs"] == 2
     assert report["elements"] == ["Cubic (DOF 0 - ground)", "Cubic (DOF 1 - DOF 2)"]
     for key in ("run_time_s", "construct_time_s", "compile_time_s", "setup_time_s"):
@@ -216,12 +217,13 @@ BAD = {
     "element not an array of tables": (dict(elements='[element]\nkind = "cubic"\ni = 0\n'
                                                      'k3 = 1.0\n'),
                                        r"element = .*: must be zero or more \[\[element\]\]"),
-    "unknown method": (dict(nonlinear='[nonlinear]\nmethod = "rk4"\n'),
-                       r"nonlinear\.method = 'rk4': unknown value, allowed: 'modal_ramp'"),
-    "multistep method": (dict(nonlinear='[nonlinear]\nmethod = "houbolt"\n'),
-                         r"nonlinear\.method = 'houbolt'"),
+    "unknown scheme": (dict(nonlinear='[scheme]\nname = "rk4"\n'),
+                       r"scheme\.name = 'rk4': a scene with \[\[element\]\] takes one of "
+                       r"'modal_ramp'"),
     "multistep scheme": (dict(nonlinear='[scheme]\nname = "park"\n'),
-                         r"scheme\.name = 'park': a multistep scheme"),
+                         r"scheme\.name = 'park': .*multistep schemes cannot"),
+    "old nonlinear.method key": (dict(nonlinear='[nonlinear]\nmethod = "modal_ramp"\n'),
+                                 r"nonlinear\.method = 'modal_ramp': unknown key"),
     "substeps": (dict(nonlinear='[nonlinear]\nsubsteps = 0\n'),
                  r"nonlinear\.substeps = 0: must be an integer >= 1"),
     "max_iter": (dict(nonlinear='[nonlinear]\nmax_iter = 2.5\n'), r"nonlinear\.max_iter = 2\.5"),
@@ -229,18 +231,17 @@ BAD = {
     "backend": (dict(nonlinear='[nonlinear]\nbackend = "numpy"\n'),
                 r"nonlinear\.backend = 'numpy': unknown value, allowed: 'c', 'casadi'"),
     "unknown nonlinear key": (dict(nonlinear='[nonlinear]\nsolver = "newton"\n'),
-                              r"nonlinear\.solver = 'newton': unknown key, allowed: method"),
-    "modes for a scheme": (dict(nonlinear='[nonlinear]\nmethod = "newmark"\nmodes = [0]\n'),
+                              r"nonlinear\.solver = 'newton': unknown key, allowed: substeps"),
+    "modes for a scheme": (dict(nonlinear='[scheme]\nname = "newmark"\n[nonlinear]\nmodes = [0]\n'),
                            r"nonlinear\.modes = \[0\]: selects modal filters"),
     "modes repeat": (dict(nonlinear='[nonlinear]\nmodes = [1, 1]\n'),
                      r"nonlinear\.modes = \[1, 1\]: repeats a mode"),
-    "method and scheme disagree": (dict(nonlinear=NONLINEAR + '[scheme]\nname = "newmark"\n'),
-                                   r"nonlinear\.method = 'modal_ramp' and scheme\.name = "
-                                   r"'newmark': method 'modal_ramp' takes no \[scheme\]"),
+    "modal scheme with parameters": (dict(nonlinear='[scheme]\nname = "modal_ramp"\nbeta = 0.3\n'),
+                                     r"scheme\.beta = 0\.3: unknown key"),
     "chain-only scheme key": (dict(nonlinear='[scheme]\nname = "newmark"\nsweep = "plain"\n'),
                               r"scheme\.sweep = 'plain': only for linear chains"),
-    "nonlinear without elements": (dict(elements="", nonlinear=NONLINEAR +
-                                        '[scheme]\nname = "newmark"\n'),
+    "nonlinear without elements": (dict(elements="", nonlinear='[scheme]\nname = "newmark"\n'
+                                        '[nonlinear]\nsubsteps = 3\n'),
                                    r"the \[nonlinear\] options need at least one \[\[element\]\]"),
     "sparse model": (dict(model=P4_MODEL.replace('kind = "matrices"',
                                                  'kind = "matrices"\nsparse = true')),
@@ -299,7 +300,7 @@ def test_cli_prints_nonlinear_statistics(tmp_path, capsys):
     out = tmp_path / "r.npz"
     assert main(["simulate", str(write_scene(tmp_path)), "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "2 nonlinear element(s), method modal_ramp (3 substep(s) per sample, backend c)" in text
+    assert "2 nonlinear element(s), scheme modal_ramp (3 substep(s) per sample, backend c)" in text
     assert "element[1]: Cubic (DOF 1 - DOF 2)" in text
     assert "construct time:" in text and "compile or cache load:" in text
     assert "run time:" in text and "us per step of h = dt / 3" in text
@@ -343,7 +344,7 @@ def test_stiff_gap_beyond_the_stability_limit_names_the_step(tmp_path, capsys):
     path = write_scene(tmp_path, elements=GAP_HARD, nonlinear="", time=time, extra="",
                        name="gap.toml")
     with pytest.raises(DtdynStepStabilityError,
-                       match=r"gap\.toml: method 'modal_ramp' is unstable at step 1 \(sample 1, "
+                       match=r"gap\.toml: scheme 'modal_ramp' is unstable at step 1 \(sample 1, "
                              r"t = 0\.01 s\).*use substeps >= 29"):
         run_scene(load_scene(path))
     out = tmp_path / "r.npz"
@@ -359,7 +360,7 @@ def test_stiff_gap_beyond_the_stability_limit_names_the_step(tmp_path, capsys):
     assert np.max(np.abs(response.x[:, 3])) > 1e-4
     # and the same element with an implicit scheme needs no substeps
     implicit = write_scene(tmp_path, elements=GAP_HARD,
-                           nonlinear='[nonlinear]\nmethod = "average_acceleration"\n', time=time,
+                           nonlinear='[scheme]\nname = "average_acceleration"\n', time=time,
                            extra="", name="gap_aa.toml")
     response, _ = run_scene(load_scene(implicit))
     assert np.isfinite(response.x).all()

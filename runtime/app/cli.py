@@ -70,7 +70,7 @@ def _simulate_nonlinear(args, sc) -> int:
     params = "".join(f", {k} = {v:g}" for k, v in sc.scheme_params.items())
     substeps = sc.nonlinear.get("substeps", 1)
     print(f"{sc.title}: {sc.n_dof} DOF, {sc.n_steps} steps of dt = {sc.dt:g} s, "
-          f"{len(sc.elements)} nonlinear element(s), method {sc.scheme}{params} "
+          f"{len(sc.elements)} nonlinear element(s), scheme {sc.scheme}{params} "
           f"({substeps} substep(s) per sample, backend {sc.backend})")
     for k, el in enumerate(sc.elements):
         print(f"  element[{k}]: {el.describe()}")

@@ -22,7 +22,7 @@ reference problem P3)::
     dt = 1e-3                           # s
     duration = 0.8                      # s, an integer multiple of dt: n_steps = duration / dt
     [output]                            # optional
-    dofs = [0, 14]                      # optional, default all
+    outputs = [0, 14]                   # optional, default all
     quantities = ["x", "v", "a"]        # optional, default ["x"]
 
 A model with general matrices (``kind = "matrices"``) replaces the chain keys of ``[model]``::
@@ -45,7 +45,7 @@ A model with general matrices (``kind = "matrices"``) replaces the chain keys of
                                         #   M-normalised eigenvectors of (K, M) (dense; needs M
                                         #   symmetric positive definite and K symmetric)
 
-Paths are relative to the scene file. ``load.dof`` and ``output.dofs`` entries of such a scene
+Paths are relative to the scene file. ``load.dof`` and ``output.outputs`` entries of such a scene
 are 0-based indices or names from ``model.dofs``. It runs with ``simulate_mck`` (any scheme,
 acceleration form, dense or sparse); ``scheme.form``, ``scheme.sweep`` and ``scheme.backend``
 belong to chains and are rejected.
@@ -58,9 +58,10 @@ Nonlinear elements (dtdyn.nonlinear.elements) join the model, chain or matrices;
     i = 0                               # DOF: 0-based index (or a model.dofs name for matrices)
     j = 1                               # optional, default: ground; y = q_i - q_j (y = q_i)
     k3 = 2e7                            # and that kind's fields (below)
+    [scheme]                            # optional, default "modal_ramp"
+    name = "modal_parabolic"            # "modal_ramp", "modal_parabolic" or a one-step scheme
+                                        #   name (not houbolt, park) with its parameters
     [nonlinear]                         # optional
-    method = "modal_ramp"               # default (see below): "modal_ramp", "modal_parabolic"
-                                        #   or a one-step scheme name (not houbolt, park)
     substeps = 1                        # optional: steps per sample, h = dt / substeps
     backend = "c"                       # optional: "c" or "casadi"
     tol = 1e-12                         # optional: relative Newton tolerance
@@ -81,14 +82,12 @@ element classes)::
                 c = 0.5                             of numbers [none]
     bouc_wen    stiffness (> 0), beta, gamma, alpha (>= 0) [0.1], A [1.0], n (>= 1) [1.0]
 
-The method of a nonlinear scene is ``nonlinear.method`` if given, else ``scheme.name`` if a
-``[scheme]`` table is given, else ``"modal_ramp"``. ``[scheme]`` is optional there; when given it
-names the same method (a one-step scheme; a modal method takes none) and carries that scheme's
-parameters (``beta = 0.3``, ...); ``scheme.form``, ``.sweep`` and ``.backend`` are refused
-(``nonlinear.backend`` chooses the backend). ``[nonlinear]`` without any ``[[element]]`` is an
+The scheme of a nonlinear scene is ``scheme.name`` (default ``"modal_ramp"``): a modal method
+(no parameters) or a one-step scheme with its parameters (``beta = 0.3``, ...); ``scheme.form``,
+``.sweep`` and ``.backend`` are refused (``nonlinear.backend`` chooses the backend). ``[nonlinear]`` without any ``[[element]]`` is an
 error. A nonlinear scene runs ``nonlinear_response`` on dense M, C, K (a chain's from
-``chain_matrices``; ``model.sparse = true`` is refused) with the loads sampled at
-``fs = 1 / dt`` and the stored outputs and quantities the scene asks for; it is not compared
+``chain_matrices``; ``model.sparse = true`` is refused) with the loads sampled every ``dt``
+and the stored outputs and quantities the scene asks for; it is not compared
 with the exact solution.
 
 Every error is a ``ValueError`` that names the file and the field, e.g.
@@ -148,7 +147,7 @@ _MATRIX_DAMPING_KEYS = ("rayleigh", "modal")
 _MATRIX_NAMES = ("M", "K", "C")
 _MTX_SUFFIXES = (".mtx", ".mtx.gz", ".mtx.bz2")
 _TIME_KEYS = ("dt", "duration")
-_OUTPUT_KEYS = ("dofs", "quantities")
+_OUTPUT_KEYS = ("outputs", "quantities")
 _SCHEME_COMMON = ("name", "form", "sweep", "backend")
 
 #: element kind -> (class in dtdyn.nonlinear.elements, required fields, optional fields); the
@@ -169,7 +168,7 @@ _ELEMENT_FIELDS = {
 }
 #: Law's own argument names, which its constants cannot take
 _LAW_RESERVED = ("i", "j", "expression")
-_NONLINEAR_KEYS = ("method", "substeps", "backend", "tol", "max_iter", "modes")
+_NONLINEAR_KEYS = ("substeps", "backend", "tol", "max_iter", "modes")
 NONLINEAR_BACKENDS = ("c", "casadi")
 _DEFAULT_NONLINEAR_METHOD = "modal_ramp"
 
@@ -709,7 +708,7 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
 
     _table("nonlinear", tbl, _NONLINEAR_KEYS)
     methods = _nonlinear_methods()
-    scheme_name, params = None, {}
+    method, params = _DEFAULT_NONLINEAR_METHOD, {}
     if scheme_tbl is not None:
         if not isinstance(scheme_tbl, dict):
             raise ValueError(f"scheme = {scheme_tbl!r}: must be a table [scheme]")
@@ -718,21 +717,16 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
                 raise ValueError(f"scheme.{key} = {scheme_tbl[key]!r}: only for linear chains; a "
                                  "scene with [[element]] runs nonlinear_response (set "
                                  "nonlinear.backend): remove the key")
-        scheme_name, params = _scheme_name_params(scheme_tbl)
-    if "method" in tbl:
-        method = _choice("nonlinear.method", tbl["method"], methods)
-        if scheme_name is not None and scheme_name != method:
-            extra = (f"method {method!r} takes no [scheme]" if method in MODAL
-                     else "they must name the same method")
-            raise ValueError(f"nonlinear.method = {method!r} and scheme.name = {scheme_name!r}: "
-                             f"{extra}; remove [scheme] or make them agree")
-    elif scheme_name is not None:
-        method = scheme_name
-        if method not in methods:
-            raise ValueError(f"scheme.name = {method!r}: a multistep scheme cannot run nonlinear "
-                             f"elements, allowed: {', '.join(map(repr, methods))}")
-    else:
-        method = _DEFAULT_NONLINEAR_METHOD
+        name = scheme_tbl.get("name")
+        if name not in methods:
+            raise ValueError(f"scheme.name = {name!r}: a scene with [[element]] takes one of "
+                             f"{', '.join(map(repr, methods))} (multistep schemes cannot run "
+                             "nonlinear elements)")
+        if name in MODAL:
+            _table("scheme", scheme_tbl, ("name",))
+            method = name
+        else:
+            method, params = _scheme_name_params(scheme_tbl)
     options = {}
     for key in ("substeps", "max_iter"):
         if key in tbl:
@@ -766,21 +760,21 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
 def _parse_output(tbl, n_dof: int, names: tuple[str, ...] | None = None
                   ) -> tuple[np.ndarray, tuple[str, ...]]:
     _table("output", tbl, _OUTPUT_KEYS)
-    dofs = tbl.get("dofs")
+    dofs = tbl.get("outputs")
     if names is not None and dofs is not None:  # indices or DOF names
         if not isinstance(dofs, list) or not dofs:
-            raise ValueError(f"output.dofs = {dofs!r}: must be a non-empty array of DOF indices "
+            raise ValueError(f"output.outputs = {dofs!r}: must be a non-empty array of DOF indices "
                              "or names")
         given = dofs
-        dofs = [_dof_index(f"output.dofs[{i}]", d, n_dof, names) for i, d in enumerate(given)]
+        dofs = [_dof_index(f"output.outputs[{i}]", d, n_dof, names) for i, d in enumerate(given)]
         for i, d in enumerate(dofs):
             if d in dofs[:i]:
-                raise ValueError(f"output.dofs = {given!r}: entry {i} ({given[i]!r}) repeats "
+                raise ValueError(f"output.outputs = {given!r}: entry {i} ({given[i]!r}) repeats "
                                  f"DOF {d} ({names[d]!r})")
     elif dofs is not None and (not isinstance(dofs, list)
                                or any(isinstance(d, bool) or not isinstance(d, int) for d in dofs)):
-        raise ValueError(f"output.dofs = {dofs!r}: must be an array of integer DOF indices")
-    outputs = validate.dof_indices("output.dofs", dofs, n_dof)
+        raise ValueError(f"output.outputs = {dofs!r}: must be an array of integer DOF indices")
+    outputs = validate.dof_indices("output.outputs", dofs, n_dof)
     quantities = tbl.get("quantities", ["x"])
     if not isinstance(quantities, list) or not quantities:
         raise ValueError(f"output.quantities = {quantities!r}: must be a non-empty array, "
@@ -983,8 +977,9 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
     start = time.perf_counter()
     try:
         response = nonlinear.nonlinear_response(
-            scene.force, 1.0 / scene.dt, M, C, K, scene.loaded, scene.elements,
-            outputs=scene.outputs, method=scene.scheme, **scene.nonlinear, **scene.scheme_params)
+            M, C, K, scene.force, scene.dt, force_dofs=scene.loaded, elements=scene.elements,
+            outputs=scene.outputs, quantities=scene.quantities, scheme=scene.scheme,
+            **scene.nonlinear, **scene.scheme_params)
     except (nonlinear.NewtonError, nonlinear.DtdynStepStabilityError) as exc:
         substeps = scene.nonlinear.get("substeps", 1)
         raise type(exc)(f"{scene.source}: {exc} (the scene has nonlinear.substeps = "
@@ -994,16 +989,13 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
             raise ValueError(f"{scene.source}: nonlinear.{exc}") from None
         raise
     wall = time.perf_counter() - start
-    for q in QUANTITIES:  # store what the scene asks for, as the linear runs do
-        if q not in scene.quantities:
-            setattr(response, q, None)
     info = response.info
     report = {
         "title": scene.title, "scheme": scene.scheme, "scheme_params": dict(scene.scheme_params),
         "form": None, "sweep": None, "backend": info["backend"], "dt": scene.dt,
         "n_steps": scene.n_steps, "n_dof": scene.n_dof, "n_outputs": int(scene.outputs.size),
         "run_time_s": info["run_time"], "exact_time_s": None, "max_rel_error": None,
-        "method": scene.scheme, "substeps": info["substeps"],
+        "substeps": info["substeps"],
         "elements": list(info["elements"]), "setup_time_s": info["setup_time"],
         "construct_time_s": info["construct_time"], "compile_time_s": info["compile_time"],
         "total_time_s": wall, "newton_iterations": info["newton_iterations"],
@@ -1034,7 +1026,7 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
         run_time_s, exact_time_s, max_rel_error``. For matrices ``form`` is ``"acceleration"``,
         ``sweep`` None and ``backend`` ``"numpy"`` (dense) or ``"scipy.sparse"``.
         A nonlinear scene (``form``, ``sweep``, ``max_rel_error`` None; ``backend`` the one used)
-        adds ``method, substeps, elements`` (descriptions), ``setup_time_s,
+        adds ``substeps, elements`` (descriptions), ``setup_time_s,
         construct_time_s, compile_time_s`` (``run_time_s`` is the stepping loop alone,
         ``total_time_s`` the whole call), ``newton_iterations`` (``{"max", "mean"}`` per step;
         None for backend "casadi"), ``max_residual`` and ``max_theta`` (``Response.info``).
@@ -1053,7 +1045,7 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
         from dtdyn.linear import mck
 
         response = mck.simulate_mck(
-            scene.M, scene.C, scene.K, scene.force, scene.dt, scene.n_steps, loaded=scene.loaded,
+            scene.M, scene.C, scene.K, scene.force, scene.dt, force_dofs=scene.loaded,
             scheme=scene.scheme, outputs=scene.outputs, quantities=scene.quantities,
             progress=progress, **scene.scheme_params)
         response.info.setdefault("backend", scene.backend)
@@ -1061,8 +1053,8 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
         from dtdyn.linear import chain  # imported here: chain may compile kernels on first use
 
         response = chain.simulate_chain(
-            scene.mass, scene.stiffness, scene.damping, scene.force, scene.dt, scene.n_steps,
-            loaded=scene.loaded, scheme=scene.scheme, form=scene.form, sweep=scene.sweep,
+            scene.mass, scene.stiffness, scene.damping, scene.force, scene.dt,
+            force_dofs=scene.loaded, scheme=scene.scheme, form=scene.form, sweep=scene.sweep,
             backend=scene.backend, outputs=scene.outputs, quantities=scene.quantities,
             progress=progress, **scene.scheme_params)
     run_time = time.perf_counter() - start
@@ -1083,8 +1075,8 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
         M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m) for m in matrices)
         start = time.perf_counter()
         try:
-            ref = exact.exact_response(M, C, K, scene.force, scene.dt, scene.n_steps,
-                                       loaded=scene.loaded, outputs=scene.outputs)
+            ref = exact.exact_response(M, C, K, scene.force, scene.dt, force_dofs=scene.loaded,
+                                       outputs=scene.outputs, quantities=("x",))
         except exact.SingularMassError:  # no exact solution to compare with
             return response, report
         report["exact_time_s"] = time.perf_counter() - start
