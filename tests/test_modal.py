@@ -276,12 +276,12 @@ def test_from_poles_residues_siso_and_undamped():
     ([-1 + 5j], [np.inf], {}, "not finite"),
     ([-1 + 5j, -2 + 3j], [1j], {}, "residues has shape"),
     ([-1 + 5j], np.ones((1, 2, 1)), {}, "residues has shape"),
-    ([-1 + 5j], np.ones((1, 1, 2)), {"inputs": [0, 1], "outputs": [2, 3]}, "residues has shape"),
+    ([-1 + 5j], np.ones((1, 1, 2)), {"force_dofs": [0, 1], "outputs": [2, 3]}, "residues has shape"),
     ([-2.0], [1j], {}, "real pole needs a real residue"),
     ([], [], {}, "non-empty"),
-    ([-1 + 5j], [1j], {"inputs": [0, 0]}, "repeats"),
+    ([-1 + 5j], [1j], {"force_dofs": [0, 0]}, "repeats"),
     ([-1 + 5j], [1j], {"outputs": [-1]}, "outside"),
-    ([-1 + 5j], [1j], {"inputs": [0.5]}, "integer"),
+    ([-1 + 5j], [1j], {"force_dofs": [0.5]}, "integer"),
     ("abc", [1j], {}, "poles must be numeric"),
 ])
 def test_from_poles_residues_errors(poles, residues, kw, msg):
@@ -296,11 +296,11 @@ def test_roundoff_positive_real_part_is_undamped():
 
 def test_modal_model_errors():
     M, C, K = proportional_3dof()
-    with pytest.raises(ValueError, match="inputs"):
+    with pytest.raises(ValueError, match="force_dofs"):
         modal_model(M, C, K, [3], [0])
     with pytest.raises(ValueError, match="outputs.*repeats"):
         modal_model(M, C, K, [0], [1, 1])
-    with pytest.raises(ValueError, match="inputs"):
+    with pytest.raises(ValueError, match="force_dofs"):
         modal_model(M, C, K, [0.5], [0])
     with pytest.raises(ValueError, match=r"^M is singular"):
         modal_model(np.diag([1.0, 0.0, 1.0]), C, K, [0], [0])

@@ -361,7 +361,7 @@ def test_cli_srs_npy_plot_and_csv(tmp_path, capsys):
     _, a = _half_sine(fs, 1e-3, 100.0, 0.02)
     rec, png, csv = tmp_path / "rec.npy", tmp_path / "srs.png", tmp_path / "srs.csv"
     np.save(rec, a)
-    assert main(["srs", str(rec), "--fs", str(fs), "--freqs", "10", "2000", "40",
+    assert main(["srs", str(rec), "--dt", repr(1 / fs), "--freqs", "10", "2000", "40",
                  "--damping", "0.05", "--plot", str(png), "--out", str(csv)]) == 0
     out = capsys.readouterr().out
     assert "maximax" in out and "largest" in out and str(png) in out
@@ -377,16 +377,16 @@ def test_cli_srs_csv_record_and_errors(tmp_path, capsys):
     t, a = _half_sine(fs, 1e-3, 100.0, 0.01)
     rec = tmp_path / "rec.csv"
     np.savetxt(rec, np.column_stack([t, a]), delimiter=",", header="t,a", comments="")
-    assert main(["srs", str(rec), "--fs", str(fs), "--response", "pseudo_velocity",
+    assert main(["srs", str(rec), "--dt", repr(1 / fs), "--response", "pseudo_velocity",
                  "--exact-peaks"]) == 0
     assert "pseudo velocity" in capsys.readouterr().out
-    assert main(["srs", str(rec), "--fs", "0"]) == 2
-    assert "--fs" in capsys.readouterr().err
+    assert main(["srs", str(rec), "--dt", "0"]) == 2
+    assert "--dt" in capsys.readouterr().err
     bad = tmp_path / "bad.npy"
     np.save(bad, np.array([0.0, np.nan, 1.0]))
-    assert main(["srs", str(bad), "--fs", "100", "--plot", str(tmp_path / "p.png")]) == 2
+    assert main(["srs", str(bad), "--dt", "0.01", "--plot", str(tmp_path / "p.png")]) == 2
     assert "accel[1]" in capsys.readouterr().err and not (tmp_path / "p.png").exists()
-    assert main(["srs", str(rec), "--fs", "100", "--damping", "1.5"]) == 2
+    assert main(["srs", str(rec), "--dt", "0.01", "--damping", "1.5"]) == 2
     assert "damping" in capsys.readouterr().err
 
 

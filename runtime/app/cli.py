@@ -199,10 +199,11 @@ def _srs(args) -> int:
     from dtdyn.modal import srs as S
 
     accel = S.load_record(args.record, args.column)
-    if not args.fs > 0.0 or not np.isfinite(args.fs):
-        raise ValueError(f"--fs must be finite and > 0, got {args.fs!r}")
+    if not args.dt > 0.0 or not np.isfinite(args.dt):
+        raise ValueError(f"--dt must be finite and > 0, got {args.dt!r}")
+    fs = 1.0 / args.dt
     if args.freqs is None:
-        fmin, fmax, n = args.fs / 1e4, args.fs / 10.0, 100
+        fmin, fmax, n = fs / 1e4, fs / 10.0, 100
     else:
         fmin, fmax, n = args.freqs
         if float(n) != int(n) or int(n) < 1:
@@ -214,14 +215,14 @@ def _srs(args) -> int:
     freqs = np.geomspace(fmin, fmax, n)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", S.SRSSamplingWarning)
-        res = S.shock_response_spectrum(accel, args.fs, freqs, damping=args.damping,
+        res = S.shock_response_spectrum(accel, args.dt, freqs, damping=args.damping,
                                         response=args.response, window=args.window,
                                         points_per_cycle=args.points_per_cycle,
                                         exact_peaks=args.exact_peaks)
     for w in caught:
         print(f"warning: {w.message}", file=sys.stderr)
     info = res.info
-    print(f"SRS of {args.record}: {accel.size} samples at fs = {args.fs:g} Hz; "
+    print(f"SRS of {args.record}: {accel.size} samples, dt = {args.dt:g} s (fs = {fs:g} Hz); "
           f"{args.response.replace('_', ' ')}, damping {args.damping:g} (Q = "
           f"{(1 / (2 * args.damping)) if args.damping > 0 else float('inf'):g}), "
           f"{args.window} window, {'exact' if args.exact_peaks else 'sampled'} peaks"
@@ -266,9 +267,9 @@ def main(argv=None) -> int:
     be.add_argument("--quick", action="store_true", help="shorter sweeps (a smoke run)")
     sr = sub.add_parser("srs", help="shock response spectrum of a base-acceleration record")
     sr.add_argument("record", help=".npy or .csv record of acceleration samples")
-    sr.add_argument("--fs", type=float, required=True, help="sampling rate, Hz")
+    sr.add_argument("--dt", type=float, required=True, help="sample step of the record, s")
     sr.add_argument("--freqs", type=float, nargs=3, metavar=("FMIN", "FMAX", "N"),
-                    help="N log-spaced natural frequencies, Hz (default fs/1e4 .. fs/10, 100)")
+                    help="N log-spaced natural frequencies, Hz (default 1e-4/dt .. 0.1/dt, 100)")
     sr.add_argument("--damping", type=float, default=0.05, help="damping ratio (default 0.05)")
     sr.add_argument("--response", default="absolute_acceleration",
                     choices=["absolute_acceleration", "relative_displacement",
