@@ -4,7 +4,7 @@ Writes docs/modal_filter_speed.md. Run from the repository root:
 
     python benchmarks/modal_filter_speed.py
 
-Problem: P3 (shared/reference.md section 7), the 15-DOF chain, as given: undamped (C = 0). The
+Problem: P3 (`dtdyn.p3()`), the 15-DOF chain, as given: undamped (C = 0). The
 modal model keeps its undamped poles (Re s = 0, allowed by dtdyn.modal.model); damping would
 not change the work per sample. Force on DOF 14 (0-based), random piecewise-linear (standard
 normal samples, first one 0), fs = 2000 Hz, ramp invariant, 1,000,000 samples.
@@ -102,7 +102,7 @@ def extended_precision_truth(model, force):
     for s, R in zip(model.poles, model.residues[:, 0, 0]):
         sm, Rm = mpmath.mpc(s.real, s.imag), mpmath.mpc(R.real, R.imag)
         e = mpmath.exp(sm * T)
-        c1 = Rm * (e - 1 - sm * T) / (sm * sm * T)  # weight of x_n (reference.md: N0)
+        c1 = Rm * (e - 1 - sm * T) / (sm * sm * T)  # weight of x_n (the ramp invariant's N0)
         c0 = Rm * (1 + (sm * T - 1) * e) / (sm * sm * T)  # weight of x_{n-1} (N1)
         b = np.array([ld(c1), ld(c0)], np.clongdouble)
         a = np.array([1, -ld(e)], np.clongdouble)

@@ -30,7 +30,7 @@ Ground: u_0 = q_0 = s_0 = 0.
 
 Plain sweep (the source's): z_n = T_n z_{n-1} from z_0 = [0, f_1, 1] with the unknown base force
 f_1 fixed by f_{N+1} = 0. Its entries grow like (m alpha / kappa)^N, so the far-end displacement is
-a difference of huge numbers (measured in reference.md section 3).
+a difference of huge numbers (measured in tests/test_dttmm.py).
 
 Stable sweep (Riccati transfer matrix, Horner & Pilkey 1978; He, Wang & Rui 2007): carry
 f_n = S_n u_{n-1} + R_n from the free end (S_{N+1} = R_{N+1} = 0) back to the base, then

@@ -13,7 +13,7 @@ primary unknown, and returns
     acceleration form:  xe = Dx ae + Ex, ve = Dv ae + Ev        (reference sec. 3 writes D, E, A, B)
     update:             x1, v1, a1 affine in the primary unknown and the history.
 
-Sources: reference.md section 4 (Newmark 1959; Wilson, Farhoomand & Bathe 1973; Houbolt 1950;
+Sources: (Newmark 1959; Wilson, Farhoomand & Bathe 1973; Houbolt 1950;
 Park 1975; Hilber, Hughes & Taylor 1977; Chung & Hulbert 1993).
 """
 from __future__ import annotations
@@ -108,7 +108,7 @@ def _newmark_preset(name, title, b, g, order, reference, notes=""):
                   order=order, reference=reference, notes=notes)
 
 
-NEWMARK_REF = "Newmark (1959), J. Eng. Mech. Div. ASCE 85(3); reference.md sec. 4"
+NEWMARK_REF = "Newmark (1959), J. Eng. Mech. Div. ASCE 85(3)"
 
 SCHEMES: dict[str, Scheme] = {s.name: s for s in (
     Scheme("newmark", "Newmark beta-gamma", NEWMARK_ALPHA, NEWMARK_ALPHA_FORCE,
@@ -126,19 +126,19 @@ SCHEMES: dict[str, Scheme] = {s.name: s for s in (
     _newmark_preset("central_difference", "Central difference (Newmark beta = 0, explicit)", 0, HALF,
                     2, NEWMARK_REF, "Explicit: acceleration form only; stable for omega dt < 2."),
     _newmark_preset("fox_euler", "Fox-Euler (Newmark beta = 1/2, gamma = 1)", HALF, 1, 1,
-                    "Fox & Euler as defined in the DT-TMM source; reference.md sec. 4",
+                    "Fox & Euler as defined in the DT-TMM source",
                     "First order, dissipative."),
     Scheme("wilson", "Wilson theta", WILSON, (1 - theta, theta), params=("theta",),
            defaults={"theta": 1.4}, order=2,
-           reference="Wilson, Farhoomand & Bathe (1973), Earthq. Eng. Struct. Dyn. 1; reference.md sec. 4",
+           reference="Wilson, Farhoomand & Bathe (1973), Earthq. Eng. Struct. Dyn. 1",
            notes="Unconditionally stable for theta >= (1 + sqrt 3)/2 = 1.366."),
     Scheme("houbolt", "Houbolt", HOUBOLT, (0, 1), lags=(xm1, xm2),
            startup_steps=MULTISTEP_STARTUP, order=2,
-           reference="Houbolt (1950), J. Aeronaut. Sci. 17; reference.md sec. 4",
+           reference="Houbolt (1950), J. Aeronaut. Sci. 17",
            notes="Multistep; starts with 2 steps of average acceleration."),
     Scheme("park", "Park stiffly stable", PARK, (0, 1), lags=(xm1, xm2, vm1, vm2),
            startup_steps=MULTISTEP_STARTUP, order=2,
-           reference="Park (1975), J. Appl. Mech. 42; reference.md sec. 4",
+           reference="Park (1975), J. Appl. Mech. 42",
            notes="Multistep; starts with 2 steps of average acceleration."),
     Scheme("hht", "HHT-alpha", NEWMARK_ALPHA, NEWMARK_ALPHA_FORCE, params=("alpha",),
            defaults={"alpha": -0.05},

@@ -1,4 +1,4 @@
-"""The per-step nonlinear problem of each discretization (reference.md section 6).
+"""The per-step nonlinear problem of each discretization.
 
 With localized forces L^T g(y, y', z), y = L q, every linear step of dtdyn takes the element
 forces as inputs next to f. In the shifted form (the state x_k known before step k is solved)

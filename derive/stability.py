@@ -1,4 +1,4 @@
-"""Amplification matrix of every scheme, from its own definition (reference.md section 4).
+"""Amplification matrix of every scheme, from its own definition.
 
 Apply a scheme to x'' + 2 zeta omega x' + omega^2 x = 0 in its acceleration form
 (x_e = Dx a_e + Ex(h), v_e = Dv a_e + Ev(h), with Ex, Ev linear in the history h):

@@ -1,4 +1,4 @@
-"""Newmark discrete-time state space in block form (reference.md section 5; SHARPy's newmark_ss).
+"""Newmark discrete-time state space in block form (SHARPy's newmark_ss).
 
 With y = [q; q'] and the Newmark relations
 

@@ -1,4 +1,4 @@
-"""Transfer matrix method in the Laplace domain (reference.md section 2).
+"""Transfer matrix method in the Laplace domain.
 
 State vector z = [x, f, 1]^T: displacement, internal force, 1 (augmented column). A chain
 (station n: spring k_n parallel to damper c_n from node n-1 to mass m_n, force F_n on mass n)

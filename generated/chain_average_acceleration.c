@@ -2,7 +2,7 @@
 // Do not edit: run `dtdyn generate` to rewrite, `dtdyn generate --check` to verify.
 /*
  * Newmark average acceleration (trapezoidal): the whole DT-TMM time loop of a chain, displacement
- * and acceleration forms, stable (Riccati) and plain sweeps. Newmark (1959), J. Eng. Mech. Div. ASCE 85(3); reference.md sec. 4
+ * and acceleration forms, stable (Riccati) and plain sweeps. Newmark (1959), J. Eng. Mech. Div. ASCE 85(3)
  *
  * hist: 3 rows of N doubles (x0, v0, a0), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..

@@ -2,7 +2,7 @@
 // Do not edit: run `dtdyn generate` to rewrite, `dtdyn generate --check` to verify.
 /*
  * Park stiffly stable: the whole DT-TMM time loop of a chain, displacement
- * and acceleration forms, stable (Riccati) and plain sweeps. Park (1975), J. Appl. Mech. 42; reference.md sec. 4
+ * and acceleration forms, stable (Riccati) and plain sweeps. Park (1975), J. Appl. Mech. 42
  *
  * hist: 7 rows of N doubles (x0, v0, a0, xm1, xm2, vm1, vm2), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..

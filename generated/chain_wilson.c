@@ -2,7 +2,7 @@
 // Do not edit: run `dtdyn generate` to rewrite, `dtdyn generate --check` to verify.
 /*
  * Wilson theta: the whole DT-TMM time loop of a chain, displacement
- * and acceleration forms, stable (Riccati) and plain sweeps. Wilson, Farhoomand & Bathe (1973), Earthq. Eng. Struct. Dyn. 1; reference.md sec. 4
+ * and acceleration forms, stable (Riccati) and plain sweeps. Wilson, Farhoomand & Bathe (1973), Earthq. Eng. Struct. Dyn. 1
  *
  * hist: 3 rows of N doubles (x0, v0, a0), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..

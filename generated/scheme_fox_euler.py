@@ -2,7 +2,7 @@
 # Do not edit: run `dtdyn generate` to rewrite, `dtdyn generate --check` to verify.
 """Fox-Euler (Newmark beta = 1/2, gamma = 1): coefficients of the discrete-time step, derived from the scheme's relations.
 
-Fox & Euler as defined in the DT-TMM source; reference.md sec. 4
+Fox & Euler as defined in the DT-TMM source
 First order, dissipative.
 
 Per DOF the step is linear in the history h = (x0, v0, a0):

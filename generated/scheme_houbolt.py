@@ -2,7 +2,7 @@
 # Do not edit: run `dtdyn generate` to rewrite, `dtdyn generate --check` to verify.
 """Houbolt: coefficients of the discrete-time step, derived from the scheme's relations.
 
-Houbolt (1950), J. Aeronaut. Sci. 17; reference.md sec. 4
+Houbolt (1950), J. Aeronaut. Sci. 17
 Multistep; starts with 2 steps of average acceleration.
 
 Per DOF the step is linear in the history h = (x0, v0, a0, xm1, xm2):

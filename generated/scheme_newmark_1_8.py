@@ -2,7 +2,7 @@
 # Do not edit: run `dtdyn generate` to rewrite, `dtdyn generate --check` to verify.
 """Newmark beta = 1/8 (the source's favourite): coefficients of the discrete-time step, derived from the scheme's relations.
 
-Newmark (1959), J. Eng. Mech. Div. ASCE 85(3); reference.md sec. 4
+Newmark (1959), J. Eng. Mech. Div. ASCE 85(3)
 Stable for omega dt < 2.828.
 
 Per DOF the step is linear in the history h = (x0, v0, a0):

@@ -2,7 +2,7 @@
 # Do not edit: run `dtdyn generate` to rewrite, `dtdyn generate --check` to verify.
 """Park stiffly stable: coefficients of the discrete-time step, derived from the scheme's relations.
 
-Park (1975), J. Appl. Mech. 42; reference.md sec. 4
+Park (1975), J. Appl. Mech. 42
 Multistep; starts with 2 steps of average acceleration.
 
 Per DOF the step is linear in the history h = (x0, v0, a0, xm1, xm2, vm1, vm2):

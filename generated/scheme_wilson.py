@@ -2,7 +2,7 @@
 # Do not edit: run `dtdyn generate` to rewrite, `dtdyn generate --check` to verify.
 """Wilson theta: coefficients of the discrete-time step, derived from the scheme's relations.
 
-Wilson, Farhoomand & Bathe (1973), Earthq. Eng. Struct. Dyn. 1; reference.md sec. 4
+Wilson, Farhoomand & Bathe (1973), Earthq. Eng. Struct. Dyn. 1
 Unconditionally stable for theta >= (1 + sqrt 3)/2 = 1.366.
 
 Per DOF the step is linear in the history h = (x0, v0, a0):

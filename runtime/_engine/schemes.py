@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 from dtdyn.generated import SCHEMES as NAMES
 
-#: admissible parameter ranges (closed intervals); the reasons are in reference.md section 4
+#: admissible parameter ranges (closed intervals); the reasons are in the schemes' stability analysis (docs/stability.md)
 RANGES = {
     "beta": (0.0, math.inf),  # beta = 0 is explicit (acceleration form only)
     "gamma": (0.5, math.inf),  # gamma < 1/2 adds negative algorithmic damping

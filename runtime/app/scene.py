@@ -697,14 +697,14 @@ def _parse_elements(tables, n_dof: int, names: tuple[str, ...] | None) -> tuple:
 
 
 def _nonlinear_methods() -> tuple[str, ...]:
-    from dtdyn.nonlinear.response import MODAL, MULTISTEP
+    from dtdyn.nonlinear.linear_step import MODAL, MULTISTEP
 
     return MODAL + tuple(s for s in SCHEMES if s not in MULTISTEP)
 
 
 def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
     """(method, scheme parameters, options, backend) of a nonlinear scene (module docstring)."""
-    from dtdyn.nonlinear.response import MODAL
+    from dtdyn.nonlinear.linear_step import MODAL
 
     _table("nonlinear", tbl, _NONLINEAR_KEYS)
     methods = _nonlinear_methods()

@@ -153,9 +153,10 @@ def shifted(Phi, G0, G1, S, dt, *, state, quantities, n_dof, source, physical=No
     x_n = z_n - G1 f_n: A = Phi, B = G0 + Phi G1, C = S, D = S G1. ``physical(q0, v0, f0)``
     gives z_0; the model's initial state is z_0 - G1 f_0."""
     G1 = np.asarray(G1)
-    initial = None
-    if physical is not None:
-        def initial(q0, v0, f0):
-            return physical(q0, v0, f0) - G1 @ f0
+
+    def initial(q0, v0, f0):
+        return physical(q0, v0, f0) - G1 @ f0
+
     return DiscreteModel(Phi, G0 + Phi @ G1, S, S @ G1, dt, state=state, quantities=quantities,
-                         n_dof=n_dof, source=source, _physical_state=initial)
+                         n_dof=n_dof, source=source,
+                         _physical_state=None if physical is None else initial)

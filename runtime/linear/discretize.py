@@ -147,8 +147,8 @@ def discretize(M, C, K, dt, hold="zoh") -> DiscreteModel:
         C_d = I, \quad D_d = \Gamma_2 ,
 
     so :math:`y_n = x_n + \Gamma_2 f_n = z_n`; a simulation from :math:`z_0` starts at
-    :math:`x_0 = z_0 - \Gamma_2 f_0` (the same device as the Newmark state space of
-    reference.md section 5, :math:`x_n = y_n - A_{ss1}^{-1}B_{ss1} f_n`). (:math:`\Gamma_1, \Gamma_2` are
+    :math:`x_0 = z_0 - \Gamma_2 f_0` (the same device as the Newmark state space,
+    :math:`x_n = y_n - A_{ss1}^{-1}B_{ss1} f_n`); `DiscreteModel.initial_state` does it. (:math:`\Gamma_1, \Gamma_2` are
     :math:`\Gamma_a, \Gamma_b` of :func:`dtdyn.linear.exact.foh_matrices`.)
 
     **Impulse invariance** (``"impulse"``; the discrete impulse response is :math:`\Delta t`

@@ -1,6 +1,6 @@
 """Exact sampled response of a linear structure to a piecewise-linear (first-order-hold) force.
 
-This is the reference solution for linear problems (reference.md, section 7): it has no
+This is the reference solution for linear problems: it has no
 discretisation error beyond round-off in the matrix exponential, for any ``dt``.
 """
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Discrete-time state-space models of M q'' + C q' + K q = f, and a fast time loop for them.
 
-- `newmark_ss`: SHARPy's model (reference.md section 5), built from the M-multiplied blocks
+- `newmark_ss`: SHARPy's model, built from the M-multiplied blocks
   derived in dtdyn.derive.state_space, so M is never inverted; with massless DOFs (singular M)
   it returns the same recursion with the state [q; q'; q''].
 - `discrete_state_space`: the same kind of model for any scheme of the integrator library, from
@@ -43,7 +43,7 @@ def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False) -> DiscreteModel:
 
         Ass = E1^-1 E0,  Dss = E1^-1 G1,  Bss = E1^-1 (G0 + E0 Dss),  Css = I,
 
-    equal to SHARPy's Ass1^-1 Ass0 etc. (reference.md section 5) without forming M^-1.
+    equal to SHARPy's Ass1^-1 Ass0 etc. without forming M^-1.
     ``M_is_SPD`` is kept for SHARPy's signature; when True, M is checked to be symmetric positive
     definite (Cholesky) and a ValueError names it otherwise.
 

@@ -1,7 +1,7 @@
 """Transfer matrix method in the Laplace domain, numerically: frequency responses and poles.
 
 Uses the generated element matrices (dtdyn.generated.tmm); U = prod_{n=N..1} M_n S_n, the poles
-are the roots of U22(s) (reference.md section 2).
+are the roots of U22(s).
 """
 from __future__ import annotations
 

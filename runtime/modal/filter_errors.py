@@ -1,4 +1,4 @@
-"""Frequency-domain errors of the modal digital filters (reference.md section 6).
+"""Frequency-domain errors of the modal digital filters.
 
 The bank of `dtdyn.modal.filters` replaces the continuous receptance
 H(s) = sum_r R_r/(s - s_r) + conj(R_r)/(s - conj(s_r)) (+ real poles) by a sum of digital
@@ -74,7 +74,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dtdyn._engine import validate
-from dtdyn.modal.model import QUANTITY_POWER, ModalModel, modal_model, quantity_name
+from dtdyn.modal.model import ModalModel, modal_model, quantity_name
 from dtdyn.modal.filters import quantity_residues, sections
 
 __all__ = ["INVARIANTS", "discrete_frequency_response", "continuous_frequency_response",

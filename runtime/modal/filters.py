@@ -1,4 +1,4 @@
-"""Forced response as a bank of modal digital filters (reference.md section 6).
+"""Forced response as a bank of modal digital filters.
 
 Each selected mode of the receptance H(s) = sum_r R_r/(s - s_r) + conj has the recursion
 eta_n = e^{sT} eta_{n-1} + c0 x_{n-1} + c1 x_n, with c0, c1 from dtdyn.generated.modal_filters.

@@ -72,7 +72,7 @@ needed (``window`` other than "primary", or ``exact_peaks``).
 
 A second, different error applies if the record samples a band-limited signal rather than a
 piecewise-linear one: linear interpolation multiplies the input spectrum by
-(sin(pi f/fs)/(pi f/fs))^2 (reference.md section 6), so content at f is attenuated by up to
+(sin(pi f/fs)/(pi f/fs))^2, so content at f is attenuated by up to
 
     e_bias = 1 - sinc^2(f / fs)                 (fs / 4: 18.9 %; fs / 10: 3.2 %)
 
@@ -86,7 +86,7 @@ References
 ISO 18431-4:2007, Mechanical vibration and shock - Signal processing - Part 4: Shock-response
 spectrum analysis. D. O. Smallwood (1981), An improved recursive formula for calculating shock
 response spectra, Shock and Vibration Bulletin 51. Ahlin, Magnevall & Josefsson (2006), modal
-digital filters (reference.md section 6).
+digital filters.
 """
 from __future__ import annotations
 

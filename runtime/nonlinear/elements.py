@@ -1,6 +1,6 @@
 """Localized nonlinear elements: a force law between DOF i and DOF j (or ground).
 
-The equations of motion with localized nonlinear forces (reference.md section 6) are
+The equations of motion with localized nonlinear forces are
 
     M q'' + C q' + K q + L^T g(y, y', z) = f,    y = L q,   z' = h(y', z)
 

@@ -1,6 +1,6 @@
 """Tight reference time histories for structures with localized nonlinear elements.
 
-The problem (reference.md sections 6 and 7):
+The problem:
 
     M q'' + C q' + K q + L^T g(y, y', z) = B f(t),    y = L q,    z' = h(y, y', z),
 

@@ -1,0 +1,176 @@
+"""The linear part of every nonlinear step: a discrete model of one (sub)step h with the
+element forces as extra inputs.
+
+Every scheme is a linear discrete model of the (sub)step h = dt / S, written with the
+element forces as extra inputs (u = [f; g], the g columns carrying -L^T), and shifted so that the
+state x_k is known before step k is solved (as `discrete_state_space` and SHARPy do):
+
+    w_k = Cw x_k + Dwf f_k + Dwg g_k,   x_{k+1} = A x_k + Bf f_k + Bg g_k,
+
+w = [y; y'] the element deformations. Each step solves the small nonlinear system
+w - Q_k - Dwg g(w, z) = 0 (with the internal states' trapezoidal update) for w and z only:
+the source's x_nl(n) + B0 g(x_nl(n)) = Q(n) (derivation and the modal B0 in
+generated/nonlinear.md). Schemes:
+
+- "modal_ramp": modal digital filters, ramp invariant (Ahlin, Josefsson & Magnevall): one
+  complex first-order recursion per kept mode, exact for a force linear between samples, the
+  nonlinear force treated as linear over the step (second order in h).
+- "modal_parabolic": the same filters with the element forces interpolated by the parabola
+  through g_{k-1}, g_k, g_{k+1} (third order in h, same per-step problem; dtdyn's addition).
+- any one-step scheme of the integrator library on M, C, K ("newmark", "average_acceleration",
+  "hht", "generalized_alpha", ...): the effective nonlinear system of the scheme; HHT and
+  generalized-alpha evaluate the nonlinear forces like the external ones, averaged between
+  t_n and t_{n+1} (alpha_f g_n + (1 - alpha_f) g_{n+1}).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dtdyn._engine import validate
+
+MULTISTEP = ("houbolt", "park")
+MODAL = ("modal_ramp", "modal_parabolic")
+
+#: largest theta = |B0 dg/dy|_inf (the elements' tangent stiffness k_t as seen by the step; y
+#: rows and columns only: velocity terms and internal states are not counted) a
+#: method stays stable at: the ramp invariant treats the element force like the linear-
+#: acceleration method (unstable beyond B0 k_t = 2, i.e. Omega_t = h sqrt(k_t/m) = sqrt 12);
+#: the parabolic one grows like Adams-Moulton 3 on the imaginary axis, rho - 1 ~ 1e-3 per step at
+#: theta = 0.03 without damping (docs/nonlinear.md), so it is held to theta <= 0.01.
+#: The implicit schemes (average acceleration, HHT, generalized-alpha) have no such limit.
+THETA_LIMIT = {"modal_ramp": 2.0, "modal_parabolic": 0.01}
+
+
+@dataclass
+class LinearStep:
+    """The shifted linear model of one (sub)step (module docstring).
+
+    Inputs u = [f; g]. X0f, X0g give the shifted initial state x_0 = X0f f_0 + X0g g_0 of a
+    system at rest (x_0 = z_0 - Gamma1 u_0, z_0 the scheme's history at t_0).
+    """
+
+    h: float
+    A: np.ndarray
+    Bf: np.ndarray
+    Bg: np.ndarray
+    Cw: np.ndarray
+    Dwf: np.ndarray
+    Dwg: np.ndarray
+    Co: np.ndarray
+    Dof: np.ndarray
+    Dog: np.ndarray
+    X0f: np.ndarray
+    X0g: np.ndarray
+
+
+def _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h, direct=None) -> LinearStep:
+    """LinearStep of z_{k+1} = Phi z_k + G0 u_k + G1 u_{k+1}, [q; q'; q''] = S z + direct u.
+
+    Shifted state x = z - G1 u (A = Phi, B = G0 + Phi G1, D = S G1); Z0 maps u_0 to z_0.
+    """
+    n = L.shape[1]
+    q, v, a = S[:n], S[n:2 * n], S[2 * n:]
+    W = np.vstack([L @ q] + ([L @ v] if need_v else []))
+    O = np.vstack([q[out], v[out], a[out]])
+    B = G0 + Phi @ G1
+    Dw, Do = W @ G1, O @ G1
+    if direct is not None:
+        Do = Do + np.vstack([direct[:n][out], direct[n:2 * n][out], direct[2 * n:][out]])
+    X0 = Z0 - G1
+    c = np.ascontiguousarray
+    return LinearStep(h, c(Phi), c(B[:, :nf]), c(B[:, nf:]), c(W), c(Dw[:, :nf]), c(Dw[:, nf:]),
+                      c(O), c(Do[:, :nf]), c(Do[:, nf:]), c(X0[:, :nf]), c(X0[:, nf:]))
+
+
+def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> LinearStep:
+    """Ramp-invariant modal model: eta_k = lam eta_{k-1} + N0 p_k + N1 p_{k-1}, p = X_f U u.
+
+    Displacement q = sum_r w_r Re(psi_r eta_r) (w = 2 for a conjugate pair, 1 for a real pole),
+    velocity with psi_r s_r, acceleration with psi_r s_r^2 plus the direct term
+    sum_r w_r Re(s_r R_r) u (= M^-1 with all modes). ``parabolic`` adds
+    N2 X_f U_g (g_k - 2 g_{k-1} + g_{k-2}) (generated/nl_modal.py), the state then carrying
+    g_{k-1} (g_{-1} = g_0 at rest).
+    """
+    from scipy.linalg import block_diag
+
+    from dtdyn.generated.modal_filters import forced_coefficients
+    from dtdyn.generated.nl_modal import parabola_coefficient
+
+    from dtdyn.modal.model import _pair_poles, modal_factors
+    s_all, Psi_q, X_f = modal_factors(M, C, K)
+    keep, osc = _pair_poles(s_all)
+    order = np.argsort(np.abs(s_all[keep]), kind="stable")
+    idx, osc = keep[order], osc[order]
+    if modes is not None:
+        sel = np.sort(validate.dof_indices("modes", modes, idx.size))
+        idx, osc = idx[sel], osc[sel]
+    s = np.where(osc, s_all[idx], s_all[idx].real)
+    N1, N0 = forced_coefficients("ramp", s, np.ones_like(s), h)  # old input, new input
+    N2 = parabola_coefficient(s, h) if parabolic else np.zeros_like(s)
+    lam = np.exp(s * h)
+    P = X_f[idx] @ U
+    ne, nu = L.shape[0], U.shape[1]
+    psi = Psi_q[:, idx] * np.where(osc, 2.0, 1.0)
+    Sc = np.vstack([psi, psi * s, psi * s**2])
+    direct = np.vstack([np.zeros((2 * L.shape[1], nu)), ((psi * s) @ P).real])
+    A_blocks, rows = [], {"G0": [], "G1": [], "G2": [], "S": []}
+    for r in range(idx.size):
+        l, g0, g1, g2 = lam[r], N1[r] * P[r], N0[r] * P[r], N2[r] * P[r, nf:]
+        g0[nf:] -= 2.0 * g2
+        g1[nf:] += g2
+        parts = {"G0": g0, "G1": g1, "G2": g2, "S": Sc[:, r]}
+        if osc[r]:  # real state (Re eta, Im eta)
+            A_blocks.append(np.array([[l.real, -l.imag], [l.imag, l.real]]))
+            for k, v in parts.items():
+                rows[k] += [v.real, -v.imag if k == "S" else v.imag]
+        else:
+            A_blocks.append(np.array([[l.real]]))
+            for k, v in parts.items():
+                rows[k].append(v.real)
+    Phi = block_diag(*A_blocks)
+    G0, G1, G2, S = (np.array(rows[k]) for k in ("G0", "G1", "G2", "S"))
+    S = S.T
+    Z0 = np.zeros_like(G1)
+    if parabolic:  # state [eta; g_{k-1}]
+        nz = Phi.shape[0]
+        E_g = np.hstack([np.zeros((ne, nf)), np.eye(ne)])
+        Phi = np.block([[Phi, G2], [np.zeros((ne, nz + ne))]])
+        G0 = np.vstack([G0, E_g])
+        G1 = np.vstack([G1, np.zeros((ne, nu))])
+        S = np.hstack([S, np.zeros((S.shape[0], ne))])
+        Z0 = np.vstack([Z0, E_g])
+    return _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h, direct)
+
+
+def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearStep:
+    """The scheme's one-step model (`scheme_blocks`), history [x0; v0; a0] per DOF, with
+    a_0 = M^+ U u_0 at rest (M^+: pseudo-inverse, = M^-1 when M is nonsingular)."""
+    from dtdyn.linear.state_space import scheme_blocks
+    if scheme in MULTISTEP:
+        raise ValueError(f"scheme {scheme!r} is a multistep scheme whose start-up is not a single "
+                         "linear step; use 'newmark', 'hht', 'generalized_alpha' or 'modal_ramp'")
+    Phi, G0, G1, S = scheme_blocks(M, C, K, h, scheme, acceleration=True, **params)
+    n = M.shape[0]
+    G0, G1 = G0 @ U, G1 @ U
+    Z0 = np.zeros_like(G1)
+    Z0[2 * n:3 * n] = np.linalg.pinv(M) @ U
+    return _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h)
+
+
+def linear_step(method, M, C, K, h, force_dofs, L, outputs, modes=None, need_v=False,
+                **scheme_params) -> LinearStep:
+    """The shifted linear model of one step h for ``method`` (module docstring)."""
+    n = M.shape[0]
+    U = np.hstack([np.eye(n)[:, force_dofs], -L.T])  # DOF forces of u = [f; g]
+    if method in MODAL:
+        if scheme_params:
+            raise ValueError(f"scheme {method!r} takes no scheme parameters, got "
+                             f"{', '.join(sorted(scheme_params))}")
+        return _modal_step(M, C, K, h, U, L, outputs, modes, need_v, len(force_dofs),
+                           parabolic=method == "modal_parabolic")
+    if modes is not None:
+        raise ValueError(f"modes selects modal filters; scheme {method!r} integrates all DOFs")
+    return _scheme_step(M, C, K, h, U, L, outputs, method, scheme_params, need_v,
+                        len(force_dofs))
