@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from dtdyn.app import scene as scene_mod
+from dtdyn.app.scene import io as scene_io
 from dtdyn.app.loads import sample_load
 from dtdyn._engine.result import Response
 from dtdyn.app.scene import load_scene, plot_response, run_scene, save_results
@@ -290,7 +290,7 @@ def test_save_results_leaves_nothing_behind_on_failure(tmp_path, monkeypatch):
         f.write(b"partial")
         raise OSError("disk full")
 
-    monkeypatch.setattr(scene_mod.np, "savez", broken_savez)
+    monkeypatch.setattr(scene_io.np, "savez", broken_savez)
     with pytest.raises(OSError, match="disk full"):
         save_results(out, r, s)
     assert out.read_bytes() == b"previous"

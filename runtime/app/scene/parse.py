@@ -1,0 +1,207 @@
+"""TOML -> `Scene`: `load_scene` and `scene_from_dict`."""
+from __future__ import annotations
+
+import importlib.resources
+import os
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sps
+
+from dtdyn._engine import validate
+from dtdyn.app.loads import finite_number, sample_load
+from dtdyn.app.scene.schema import (BACKENDS, DEFAULT_SCENE, FORMS, QUANTITIES, SWEEPS, Scene,
+                                    _OUTPUT_KEYS, _TIME_KEYS, _TOP_KEYS, _choice, _dof_index,
+                                    _model_kind, _parse_model, _required, _scheme_name_params,
+                                    _table)
+from dtdyn.app.scene.matrices import _parse_matrix_model
+from dtdyn.app.scene.elements import _parse_elements, _parse_nonlinear
+
+def _parse_time(tbl) -> tuple[float, int]:
+    _table("time", tbl, _TIME_KEYS)
+    dt = validate.positive_scalar("time.dt", finite_number("time.dt", _required("time", tbl, "dt")))
+    duration = validate.positive_scalar(
+        "time.duration", finite_number("time.duration", _required("time", tbl, "duration")))
+    ratio = duration / dt
+    n_steps = int(round(ratio))
+    if abs(ratio - n_steps) > 1e-9 * max(ratio, 1.0):
+        raise ValueError(f"time.duration = {tbl['duration']!r}: not an integer multiple of "
+                         f"time.dt = {tbl['dt']!r} (duration/dt = {ratio!r})")
+    return dt, validate.step_count("time.duration / time.dt", n_steps)
+
+
+def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None, str]:
+    if not isinstance(tbl, dict):
+        raise ValueError(f"scheme = {tbl!r}: must be a table [scheme]")
+    if kind == "matrices":
+        for key in ("form", "sweep", "backend"):
+            if key in tbl:
+                raise ValueError(f"scheme.{key} = {tbl[key]!r}: only for chain models; a model "
+                                 "with kind = 'matrices' runs simulate_mck (acceleration form, "
+                                 "dense or sparse as the matrices are): remove the key")
+    name, params = _scheme_name_params(tbl)
+    if kind == "matrices":
+        return name, params, "acceleration", None, ""  # backend: set from the matrices
+    form = _choice("scheme.form", tbl.get("form", "displacement"), FORMS)
+    sweep = _choice("scheme.sweep", tbl.get("sweep", "stable"), SWEEPS)
+    backend = _choice("scheme.backend", tbl.get("backend", "c"), BACKENDS)
+    return name, params, form, sweep, backend
+
+
+
+def _parse_output(tbl, n_dof: int, names: tuple[str, ...] | None = None
+                  ) -> tuple[np.ndarray, tuple[str, ...]]:
+    _table("output", tbl, _OUTPUT_KEYS)
+    dofs = tbl.get("outputs")
+    if names is not None and dofs is not None:  # indices or DOF names
+        if not isinstance(dofs, list) or not dofs:
+            raise ValueError(f"output.outputs = {dofs!r}: must be a non-empty array of DOF indices "
+                             "or names")
+        given = dofs
+        dofs = [_dof_index(f"output.outputs[{i}]", d, n_dof, names) for i, d in enumerate(given)]
+        for i, d in enumerate(dofs):
+            if d in dofs[:i]:
+                raise ValueError(f"output.outputs = {given!r}: entry {i} ({given[i]!r}) repeats "
+                                 f"DOF {d} ({names[d]!r})")
+    elif dofs is not None and (not isinstance(dofs, list)
+                               or any(isinstance(d, bool) or not isinstance(d, int) for d in dofs)):
+        raise ValueError(f"output.outputs = {dofs!r}: must be an array of integer DOF indices")
+    outputs = validate.dof_indices("output.outputs", dofs, n_dof)
+    quantities = tbl.get("quantities", ["x"])
+    if not isinstance(quantities, list) or not quantities:
+        raise ValueError(f"output.quantities = {quantities!r}: must be a non-empty array, "
+                         f"allowed entries: {', '.join(map(repr, QUANTITIES))}")
+    for i, q in enumerate(quantities):
+        _choice(f"output.quantities[{i}]", q, QUANTITIES)
+    if len(set(quantities)) != len(quantities):
+        raise ValueError(f"output.quantities = {quantities!r}: repeats an entry")
+    return outputs, tuple(quantities)
+
+
+def _parse_loads(loads, n_dof: int, t: np.ndarray, base_dir: Path,
+                 names: tuple[str, ...] | None = None):
+    if not isinstance(loads, list) or not loads or not all(isinstance(x, dict) for x in loads):
+        raise ValueError(f"load = {loads!r}: must be one or more [[load]] tables")
+    columns: dict[int, np.ndarray] = {}
+    for i, spec in enumerate(loads):
+        name = f"load[{i}]"
+        dof = _dof_index(f"{name}.dof", _required(name, spec, "dof"), n_dof, names)
+        samples = sample_load(spec, t, base_dir, name=name, extra_keys=("dof",))
+        columns[dof] = columns[dof] + samples if dof in columns else samples
+    loaded = np.array(sorted(columns), dtype=np.int64)
+    force = np.column_stack([columns[d] for d in loaded])
+    return [dict(x) for x in loads], loaded, validate.force_samples(force, t.size - 1, loaded)
+
+
+# ----------------------------------------------------------------------------------------------
+# public API
+
+def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scene>") -> Scene:
+    """Validate a parsed scene (the dict ``tomllib`` returns) and build a :class:`Scene`.
+
+    ``base_dir`` is where ``file`` loads and matrix files (``model.file``, ``.mtx`` paths) are
+    looked for. Errors are ``ValueError`` naming the field (without the file name;
+    :func:`load_scene` adds it).
+    """
+    if not isinstance(data, dict):
+        raise ValueError(f"a scene must be a table, got {type(data).__name__}")
+    for key in data:
+        if key not in _TOP_KEYS:
+            raise ValueError(f"{key}: unknown top-level key or table, allowed: {', '.join(_TOP_KEYS)}")
+    nonlinear = bool(data.get("element"))  # [scheme] is optional then
+    for key in ("model", "load", "time") + (() if nonlinear else ("scheme",)):
+        if key not in data:
+            hint = "[[load]]" if key == "load" else f"[{key}]"
+            raise ValueError(f"{key} is required: add a {hint} table")
+    if "nonlinear" in data and not nonlinear:
+        raise ValueError(f"nonlinear = {data['nonlinear']!r}: the [nonlinear] options need at "
+                         "least one [[element]] table")
+    title = data.get("title", Path(source).stem)
+    if not isinstance(title, str):
+        raise ValueError(f"title = {title!r}: must be a string")
+
+    base_dir = Path(base_dir)
+    kind = _model_kind(data["model"])
+    M = C = K = names = None
+    mass = stiffness = damping = None
+    if kind == "matrices":
+        if nonlinear and data["model"].get("sparse") is True:
+            raise ValueError("model.sparse = True: a scene with [[element]] runs on dense "
+                             "matrices; remove the key")
+        M, C, K, names = _parse_matrix_model(data["model"], base_dir)
+        n_dof = M.shape[0]
+        if nonlinear:
+            M, C, K = (A.toarray() if sps.issparse(A) else A for A in (M, C, K))
+    else:
+        mass, stiffness, damping = _parse_model(data["model"])
+        n_dof = mass.size
+    dt, n_steps = _parse_time(data["time"])
+    elements, options = (), {}
+    if nonlinear:
+        elements = _parse_elements(data["element"], n_dof, names)
+        scheme, params, options, backend = _parse_nonlinear(data.get("nonlinear", {}),
+                                                            data.get("scheme"))
+        form = sweep = None
+    else:
+        if "element" in data:  # an empty array: still a linear scene
+            _parse_elements(data["element"], n_dof, names)
+        scheme, params, form, sweep, backend = _parse_scheme(data["scheme"], kind)
+        if kind == "matrices":
+            backend = "scipy.sparse" if sps.issparse(M) else "numpy"
+    outputs, quantities = _parse_output(data.get("output", {}), n_dof, names)
+    t = np.arange(n_steps + 1) * dt
+    loads, loaded, force = _parse_loads(data["load"], n_dof, t, base_dir, names)
+    return Scene(title=title, mass=mass, stiffness=stiffness, damping=damping, loads=loads,
+                 loaded=loaded, force=force, scheme=scheme, scheme_params=params, form=form,
+                 sweep=sweep, backend=backend, dt=dt, n_steps=n_steps, outputs=outputs,
+                 quantities=quantities, source=source, base_dir=base_dir, kind=kind, M=M, C=C, K=K,
+                 dof_names=names, elements=elements, nonlinear=options)
+
+
+def load_scene(path: str | os.PathLike | None = None) -> Scene:
+    """Read and validate a scene file.
+
+    Parameters
+    ----------
+    path : path or None
+        A TOML scene file; ``None`` reads the embedded default ``scenes/p3.toml`` (reference
+        problem P3: 15-DOF undamped chain, unit step on mass 15, T = 0.8 s, dt = 1e-3, average
+        acceleration, all masses stored).
+
+    Returns
+    -------
+    Scene
+
+    Raises
+    ------
+    ValueError
+        ``"<file>: <field> = <value>: <what is wrong>"``: unreadable file, TOML syntax, unknown
+        table or key, invalid value.
+
+    Example
+    -------
+    >>> load_scene().n_dof
+    15
+    """
+    if path is None:
+        resource = importlib.resources.files("dtdyn.app").joinpath(DEFAULT_SCENE)
+        source = f"dtdyn.app/{DEFAULT_SCENE}"
+        text = resource.read_text(encoding="utf-8")
+        base_dir = Path(str(resource)).parent if isinstance(resource, Path) else Path.cwd()
+    else:
+        file = Path(path)
+        source = str(file)
+        try:
+            text = file.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ValueError(f"{source}: cannot read the scene file: {exc}") from None
+        base_dir = file.parent
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{source}: invalid TOML: {exc}") from None
+    try:
+        return scene_from_dict(data, base_dir, source)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from None

@@ -1,0 +1,184 @@
+"""Running a scene: the stability check, the linear or nonlinear run, the exact-error check."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sps
+
+from dtdyn._engine.result import Response
+from dtdyn.app.scene.schema import EXACT_MAX_DOF, SCHEMES, Scene
+
+def natural_frequencies(scene: Scene) -> np.ndarray:
+    """Undamped natural frequencies (rad/s) to check stability against: all of them up to
+    EXACT_MAX_DOF DOFs, else the highest only (the one conditionally stable schemes lose first)."""
+    import scipy.linalg as sla
+    import scipy.sparse as sps
+
+    if scene.kind == "matrices":
+        if scene.n_dof > EXACT_MAX_DOF:
+            return np.array([])
+        M, K = (A.toarray() if sps.issparse(A) else np.asarray(A) for A in (scene.M, scene.K))
+        try:
+            lam = sla.eigh(K, M, eigvals_only=True)
+        except (np.linalg.LinAlgError, ValueError):  # singular or indefinite M: skip the check
+            return np.array([])
+        return np.sqrt(np.clip(lam, 0.0, None))
+    m, k = scene.mass, scene.stiffness
+    s = 1.0 / np.sqrt(m)
+    kk = k + np.append(k[1:], 0.0)
+    d, e = kk * s * s, -k[1:] * s[:-1] * s[1:]  # M^-1/2 K M^-1/2, tridiagonal
+    n = m.size
+    sel = {} if n <= EXACT_MAX_DOF else {"select": "i", "select_range": (n - 1, n - 1)}
+    lam = sla.eigh_tridiagonal(d, e, eigvals_only=True, **sel)
+    return np.sqrt(np.clip(lam, 0.0, None))
+
+
+def check_stability(scene: Scene) -> bool:
+    """Warn before a run whose dt makes the scheme unstable for a mode of the model.
+
+    A nonlinear scene is checked for its linear part at the sub-step dt / substeps when its
+    method is a scheme (the modal methods are exact for the linear part; nonlinear_response
+    checks the elements' tangent stiffness as it runs).
+    """
+    from dtdyn.linear.stability import warn_if_unstable
+
+    dt = scene.dt
+    if not scene.linear:
+        if scene.scheme not in SCHEMES:
+            return False
+        dt = scene.dt / scene.nonlinear.get("substeps", 1)
+    omegas = natural_frequencies(scene)
+    omegas = omegas[omegas > 0.0]
+    if omegas.size == 0:
+        return False
+    return warn_if_unstable(scene.scheme, omegas, dt, **scene.scheme_params)
+
+
+def scene_matrices(scene: Scene):
+    """(M, C, K) of a scene: a chain's from ``chain_matrices`` (dense), else as held."""
+    if scene.kind == "matrices":
+        return scene.M, scene.C, scene.K
+    from dtdyn.linear.chain import chain_matrices
+
+    return chain_matrices(scene.mass, scene.stiffness, scene.damping, sparse=False)
+
+
+def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
+    """``nonlinear_response`` on the scene; errors get the scene file's name."""
+    from dtdyn.nonlinear import response as nonlinear
+
+    M, C, K = scene_matrices(scene)
+    start = time.perf_counter()
+    try:
+        response = nonlinear.nonlinear_response(
+            M, C, K, scene.force, scene.dt, force_dofs=scene.loaded, elements=scene.elements,
+            outputs=scene.outputs, quantities=scene.quantities, scheme=scene.scheme,
+            **scene.nonlinear, **scene.scheme_params)
+    except (nonlinear.NewtonError, nonlinear.DtdynStepStabilityError) as exc:
+        substeps = scene.nonlinear.get("substeps", 1)
+        raise type(exc)(f"{scene.source}: {exc} (the scene has nonlinear.substeps = "
+                        f"{substeps})") from None
+    except ValueError as exc:
+        if str(exc).startswith("modes"):  # the range of nonlinear.modes is known only here
+            raise ValueError(f"{scene.source}: nonlinear.{exc}") from None
+        raise
+    wall = time.perf_counter() - start
+    info = response.info
+    report = {
+        "title": scene.title, "scheme": scene.scheme, "scheme_params": dict(scene.scheme_params),
+        "form": None, "sweep": None, "backend": info["backend"], "dt": scene.dt,
+        "n_steps": scene.n_steps, "n_dof": scene.n_dof, "n_outputs": int(scene.outputs.size),
+        "run_time_s": info["run_time"], "exact_time_s": None, "max_rel_error": None,
+        "substeps": info["substeps"],
+        "elements": list(info["elements"]), "setup_time_s": info["setup_time"],
+        "construct_time_s": info["construct_time"], "compile_time_s": info["compile_time"],
+        "total_time_s": wall, "newton_iterations": info["newton_iterations"],
+        "max_residual": info["max_residual"], "max_theta": info["max_theta"],
+    }
+    return response, report
+
+
+def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
+    """Simulate a scene with ``simulate_chain`` (chains), ``simulate_mck`` (general matrices) or
+    ``nonlinear_response`` (scenes with elements) and report run time and error.
+
+    The error is measured against the matrix-exponential solution (``exact_response``) when the
+    scene is linear and has at most ``EXACT_MAX_DOF`` DOFs (and, for matrices, a mass matrix
+    that is nonsingular or singular only through massless DOFs with damping, the cases
+    ``exact_response`` solves; the matrices are converted to dense for it)::
+
+        max_rel_error = max_{i, j} |x[i, j] - x_exact[i, j]| / max_{i, j} |x_exact[i, j]|
+
+    over all samples ``i`` and stored outputs ``j`` (``None`` when not computed).
+
+    Returns
+    -------
+    response : Response
+        Sampled at ``t_0 .. t_n`` for the DOFs ``scene.outputs``.
+    report : dict
+        ``title, scheme, scheme_params, form, sweep, backend, dt, n_steps, n_dof, n_outputs,
+        run_time_s, exact_time_s, max_rel_error``. For matrices ``form`` is ``"acceleration"``,
+        ``sweep`` None and ``backend`` ``"numpy"`` (dense) or ``"scipy.sparse"``.
+        A nonlinear scene (``form``, ``sweep``, ``max_rel_error`` None; ``backend`` the one used)
+        adds ``substeps, elements`` (descriptions), ``setup_time_s,
+        construct_time_s, compile_time_s`` (``run_time_s`` is the stepping loop alone,
+        ``total_time_s`` the whole call), ``newton_iterations`` (``{"max", "mean"}`` per step;
+        None for backend "casadi"), ``max_residual`` and ``max_theta`` (``Response.info``).
+
+    Raises
+    ------
+    NewtonError, DtdynStepStabilityError
+        A nonlinear scene's step failed (dtdyn.nonlinear.response); the message starts with the
+        scene file and names the step, its time and the residual (or the tangent stiffness).
+    """
+    check_stability(scene)
+    if not scene.linear:
+        return _run_nonlinear(scene)
+    start = time.perf_counter()
+    if scene.kind == "matrices":
+        from dtdyn.linear import mck
+
+        response = mck.simulate_mck(
+            scene.M, scene.C, scene.K, scene.force, scene.dt, force_dofs=scene.loaded,
+            scheme=scene.scheme, outputs=scene.outputs, quantities=scene.quantities,
+            progress=progress, **scene.scheme_params)
+        response.info.setdefault("backend", scene.backend)
+    else:
+        from dtdyn.linear import chain  # imported here: chain may compile kernels on first use
+
+        response = chain.simulate_chain(
+            scene.mass, scene.stiffness, scene.damping, scene.force, scene.dt,
+            force_dofs=scene.loaded, scheme=scene.scheme, form=scene.form, sweep=scene.sweep,
+            backend=scene.backend, outputs=scene.outputs, quantities=scene.quantities,
+            progress=progress, **scene.scheme_params)
+    run_time = time.perf_counter() - start
+
+    report = {
+        "title": scene.title, "scheme": scene.scheme, "scheme_params": dict(scene.scheme_params),
+        "form": scene.form, "sweep": scene.sweep, "backend": scene.backend, "dt": scene.dt,
+        "n_steps": scene.n_steps, "n_dof": scene.n_dof, "n_outputs": int(scene.outputs.size),
+        "run_time_s": run_time, "exact_time_s": None, "max_rel_error": None,
+    }
+    if scene.linear and scene.n_dof <= EXACT_MAX_DOF and response.x is not None:
+        from dtdyn.linear import exact
+
+        if scene.kind == "matrices":
+            matrices = (scene.M, scene.C, scene.K)
+        else:
+            matrices = chain.chain_matrices(scene.mass, scene.stiffness, scene.damping)
+        M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m) for m in matrices)
+        start = time.perf_counter()
+        try:
+            ref = exact.exact_response(M, C, K, scene.force, scene.dt, force_dofs=scene.loaded,
+                                       outputs=scene.outputs, quantities=("x",))
+        except exact.SingularMassError:  # no exact solution to compare with
+            return response, report
+        report["exact_time_s"] = time.perf_counter() - start
+        x, x_ref = np.asarray(response.x), np.asarray(ref.x)
+        if x.shape != x_ref.shape:
+            raise ValueError(f"response.x has shape {x.shape}, the exact solution {x_ref.shape}")
+        err = float(np.max(np.abs(x - x_ref)))
+        scale = float(np.max(np.abs(x_ref)))
+        report["max_rel_error"] = err / scale if scale > 0.0 else (0.0 if err == 0.0 else np.inf)
+    return response, report

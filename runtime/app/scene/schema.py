@@ -1,0 +1,335 @@
+"""Scene files: the schema. A scene is a model (a chain or general M, C, K matrices), its loads, a scheme and a time grid,
+read from a TOML file.
+
+Layout of a scene file (``load_scene(None)`` reads the embedded default ``scenes/p3.toml``,
+reference problem P3)::
+
+    title = "..."                       # optional, default: the file name
+    [model]                             # chain: ground -k1,c1- m1 -k2,c2- m2 ... mN (free)
+    mass = [...]                        # kg, every entry > 0
+    stiffness = [...]                   # N/m, every entry > 0, same length
+    damping = [...]                     # N s/m, >= 0, optional (zeros)
+    [[load]]                            # one or more; loads on the same dof add up
+    dof = 14                            # 0-based mass index
+    kind = "step"                       # and that kind's fields, see dtdyn.app.loads
+    amplitude = 1.0
+    [scheme]
+    name = "newmark"                    # plus that scheme's parameters: beta = 0.25, gamma = 0.5
+    form = "displacement"               # optional
+    sweep = "stable"                    # optional
+    backend = "c"                       # optional
+    [time]
+    dt = 1e-3                           # s
+    duration = 0.8                      # s, an integer multiple of dt: n_steps = duration / dt
+    [output]                            # optional
+    outputs = [0, 14]                   # optional, default all
+    quantities = ["x", "v", "a"]        # optional, default ["x"]
+
+A model with general matrices (``kind = "matrices"``) replaces the chain keys of ``[model]``::
+
+    [model]
+    kind = "matrices"                   # default "chain" (the layout above)
+    M = [[2.0, 0.0], [0.0, 1.0]]        # inline nested arrays (rows), or a Matrix Market path
+    K = [[30.0, -10.0], [-10.0, 10.0]]  #   such as "k.mtx" (scipy.io.mmread; read as sparse)
+    C = [[0.0, 0.0], [0.0, 0.0]]        # optional (zeros)
+    # file = "model.npz"                # instead of M, K, C: an .npz with arrays M, K and
+                                        #   optionally C (numpy.savez)
+    dofs = ["floor", "roof"]            # optional DOF names (default "0", "1", ...)
+    sparse = true                       # optional: true -> scipy.sparse CSR, false -> dense;
+                                        #   omitted: as read (sparse if any matrix is sparse)
+    [model.damping]                     # optional, added to C; at most one of:
+    rayleigh = [0.5, 1e-3]              # C += alpha M + beta K  (alpha, beta >= 0)
+    # modal = [0.02]                    # modal damping ratios zeta_r (one for all modes, or one
+                                        #   per mode, ascending frequency):
+                                        #   C += M Phi diag(2 zeta_r omega_r) Phi^T M, Phi the
+                                        #   M-normalised eigenvectors of (K, M) (dense; needs M
+                                        #   symmetric positive definite and K symmetric)
+
+Paths are relative to the scene file. ``load.dof`` and ``output.outputs`` entries of such a scene
+are 0-based indices or names from ``model.dofs``. It runs with ``simulate_mck`` (any scheme,
+acceleration form, dense or sparse); ``scheme.form``, ``scheme.sweep`` and ``scheme.backend``
+belong to chains and are rejected.
+
+Nonlinear elements (dtdyn.nonlinear.elements) join the model, chain or matrices; any
+``[[element]]`` table makes the scene nonlinear (``scenes/p4.toml``, reference problem P4)::
+
+    [[element]]                         # zero or more, in the order given
+    kind = "cubic"                      # cubic | polynomial | gap | law | bouc_wen
+    i = 0                               # DOF: 0-based index (or a model.dofs name for matrices)
+    j = 1                               # optional, default: ground; y = q_i - q_j (y = q_i)
+    k3 = 2e7                            # and that kind's fields (below)
+    [scheme]                            # optional, default "modal_ramp"
+    name = "modal_parabolic"            # "modal_ramp", "modal_parabolic" or a one-step scheme
+                                        #   name (not houbolt, park) with its parameters
+    [nonlinear]                         # optional
+    substeps = 1                        # optional: steps per sample, h = dt / substeps
+    backend = "c"                       # optional: "c" or "casadi"
+    tol = 1e-12                         # optional: relative Newton tolerance
+    max_iter = 30                       # optional: Newton iterations per step
+    modes = [0, 1]                      # optional, modal methods only: the modes kept (0-based,
+                                        #   sorted by |pole|), default all
+
+Element kinds and fields (required unless a default is given; the defaults are those of the
+element classes)::
+
+    cubic       k3 (N/m^3)                          g = k3 y^3
+    polynomial  coeffs = [c0, c1, ...]              g = sum_p c_p y^p
+    gap         gap (m, >= 0), stiffness (N/m, > 0), smoothing (m, >= 0) [0.0],
+                side ("both", "positive", "negative") ["both"]
+    law         expression = "k*x**3 + c*v"         g(x, v): x = y, v = y'; arithmetic and the
+                [element.constants]                 functions of dtdyn.nonlinear.expressions (parsed,
+                k = 2e7                             never evaluated as Python); constants: a table
+                c = 0.5                             of numbers [none]
+    bouc_wen    stiffness (> 0), beta, gamma, alpha (>= 0) [0.1], A [1.0], n (>= 1) [1.0]
+
+The scheme of a nonlinear scene is ``scheme.name`` (default ``"modal_ramp"``): a modal method
+(no parameters) or a one-step scheme with its parameters (``beta = 0.3``, ...); ``scheme.form``,
+``.sweep`` and ``.backend`` are refused (``nonlinear.backend`` chooses the backend). ``[nonlinear]`` without any ``[[element]]`` is an
+error. A nonlinear scene runs ``nonlinear_response`` on dense M, C, K (a chain's from
+``chain_matrices``; ``model.sparse = true`` is refused) with the loads sampled every ``dt``
+and the stored outputs and quantities the scene asks for; it is not compared
+with the exact solution.
+
+Every error is a ``ValueError`` that names the file and the field, e.g.
+``p3.toml: model.mass[3] = -1.0: every entry must be finite and > 0`` or
+``p4.toml: element[1].expression = '__import__("os")': ...``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sps
+
+from dtdyn._engine import validate
+from dtdyn.app.loads import finite_number
+
+#: scheme name -> {parameter: (lower bound, upper bound)} (inclusive; None: unbounded)
+SCHEMES: dict[str, dict[str, tuple[float | None, float | None]]] = {
+    "fox_euler": {},
+    "newmark": {"beta": (0.0, None), "gamma": (0.0, None)},
+    "average_acceleration": {},
+    "linear_acceleration": {},
+    "fox_goodwin": {},
+    "newmark_1_8": {},
+    "central_difference": {},
+    "wilson": {"theta": (1.0, None)},
+    "houbolt": {},
+    "park": {},
+    "hht": {"alpha": (-1.0 / 3.0, 0.0)},
+    "generalized_alpha": {"rho_inf": (0.0, 1.0)},
+}
+FORMS = ("displacement", "acceleration")
+SWEEPS = ("stable", "plain")
+BACKENDS = ("c", "numpy")
+QUANTITIES = ("x", "v", "a")
+#: run_scene compares with the matrix-exponential solution up to this many DOFs
+EXACT_MAX_DOF = 2000
+
+_TOP_KEYS = ("title", "model", "load", "element", "nonlinear", "scheme", "time", "output")
+#: model kinds: a chain (mass, stiffness, damping vectors) or general M, C, K matrices
+MODEL_KINDS = ("chain", "matrices")
+_MODEL_KEYS = ("kind", "mass", "stiffness", "damping")
+_MATRIX_MODEL_KEYS = ("kind", "M", "K", "C", "file", "dofs", "sparse", "damping")
+_MATRIX_DAMPING_KEYS = ("rayleigh", "modal")
+_MATRIX_NAMES = ("M", "K", "C")
+_MTX_SUFFIXES = (".mtx", ".mtx.gz", ".mtx.bz2")
+_TIME_KEYS = ("dt", "duration")
+_OUTPUT_KEYS = ("outputs", "quantities")
+_SCHEME_COMMON = ("name", "form", "sweep", "backend")
+
+#: element kind -> (class in dtdyn.nonlinear.elements, required fields, optional fields); the
+#: optional fields' defaults are the classes' own
+ELEMENT_KINDS: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {
+    "cubic": ("Cubic", ("k3",), ()),
+    "polynomial": ("Polynomial", ("coeffs",), ()),
+    "gap": ("Gap", ("gap", "stiffness"), ("smoothing", "side")),
+    "law": ("Law", ("expression",), ("constants",)),
+    "bouc_wen": ("BoucWen", ("stiffness", "beta", "gamma"), ("alpha", "A", "n")),
+}
+#: element field -> what it must be: "number", "numbers", ">= 0", "> 0", ">= 1", "text",
+#: "table", or a tuple of allowed strings
+_ELEMENT_FIELDS = {
+    "k3": "number", "coeffs": "numbers", "gap": ">= 0", "stiffness": "> 0", "smoothing": ">= 0",
+    "side": ("both", "positive", "negative"), "expression": "text", "constants": "table",
+    "alpha": ">= 0", "A": "number", "beta": "number", "gamma": "number", "n": ">= 1",
+}
+#: Law's own argument names, which its constants cannot take
+_LAW_RESERVED = ("i", "j", "expression")
+_NONLINEAR_KEYS = ("substeps", "backend", "tol", "max_iter", "modes")
+NONLINEAR_BACKENDS = ("c", "casadi")
+_DEFAULT_NONLINEAR_METHOD = "modal_ramp"
+
+DEFAULT_SCENE = "scenes/p3.toml"
+
+
+@dataclass
+class Scene:
+    """A validated scene: what ``simulate_chain`` or ``simulate_mck`` needs, plus what to store.
+
+    ``force`` has shape ``(n_steps + 1, len(loaded))``: column ``j`` is the sum of the loads on
+    the 0-based DOF ``loaded[j]`` sampled at ``t_0 .. t_n``.
+
+    ``kind`` is ``"chain"`` (``mass``, ``stiffness``, ``damping`` set; ``M``, ``C``, ``K`` None)
+    or ``"matrices"`` (``M``, ``C``, ``K`` set, all dense ndarrays or all scipy.sparse CSR, damping
+    options already added to ``C``; ``mass``, ``stiffness``, ``damping`` None; ``dof_names`` one
+    name per DOF; ``form = "acceleration"``, ``sweep = None``, ``backend`` ``"numpy"`` or
+    ``"scipy.sparse"``).
+
+    A nonlinear scene has ``elements`` (dtdyn.nonlinear.elements objects, DOFs checked),
+    ``scheme`` the method (``"modal_ramp"``, ``"modal_parabolic"`` or a one-step scheme),
+    ``scheme_params`` that scheme's parameters, ``nonlinear`` the ``[nonlinear]`` options the
+    file gives (``substeps``, ``tol``, ``max_iter``, ``modes``, ``backend``; the others take
+    ``nonlinear_response``'s defaults), ``backend`` ``"c"`` or ``"casadi"``, ``form`` and
+    ``sweep`` None; matrices are dense.
+    """
+
+    title: str
+    mass: np.ndarray | None
+    stiffness: np.ndarray | None
+    damping: np.ndarray | None
+    loads: list[dict]
+    loaded: np.ndarray
+    force: np.ndarray
+    scheme: str
+    scheme_params: dict
+    form: str | None
+    sweep: str | None
+    backend: str
+    dt: float
+    n_steps: int
+    outputs: np.ndarray
+    quantities: tuple[str, ...] = ("x",)
+    source: str = "<scene>"
+    base_dir: Path = field(default_factory=Path.cwd)
+    kind: str = "chain"
+    M: np.ndarray | sps.csr_matrix | None = None
+    C: np.ndarray | sps.csr_matrix | None = None
+    K: np.ndarray | sps.csr_matrix | None = None
+    dof_names: tuple[str, ...] | None = None
+    elements: tuple = ()
+    nonlinear: dict = field(default_factory=dict)
+
+    @property
+    def n_dof(self) -> int:
+        if self.kind == "matrices":
+            return int(self.M.shape[0])
+        return int(self.mass.size)
+
+    @property
+    def sparse(self) -> bool:
+        """True for a matrices scene held as scipy.sparse matrices."""
+        return self.kind == "matrices" and sps.issparse(self.M)
+
+    def dof_label(self, dof: int) -> str:
+        """Name of a 0-based DOF for labels: its ``model.dofs`` name, else its index."""
+        if self.dof_names is not None:
+            return self.dof_names[int(dof)]
+        return str(int(dof))
+
+    @property
+    def duration(self) -> float:
+        return self.n_steps * self.dt
+
+    @property
+    def t(self) -> np.ndarray:
+        """Sample times ``t_i = i dt``, ``i = 0 .. n_steps``."""
+        return np.arange(self.n_steps + 1) * self.dt
+
+    @property
+    def linear(self) -> bool:
+        """True when the scene has no nonlinear elements."""
+        return not self.elements
+
+
+
+# ----------------------------------------------------------------------------------------------
+# validation helpers shared by the parsers
+
+def _table(name: str, value, allowed: tuple[str, ...]) -> dict:
+    if not isinstance(value, dict):
+        raise ValueError(f"{name} = {value!r}: must be a table [{name}]")
+    for key in value:
+        if key not in allowed:
+            raise ValueError(f"{name}.{key} = {value[key]!r}: unknown key, allowed: {', '.join(allowed)}")
+    return value
+
+
+def _required(name: str, table: dict, key: str):
+    if key not in table:
+        raise ValueError(f"{name}.{key} is required")
+    return table[key]
+
+
+def _number_list(name: str, value, **checks) -> np.ndarray:
+    if not isinstance(value, (list, tuple)):
+        raise ValueError(f"{name} = {value!r}: must be an array of numbers")
+    for i, v in enumerate(value):
+        finite_number(f"{name}[{i}]", v)
+        # checked here as well as in validate.vector so the message shows the TOML value
+        if (checks.get("positive") and v <= 0) or (checks.get("nonnegative") and v < 0):
+            need = "> 0" if checks.get("positive") else ">= 0"
+            raise ValueError(f"{name}[{i}] = {v!r}: every entry must be finite and {need}")
+    return validate.vector(name, value, **checks)
+
+
+def _choice(name: str, value, allowed: tuple[str, ...]) -> str:
+    if value not in allowed:
+        raise ValueError(f"{name} = {value!r}: unknown value, allowed: {', '.join(map(repr, allowed))}")
+    return value
+
+
+def _parse_model(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    _table("model", model, _MODEL_KEYS)
+    mass = _number_list("model.mass", _required("model", model, "mass"), positive=True)
+    n = mass.size
+    stiffness = _number_list("model.stiffness", _required("model", model, "stiffness"),
+                             positive=True, length=n)
+    if "damping" in model:
+        damping = _number_list("model.damping", model["damping"], nonnegative=True, length=n)
+    else:
+        damping = np.zeros(n)
+    return mass, stiffness, damping
+
+
+def _model_kind(model) -> str:
+    if not isinstance(model, dict):
+        raise ValueError(f"model = {model!r}: must be a table [model]")
+    return _choice("model.kind", model.get("kind", "chain"), MODEL_KINDS)
+
+
+
+def _dof_index(name: str, value, n_dof: int, names: tuple[str, ...] | None) -> int:
+    """A 0-based DOF from an integer index or (with ``names``) a DOF name."""
+    if names is not None and isinstance(value, str):
+        if value in names:
+            return names.index(value)
+        shown = ", ".join(map(repr, names[:12])) + (", ..." if len(names) > 12 else "")
+        raise ValueError(f"{name} = {value!r}: unknown DOF name, model.dofs has {shown}")
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value < n_dof:
+        if names is None:
+            raise ValueError(f"{name} = {value!r}: must be an integer mass index in 0..{n_dof - 1}")
+        raise ValueError(f"{name} = {value!r}: must be a DOF index in 0..{n_dof - 1} or a DOF "
+                         "name from model.dofs")
+    return value
+
+
+def _scheme_name_params(tbl: dict) -> tuple[str, dict]:
+    """``scheme.name`` and its parameters, each checked against its bounds in SCHEMES."""
+    name = tbl.get("name")
+    if name is None:
+        raise ValueError(f"scheme.name is required, allowed: {', '.join(SCHEMES)}")
+    _choice("scheme.name", name, tuple(SCHEMES))
+    bounds = SCHEMES[name]
+    _table("scheme", tbl, _SCHEME_COMMON + tuple(bounds))
+    params = {}
+    for key, (lo, hi) in bounds.items():
+        if key not in tbl:
+            continue
+        v = finite_number(f"scheme.{key}", tbl[key])
+        if (lo is not None and v < lo) or (hi is not None and v > hi):
+            rng = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
+            raise ValueError(f"scheme.{key} = {tbl[key]!r}: must lie in {rng} for scheme {name!r}")
+        params[key] = v
+    return name, params
