@@ -56,3 +56,75 @@ def test_console_script_runs():
     proc = subprocess.run([sys.executable, "-m", "dtdyn.app.cli", "show", "fox_euler"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "Fox-Euler" in proc.stdout
+
+
+def test_help_lists_every_command_and_version(capsys):
+    assert main(["--help"]) == 0
+    text = capsys.readouterr().out
+    for command in ("simulate", "srs", "stability", "bench", "show", "generate"):
+        assert f"    {command}" in text, command
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.startswith("dtdyn 0.")
+
+
+def test_show_latex_and_scheme_list(capsys):
+    assert main(["show", "average_acceleration", "--latex"]) == 0
+    assert "\\left[\\begin{matrix}" in capsys.readouterr().out
+    assert main(["show", "--help"]) == 0
+    assert "generalized_alpha" in capsys.readouterr().out
+
+
+def test_bad_output_paths_are_refused_before_the_run(tmp_path, capsys):
+    for args, words in ((["--out", str(tmp_path / "r.txt")], "unknown result format '.txt'"),
+                        (["--out", str(tmp_path / "none" / "r.npz")], "does not exist"),
+                        (["--out", str(tmp_path)], "is a folder"),
+                        (["--plot", str(tmp_path / "r.xyz")], "unsupported format 'xyz'")):
+        assert main(["simulate", *args]) == 2
+        err = capsys.readouterr()
+        assert words in err.err and "run time" not in err.out, args
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_simulate_no_check_and_other_formats(tmp_path, capsys):
+    out = tmp_path / "r.csv"
+    assert main(["simulate", "--no-check", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "checking against the exact response" not in text and "error against" not in text
+    from dtdyn import load_result
+    back = load_result(out)
+    assert back.x.shape == (801, 15) and back.meta["scene"]["scheme"] == "average_acceleration"
+    assert main(["simulate"]) == 0
+    text = capsys.readouterr().out
+    assert "checking against the exact response" in text and "check took" in text
+
+
+def test_generate_outside_a_checkout_refuses(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["generate"]) == 2
+    assert "source checkout" in capsys.readouterr().err
+
+
+def test_piped_output_closed_early_is_quiet():
+    proc = subprocess.run(f"{sys.executable} -m dtdyn.app.cli stability | head -n 1",
+                          shell=True, capture_output=True, text=True, timeout=300)
+    assert proc.stdout.startswith("scheme") and "Traceback" not in proc.stderr
+
+
+def test_cli_imports_without_derive_or_sympy():
+    """The command's module and `dtdyn --help` need neither dtdyn.derive nor SymPy nor jinja2;
+    `dtdyn show` then says which extra it needs, in one line."""
+    code = (
+        "import sys\n"
+        "class Block:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name.split('.')[0] in ('sympy', 'jinja2') or name.startswith('dtdyn.derive'):\n"
+        "            raise ImportError(f'blocked: {name}')\n"
+        "sys.meta_path.insert(0, Block())\n"
+        "from dtdyn.app.cli import main\n"
+        "assert main(['--help']) == 0\n"
+        "assert main(['show', 'newmark']) == 2\n"
+        "assert not [m for m in sys.modules if m.startswith(('sympy', 'jinja2', 'dtdyn.derive'))]\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert 'needs sympy, which is not installed: pip install "dtdyn[derive]"' in proc.stderr

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from dtdyn.app.scene import io as scene_io
 from dtdyn.app.loads import sample_load
 from dtdyn._engine.result import Response
+from dtdyn import load_result
 from dtdyn.app.scene import load_scene, plot_response, run_scene, save_results
 
 from dtdyn.app.problems import P3_MASS, P3_STIFFNESS  # the scene file must hold P3
@@ -266,19 +266,22 @@ def test_save_results_stores_requested_quantities(tmp_path):
     out = tmp_path / "res.npz"
     save_results(out, r, s)
     with np.load(out) as z:
-        assert sorted(z.files) == ["a", "outputs", "t", "x"]
+        assert sorted(z.files) == ["a", "dtdyn_metadata", "outputs", "t", "x"]
         assert_array_equal(z["t"], r.t)
         assert_array_equal(z["outputs"], [2, 0])
         assert_array_equal(z["x"], r.x)
         assert_array_equal(z["a"], r.a)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["res.npz", "scene.toml"]
+    back = load_result(out)  # the scene's summary travels with the result
+    assert back.v is None and back.meta["scene"]["quantities"] == ["x", "a"]
+    assert back.meta["scene"]["title"] == s.title and back.meta["scene"]["dt"] == s.dt
 
 
 def test_save_results_leaves_nothing_behind_on_failure(tmp_path, monkeypatch):
     s = load_scene(write_scene(tmp_path))
     r = fake_response(s)
-    # a folder that does not exist: error, and nothing created anywhere
-    with pytest.raises(OSError):
+    # a folder that does not exist: an error naming it, and nothing created anywhere
+    with pytest.raises(ValueError, match="does not exist"):
         save_results(tmp_path / "missing" / "res.npz", r, s)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.toml"]
 
@@ -290,7 +293,8 @@ def test_save_results_leaves_nothing_behind_on_failure(tmp_path, monkeypatch):
         f.write(b"partial")
         raise OSError("disk full")
 
-    monkeypatch.setattr(scene_io.np, "savez", broken_savez)
+    from dtdyn._engine import result_io
+    monkeypatch.setattr(result_io.np, "savez", broken_savez)
     with pytest.raises(OSError, match="disk full"):
         save_results(out, r, s)
     assert out.read_bytes() == b"previous"

@@ -197,7 +197,7 @@ def test_named_dofs_in_loads_and_outputs(tmp_path):
     out = tmp_path / "r.npz"
     save_results(out, response, s)
     with np.load(out) as z:
-        assert sorted(z.files) == ["dof_names", "outputs", "t", "v", "x"]
+        assert sorted(z.files) == ["dof_names", "dtdyn_metadata", "outputs", "t", "v", "x"]
         assert z["dof_names"].tolist() == ["roof", "floor"]
         assert_array_equal(z["x"], response.x)
     plot = tmp_path / "r.png"

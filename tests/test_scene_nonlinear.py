@@ -307,7 +307,7 @@ def test_cli_prints_nonlinear_statistics(tmp_path, capsys):
     assert "Newton iterations per step: max " in text and ", mean " in text
     assert "max residual: " in text and "error against the exact" not in text
     data = np.load(out)
-    assert sorted(data.files) == ["a", "dof_names", "outputs", "t", "x"]
+    assert sorted(data.files) == ["a", "dof_names", "dtdyn_metadata", "outputs", "t", "x"]
     assert data["x"].shape == (2000, 2) and list(data["dof_names"]) == ["m1", "m3"]
 
 

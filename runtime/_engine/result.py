@@ -10,9 +10,29 @@ import numpy as np
 class Response:
     """Sampled response at ``t[0] .. t[n_steps]``.
 
-    ``x``, ``v``, ``a`` have shape ``(n_steps + 1, len(outputs))``; column ``j`` belongs to the
-    0-based DOF ``outputs[j]``. A quantity the run was not asked to store is ``None``.
-    ``info`` holds what was run (scheme, parameters, backend, timings in seconds).
+    Attributes
+    ----------
+    t : (n_steps + 1,) ndarray
+        Sample times t_k = k dt, s.
+    outputs : (n_out,) int ndarray
+        The stored DOFs (0-based); column ``j`` of ``x``, ``v``, ``a`` belongs to ``outputs[j]``.
+    x, v, a : (n_steps + 1, n_out) ndarray or None
+        Displacement, velocity, acceleration; None for a quantity the run was not asked to store.
+    info : dict
+        What was run: scheme and parameters, dt, backend, timings in seconds, error estimates.
+    meta : dict
+        What the run was about: a model or scene summary, units, anything the caller adds; saved
+        with the result together with the versions of dtdyn, NumPy and SciPy.
+    dof_names : tuple of str, optional
+        Names of the stored DOFs (a scene's ``model.dofs``).
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> r = dd.simulate_chain([1.0, 1.0], [4.0, 4.0], [0.1, 0.1], np.ones(11), 0.1,
+    ...                       force_dofs=[1], outputs=[1], quantities=("x", "a"))
+    >>> r.x.shape, r.v is None, r.column(1)
+    ((11, 1), True, 0)
     """
 
     t: np.ndarray
@@ -21,6 +41,8 @@ class Response:
     v: np.ndarray | None = None
     a: np.ndarray | None = None
     info: dict = field(default_factory=dict)
+    meta: dict = field(default_factory=dict)
+    dof_names: tuple | None = None
 
     def column(self, dof: int) -> int:
         """Column of ``x``, ``v``, ``a`` that holds 0-based DOF ``dof``."""
@@ -28,3 +50,15 @@ class Response:
         if hits.size == 0:
             raise KeyError(f"DOF {dof} is not among the stored outputs {self.outputs.tolist()}")
         return int(hits[0])
+
+    def save(self, path):
+        """Write the response and its metadata to ``path``: ``.npz``, ``.nc`` (netCDF, needs
+        xarray) or ``.csv``, chosen by the extension (an unknown one is a ValueError before
+        anything is written); atomic. `dtdyn.load_result` reads it back. Returns the path."""
+        from dtdyn._engine.result_io import save_result
+        return save_result(self, path)
+
+    def to_xarray(self):
+        """The response as an xarray Dataset (dims ``time``, ``dof``; metadata in ``attrs``)."""
+        from dtdyn._engine.result_io import to_xarray
+        return to_xarray(self)

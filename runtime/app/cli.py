@@ -1,15 +1,40 @@
-"""The `dtdyn` command: generate, show, simulate."""
+"""The `dtdyn` command: simulate scenes, shock response spectra, stability tables, benchmarks,
+and (from a checkout, with the [derive] extra) regenerate and show the derived kernels."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
+from dtdyn.generated import SCHEMES
+
+
+def _checkout(start: Path) -> Path | None:
+    """The dtdyn source checkout that holds ``start`` (a folder with derive/, generated/ and a
+    pyproject.toml naming dtdyn), or None."""
+    for folder in (start, *start.parents):
+        pyproject = folder / "pyproject.toml"
+        if (folder / "derive").is_dir() and (folder / "generated").is_dir() and \
+                pyproject.is_file() and 'name = "dtdyn"' in pyproject.read_text():
+            return folder
+    return None
+
 
 def _generate(args) -> int:
+    from dtdyn._engine.extras import require
+    require("sympy", "derive", "dtdyn generate")
+    require("jinja2", "derive", "dtdyn generate")
     from dtdyn.derive import emit  # SymPy and jinja2: build time only
 
-    dest = Path(args.out) if args.out else emit.GENERATED
+    if args.out:
+        dest = Path(args.out)
+    else:
+        checkout = _checkout(Path.cwd())
+        if checkout is None:
+            raise ValueError("run `dtdyn generate` from inside a dtdyn source checkout (it writes "
+                             "that checkout's generated/), or name the folder with --out")
+        dest = checkout / "generated"
     if args.check:
         bad = emit.check(dest)
         if bad:
@@ -23,15 +48,26 @@ def _generate(args) -> int:
     return 0
 
 
-def _show(args) -> int:
+def _matrix_text(T, latex: bool) -> str:
+    """A SymPy matrix row by row (or as LaTeX), each entry in plain text."""
     import sympy as sp
 
+    if latex:
+        return sp.latex(T)
+    cells = [[sp.sstr(sp.simplify(e)) for e in row] for row in T.tolist()]
+    widths = [max(len(row[j]) for row in cells) for j in range(len(cells[0]))]
+    if sum(widths) <= 90:  # aligned rows
+        return "\n".join("  [ " + "  ".join(c.rjust(w) for c, w in zip(row, widths)) + " ]"
+                         for row in cells)
+    return "\n".join(f"  T[{i}, {j}] = {c}" for i, row in enumerate(cells)
+                     for j, c in enumerate(row))
+
+
+def _show(args) -> int:
+    from dtdyn._engine.extras import require
+    sp = require("sympy", "derive", "dtdyn show")
     from dtdyn.derive import dttmm, integrators
 
-    if args.scheme not in integrators.SCHEMES:
-        print(f"unknown scheme {args.scheme!r}; available: {', '.join(integrators.SCHEMES)}",
-              file=sys.stderr)
-        return 2
     der = integrators.derive_scheme(args.scheme)
     s = der.scheme
     print(f"{s.title} ({s.name}); {s.reference}\n{s.notes}\n\nDefining relations:")
@@ -55,7 +91,7 @@ def _show(args) -> int:
         unknown = "u = xe - x0, the increment" if form == "displacement" else "u = ae"
         print(f"\nDT-TMM station matrix, {form} form ({unknown}), "
               "[u_n-1, f_n, 1] -> [u_n, f_n+1, 1]:")
-        sp.pprint(T, use_unicode=False)
+        print(_matrix_text(T, args.latex))
         print(f"  kappa = {sp.sstr(sp.simplify(dttmm.KAPPA.subs(subs)))}, "
               "Delta = k (q_n - q_n-1) + c (s_n - s_n-1) with, at each mass,\n"
               f"  q = {sp.sstr(maps['q'])}, s = {sp.sstr(maps['s'])}, b = {sp.sstr(maps['b'])}")
@@ -99,9 +135,21 @@ def _simulate_nonlinear(args, sc) -> int:
     return 0
 
 
+def _check_outputs(args) -> None:
+    """Refuse a bad --out or --plot path before the run (nothing is computed or written)."""
+    from dtdyn._engine.result_io import check_result_path
+    from dtdyn.app.scene.io import plot_checked_path
+
+    if args.out:
+        check_result_path(args.out)
+    if args.plot:
+        plot_checked_path(args.plot)
+
+
 def _simulate(args) -> int:
     from dtdyn.app import scene as scenes
 
+    _check_outputs(args)
     sc = scenes.load_scene(args.scene)
     if not sc.linear:
         return _simulate_nonlinear(args, sc)
@@ -121,7 +169,11 @@ def _simulate(args) -> int:
         kernels.c_chain_function(sc.scheme)
         print(f"C kernel compile or cache load: {time.perf_counter() - t0:.3f} s")
     long_run = sc.n_steps * sc.n_dof > 5e7
-    response, report = scenes.run_scene(sc, progress=long_run and not args.quiet)
+    if not args.no_check:
+        print("checking against the exact response (matrix exponential) after the run; "
+              "--no-check skips it")
+    response, report = scenes.run_scene(sc, progress=long_run and not args.quiet,
+                                        check=not args.no_check)
     if args.out:
         scenes.save_results(args.out, response, sc)
     if args.plot:
@@ -129,23 +181,41 @@ def _simulate(args) -> int:
     print(f"run time: {report['run_time_s'] * 1e3:.2f} ms ({response.info['backend']} backend, "
           f"{report['run_time_s'] / sc.n_steps * 1e6:.2f} us per step)")
     if report["max_rel_error"] is not None:
-        print(f"error against the exact response (matrix exponential, max over time and "
-              f"outputs, relative to max |x|): {report['max_rel_error']:.3e}")
+        print(f"error against the exact response (max over time and outputs, relative to "
+              f"max |x|): {report['max_rel_error']:.3e} (check took "
+              f"{report['exact_time_s'] * 1e3:.1f} ms)")
+    elif not args.no_check:
+        print(f"exact check {report['check']}")
     for what, path in (("results", args.out), ("plot", args.plot)):
         if path:
             print(f"{what}: {path}")
     return 0
 
 
+#: |algorithmic damping| or |period elongation| below this is round-off of the eigenvalue
+#: computation, not a property of the scheme (printed as 0, not drawn)
+NOISE_FLOOR = 1e-12
+
+
 def _stability(args) -> int:
     import numpy as np
 
-    from dtdyn.generated import SCHEMES
     from dtdyn.linear.stability import critical_omega_dt, stability
 
+    unknown = [n for n in args.schemes if n not in SCHEMES]
+    if unknown:
+        raise ValueError(f"unknown scheme {unknown[0]!r}; available: {', '.join(SCHEMES)}")
     names = args.schemes or list(SCHEMES)
+    if args.plot:
+        from dtdyn.app.scene.io import plot_checked_path
+        plot_checked_path(args.plot)
     omega = np.geomspace(1e-2, 1e3, 400)
     marks = [0.1, 0.5, 1.0, 10.0, 1000.0]
+
+    def clean(v):  # round-off below the floor: exactly 0
+        v = np.asarray(v, dtype=float)
+        return np.where(np.abs(v) < NOISE_FLOOR, 0.0, v)
+
     print(f"{'scheme':22s} {'critical Omega':>14s}  " + "  ".join(f"rho({w:g})" for w in marks)
           + "  elongation(0.1)  damping(0.1)")
     curves = {}
@@ -155,25 +225,29 @@ def _stability(args) -> int:
         crit = critical_omega_dt(name)
         curves[name] = st
         print(f"{name:22s} {crit:14.4f}  " + "  ".join(f"{r:8.4f}" for r in at.spectral_radius)
-              + f"  {at.period_elongation[0]:15.3e}  {at.algorithmic_damping[0]:12.3e}")
+              + f"  {clean(at.period_elongation)[0]:15.3e}  "
+              f"{clean(at.algorithmic_damping)[0]:12.3e}")
+    print(f"(|values| below {NOISE_FLOOR:g} are round-off and shown as 0)")
     if args.plot:
+        from matplotlib import colormaps
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
-        fig = Figure(figsize=(12, 4), layout="constrained")
+        fig = Figure(figsize=(12, 4.2), layout="constrained")
         FigureCanvasAgg(fig)
         axes = fig.subplots(1, 3)
-        from matplotlib import colormaps
-
         colors = colormaps["tab20"](np.linspace(0, 1, 20))
+        markers = "os^vD<>ph*XP"
         for i, (name, st) in enumerate(curves.items()):
             style = dict(label=name, color=colors[(2 * i) % 20 + (2 * i) // 20],
-                         ls=("-", "--", ":")[i % 3])
+                         ls=("-", "--", ":")[i % 3], marker=markers[i % len(markers)],
+                         markevery=40, ms=3)
             axes[0].semilogx(st.omega_dt, st.spectral_radius, **style)
-            axes[1].loglog(st.omega_dt, np.abs(st.period_elongation), **style)
-            axes[2].loglog(st.omega_dt, np.maximum(np.abs(st.algorithmic_damping), 1e-16), **style)
+            for ax, values in ((axes[1], st.period_elongation), (axes[2], st.algorithmic_damping)):
+                shown = np.abs(clean(values))
+                ax.loglog(st.omega_dt, np.where(shown > 0, shown, np.nan), **style)
         for ax, title in zip(axes, ("spectral radius", "|period elongation|",
-                                    "|algorithmic damping ratio|")):
+                                    "|algorithmic damping ratio| (0 not drawn)")):
             ax.set_title(title)
             ax.set_xlabel("Omega = omega dt")
             ax.grid(True, which="both", alpha=0.3)
@@ -199,6 +273,9 @@ def _srs(args) -> int:
     from dtdyn.modal import srs as S
 
     accel = S.load_record(args.record, args.column)
+    for flag, path in (("--out", args.out), ("--plot", args.plot)):
+        if path and (Path(path).is_dir() or not Path(path).resolve().parent.is_dir()):
+            raise ValueError(f"{flag} {path!r}: not a file in an existing folder")
     if not args.dt > 0.0 or not np.isfinite(args.dt):
         raise ValueError(f"--dt must be finite and > 0, got {args.dt!r}")
     fs = 1.0 / args.dt
@@ -245,49 +322,88 @@ def _srs(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="dtdyn", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-    g = sub.add_parser("generate", help="rewrite generated/ from the SymPy derivations")
-    g.add_argument("--check", action="store_true", help="exit 1 if generated/ is out of date")
-    g.add_argument("--out", help="target folder (default: the package's generated/)")
-    s = sub.add_parser("show", help="print a scheme's derived coefficients and transfer matrices")
-    s.add_argument("scheme")
-    r = sub.add_parser("simulate", help="run a scene (default: the embedded P3 benchmark)")
+def _parser() -> argparse.ArgumentParser:
+    from dtdyn import __version__
+    from dtdyn.modal.srs import RESPONSES, WINDOWS
+
+    parser = argparse.ArgumentParser(
+        prog="dtdyn", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="`dtdyn COMMAND --help` describes a command. Names follow one vocabulary: "
+               "--dt is the sample step in seconds, schemes are named as in `dtdyn show`.")
+    parser.add_argument("--version", action="version", version=f"dtdyn {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show the traceback of an error")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    r = sub.add_parser("simulate", help="run a scene (default: the embedded P3 scene) and check "
+                                        "it against the exact response")
     r.add_argument("scene", nargs="?", help="scene TOML file")
-    r.add_argument("--out", help="write results to this .npz file")
-    r.add_argument("--plot", help="plot the displacements to this image file")
+    r.add_argument("--out", help="write the results: .npz, .nc (netCDF) or .csv")
+    r.add_argument("--plot", help="plot the stored quantities to this image file (.png, .pdf, ...)")
+    r.add_argument("--no-check", action="store_true",
+                   help="skip the comparison with the exact response (matrix exponential)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
-    st = sub.add_parser("stability", help="spectral radius, period elongation, damping per scheme")
-    st.add_argument("schemes", nargs="*", help="scheme names (default: all)")
-    st.add_argument("--plot", help="draw the curves to this image file")
-    be = sub.add_parser("bench", help="work-precision report: error against run time per method")
-    be.add_argument("problems", nargs="*", default=["P3", "P4"], help="P3, P4 (default: both)")
-    be.add_argument("--out", default="bench", help="folder for the Markdown, JSON and plot")
-    be.add_argument("--quick", action="store_true", help="shorter sweeps (a smoke run)")
     sr = sub.add_parser("srs", help="shock response spectrum of a base-acceleration record")
     sr.add_argument("record", help=".npy or .csv record of acceleration samples")
     sr.add_argument("--dt", type=float, required=True, help="sample step of the record, s")
     sr.add_argument("--freqs", type=float, nargs=3, metavar=("FMIN", "FMAX", "N"),
                     help="N log-spaced natural frequencies, Hz (default 1e-4/dt .. 0.1/dt, 100)")
     sr.add_argument("--damping", type=float, default=0.05, help="damping ratio (default 0.05)")
-    sr.add_argument("--response", default="absolute_acceleration",
-                    choices=["absolute_acceleration", "relative_displacement",
-                             "relative_velocity", "pseudo_velocity", "pseudo_acceleration"])
-    sr.add_argument("--window", default="total", choices=["total", "primary", "residual"])
+    sr.add_argument("--response", default="absolute_acceleration", choices=RESPONSES)
+    sr.add_argument("--window", default="total", choices=WINDOWS)
     sr.add_argument("--points-per-cycle", type=float, default=None,
                     help="upsample linearly to at least this many samples per cycle")
     sr.add_argument("--exact-peaks", action="store_true", help="true peaks between samples")
-    sr.add_argument("--column", type=int, default=-1,
+    sr.add_argument("--column", type=int, default=None,
                     help="column of a table holding the samples (default: the last)")
     sr.add_argument("--plot", help="draw maximax/positive/negative to this image file")
     sr.add_argument("--out", help="write freq_hz, maximax, positive, negative to this CSV")
-    args = parser.parse_args(argv)
+    st = sub.add_parser("stability", help="spectral radius, period elongation and algorithmic "
+                                          "damping of each scheme")
+    st.add_argument("schemes", nargs="*", metavar="SCHEME",
+                    help=f"scheme names (default: all): {', '.join(SCHEMES)}")
+    st.add_argument("--plot", help="draw the curves to this image file")
+    be = sub.add_parser("bench", help="work-precision report: error against run time per method")
+    be.add_argument("problems", nargs="*", default=["P3", "P4"], choices=["P3", "P4"],
+                    help="P3, P4 (default: both)")
+    be.add_argument("--out", default="bench", help="folder for the Markdown, JSON and plot")
+    be.add_argument("--quick", action="store_true", help="shorter sweeps (a smoke run)")
+    s = sub.add_parser("show", help="a scheme's defining relations, derived coefficients and "
+                                    "DT-TMM station matrices (needs the [derive] extra)")
+    s.add_argument("scheme", choices=SCHEMES, metavar="SCHEME",
+                   help=f"one of: {', '.join(SCHEMES)}")
+    s.add_argument("--latex", action="store_true", help="print the matrices as LaTeX")
+    g = sub.add_parser("generate", help="rewrite generated/ from the SymPy derivations (from a "
+                                        "source checkout; needs the [derive] extra)")
+    g.add_argument("--check", action="store_true", help="exit 1 if generated/ is out of date")
+    g.add_argument("--out", help="target folder (default: generated/ of the checkout you are in)")
+    return parser
+
+
+def main(argv=None) -> int:
+    """Run the `dtdyn` command; returns the exit code (0 ok, 1 a failed run or check, 2 bad
+    input). Errors are one line on stderr (``--debug`` shows the traceback)."""
+    from dtdyn._engine.errors import DtdynStepStabilityError, NewtonError, SingularMassError
+
+    parser = _parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version (0) or a usage error (2), already printed
+        return int(exc.code or 0)
     handler = {"generate": _generate, "show": _show, "simulate": _simulate,
                "stability": _stability, "srs": _srs, "bench": _bench}[args.command]
     try:
         return handler(args)
-    except (ValueError, FileNotFoundError, FloatingPointError) as exc:
+    except BrokenPipeError:  # `dtdyn ... | head`: stop quietly, no traceback at exit either
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+    except (NewtonError, DtdynStepStabilityError, FloatingPointError) as exc:
+        if args.debug:
+            raise
+        print(f"dtdyn {args.command}: run failed: {exc}", file=sys.stderr)
+        return 1
+    except (ValueError, SingularMassError, OSError, ImportError) as exc:
+        if args.debug:
+            raise
         print(f"dtdyn {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

@@ -107,6 +107,7 @@ from dtdyn.generated import modal_filters as coef
 
 from dtdyn._engine import validate
 from dtdyn._engine.atomic import write_atomic
+from dtdyn._engine.extras import require
 from dtdyn.modal.filters import _c_bank, run_bank
 from dtdyn._engine.errors import SRSSamplingWarning
 
@@ -541,9 +542,10 @@ def sdof_response(accel, dt, freqs, damping=0.05, response="absolute_acceleratio
 
 
 # --- files ----------------------------------------------------------------------------------
-def load_record(path, column: int = -1) -> np.ndarray:
-    """Samples from a .npy file (1-D, or 2-D: take ``column``) or a CSV/text file (one sample a
-    row, or columns such as t, a: take ``column``; one header line is skipped)."""
+def load_record(path, column: int | None = None) -> np.ndarray:
+    """Samples from a .npy file (1-D, or 2-D: take ``column``, default the last) or a CSV/text
+    file (one sample a row, or columns such as t, a: take ``column``; one header line is
+    skipped). A ``column`` for a 1-D record is an error (there is nothing to choose)."""
     p = Path(path)
     if p.suffix.lower() == ".npy":
         data = np.load(p, allow_pickle=False)
@@ -552,11 +554,16 @@ def load_record(path, column: int = -1) -> np.ndarray:
             data = np.loadtxt(p, delimiter=",", ndmin=2)
         except ValueError:
             data = np.loadtxt(p, delimiter=",", ndmin=2, skiprows=1)
+        if data.ndim == 2 and data.shape[1] == 1:
+            data = data[:, 0]
     data = np.asarray(data, dtype=float)
     if data.ndim == 2:
-        if not -data.shape[1] <= column < data.shape[1]:
-            raise ValueError(f"column {column} is outside the {data.shape[1]} columns of {path}")
-        data = data[:, column]
+        col = -1 if column is None else column
+        if not -data.shape[1] <= col < data.shape[1]:
+            raise ValueError(f"column {col} is outside the {data.shape[1]} columns of {path}")
+        data = data[:, col]
+    elif column is not None:
+        raise ValueError(f"column {column}: {path} holds a single column of samples")
     if data.ndim != 1:
         raise ValueError(f"{path}: expected a 1-D record or a table of columns, got shape "
                          f"{data.shape}")
@@ -575,6 +582,7 @@ def save_srs_csv(path, srs: SRS) -> None:
 
 def plot_srs(path, srs: SRS, title: str | None = None) -> None:
     """Maximax, positive and negative spectra on log-log axes (Agg canvas); saved atomically."""
+    require("matplotlib", "plot", "plot_srs")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from dtdyn._engine.extras import require
 
 
 class _Ops:
@@ -45,7 +46,7 @@ NUMPY_OPS = _Ops("numpy", np, np.abs, np.maximum, np.minimum, np.log1p)
 
 def casadi_ops():
     """The CasADi namespace (imported on first use)."""
-    import casadi as ca
+    ca = require("casadi", "nonlinear", "the nonlinear elements' CasADi laws")
     return _Ops("casadi", ca, ca.fabs, ca.fmax, ca.fmin, lambda x: ca.log(1 + x))
 
 

@@ -55,6 +55,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dtdyn._engine.extras import require
+
 #: the longest text accepted (characters)
 MAX_LENGTH = 1000
 #: the deepest nesting of operations accepted (keeps every tree walk far from Python's
@@ -333,7 +335,7 @@ class ParsedExpression:
         int literals become sympy.Integer (``x**3`` stays a power with an integer exponent),
         float literals sympy.Float, pi sympy.pi, abs/min/max Abs/Min/Max.
         """
-        import sympy as sp  # runtime/ imports without SymPy; only this method needs it
+        sp = require("sympy", "derive", "to_sympy")  # runtime/ imports without SymPy
         sym = {n: sp.Symbol(n) for n in self.variables + self.constants}
         sym.update(symbols or {})
         return _to_sympy(self._tree, sym, sp)

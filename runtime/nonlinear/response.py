@@ -30,6 +30,7 @@ from dtdyn.nonlinear.elements import casadi_ops, check_elements, element_matrix
 from dtdyn._engine.result import Response
 from dtdyn._engine.stepping import check_quantities
 from dtdyn._engine.errors import DtdynStepStabilityError, NewtonError
+from dtdyn._engine.extras import require
 from dtdyn.nonlinear.linear_step import THETA_LIMIT, LinearStep, linear_step
 
 # ----------------------------------------------------------------------------------------------
@@ -52,7 +53,7 @@ def _sizes(elements) -> _Sizes:
 
 def _residual_expressions(elements, sz: _Sizes):
     """SX symbols and expressions of r(u; Q, z_old, z'_old, [Dwg; h]) (module docstring)."""
-    import casadi as ca
+    ca = require("casadi", "nonlinear", "nonlinear_response")
     ops = casadi_ops()
     u = ca.SX.sym("u", sz.nw + sz.nz)
     Q = ca.SX.sym("Q", sz.nw)
@@ -77,7 +78,7 @@ def _residual_expressions(elements, sz: _Sizes):
 
 
 def _residual_function(elements, sz: _Sizes):
-    import casadi as ca
+    ca = require("casadi", "nonlinear", "nonlinear_response")
     e = _residual_expressions(elements, sz)
     J = ca.densify(ca.jacobian(e["r"], e["u"]))
     return ca.Function("nl_residual", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]],
@@ -167,7 +168,7 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     """
     import hashlib
 
-    import casadi as ca
+    ca = require("casadi", "nonlinear", "nonlinear_response")
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, step.Co, step.Dof, step.Dog]
     digest = hashlib.sha256(b"".join(np.ascontiguousarray(m).tobytes() for m in mats)
                             + repr([m.shape for m in mats] + [step.h]).encode()).hexdigest()
@@ -229,7 +230,7 @@ def _compile_casadi(fn):
     """CasADi code generation of ``fn``, compiled through cbuild's cache, loaded as external.
 
     Only the "fast_newton" rootfinder can be code-generated (CasADi's "newton" cannot)."""
-    import casadi as ca
+    ca = require("casadi", "nonlinear", "nonlinear_response")
     lib = cbuild.load_library(_c_source(fn), fn.name())
     if lib is None:
         return fn
@@ -239,7 +240,7 @@ def _compile_casadi(fn):
 def _c_source(fn) -> str:
     """C source of the CasADi Function ``fn`` (no header): compiled alone, or appended to a
     generated loop that calls it (nl_loop.c, nl_chain.c)."""
-    import casadi as ca
+    ca = require("casadi", "nonlinear", "nonlinear_response")
     cg = ca.CodeGenerator(fn.name(), {"with_header": False})
     cg.add(fn)
     return cg.dump()

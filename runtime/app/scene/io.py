@@ -1,69 +1,109 @@
 """Saving and plotting a scene's response."""
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
 
 import numpy as np
 
 from dtdyn._engine.atomic import write_atomic
+from dtdyn._engine.extras import require
 from dtdyn._engine.result import Response
-from dtdyn.app.scene.schema import Scene
+from dtdyn.app.scene.schema import QUANTITIES, Scene
 
-def save_results(path: str | os.PathLike, response: Response, scene: Scene) -> None:
-    """Write ``t``, ``outputs`` and the scene's requested quantities to an ``.npz`` file.
-
-    A scene with general matrices also stores ``dof_names``: the names of ``outputs``.
-
-    Written atomically: to a temporary file in the same folder, then renamed over ``path``, so a
-    failed write leaves no partial file (and an existing ``path`` untouched).
-    """
-    path = Path(path)
-    arrays = {"t": np.asarray(response.t), "outputs": np.asarray(response.outputs)}
-    if scene.kind == "matrices":
-        arrays["dof_names"] = np.array([scene.dof_label(d) for d in arrays["outputs"]], dtype=str)
+def save_results(path: str | os.PathLike, response: Response, scene: Scene) -> Path:
+    """Write the response with the scene's summary as metadata: ``.npz``, ``.nc`` or ``.csv``
+    by the extension (`Response.save`; atomic, so a failed write leaves no partial file and an
+    existing ``path`` untouched). DOF names of a matrices scene are stored with the outputs."""
     for q in scene.quantities:
-        value = getattr(response, q)
-        if value is None:
+        if getattr(response, q) is None:
             raise ValueError(f"output.quantities asks for {q!r}, but the response did not store it")
-        arrays[q] = np.asarray(value)
-    write_atomic(path, lambda f: np.savez(f, **arrays))
+    names = response.dof_names
+    if scene.kind == "matrices" and names is None:
+        names = tuple(scene.dof_label(d) for d in response.outputs)
+    stored = dataclasses.replace(  # only what the scene asks for
+        response, **{q: None for q in QUANTITIES if q not in scene.quantities},
+        meta={"scene": scene_summary(scene), **response.meta}, dof_names=names)
+    return stored.save(path)
 
 
-def plot_response(path: str | os.PathLike, response: Response, scene: Scene) -> None:
-    """Plot displacement against time, one labelled line per output DOF; saved atomically.
+def scene_summary(scene: Scene) -> dict:
+    """The scene in a few JSON-safe fields: what a saved result says about its origin."""
+    return {"title": scene.title, "source": scene.source, "kind": scene.kind,
+            "n_dof": scene.n_dof, "scheme": scene.scheme, "params": dict(scene.scheme_params),
+            "dt": scene.dt, "n_steps": scene.n_steps, "force_dofs": scene.loaded.tolist(),
+            "loads": scene.loads, "elements": [el.describe() for el in scene.elements],
+            "quantities": list(scene.quantities)}
 
-    Uses the Agg canvas directly (no pyplot, no global backend switch). The file format follows
-    the suffix of ``path`` (``.png`` when there is none).
-    """
+
+#: more stored DOFs than this are drawn as a heat map (time x DOF) instead of one line each
+MAX_LINES = 8
+_UNITS = {"x": ("displacement", "m"), "v": ("velocity", "m/s"), "a": ("acceleration", "m/s^2")}
+
+
+def plot_checked_path(path) -> tuple[Path, str]:
+    """(path, format) after checking the folder exists and matplotlib can write the format."""
+    require("matplotlib", "plot", "plot_response")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     path = Path(path)
-    if response.x is None:
-        raise ValueError("the response has no displacement x to plot")
-    fig = Figure(figsize=(8.0, 4.5), layout="constrained")
-    canvas = FigureCanvasAgg(fig)
     fmt = path.suffix[1:].lower() or "png"
-    if fmt not in canvas.get_supported_filetypes():
+    allowed = FigureCanvasAgg(Figure()).get_supported_filetypes()
+    if fmt not in allowed:
         raise ValueError(f"cannot plot to {str(path)!r}: unsupported format {fmt!r}, allowed: "
-                         f"{', '.join(sorted(canvas.get_supported_filetypes()))}")
-    ax = fig.add_subplot()
-    x = np.asarray(response.x)
-    if x.shape[1] > 10:  # more lines than the default colour cycle: colour by position instead
-        from matplotlib import colormaps
-        ax.set_prop_cycle(color=colormaps["viridis"](np.linspace(0.0, 0.95, x.shape[1])))
-    for j, dof in enumerate(np.asarray(response.outputs)):
-        if scene.kind == "matrices":
-            name = scene.dof_label(dof)
-            label = f"DOF {int(dof)}" if name == str(int(dof)) else f"{name} (DOF {int(dof)})"
+                         f"{', '.join(sorted(allowed))}")
+    if path.is_dir() or not (path.parent if str(path.parent) else Path(".")).is_dir():
+        raise ValueError(f"cannot plot to {str(path)!r}: not a file in an existing folder")
+    return path, fmt
+
+
+def plot_response(path: str | os.PathLike, response: Response, scene: Scene) -> None:
+    """Plot every stored quantity (x, v, a) against time, one panel each, saved atomically.
+
+    Up to `MAX_LINES` DOFs: one labelled line per DOF. More: a heat map (time x DOF) with a
+    colour bar, so that a long chain stays readable. Uses the Agg canvas directly (no pyplot,
+    no global backend switch); the format follows the suffix of ``path`` (``.png`` when none).
+    """
+    path, fmt = plot_checked_path(path)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    stored = [q for q in QUANTITIES if q in scene.quantities and getattr(response, q) is not None]
+    if not stored:
+        raise ValueError("the response stores none of the scene's quantities: nothing to plot")
+    outputs = np.asarray(response.outputs)
+    fig = Figure(figsize=(8.0, 2.2 + 2.3 * len(stored)), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(len(stored), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, q in zip(axes, stored):
+        values = np.asarray(getattr(response, q))
+        name, unit = _UNITS[q]
+        if outputs.size > MAX_LINES:
+            order = np.argsort(outputs)
+            image = ax.pcolormesh(response.t, np.arange(outputs.size), values[:, order].T,
+                                  shading="nearest", cmap="RdBu_r",
+                                  vmin=-np.abs(values).max(), vmax=np.abs(values).max())
+            fig.colorbar(image, ax=ax, label=f"{q} [{unit}]")
+            ticks = np.unique(np.linspace(0, outputs.size - 1, min(outputs.size, 8)).astype(int))
+            ax.set_yticks(ticks, [scene.dof_label(outputs[order][k]) for k in ticks])
+            ax.set_ylabel("DOF")
         else:
-            label = f"DOF {int(dof)} (mass {int(dof) + 1})"
-        ax.plot(response.t, x[:, j], lw=1.0, label=label)
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("x [m]")
-    ax.set_title(f"{scene.title}\n{scene.scheme}, dt = {scene.dt:g} s", fontsize=10)
-    ax.grid(True, alpha=0.3)
-    if x.shape[1] <= 20:
-        ax.legend(fontsize=7, ncols=1 + x.shape[1] // 8, loc="best")
+            for j, dof in enumerate(outputs):
+                ax.plot(response.t, values[:, j], lw=1.0, label=_label(scene, dof))
+            ax.set_ylabel(f"{q} [{unit}]")
+            ax.grid(True, alpha=0.3)
+        ax.set_title(name, fontsize=9, loc="left")
+    if outputs.size <= MAX_LINES:
+        axes[0].legend(fontsize=7, loc="best")
+    axes[-1].set_xlabel("t [s]")
+    fig.suptitle(f"{scene.title}: {scene.scheme}, dt = {scene.dt:g} s", fontsize=10)
     write_atomic(path, lambda f: fig.savefig(f, format=fmt, dpi=120))
+
+
+def _label(scene: Scene, dof) -> str:
+    if scene.kind == "matrices":
+        name = scene.dof_label(dof)
+        return f"DOF {int(dof)}" if name == str(int(dof)) else f"{name} (DOF {int(dof)})"
+    return f"DOF {int(dof)} (mass {int(dof) + 1})"

@@ -90,6 +90,7 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
         "form": None, "sweep": None, "backend": info["backend"], "dt": scene.dt,
         "n_steps": scene.n_steps, "n_dof": scene.n_dof, "n_outputs": int(scene.outputs.size),
         "run_time_s": info["run_time"], "exact_time_s": None, "max_rel_error": None,
+        "check": "skipped: a nonlinear scene has no exact solution (see reference_response)",
         "substeps": info["substeps"],
         "elements": list(info["elements"]), "setup_time_s": info["setup_time"],
         "construct_time_s": info["construct_time"], "compile_time_s": info["compile_time"],
@@ -99,7 +100,7 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
     return response, report
 
 
-def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
+def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple[Response, dict]:
     """Simulate a scene with ``simulate_chain`` (chains), ``simulate_mck`` (general matrices) or
     ``nonlinear_response`` (scenes with elements) and report run time and error.
 
@@ -118,7 +119,8 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
         Sampled at ``t_0 .. t_n`` for the DOFs ``scene.outputs``.
     report : dict
         ``title, scheme, scheme_params, form, sweep, backend, dt, n_steps, n_dof, n_outputs,
-        run_time_s, exact_time_s, max_rel_error``. For matrices ``form`` is ``"acceleration"``,
+        run_time_s, exact_time_s, max_rel_error, check`` (``check``: "done", or why the
+        exact comparison was skipped; ``check=False`` skips it). For matrices ``form`` is ``"acceleration"``,
         ``sweep`` None and ``backend`` ``"numpy"`` (dense) or ``"scipy.sparse"``.
         A nonlinear scene (``form``, ``sweep``, ``max_rel_error`` None; ``backend`` the one used)
         adds ``substeps, elements`` (descriptions), ``setup_time_s,
@@ -158,27 +160,36 @@ def run_scene(scene: Scene, progress: bool = False) -> tuple[Response, dict]:
         "title": scene.title, "scheme": scene.scheme, "scheme_params": dict(scene.scheme_params),
         "form": scene.form, "sweep": scene.sweep, "backend": scene.backend, "dt": scene.dt,
         "n_steps": scene.n_steps, "n_dof": scene.n_dof, "n_outputs": int(scene.outputs.size),
-        "run_time_s": run_time, "exact_time_s": None, "max_rel_error": None,
+        "run_time_s": run_time, "exact_time_s": None, "max_rel_error": None, "check": None,
     }
-    if scene.linear and scene.n_dof <= EXACT_MAX_DOF and response.x is not None:
-        from dtdyn.linear import exact
-
-        if scene.kind == "matrices":
-            matrices = (scene.M, scene.C, scene.K)
-        else:
-            matrices = chain.chain_matrices(scene.mass, scene.stiffness, scene.damping)
-        M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m) for m in matrices)
-        start = time.perf_counter()
-        try:
-            ref = exact.exact_response(M, C, K, scene.force, scene.dt, force_dofs=scene.loaded,
-                                       outputs=scene.outputs, quantities=("x",))
-        except exact.SingularMassError:  # no exact solution to compare with
-            return response, report
-        report["exact_time_s"] = time.perf_counter() - start
-        x, x_ref = np.asarray(response.x), np.asarray(ref.x)
-        if x.shape != x_ref.shape:
-            raise ValueError(f"response.x has shape {x.shape}, the exact solution {x_ref.shape}")
-        err = float(np.max(np.abs(x - x_ref)))
-        scale = float(np.max(np.abs(x_ref)))
-        report["max_rel_error"] = err / scale if scale > 0.0 else (0.0 if err == 0.0 else np.inf)
+    report["check"] = _exact_check(scene, response, report) if check else "not asked (--no-check)"
     return response, report
+
+
+def _exact_check(scene: Scene, response: Response, report: dict) -> str:
+    """Compare the displacements with `exact_response`; fills ``report`` and returns "done" or
+    why the check was skipped."""
+    if response.x is None:
+        return "skipped: the scene stores no displacement x"
+    if scene.n_dof > EXACT_MAX_DOF:
+        return (f"skipped: {scene.n_dof} DOFs > {EXACT_MAX_DOF} (the matrix exponential is "
+                "dense, O(N^3))")
+    from dtdyn.linear import chain, exact
+
+    if scene.kind == "matrices":
+        matrices = (scene.M, scene.C, scene.K)
+    else:
+        matrices = chain.chain_matrices(scene.mass, scene.stiffness, scene.damping)
+    M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m) for m in matrices)
+    start = time.perf_counter()
+    try:
+        ref = exact.exact_response(M, C, K, scene.force, scene.dt, force_dofs=scene.loaded,
+                                   outputs=scene.outputs, quantities=("x",))
+    except exact.SingularMassError as exc:  # no exact solution to compare with
+        return f"skipped: {exc}"
+    report["exact_time_s"] = time.perf_counter() - start
+    x, x_ref = np.asarray(response.x), np.asarray(ref.x)
+    err = float(np.max(np.abs(x - x_ref)))
+    scale = float(np.max(np.abs(x_ref)))
+    report["max_rel_error"] = err / scale if scale > 0.0 else (0.0 if err == 0.0 else np.inf)
+    return "done"
