@@ -43,3 +43,25 @@ def test_numpy_fallback_warns_once_and_agrees():
     backend, n_warn, x = _run({"DTDYN_NO_C": "1"})
     assert backend == "numpy" and n_warn == "1"
     assert abs(float(x) - float(x_c)) <= 1e-13 * abs(float(x_c))
+
+
+def test_import_dtdyn_needs_only_the_base_dependencies():
+    """`import dtdyn` and a linear run load neither SymPy, jinja2, CasADi, matplotlib nor xarray
+    (the extras); a nonlinear run without CasADi says which extra to install, in one line."""
+    code = (
+        "import sys\n"
+        "for name in ('sympy', 'jinja2', 'casadi', 'matplotlib', 'xarray'):\n"
+        "    sys.modules[name] = None\n"
+        "import numpy as np, dtdyn as dd\n"
+        "dd.simulate_mck(np.eye(2), np.zeros((2, 2)), np.eye(2), np.ones((11, 2)), 0.1)\n"
+        "dd.modal_filter_response(np.eye(2), 0.1 * np.eye(2), np.eye(2), np.ones(11), 0.1,\n"
+        "                         force_dofs=[1])\n"
+        "try:\n"
+        "    dd.nonlinear_response(np.eye(1), np.eye(1), np.eye(1), np.ones(11), 0.1,\n"
+        "                          elements=[dd.Cubic(0, k3=1.0)])\n"
+        "except ImportError as exc:\n"
+        "    print(exc)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert 'needs casadi, which is not installed: pip install "dtdyn[nonlinear]"' in proc.stdout
