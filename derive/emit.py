@@ -22,13 +22,15 @@ GENERATED = Path(__file__).resolve().parent.parent / "generated"
 
 
 def environment() -> jinja2.Environment:
-    return jinja2.Environment(
+    env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(str(TEMPLATES)),
         undefined=jinja2.StrictUndefined,
         trim_blocks=True,
         lstrip_blocks=True,
         keep_trailing_newline=True,
     )
+    env.filters["pyrepr"] = repr  # plain data (dicts, tuples, floats, str, None) as Python
+    return env
 
 
 def _names(mapping):
@@ -289,6 +291,8 @@ def render_all() -> dict[str, str]:
                               ctx["derived"].scheme.substitutions.items()])
     render("numpy/init.py.jinja", "__init__.py", "dtdyn.derive.integrators.SCHEMES",
            schemes=names)
+    render("numpy/scheme_table.py.jinja", "scheme_table.py",
+           "dtdyn.derive.integrators.scheme_table", table=I.scheme_table())
     manifest = {n: {"sha256": hashlib.sha256(t.encode()).hexdigest()} for n, t in sorted(out.items())}
     out["manifest.json"] = json.dumps(manifest, indent=1, sort_keys=True) + "\n"
     return out

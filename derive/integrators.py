@@ -74,6 +74,21 @@ PARK = (
 MULTISTEP_STARTUP = 2
 
 
+#: Admissible parameter values (closed intervals; None: unbounded), the same for every scheme that
+#: takes the parameter. The runtime, the scene schema and the docs read them from the generated
+#: scheme table.
+PARAMETER_RANGES = {
+    "beta": (0.0, None),           # beta = 0 is explicit (central difference, acceleration form)
+    "gamma": (0.5, None),          # gamma < 1/2 adds negative algorithmic damping
+    "theta": (1.0, None),          # unconditionally stable only from (1 + sqrt 3)/2 = 1.366
+    "alpha": (-1.0 / 3.0, 0.0),    # HHT
+    "rho_inf": (0.0, 1.0),         # generalized-alpha: spectral radius at infinite frequency
+}
+
+#: the scheme that starts the multistep schemes (fills their lags), second order like them
+STARTUP_SCHEME = "average_acceleration"
+
+
 @dataclass(frozen=True)
 class Scheme:
     """A time integrator: defining relations plus parameters.
@@ -222,3 +237,25 @@ def param_symbols(scheme: Scheme) -> tuple:
     """The SymPy symbols of the user parameters, in order."""
     table = {"beta": beta, "gamma": gamma, "theta": theta, "alpha": alpha, "rho_inf": rho_inf}
     return tuple(table[p] for p in scheme.params)
+
+
+def scheme_table() -> dict:
+    """Every scheme as plain data (no SymPy): title, parameters with default and range, the
+    preset values of the Newmark family, start-up, explicitness, order, reference, notes."""
+    table = {}
+    for name, s in SCHEMES.items():
+        presets = {str(k): float(v) for k, v in s.substitutions.items()
+                   if str(k) in ("beta", "gamma") and sp.sympify(v).is_number}
+        table[name] = {
+            "title": s.title,
+            "params": {p: {"default": float(s.defaults[p]), "range": PARAMETER_RANGES[p]}
+                       for p in s.params},
+            "presets": presets,
+            "startup_steps": s.startup_steps,
+            "startup_scheme": STARTUP_SCHEME if s.startup_steps else None,
+            "explicit": bool(derive_scheme(name).explicit),
+            "order": s.order,
+            "reference": s.reference,
+            "notes": s.notes,
+        }
+    return table

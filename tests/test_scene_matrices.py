@@ -68,7 +68,8 @@ def test_inline_scene_equals_simulate_mck(tmp_path):
     assert report["max_rel_error"] is not None and report["max_rel_error"] < 5e-2
     assert set(report) == {"title", "scheme", "scheme_params", "form", "sweep", "backend", "dt",
                            "n_steps", "n_dof", "n_outputs", "run_time_s", "exact_time_s",
-                           "max_rel_error"}
+                           "max_rel_error", "check"}
+    assert report["check"] == "done"
 
 
 def test_c_is_optional(tmp_path):

@@ -2,19 +2,26 @@
 from __future__ import annotations
 
 import importlib
-import math
 from dataclasses import dataclass
 
-from dtdyn.generated import SCHEMES as NAMES
+from dtdyn.generated.scheme_table import TABLE
 
-#: admissible parameter ranges (closed intervals); the reasons are in the schemes' stability analysis (docs/stability.md)
-RANGES = {
-    "beta": (0.0, math.inf),  # beta = 0 is explicit (acceleration form only)
-    "gamma": (0.5, math.inf),  # gamma < 1/2 adds negative algorithmic damping
-    "theta": (1.0, math.inf),  # unconditionally stable only from (1 + sqrt 3)/2
-    "alpha": (-1.0 / 3.0, 0.0),  # HHT
-    "rho_inf": (0.0, 1.0),  # generalized-alpha
-}
+NAMES = tuple(TABLE)
+
+
+def check_parameter(scheme: str, key: str, value, field: str | None = None) -> float:
+    """``value`` as a float inside the scheme table's range for ``key``; a ValueError names
+    ``field`` (default ``key``), the value and the range otherwise."""
+    field = field or key
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field} must be a number, got {value!r}") from None
+    lo, hi = TABLE[scheme]["params"][key]["range"]
+    if v != v or (lo is not None and v < lo) or (hi is not None and v > hi):
+        shown = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
+        raise ValueError(f"{field} = {value!r} is outside {shown} for scheme {scheme!r}")
+    return v
 
 
 @dataclass(frozen=True)
@@ -55,14 +62,7 @@ def get_scheme(name: str, **params) -> SchemeInfo:
         raise ValueError(f"scheme {name!r} takes parameters ({allowed}), got {', '.join(unknown)}")
     values = dict(module.DEFAULTS)
     for key, value in params.items():
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise ValueError(f"{key} must be a number, got {value!r}") from None
-        lo, hi = RANGES[key]
-        if not (lo <= v <= hi):
-            raise ValueError(f"{key} = {v!r} is outside [{lo}, {hi}] for scheme {name!r}")
-        values[key] = v
+        values[key] = check_parameter(name, key, value)
     if name == "newmark" and values["beta"] == 0.0:
         module = importlib.import_module("dtdyn.generated.scheme_central_difference")
         if values["gamma"] != 0.5:

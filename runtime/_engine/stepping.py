@@ -14,6 +14,7 @@ import numpy as np
 
 from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import SchemeInfo, get_scheme
+from dtdyn.generated.scheme_table import TABLE
 
 #: a stepper: (scheme, coefficients) -> advance(force_rows, H, xo, vo, ao) -> error estimate of
 #: the run so far (not of the call: an estimate that propagates through the steps is not a sum
@@ -56,7 +57,7 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
     states = [tuple(np.array(a, dtype=float) for a in state0)]
     n_start = min(scheme.startup_steps, n_steps)
     if n_start:
-        avg = get_scheme("average_acceleration")
+        avg = get_scheme(TABLE[scheme.name]["startup_scheme"])
         advance = make_advance(avg, avg.coefficients(form, dt))
         for _ in range(n_start):
             H = history_from_states(avg.history, states)

@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from dtdyn.generated import SCHEMES
+from dtdyn.generated.scheme_table import TABLE as SCHEMES
 
 
 def _checkout(start: Path) -> Path | None:

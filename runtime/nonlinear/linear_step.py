@@ -29,8 +29,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from dtdyn._engine import validate
+from dtdyn.generated.scheme_table import TABLE
 
-MULTISTEP = ("houbolt", "park")
+MULTISTEP = tuple(name for name, row in TABLE.items() if row["startup_steps"])
 MODAL = ("modal_ramp", "modal_parabolic")
 
 #: largest theta = |B0 dg/dy|_inf (the elements' tangent stiffness k_t as seen by the step; y

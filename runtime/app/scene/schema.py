@@ -103,23 +103,14 @@ import numpy as np
 import scipy.sparse as sps
 
 from dtdyn._engine import validate
+from dtdyn._engine.schemes import check_parameter
+from dtdyn.generated.scheme_table import TABLE
 from dtdyn.app.loads import finite_number
 
-#: scheme name -> {parameter: (lower bound, upper bound)} (inclusive; None: unbounded)
+#: scheme name -> {parameter: (lower bound, upper bound)} (inclusive; None: unbounded), from the
+#: generated scheme table (the same ranges the runtime checks)
 SCHEMES: dict[str, dict[str, tuple[float | None, float | None]]] = {
-    "fox_euler": {},
-    "newmark": {"beta": (0.0, None), "gamma": (0.0, None)},
-    "average_acceleration": {},
-    "linear_acceleration": {},
-    "fox_goodwin": {},
-    "newmark_1_8": {},
-    "central_difference": {},
-    "wilson": {"theta": (1.0, None)},
-    "houbolt": {},
-    "park": {},
-    "hht": {"alpha": (-1.0 / 3.0, 0.0)},
-    "generalized_alpha": {"rho_inf": (0.0, 1.0)},
-}
+    name: {p: spec["range"] for p, spec in row["params"].items()} for name, row in TABLE.items()}
 FORMS = ("displacement", "acceleration")
 SWEEPS = ("stable", "plain")
 BACKENDS = ("c", "numpy")
@@ -323,13 +314,6 @@ def _scheme_name_params(tbl: dict) -> tuple[str, dict]:
     _choice("scheme.name", name, tuple(SCHEMES))
     bounds = SCHEMES[name]
     _table("scheme", tbl, _SCHEME_COMMON + tuple(bounds))
-    params = {}
-    for key, (lo, hi) in bounds.items():
-        if key not in tbl:
-            continue
-        v = finite_number(f"scheme.{key}", tbl[key])
-        if (lo is not None and v < lo) or (hi is not None and v > hi):
-            rng = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
-            raise ValueError(f"scheme.{key} = {tbl[key]!r}: must lie in {rng} for scheme {name!r}")
-        params[key] = v
+    params = {key: check_parameter(name, key, finite_number(f"scheme.{key}", tbl[key]),
+                                   f"scheme.{key}") for key in bounds if key in tbl}
     return name, params
