@@ -14,16 +14,18 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from . import (dttmm, integrators as I, kernels, modal_filters, nonlinear, printing, stability,
+from . import (c_api, dttmm, integrators as I, kernels, modal_filters, nonlinear, printing, stability,
                state_space, tmm)
 
 TEMPLATES = Path(__file__).parent / "templates"
+#: hand-written C that generated sources include verbatim (not templates)
+CSOURCES = Path(__file__).parent / "csrc"
 GENERATED = Path(__file__).resolve().parent.parent / "generated"
 
 
 def environment() -> jinja2.Environment:
     env = jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(TEMPLATES)),
+        loader=jinja2.FileSystemLoader([str(TEMPLATES), str(CSOURCES)]),
         undefined=jinja2.StrictUndefined,
         trim_blocks=True,
         lstrip_blocks=True,
@@ -251,6 +253,8 @@ def render_all() -> dict[str, str]:
     out: dict[str, str] = {}
 
     def render(template, dest, source, **ctx):
+        if dest in c_api.SOURCES:  # the C declarations from the signature spec
+            ctx.setdefault("prototypes", c_api.prototypes(dest))
         out[dest] = env.get_template(template).render(template=template, source=source, **ctx)
 
     render("numpy/dttmm.py.jinja", "dttmm_sweep.py", "dtdyn.derive.dttmm", **_dttmm_context())
@@ -258,11 +262,14 @@ def render_all() -> dict[str, str]:
     render("markdown/tmm.md.jinja", "tmm.md", "dtdyn.derive.tmm", **_tmm_context())
     render("numpy/newmark_ss.py.jinja", "newmark_ss.py", "dtdyn.derive.state_space",
            **_newmark_ss_context())
-    render("c/ss_response.c.jinja", "ss_response.c", "the discrete state-space recursion")
-    render("c/nl_chain.c.jinja", "nl_chain.c", "dtdyn.nonlinear.chain (its loop)")
+    render("c/verbatim.c.jinja", "ss_response.c", "derive/csrc/ss_response.c (hand-written)",
+           csource="ss_response.c")
+    render("c/nl_chain.c.jinja", "nl_chain.c", "dtdyn.nonlinear.chain (its loop)",
+           chain_typedef=c_api.pointer_typedef("chain_fn", "dtdyn_chain"))
     render("numpy/modal_filters.py.jinja", "modal_filters.py", "dtdyn.derive.modal_filters",
            **_modal_filters_context())
-    render("c/filter_bank.c.jinja", "filter_bank.c", "dtdyn.derive.modal_filters (sections)")
+    render("c/verbatim.c.jinja", "filter_bank.c", "derive/csrc/filter_bank.c (hand-written)",
+           csource="filter_bank.c")
     render("c/modal_states.c.jinja", "modal_states.c",
            "dtdyn.derive.modal_filters.increment_form",
            increments=[(k, sp.sstr(v)) for k, v in modal_filters.increment_form().items()])
@@ -282,7 +289,8 @@ def render_all() -> dict[str, str]:
         ctx = _scheme_context(name)
         src = f"dtdyn.derive.integrators.SCHEMES[{name!r}]"
         render("numpy/scheme.py.jinja", f"scheme_{name}.py", src, **ctx, forms=ctx["forms_py"])
-        render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, forms=ctx["forms_c"])
+        render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, forms=ctx["forms_c"],
+               prototypes=c_api.prototype("dtdyn_chain", f"dtdyn_chain_{name}"))
         render("markdown/scheme.md.jinja", f"scheme_{name}.md", src, **ctx,
                latex=_latex_rows(ctx["derived"]),
                increments=_increment_rows(ctx["spec"]), relations=[sp.latex(r) for r in
@@ -291,6 +299,8 @@ def render_all() -> dict[str, str]:
                               ctx["derived"].scheme.substitutions.items()])
     render("numpy/init.py.jinja", "__init__.py", "dtdyn.derive.integrators.SCHEMES",
            schemes=names)
+    render("numpy/c_api.py.jinja", "c_api.py", "dtdyn.derive.c_api",
+           bindings=c_api.bindings())
     render("numpy/scheme_table.py.jinja", "scheme_table.py",
            "dtdyn.derive.integrators.scheme_table", table=I.scheme_table())
     manifest = {n: {"sha256": hashlib.sha256(t.encode()).hexdigest()} for n, t in sorted(out.items())}

@@ -548,6 +548,7 @@ static int run_acceleration(int sweep, long N, long n_steps, const double *m, co
 /* form: 0 displacement, 1 acceleration; sweep: 0 stable, 1 plain, 2 stable reusing the Riccati
    factors a previous call (same chain, dt, scheme and form) left in work. Returns 0, or -1 for
    an absent form. */
+int dtdyn_chain_hht(int form, int sweep, long N, long n_steps, const double *m, const double *k, const double *c, double dt, const double *params, long n_loaded, const long *loaded, const double *force, double *hist, long n_out, const long *out_idx, double *xo, double *vo, double *ao, double *work, double *ehist, double *err);
 int dtdyn_chain_hht(int form, int sweep, long N, long n_steps, const double *m, const double *k,
                    const double *c, double dt, const double *params, long n_loaded,
                    const long *loaded, const double *force, double *hist, long n_out,

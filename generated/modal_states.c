@@ -134,6 +134,12 @@ static void outputs_axpy(long nb, long m, long n_out, int im_out, const double *
     }
 }
 
+/* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
+   the definitions below against the ctypes bindings in generated/c_api.py */
+int dtdyn_modal_filters_lanes(void);
+long dtdyn_modal_filters_work(long m, long n_out);
+int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out, const double *restrict coef, const double *restrict wt, const double *restrict x, double *restrict e, double *restrict y, double *restrict work);
+
 int dtdyn_modal_filters_lanes(void)
 {
     return LANES;

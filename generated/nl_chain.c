@@ -23,11 +23,11 @@
 #include <string.h>
 
 typedef long long int nl_int;
+typedef int (*chain_fn)(int form, int sweep, long N, long n_steps, const double *m, const double *k, const double *c, double dt, const double *params, long n_loaded, const long *loaded, const double *force, double *hist, long n_out, const long *out_idx, double *xo, double *vo, double *ao, double *work, double *ehist, double *err);
+/* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
+   the definitions below against the ctypes bindings in generated/c_api.py */
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem);
-typedef int (*chain_fn)(int, int, long, long, const double *, const double *, const double *,
-                        double, const double *, long, const long *, const double *, double *,
-                        long, const long *, double *, double *, double *, double *, double *,
-                        double *);
+int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx, const double *const *mats, double *restrict H, double *restrict u, double *restrict g, double *restrict rate, double *const *out, double h, double tol, double *stats, long *fail, double *restrict work, nl_int *restrict iwork);
 
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
 /* Solve J d = -r in place (J column-major n x n, from CasADi) by LU with partial pivoting. */
@@ -111,7 +111,7 @@ static inline void zero(long n, double *restrict dst)
  * work: 12 N (chain kernel) + 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz, then
  *       the CasADi work.
  */
-int dtdyn_nl_chain(const long *dims, void *chain, const long *const *idx,
+int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                    const double *const *mats, double *restrict H, double *restrict u,
                    double *restrict g, double *restrict rate, double *const *out, double h,
                    double tol, double *stats, long *fail, double *restrict work,
@@ -126,7 +126,6 @@ int dtdyn_nl_chain(const long *dims, void *chain, const long *const *idx,
     const long *ej = idx[5], *outs = idx[6];
     const double *m = mats[0], *k = mats[1], *c = mats[2], *params = mats[3], *U = mats[4];
     const double *par = mats[5], *Dwg = par, *force = mats[6];
-    const chain_fn sweep = (chain_fn)chain;
     double *cwork = work, *frc = cwork + 12 * N, *Q = frc + 2 * nl, *zold = Q + nw;
     double *rold = zold + nz, *r = rold + nz, *J = r + nu, *gn = J + nu * nu, *rn_ = gn + ne;
     double *cw = rn_ + nz;

@@ -25,7 +25,10 @@
 #include <math.h>
 
 typedef long long int nl_int;
+/* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
+   the definitions below against the ctypes bindings in generated/c_api.py */
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem);
+int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force, double *restrict x, double *restrict u, double *restrict g, double *restrict rate, double *restrict out, double tol, double theta_limit, double *stats, long *fail, double *restrict work, nl_int *restrict iwork);
 
 /* y += A x with A column-major (rows x cols): independent axpys, no long add chains */
 static inline void matvec_add(long rows, long cols, const double *restrict A,

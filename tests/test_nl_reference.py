@@ -4,7 +4,6 @@ Linear limit: the matrix exponential (exact_response). Nonlinear: a second solve
 same force function sampled twice as finely, Bouc-Wen's closed-form loading branch and the energy
 balance of its hysteresis loop.
 """
-import time
 
 import numpy as np
 import pytest
@@ -145,18 +144,13 @@ def _cache_files():
 
 def test_cache_reuses_identical_arrays():
     P = p4(1000)
-    t0 = time.perf_counter()
     first = reference_response(**_args(P))
-    t_first = time.perf_counter() - t0
     files = _cache_files()
     assert not first.info["cached"] and len(files) == 1 and files[0].suffix == ".npz"
-    t0 = time.perf_counter()
     second = reference_response(**_args(P))
-    t_second = time.perf_counter() - t0
-    assert second.info["cached"]
+    assert second.info["cached"] and second.info["n_rhs"] == 0  # read, not integrated again
     for q in "xva":
         np.testing.assert_array_equal(getattr(first, q), getattr(second, q))
-    assert t_second < 0.2 * t_first
     # another output selection reads the same file; another k3 or ODE solver does not
     assert reference_response(**_args(P), outputs=[1]).info["cached"]
     other = reference_response(**_args(P, [Cubic(0, None, k3=1e7), Cubic(1, 2, k3=2e7)]))

@@ -120,9 +120,7 @@ def test_p4_scene_equals_direct_nonlinear_response(tmp_path):
     assert report["scheme"] == "modal_ramp" and report["substeps"] == 3
     assert report["max_rel_error"] is None and report["n_dof"] == 4 and report["n_outputs"] == 2
     assert report["elements"] == ["Cubic (DOF 0 - ground)", "Cubic (DOF 1 - DOF 2)"]
-    for key in ("run_time_s", "construct_time_s", "compile_time_s", "setup_time_s"):
-        assert report[key] >= 0.0
-    assert report["total_time_s"] >= report["run_time_s"]
+    assert report["total_time_s"] >= report["run_time_s"] > 0.0  # the loop is part of the call
     assert report["newton_iterations"]["max"] >= 1 and report["max_residual"] < 1e-10
 
 

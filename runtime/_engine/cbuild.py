@@ -302,6 +302,18 @@ def load_library(source: str, name: str) -> ctypes.CDLL | None:
     return lib
 
 
+def bind(lib, kernel: str, symbol: str | None = None):
+    """The function ``symbol`` (default ``kernel``) of a loaded library with its argtypes and
+    restype from the generated signature table (the same spec as its C declaration)."""
+    from dtdyn.generated.c_api import SIGNATURES
+
+    restype, argtypes = SIGNATURES[kernel]
+    fn = getattr(lib, symbol or kernel)
+    fn.restype = getattr(ctypes, restype)
+    fn.argtypes = [getattr(ctypes, a) for a in argtypes]
+    return fn
+
+
 def c_available() -> bool:
     """Tell whether the C backend can be tried.
 

@@ -1,7 +1,6 @@
 """Load the generated DT-TMM chain kernels: C when a compiler exists, else the NumPy sweep."""
 from __future__ import annotations
 
-import ctypes
 from functools import lru_cache
 from importlib import resources
 
@@ -71,11 +70,7 @@ def c_chain_function(scheme: str):
     lib = cbuild.load_library(source, f"chain_{scheme}")
     if lib is None:
         return None
-    fn = getattr(lib, f"dtdyn_chain_{scheme}")
-    ptr, lng = ctypes.c_void_p, ctypes.c_long
-    fn.argtypes = [ctypes.c_int, ctypes.c_int, lng, lng, ptr, ptr, ptr, ctypes.c_double, ptr, lng,
-                   ptr, ptr, ptr, lng, ptr, ptr, ptr, ptr, ptr, ptr, ptr]
-    fn.restype = ctypes.c_int
+    fn = cbuild.bind(lib, "dtdyn_chain", f"dtdyn_chain_{scheme}")
     return fn
 
 

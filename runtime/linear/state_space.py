@@ -16,7 +16,6 @@ A = Phi, B = Gamma0 + Phi Gamma1, and the outputs y_n = S z_n = S x_n + S Gamma1
 """
 from __future__ import annotations
 
-import ctypes
 import time
 from functools import lru_cache
 from importlib import resources
@@ -193,10 +192,7 @@ def _c_loop():
     lib = cbuild.load_library(source, "ss_response")
     if lib is None:
         return None
-    fn = lib.dtdyn_ss_states
-    fn.argtypes = [ctypes.c_long] * 2 + [ctypes.c_void_p] * 3
-    fn.restype = ctypes.c_int
-    return fn
+    return cbuild.bind(lib, "dtdyn_ss_states")
 
 
 def state_space_response(model: DiscreteModel, force, *, force_dofs=None, outputs=None,

@@ -34,7 +34,6 @@ before t_0: start records at zero force to compare with `exact_response`).
 """
 from __future__ import annotations
 
-import ctypes
 import time
 from dataclasses import dataclass
 from functools import lru_cache
@@ -212,9 +211,7 @@ def _c_bank():
     lib = cbuild.load_library(source, "filter_bank")
     if lib is None:
         return None
-    fn = lib.dtdyn_filter_bank
-    fn.argtypes = [ctypes.c_long] * 4 + [ctypes.c_void_p] * 6
-    fn.restype = ctypes.c_int
+    fn = cbuild.bind(lib, "dtdyn_filter_bank")
     return fn
 
 
@@ -224,12 +221,9 @@ def _c_modes():
     lib = cbuild.load_library(source, "modal_states")
     if lib is None:
         return None
-    fn = lib.dtdyn_modal_filters
-    fn.argtypes = [ctypes.c_long] * 4 + [ctypes.c_int] + [ctypes.c_void_p] * 6
-    fn.restype = ctypes.c_int
-    lib.dtdyn_modal_filters_work.argtypes = [ctypes.c_long] * 2
-    lib.dtdyn_modal_filters_work.restype = ctypes.c_long
-    lib.dtdyn_modal_filters_lanes.restype = ctypes.c_int
+    fn = cbuild.bind(lib, "dtdyn_modal_filters")
+    cbuild.bind(lib, "dtdyn_modal_filters_work")
+    cbuild.bind(lib, "dtdyn_modal_filters_lanes")
     return fn, lib.dtdyn_modal_filters_lanes(), lib.dtdyn_modal_filters_work
 
 

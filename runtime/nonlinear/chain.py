@@ -205,9 +205,7 @@ def _c_driver(elements, sz):
     lib = cbuild.load_library(loop + "\n" + _c_source(fn), "nl_chain")
     if lib is None:
         return None
-    run = lib.dtdyn_nl_chain
-    run.argtypes = [ctypes.c_void_p] * 9 + [ctypes.c_double] * 2 + [ctypes.c_void_p] * 4
-    run.restype = ctypes.c_int
+    run = cbuild.bind(lib, "dtdyn_nl_chain")
     return run, int(fn.sz_w()), int(fn.sz_iw())
 
 
@@ -252,9 +250,7 @@ def _residual_evaluator(elements, sz, backend):
             r, J, g, rate = (np.asarray(a, dtype=float) for a in fn(u, Q, zold, rold, par))
             return r.ravel(), J, g.ravel(), rate.ravel()
         return evaluate
-    c_fn = lib.nl_residual
-    c_fn.argtypes = [ctypes.c_void_p] * 4 + [ctypes.c_int]
-    c_fn.restype = ctypes.c_int
+    c_fn = cbuild.bind(lib, "nl_residual")
     ins = [np.zeros(nu), np.zeros(sz.nw), np.zeros(max(sz.nz, 1)), np.zeros(max(sz.nz, 1)),
            np.zeros(sz.nw * sz.ne + 1)]
     outs = [np.zeros(nu), np.zeros((nu, nu), order="F"), np.zeros(sz.ne), np.zeros(max(sz.nz, 1))]

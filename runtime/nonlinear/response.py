@@ -115,9 +115,7 @@ def _c_runner(elements, dims):
     t2 = time.perf_counter()
     if lib is None:
         return None, t1 - t0, t2 - t1
-    run = lib.dtdyn_nl_run
-    run.argtypes = [ctypes.c_void_p] * 8 + [ctypes.c_double] * 2 + [ctypes.c_void_p] * 4
-    run.restype = ctypes.c_int
+    run = cbuild.bind(lib, "dtdyn_nl_run")
     return (run, int(fn.sz_w()), int(fn.sz_iw())), t1 - t0, t2 - t1
 
 

@@ -1,5 +1,3 @@
-{% import "macros.jinja" as mac %}
-{{ mac.header("//", template, source) }}
 /*
  * A bank of parallel second-order sections (transposed direct form II):
  *   v_n = b0 x_n + s1;  s1 = b1 x_n - a1 v_n + s2;  s2 = b2 x_n - a2 v_n

@@ -1,5 +1,3 @@
-{% import "macros.jinja" as mac %}
-{{ mac.header("//", template, source) }}
 /*
  * The sequential part of a discrete state-space response: X[n + 1] = A X[n] + w_n for
  * n = 0..n_steps-1 (w_n = B u_n is formed beforehand, as is y = C x + D u afterwards, by

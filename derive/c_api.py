@@ -1,0 +1,88 @@
+"""One signature spec per C kernel: the emitter writes it as the C prototype at the top of each
+generated source (so the compiler checks the definition against it) and as the ctypes binding
+in generated/c_api.py (so the runtime never types argtypes by hand)."""
+from __future__ import annotations
+
+#: kernel -> (return type, parameters as C text); ``dtdyn_chain`` stands for every
+#: ``dtdyn_chain_<scheme>`` (one per scheme, the same signature)
+KERNELS = {
+    "dtdyn_chain": ("int", (
+        "int form", "int sweep", "long N", "long n_steps", "const double *m", "const double *k",
+        "const double *c", "double dt", "const double *params", "long n_loaded",
+        "const long *loaded", "const double *force", "double *hist", "long n_out",
+        "const long *out_idx", "double *xo", "double *vo", "double *ao", "double *work",
+        "double *ehist", "double *err")),
+    "dtdyn_ss_states": ("int", (
+        "long ns", "long n_steps", "const double *restrict At", "const double *restrict w",
+        "double *restrict X")),
+    "dtdyn_filter_bank": ("int", (
+        "long n", "long n_in", "long n_out", "long n_sec", "const double *restrict sos",
+        "const long *restrict in_col", "const long *restrict out_col",
+        "const double *restrict xt", "double *restrict yt", "double *restrict state")),
+    "dtdyn_modal_filters_lanes": ("int", ("void",)),
+    "dtdyn_modal_filters_work": ("long", ("long m", "long n_out")),
+    "dtdyn_modal_filters": ("int", (
+        "long n", "long m", "long n_in", "long n_out", "int im_out",
+        "const double *restrict coef", "const double *restrict wt", "const double *restrict x",
+        "double *restrict e", "double *restrict y", "double *restrict work")),
+    "dtdyn_nl_run": ("int", (
+        "const long *dims", "const double *const *mats", "const double *restrict force",
+        "double *restrict x", "double *restrict u", "double *restrict g",
+        "double *restrict rate", "double *restrict out", "double tol", "double theta_limit",
+        "double *stats", "long *fail", "double *restrict work", "nl_int *restrict iwork")),
+    # the elements' residual, Jacobian and forces: CasADi's code generation, appended to
+    # nl_loop.c and nl_chain.c at run time (CasADi's calling convention)
+    "nl_residual": ("int", ("const double **arg", "double **res", "nl_int *iw", "double *w",
+                            "int mem")),
+    "dtdyn_nl_chain": ("int", (
+        "const long *dims", "chain_fn sweep", "const long *const *idx",
+        "const double *const *mats", "double *restrict H", "double *restrict u",
+        "double *restrict g", "double *restrict rate", "double *const *out", "double h",
+        "double tol", "double *stats", "long *fail", "double *restrict work",
+        "nl_int *restrict iwork")),
+}
+
+#: the kernels each generated source defines
+SOURCES = {
+    "ss_response.c": ("dtdyn_ss_states",),
+    "filter_bank.c": ("dtdyn_filter_bank",),
+    "modal_states.c": ("dtdyn_modal_filters_lanes", "dtdyn_modal_filters_work",
+                       "dtdyn_modal_filters"),
+    "nl_loop.c": ("nl_residual", "dtdyn_nl_run"),
+    "nl_chain.c": ("nl_residual", "dtdyn_nl_chain"),
+}
+
+_SCALARS = {"int": "c_int", "long": "c_long", "double": "c_double"}
+
+
+def prototype(kernel: str, name: str | None = None) -> str:
+    """The C declaration of ``kernel`` (under ``name``, for the per-scheme chain kernels)."""
+    restype, params = KERNELS[kernel]
+    return f"{restype} {name or kernel}({', '.join(params)});"
+
+
+def pointer_typedef(alias: str, kernel: str) -> str:
+    """``typedef <restype> (*alias)(<parameters>);``: a pointer to ``kernel``'s signature."""
+    restype, params = KERNELS[kernel]
+    return f"typedef {restype} (*{alias})({', '.join(params)});"
+
+
+def prototypes(source: str) -> str:
+    """The declarations a generated source starts with."""
+    lines = ["/* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks",
+             "   the definitions below against the ctypes bindings in generated/c_api.py */"]
+    lines += [prototype(k) for k in SOURCES[source]]
+    return "\n".join(lines)
+
+
+def _ctype(param: str) -> str:
+    """ctypes name of a C parameter: pointers (and the function pointer chain_fn) are addresses."""
+    if "*" in param or param.split()[0] == "chain_fn":
+        return "c_void_p"
+    return _SCALARS[param.split()[-2]]
+
+
+def bindings() -> dict:
+    """kernel -> (restype, argtypes) as ctypes names."""
+    return {k: (_SCALARS[r], tuple(_ctype(p) for p in params if p != "void"))
+            for k, (r, params) in KERNELS.items()}
