@@ -161,6 +161,15 @@ def load_result(path):
     >>> back = dd.load_result(path)
     >>> bool(np.array_equal(back.x, r.x)), back.v is None, back.info["scheme"]
     (True, True, 'newmark')
+
+    Parameters
+    ----------
+    path : str or Path
+        A file written by `Response.save`.
+
+    Returns
+    -------
+    Response
     """
     path = Path(path)
     suffix = path.suffix.lower()

@@ -30,14 +30,68 @@ def _chain(mass, stiffness, damping, **extra) -> dict:
 
 
 def p1() -> dict:
+    """P1: one DOF, m = 2 kg, k = 12 N/m, c = 3 N s/m, unit step, dt = 0.02 s, T = 10 s.
+
+    Parameters
+    ----------
+    None
+
+    Returns
+    -------
+    dict
+        mass, stiffness, damping, M, C, K, dt, T, force_dofs, output.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> dd.p1()["K"]
+    array([[12.]])
+    """
     return _chain([2.0], [12.0], [3.0], dt=0.02, T=10.0, force_dofs=[0], output=0)
 
 
 def p2() -> dict:
+    """P2: two-DOF chain, m = [2, 3] kg, k = [20, 15] N/m, c = [5, 6] N s/m, unit step on the
+    last mass, dt = 0.02 s, T = 10 s.
+
+    Parameters
+    ----------
+    None
+
+    Returns
+    -------
+    dict
+        mass, stiffness, damping, M, C, K, dt, T, force_dofs, output.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> dd.p2()["force_dofs"]
+    [1]
+    """
     return _chain([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], dt=0.02, T=10.0, force_dofs=[1], output=1)
 
 
 def p3() -> dict:
+    """P3: the undamped 15-DOF chain of Kumar & Sankar (1986), unit step on mass 15 (0-based
+    14), T = 0.8 s; natural frequencies 9.49 to 148.2 rad/s.
+
+    Parameters
+    ----------
+    None
+
+    Returns
+    -------
+    dict
+        mass, stiffness, damping, M, C, K, T, force_dofs, output.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> p = dd.p3()
+    >>> p["M"].shape, p["T"]
+    ((15, 15), 0.8)
+    """
     from dtdyn.linear.chain import chain_matrices
     mass, stiffness = np.array(P3_MASS, float), np.array(P3_STIFFNESS, float)
     damping = np.zeros(15)
@@ -68,6 +122,23 @@ def p4(n_samples: int = 100_000) -> dict:
         DOF 1 - DOF 2      176 N / 206 N = 0.85       0.24                      0.021 m
 
     (first 5000 samples: peak ratios 0.72 and 0.51; tests/test_nl_reference.py checks them.)
+
+    Parameters
+    ----------
+    n_samples : int
+        Length of the white-noise force record.
+
+    Returns
+    -------
+    dict
+        M, C, K, force, dt, force_dofs, elements, k, k3, output.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> p = dd.p4(1000)
+    >>> p["force"].shape, p["dt"], p["force_dofs"]
+    ((1000, 1), 0.001, [3])
     """
     from dtdyn.linear.chain import chain_matrices
     from dtdyn.nonlinear.elements import Cubic

@@ -42,6 +42,26 @@ def chain_matrices(mass, stiffness, damping, sparse: bool | None = None):
     """Assembled (M, C, K) of a chain; scipy.sparse CSR when ``sparse`` (default: N > 200).
 
     K[n, n] += k_n and, for n > 0, K[n-1, n-1] += k_n, K[n-1, n] = K[n, n-1] = -k_n; C alike.
+
+    Parameters
+    ----------
+    mass, stiffness, damping : (N,) array_like
+        m_n > 0, k_n >= 0, c_n >= 0 of station n (0-based); station n joins mass n to mass n - 1
+        (to the ground for n = 0).
+    sparse : bool, optional
+        scipy.sparse CSR matrices when True, dense arrays when False (default: N > 200).
+
+    Returns
+    -------
+    M, C, K : (N, N) ndarray or scipy.sparse.csr_matrix
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> M, C, K = dd.chain_matrices([2.0, 3.0], [20.0, 15.0], [5.0, 6.0])
+    >>> K
+    array([[ 35., -15.],
+           [-15.,  15.]])
     """
     m, k, c = chain_parameters(mass, stiffness, damping)
     sparse = m.size > 200 if sparse is None else sparse

@@ -55,6 +55,14 @@ def first_order_form(M, C, K):
     ValueError
         If a matrix is not square, not finite or not the size of ``M`` (the message names the
         argument), or if ``M`` is singular or numerically singular.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> A, B = dd.first_order_form(np.eye(1), 0.2 * np.eye(1), 4.0 * np.eye(1))
+    >>> A
+    array([[ 0. ,  1. ],
+           [-4. , -0.2]])
     """
     M, C, K = linalg.mck(M, C, K)
     N = M.shape[0]
@@ -184,6 +192,14 @@ def discretize(M, C, K, dt, hold="zoh") -> DiscreteModel:
     Int. J. Control 82(4), 741-754, 2009.
     SciPy, ``scipy.signal.cont2discrete`` documentation and source (conventions for ``C_d``,
     ``D_d`` and the foh state).
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> model = dd.discretize(np.eye(1), np.zeros((1, 1)), np.eye(1), 0.1, hold="zoh")
+    >>> Ad, Bd, Cd, Dd = model
+    >>> Ad.shape, model.state
+    ((2, 2), "[q; q']")
     """
     dt = validate.positive_scalar("dt", dt)
     hold = _hold_name(hold)

@@ -21,6 +21,28 @@ from dtdyn._engine.errors import DtdynStabilityWarning
 
 @dataclass
 class Stability:
+    """The stability quantities of one scheme over ``omega_dt`` (from `stability`).
+
+    Attributes
+    ----------
+    scheme : str
+    params : dict
+        The scheme's parameters.
+    omega_dt : ndarray
+        Omega = omega dt.
+    zeta : float
+        Physical damping ratio.
+    spectral_radius, period_elongation, algorithmic_damping : ndarray
+        rho = max |eig A|, T_num / T - 1, and the numerical damping ratio, per Omega.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> s = dd.stability("hht", [1.0], alpha=-0.1)
+    >>> bool(s.spectral_radius[0] < 1.0), s.scheme
+    (True, 'hht')
+    """
+
     scheme: str
     params: dict
     omega_dt: np.ndarray
@@ -31,7 +53,33 @@ class Stability:
 
 
 def stability(scheme, omega_dt, zeta=0.0, **scheme_params) -> Stability:
-    """Spectral radius, period elongation and algorithmic damping over ``omega_dt``."""
+    """Spectral radius, period elongation and algorithmic damping over ``omega_dt``.
+
+    Each step of the scheme applied to x'' + 2 zeta omega x' + omega^2 x = 0 is
+    y_{n+1} = A(Omega, zeta) y_n with Omega = omega dt (the amplification matrix the derivation
+    gives); rho = max |eig A|. From the principal eigenvalue pair lambda = e^{(-xi + i) w dt}:
+    period elongation T_num / T - 1 = Omega / (w dt) - 1 and algorithmic damping xi.
+
+    Parameters
+    ----------
+    scheme : str
+        A scheme of the scheme table; its parameters as keywords.
+    omega_dt : array_like
+        Omega = omega dt values.
+    zeta : float
+        Physical damping ratio.
+
+    Returns
+    -------
+    Stability
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> s = dd.stability("average_acceleration", [0.1, 10.0])
+    >>> [round(float(r), 12) for r in s.spectral_radius]
+    [1.0, 1.0]
+    """
     info = get_scheme(scheme, **scheme_params)
     W = np.atleast_1d(np.asarray(omega_dt, dtype=float))
     if np.any(~np.isfinite(W)) or np.any(W <= 0.0):
@@ -55,7 +103,27 @@ def stability(scheme, omega_dt, zeta=0.0, **scheme_params) -> Stability:
 
 
 def critical_omega_dt(scheme, zeta=0.0, upper=1e4, **scheme_params) -> float:
-    """The largest Omega below which rho <= 1 (inf when stable up to ``upper``)."""
+    """The largest Omega below which rho <= 1 (inf when stable up to ``upper``).
+
+    Parameters
+    ----------
+    scheme : str
+        A scheme of the scheme table; its parameters as keywords.
+    zeta : float
+        Physical damping ratio.
+    upper : float
+        Largest Omega searched.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> round(float(dd.critical_omega_dt("central_difference")), 6), dd.critical_omega_dt("hht")
+    (2.0, inf)
+    """
     grid = np.geomspace(1e-3, upper, 4000)
     unstable = stability(scheme, grid, zeta, **scheme_params).spectral_radius > 1.0 + 1e-10
     if not unstable.any():

@@ -64,6 +64,22 @@ def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False) -> DiscreteModel:
     >>> Ass, Bss, Css, Dss = dd.newmark_ss(np.eye(2), np.zeros((2, 2)), 4 * np.eye(2), 0.1)
     >>> Ass.shape, Dss.shape
     ((4, 4), (4, 2))
+
+    Parameters
+    ----------
+    M, C, K : (n, n) array_like
+        Mass, damping, stiffness.
+    dt : float
+        Sample step, s.
+    num_damp : float
+        SHARPy's numerical damping alpha >= 0: gamma = 1/2 + alpha, beta = (1 + alpha)^2 / 4.
+    M_is_SPD : bool
+        SHARPy's flag; when True, M is checked to be symmetric positive definite.
+
+    Returns
+    -------
+    DiscreteModel
+        Iterable as ``(Ass, Bss, Css, Dss)``.
     """
     M, C, K = linalg.mck(M, C, K)
     dt = validate.positive_scalar("dt", dt)
@@ -122,6 +138,21 @@ def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False,
     ...                                 scheme="hht", alpha=-0.1, acceleration=True)
     >>> model.quantities
     ('x', 'v', 'a')
+
+    Parameters
+    ----------
+    M, C, K : (n, n) array_like
+        Mass, damping, stiffness.
+    dt : float
+        Sample step, s.
+    scheme : str
+        Any scheme of the scheme table (`dtdyn show --help` lists them); parameters as keywords.
+    acceleration : bool
+        Output [q; q'; q''] instead of [q; q'].
+
+    Returns
+    -------
+    DiscreteModel
     """
     from dtdyn.linear.mck import _initial_acceleration
     M, C, K = linalg.mck(M, C, K)

@@ -33,6 +33,20 @@ def frequency_response(mass, stiffness, damping, omega, force_dof: int, output: 
     ...                           force_dof=1, output=0)
     >>> H.shape
     (2,)
+
+    Parameters
+    ----------
+    mass, stiffness, damping : (N,) array_like
+        The chain (as `simulate_chain`).
+    omega : array_like
+        Circular frequencies, rad/s.
+    force_dof, output : int
+        The loaded mass and the mass whose displacement is returned (0-based).
+
+    Returns
+    -------
+    (len(omega),) complex ndarray
+        The receptance x_output / F, m/N.
     """
     m, k, c = chain_parameters(mass, stiffness, damping)
     for name, value in (("force_dof", force_dof), ("output", output)):
@@ -58,6 +72,25 @@ def undamped_poles(mass, stiffness) -> np.ndarray:
     U22 is a polynomial of degree N in lambda = omega^2 whose N roots are simple (an irreducible
     tridiagonal pencil has distinct eigenvalues); they are bracketed on a grid refined until N
     sign changes are found, then solved by Brent's method to machine precision.
+
+    Parameters
+    ----------
+    mass, stiffness : (N,) array_like
+        m_n > 0, k_n > 0 of the chain.
+
+    Returns
+    -------
+    (N,) ndarray
+        omega_n in rad/s, ascending.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> w = dd.undamped_poles([10, 9, 8, 7, 6, 6, 5.5, 5, 4.5, 4, 3.5, 4, 2.5, 2, 2],
+    ...                       [55000, 50000, 45000, 40000, 40000, 35000, 30000, 25000, 20000,
+    ...                        15000, 10000, 9000, 8000, 7000, 6000])          # P3
+    >>> round(float(w[0]), 2), round(float(w[-1]), 1)
+    (9.49, 148.2)
     """
     m, k, _ = chain_parameters(mass, stiffness, np.zeros(np.size(mass)))
 

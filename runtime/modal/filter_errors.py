@@ -113,6 +113,28 @@ def discrete_frequency_response(model: ModalModel, dt: float, freqs_hz, invarian
     |s_r| T << 1 is ~ (|s_r| T)^2 against coefficients of size 1, so round-off gives a relative
     error ~ 1e-16 / (|s_r| T)^2 near that mode, the same sensitivity the bank has to its
     rounded coefficients.
+
+    Parameters
+    ----------
+    model : ModalModel
+    dt : float
+        Sample step, s.
+    freqs_hz : array_like
+        Frequencies, Hz.
+    invariant : {"ramp", "step", "impulse"}
+    quantity : {"x", "v", "a"}
+
+    Returns
+    -------
+    (n_f, n_out, n_in) complex ndarray
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> model = dd.modal_model(np.eye(1), 0.2 * np.eye(1), 4.0 * np.eye(1))
+    >>> H = dd.discrete_frequency_response(model, 0.01, [0.0], "ramp")
+    >>> round(float(H[0, 0, 0].real), 10)   # the static flexibility 1/k
+    0.25
     """
     fs = 1.0 / validate.positive_scalar("dt", dt)
     f = _freqs(freqs_hz)
@@ -134,13 +156,49 @@ def continuous_frequency_response(model: ModalModel, freqs_hz,
 
     `ModalModel.frequency_response(2 pi f, quantity)`; see the module docstring for how it
     differs from the bank's target for acceleration with a truncated mode set.
+
+    Parameters
+    ----------
+    model : ModalModel
+    freqs_hz : array_like
+        Frequencies, Hz.
+    quantity : {"x", "v", "a"}
+
+    Returns
+    -------
+    (n_f, n_out, n_in) complex ndarray
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> model = dd.modal_model(np.eye(1), 0.2 * np.eye(1), 4.0 * np.eye(1))
+    >>> round(float(dd.continuous_frequency_response(model, [0.0])[0, 0, 0].real), 12)
+    0.25
     """
     return model.frequency_response(2.0 * np.pi * _freqs(freqs_hz), _quantity(quantity))
 
 
 def ramp_bias(freqs_hz, dt: float) -> np.ndarray:
     """(sin(pi f/fs)/(pi f/fs))^2 = numpy.sinc(f/fs)^2, fs = 1/dt: the ramp invariant's
-    input-spectrum factor (real, zero phase, system independent, 1 at f = 0 and 0 at f = fs)."""
+    input-spectrum factor (real, zero phase, system independent, 1 at f = 0 and 0 at f = fs).
+
+    Parameters
+    ----------
+    freqs_hz : array_like
+        Frequencies, Hz.
+    dt : float
+        Sample step, s.
+
+    Returns
+    -------
+    ndarray
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> [round(float(b), 4) for b in dd.ramp_bias([0.0, 50.0, 100.0], 0.01)]
+    [1.0, 0.4053, 0.0]
+    """
     fs = 1.0 / validate.positive_scalar("dt", dt)
     return np.sinc(_freqs(freqs_hz) / fs) ** 2
 
@@ -359,6 +417,14 @@ def truncation_error(M, C, K, force_dofs, outputs, modes, freqs_hz,
     TruncationError
         Exactly zero errors when ``modes`` holds every mode (both sums are then the same
         arithmetic).
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> p = dd.p3()
+    >>> e = dd.truncation_error(p["M"], p["C"], p["K"], [14], [14], range(5), [1.0, 5.0])
+    >>> bool(e.peak_relative < 0.1)
+    True
     """
     quantity = _quantity(quantity)
     f = _freqs(freqs_hz)

@@ -109,6 +109,28 @@ def to_sos(model: ModalModel, dt: float, output: int = 0, input: int = 0, invari
     ``model.force_dofs``; ``quantity`` is "x", "v" or "a". The bank adds these sections in
     parallel (plus the direct term); scipy's sosfilt cascades its rows, so filter each row
     separately and sum to reproduce the bank.
+
+    Parameters
+    ----------
+    model : ModalModel
+    dt : float
+        Sample step, s.
+    output, input : int
+        Indices into ``model.outputs`` and ``model.force_dofs``.
+    invariant : {"ramp", "step", "impulse"}
+    quantity : {"x", "v", "a"}
+
+    Returns
+    -------
+    (n_modes, 6) ndarray
+        scipy.signal sos rows (b0, b1, b2, 1, a1, a2).
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> model = dd.modal_model(np.eye(1), 0.2 * np.eye(1), 4.0 * np.eye(1))
+    >>> dd.to_sos(model, 0.01).shape
+    (1, 6)
     """
     sos, in_col, out_col, _ = sections(model, 1.0 / validate.positive_scalar("dt", dt),
                                        invariant, quantity)

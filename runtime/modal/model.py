@@ -104,6 +104,13 @@ class ModalModel:
 
     Construct with `modal_model` (from M, C, K) or `from_poles_residues` (experimental data);
     direct construction validates but does not sort. The arrays are read-only copies.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> model = dd.modal_model(np.eye(1), 0.2 * np.eye(1), 4.0 * np.eye(1))
+    >>> model.poles
+    array([-0.1+1.99749844j])
     """
 
     poles: np.ndarray
@@ -227,6 +234,13 @@ def from_poles_residues(poles, residues, force_dofs=(0,), outputs=(0,)) -> Modal
         0-based DOF labels of the inputs (loaded DOFs) and outputs.
 
     The modes are sorted by |s| ascending (stable).
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> model = dd.from_poles_residues([-0.1 + 10j], [-0.05j])    # one measured mode
+    >>> round(float(model.frequencies[0]), 4)
+    10.0005
     """
     inputs = _index_array("force_dofs", force_dofs, None, "DOF")
     outputs = _index_array("outputs", outputs, None, "DOF")
@@ -293,6 +307,14 @@ def modal_model(M, C, K, force_dofs=None, outputs=None, modes=None) -> ModalMode
     A conditioning estimate eps * kappa^2 (kappa = the largest eigenvalue condition number) of
     the modal sum's relative error gives a DtdynAccuracyWarning above 1e-8 (a nearly critically
     damped mode) and a ValueError above 1e-3.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> model = dd.modal_model(np.eye(2), 0.01 * np.eye(2), np.array([[2.0, -1.0], [-1.0, 1.0]]),
+    ...                        force_dofs=[1], outputs=[0, 1])
+    >>> model.n_modes, np.round(model.frequencies, 4)
+    (2, array([0.618, 1.618]))
     """
     M, C, K = linalg.mck(M, C, K)
     n = M.shape[0]

@@ -142,6 +142,18 @@ class SRS:
     most negative one (-min y), ``maximax`` the larger of the two; one entry per ``freqs`` [Hz].
     ``info`` records the parameters, the effective sampling rate, the per-frequency error bounds
     ``peak_error_bound`` (0 with exact peaks) and ``bias_bound``, and timings in seconds.
+
+    Attributes
+    ----------
+    freqs, maximax, positive, negative : (n_f,) ndarray
+    info : dict
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> srs = dd.shock_response_spectrum(np.sin(np.arange(100) / 5.0), 1e-3, [10.0, 20.0])
+    >>> srs.maximax.shape
+    (2,)
     """
 
     freqs: np.ndarray
@@ -453,6 +465,16 @@ def shock_response_spectrum(accel, dt, freqs, damping=0.05, response="absolute_a
     SRSSamplingWarning
         When the peak-picking bound 1 - cos(pi f / fs_eff) (not with exact_peaks) or the
         band-limited bias bound 1 - sinc^2(f / fs) exceeds 5 % at the highest frequency.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> dt = 1e-4
+    >>> t = np.arange(201) * dt
+    >>> accel = np.where(t < 0.01, np.sin(np.pi * t / 0.01), 0.0)   # 10 ms half-sine, 1 g
+    >>> srs = dd.shock_response_spectrum(accel, dt, [10.0, 100.0], exact_peaks=True)
+    >>> bool(srs.maximax[1] > 1.5)           # near 1/T the response amplifies the pulse
+    True
     """
     a, fs, f, zeta, ppc = _check_common(accel, dt, freqs, damping, response, points_per_cycle)
     if window not in WINDOWS:
@@ -529,6 +551,23 @@ def sdof_response(accel, dt, freqs, damping=0.05, response="absolute_acceleratio
     """Response histories at the (upsampled) samples t_0 .. t_{N-1}: ``(t, y)``, y (n_t, n_freqs).
 
     The same filters as :func:`shock_response_spectrum` (no extremes, no windows).
+
+    Parameters
+    ----------
+    accel, dt, freqs, damping, response, points_per_cycle
+        As `shock_response_spectrum`.
+
+    Returns
+    -------
+    t : (n_t,) ndarray
+    y : (n_t, len(freqs)) ndarray
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> t, y = dd.sdof_response(np.ones(100), 1e-3, [5.0, 50.0])
+    >>> y.shape
+    (100, 2)
     """
     a, fs, f, zeta, ppc = _check_common(accel, dt, freqs, damping, response, points_per_cycle)
     u = _upsample_factor(float(f.max()), fs, ppc)
@@ -545,7 +584,27 @@ def sdof_response(accel, dt, freqs, damping=0.05, response="absolute_acceleratio
 def load_record(path, column: int | None = None) -> np.ndarray:
     """Samples from a .npy file (1-D, or 2-D: take ``column``, default the last) or a CSV/text
     file (one sample a row, or columns such as t, a: take ``column``; one header line is
-    skipped). A ``column`` for a 1-D record is an error (there is nothing to choose)."""
+    skipped). A ``column`` for a 1-D record is an error (there is nothing to choose).
+
+    Parameters
+    ----------
+    path : str or Path
+        .npy, .csv or text file.
+    column : int, optional
+        The column of a table.
+
+    Returns
+    -------
+    (n,) ndarray
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd, tempfile, pathlib
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "a.npy"
+    >>> np.save(path, np.array([[0.0, 1.0], [0.001, 2.0]]))   # columns t, a
+    >>> dd.load_record(path)
+    array([1., 2.])
+    """
     p = Path(path)
     if p.suffix.lower() == ".npy":
         data = np.load(p, allow_pickle=False)

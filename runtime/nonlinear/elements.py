@@ -109,7 +109,21 @@ class Element:
 
 @dataclass(frozen=True)
 class Cubic(Element):
-    """Cubic spring g = k3 y^3 (N/m^3)."""
+    """Cubic spring g = k3 y^3 (N/m^3).
+
+    Attributes
+    ----------
+    i, j : int, int or None
+        The element acts on y = q_i - q_j (j None: between DOF i and the ground).
+    k3 : float
+        Cubic stiffness, N/m^3.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> dd.Cubic(0, 1, k3=2e7).describe()
+    'Cubic (DOF 0 - DOF 1)'
+    """
 
     k3: float = field(default=None, kw_only=True)
 
@@ -123,7 +137,21 @@ class Cubic(Element):
 
 @dataclass(frozen=True)
 class Polynomial(Element):
-    """Polynomial spring g = sum_p coeffs[p] y^p (numpy.polynomial order: coeffs[0] constant)."""
+    """Polynomial spring g = sum_p coeffs[p] y^p (numpy.polynomial order: coeffs[0] constant).
+
+    Attributes
+    ----------
+    i, j : int, int or None
+        The element acts on y = q_i - q_j (j None: between DOF i and the ground).
+    coeffs : tuple of float
+        c_0, c_1, ... of g = sum_p c_p y^p.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> dd.Polynomial(2, coeffs=(0.0, 1e3, 0.0, 5e6)).describe()
+    'Polynomial (DOF 2 - ground)'
+    """
 
     coeffs: tuple = field(default=None, kw_only=True)
 
@@ -150,6 +178,24 @@ class Gap(Element):
     keeps one contact only. ``smoothing`` = delta > 0 replaces r by the softplus
     delta log(1 + e^(u/delta)) (C-infinity; contact force k delta log 2 at first touch), which
     helps Newton at a large dt; 0 keeps the exact kink.
+
+    Attributes
+    ----------
+    i, j : int, int or None
+        The element acts on y = q_i - q_j (j None: between DOF i and the ground).
+    gap : float
+        Clearance, m (>= 0).
+    stiffness : float
+        Contact stiffness, N/m.
+    smoothing : float
+        Softplus width, m (0: exact kink).
+    side : {"both", "positive", "negative"}
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> dd.Gap(0, gap=1e-3, stiffness=1e6).describe()
+    'Gap (DOF 0 - ground)'
     """
 
     gap: float = field(default=None, kw_only=True)
@@ -189,6 +235,21 @@ class Law(Element):
 
     The text is parsed by `dtdyn.nonlinear.expressions` (arithmetic, x, v, the constants given
     and a fixed list of functions); anything else is refused here, before anything runs.
+
+    Attributes
+    ----------
+    i, j : int, int or None
+        The element acts on y = q_i - q_j (j None: between DOF i and the ground).
+    expression : str
+        g(x, v), x = y and v = y'.
+    constants : dict
+        Named numbers used in the expression.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> dd.Law(0, expression="c*v*abs(v)", c=0.5).describe()
+    'Law (DOF 0 - ground)'
     """
 
     expression: str = field(default=None, kw_only=True)
@@ -236,6 +297,19 @@ class BoucWen(Element):
     k: initial stiffness; alpha: post- to pre-yield stiffness ratio; A, beta, gamma, n: the
     loop's shape (with A = 1 the ultimate z is (A / (beta + gamma))^(1/n), the yield
     displacement). z is integrated with the step (trapezoidal rule, solved with y).
+
+    Attributes
+    ----------
+    i, j : int, int or None
+        The element acts on y = q_i - q_j (j None: between DOF i and the ground).
+    stiffness, alpha, A, beta, gamma, n : float
+        As in the equations above.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> dd.BoucWen(0, stiffness=1e4, beta=50.0, gamma=50.0).describe()
+    'BoucWen (DOF 0 - ground)'
     """
 
     stiffness: float = field(default=None, kw_only=True)

@@ -346,6 +346,14 @@ def reference_response(M, C, K, force, dt, *, elements=(), force_dofs=None, outp
     -------
     >>> from dtdyn.nonlinear.elements import Cubic
     >>> r = reference_response(f, 1000.0, M, C, K, [3], [Cubic(0, k3=2e7)])  # doctest: +SKIP
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> r = dd.reference_response(np.eye(1), 0.1 * np.eye(1), np.eye(1), np.ones(51), 0.1,
+    ...                           elements=[dd.Cubic(0, k3=0.5)], cache=False)
+    >>> r.x.shape
+    (51, 1)
     """
     start = time.perf_counter()
     method = ode_solver
@@ -406,6 +414,21 @@ def check_reference(M, C, K, force, dt, *, elements=(), force_dofs=None, outputs
         max over outputs of ( max over time |x_DOP853 - x_Radau| / max over time |x_Radau| ),
         the number a report can quote as the reference's own accuracy. Outputs that stay at
         zero are skipped.
+
+    Parameters
+    ----------
+    M, C, K, force, dt, elements, force_dofs, outputs, rtol, atol, cache
+        As `reference_response`.
+    n_samples : int
+        The samples compared (the start of the record).
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> e = dd.check_reference(np.eye(1), 0.1 * np.eye(1), np.eye(1), np.ones(51), 0.1,
+    ...                        elements=[dd.Cubic(0, k3=0.5)])
+    >>> bool(e < 1e-9)
+    True
     """
     n_total = np.shape(force)[0] if np.ndim(force) >= 1 else 0
     n_samples = min(validate.step_count("n_samples", n_samples), max(n_total, 1))

@@ -103,6 +103,29 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
     ``base_dir`` is where ``file`` loads and matrix files (``model.file``, ``.mtx`` paths) are
     looked for. Errors are ``ValueError`` naming the field (without the file name;
     :func:`load_scene` adds it).
+
+    Parameters
+    ----------
+    data : dict
+        The scene's tables (the layout of `dtdyn.app.scene.schema`).
+    base_dir : str or Path
+        Folder for relative file names.
+    source : str
+        Name used in error messages.
+
+    Returns
+    -------
+    Scene
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> s = dd.scene_from_dict({"model": {"mass": [1.0], "stiffness": [4.0]},
+    ...                         "load": [{"dof": 0, "kind": "step"}],
+    ...                         "scheme": {"name": "newmark"},
+    ...                         "time": {"dt": 0.1, "duration": 1.0}})
+    >>> s.n_steps, s.quantities
+    (10, ('x',))
     """
     if not isinstance(data, dict):
         raise ValueError(f"a scene must be a table, got {type(data).__name__}")
@@ -183,6 +206,12 @@ def load_scene(path: str | os.PathLike | None = None) -> Scene:
     -------
     >>> load_scene().n_dof
     15
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> dd.load_scene().title[:2]
+    'P3'
     """
     if path is None:
         resource = importlib.resources.files("dtdyn.app").joinpath(DEFAULT_SCENE)

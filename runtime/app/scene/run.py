@@ -133,6 +133,21 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
     NewtonError, DtdynStepStabilityError
         A nonlinear scene's step failed (dtdyn.nonlinear.response); the message starts with the
         scene file and names the step, its time and the residual (or the tangent stiffness).
+
+    Parameters
+    ----------
+    scene : Scene
+    progress : bool
+        A progress bar on long runs.
+    check : bool
+        Compare with `exact_response` (linear scenes up to ``EXACT_MAX_DOF`` DOFs).
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> response, report = dd.run_scene(dd.load_scene())
+    >>> response.x.shape, report["check"], bool(report["max_rel_error"] < 1e-2)
+    ((801, 15), 'done', True)
     """
     check_stability(scene)
     if not scene.linear:

@@ -174,6 +174,30 @@ class Scene:
     file gives (``substeps``, ``tol``, ``max_iter``, ``modes``, ``backend``; the others take
     ``nonlinear_response``'s defaults), ``backend`` ``"c"`` or ``"casadi"``, ``form`` and
     ``sweep`` None; matrices are dense.
+
+    Attributes
+    ----------
+    title, source : str
+        The scene's title and file.
+    kind : {"chain", "matrices"}
+    mass, stiffness, damping : ndarray or None
+        A chain's stations.
+    M, C, K : ndarray, scipy.sparse matrix or None
+        A matrices model (damping options already in C).
+    loads, loaded, force : list of dict, ndarray, ndarray
+        The load tables, the loaded DOFs (``force_dofs`` of the runs) and the summed samples.
+    scheme, scheme_params, form, sweep, backend : str, dict, str, str, str
+    dt, n_steps : float, int
+    outputs, quantities : ndarray, tuple of str
+    elements, nonlinear : tuple, dict
+        Nonlinear elements and the ``[nonlinear]`` options.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> scene = dd.load_scene()            # the embedded P3 scene
+    >>> scene.n_dof, scene.scheme, scene.n_steps
+    (15, 'average_acceleration', 800)
     """
 
     title: str
