@@ -2,7 +2,7 @@
 tests' own helpers."""
 import numpy as np
 
-from dtdyn.app.problems import p1, p2, p3, p4  # noqa: F401  (p4 is imported from here by tests)
+from dtdyn.app.problems import p1, p2, p3, p4  # noqa: F401  (re-exported for the tests)
 
 _KEYS = ("mass", "stiffness", "damping", "dt", "T", "force_dofs")
 P1, P2, P3 = ({k: p[k] for k in _KEYS if k in p} for p in (p1(), p2(), p3()))

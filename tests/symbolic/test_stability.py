@@ -66,6 +66,7 @@ def test_fox_euler_as_published():
     assert critical_omega_dt("fox_euler", upper=1e6) == math.inf
 
 
+@pytest.mark.slow
 def test_period_elongation_series_of_average_acceleration():
     from dtdyn.derive.stability import Omega, period_elongation_series
 

@@ -4,17 +4,20 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from dtdyn.app.cli import main
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 
 
+@pytest.mark.slow
 def test_generated_is_up_to_date():
     """Regenerates in memory and diffs against the checked-in generated/ of this checkout."""
     assert main(["generate", "--check", "--out", str(REPO / "generated")]) == 0
 
 
+@pytest.mark.slow
 def test_check_detects_drift(tmp_path, capsys):
     assert main(["generate", "--out", str(tmp_path)]) == 0
     target = tmp_path / "scheme_houbolt.py"

@@ -60,7 +60,9 @@ def test_parameterised_schemes():
         _run_both(P2, 1e-2, 1000, scheme, **kw)
 
 
-@pytest.mark.parametrize("n_mass, backends", [(1000, ("c", "numpy")), (100_000, ("c", "numpy"))])
+@pytest.mark.parametrize("n_mass, backends", [(1000, ("c", "numpy")),
+                                             pytest.param(100_000, ("c", "numpy"),
+                                                          marks=pytest.mark.slow)])
 def test_long_uniform_chain(n_mass, backends):
     prob = uniform_chain(n_mass)
     dt, n_steps = 1e-4, 1000

@@ -9,7 +9,7 @@ import pytest
 import dtdyn as dd
 from dtdyn.generated.scheme_table import TABLE
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+README = Path(__file__).resolve().parents[2] / "README.md"
 
 
 def _scene(scheme: dict) -> dict:
