@@ -8,6 +8,9 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -303,8 +306,49 @@ def render_all() -> dict[str, str]:
            bindings=c_api.bindings())
     render("numpy/scheme_table.py.jinja", "scheme_table.py",
            "dtdyn.derive.integrators.scheme_table", table=I.scheme_table())
+    out = format_sources(out)
     manifest = {n: {"sha256": hashlib.sha256(t.encode()).hexdigest()} for n, t in sorted(out.items())}
     out["manifest.json"] = json.dumps(manifest, indent=1, sort_keys=True) + "\n"
+    return out
+
+
+#: the formatters of the generated sources, pinned in the [derive] extra so that regenerating
+#: gives the same bytes on every machine
+FORMATTERS = {"ruff": "0.8.6", "clang-format": "19.1.6"}
+CLANG_STYLE = ("{BasedOnStyle: LLVM, IndentWidth: 4, ColumnLimit: 100, "
+               "AllowShortFunctionsOnASingleLine: None, SortIncludes: Never}")
+
+
+def _formatter(name: str) -> str:
+    """Path of a pinned formatter (next to this Python, else on PATH), its version checked."""
+    exe = Path(sys.executable).parent / name
+    path = str(exe) if exe.is_file() else shutil.which(name)
+    want = FORMATTERS[name]
+    if path is None:
+        raise RuntimeError(f"dtdyn generate needs {name} {want}: pip install \"dtdyn[derive]\"")
+    version = subprocess.run([path, "--version"], capture_output=True, text=True).stdout
+    if want not in version:
+        raise RuntimeError(f"dtdyn generate needs {name} {want} (the bytes of generated/ depend "
+                           f"on it), found: {version.strip()}; pip install \"dtdyn[derive]\"")
+    return path
+
+
+def format_sources(files: dict[str, str]) -> dict[str, str]:
+    """Every generated .py through ruff format and every .c through clang-format (pinned)."""
+    ruff, clang = _formatter("ruff"), _formatter("clang-format")
+    out = {}
+    for name, text in files.items():
+        if name.endswith(".py"):
+            cmd = [ruff, "format", "--line-length", "100", "--stdin-filename", name, "-"]
+        elif name.endswith(".c"):
+            cmd = [clang, f"--style={CLANG_STYLE}", f"--assume-filename={name}"]
+        else:
+            out[name] = text
+            continue
+        proc = subprocess.run(cmd, input=text, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise RuntimeError(f"formatting {name} failed: {proc.stderr.strip()}")
+        out[name] = proc.stdout
     return out
 
 

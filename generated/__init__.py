@@ -3,4 +3,17 @@
 """Generated kernels: one coefficient module and one C source per scheme, the DT-TMM sweeps and
 the Laplace-domain element matrices. Nothing here imports SymPy."""
 
-SCHEMES = ("newmark", "average_acceleration", "linear_acceleration", "fox_goodwin", "newmark_1_8", "central_difference", "fox_euler", "wilson", "houbolt", "park", "hht", "generalized_alpha", )
+SCHEMES = (
+    "newmark",
+    "average_acceleration",
+    "linear_acceleration",
+    "fox_goodwin",
+    "newmark_1_8",
+    "central_difference",
+    "fox_euler",
+    "wilson",
+    "houbolt",
+    "park",
+    "hht",
+    "generalized_alpha",
+)

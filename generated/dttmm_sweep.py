@@ -25,6 +25,7 @@ for two error histories, E_s and E_r, and adds this step's rounding error to the
 e = max_n (max_i |E_s,x| + max_i |E_r,x|) and x_max = max_n max_i |x| the relative error estimate
 is e / (x_max - e) (infinite when e >= x_max).
 """
+
 import numpy as np
 from scipy.linalg.lapack import dtbtrs
 
@@ -127,8 +128,10 @@ def error_history_maps(K, names):
     L = np.array([expanded(K, pre, names) for pre in ("q", "s", "b", "x1", "v1", "a1")])
     c_u = np.array([K.get(f"{qty}1_u", 0.0) for qty in "xva"])[:, None]
     lagged = sorted((nm for nm in names if _lag(nm) > 0), key=_lag, reverse=True)
-    shifts = [(names.index(nm), names.index(nm[0] + ("0" if _lag(nm) == 1 else f"m{_lag(nm) - 1}")))
-              for nm in lagged]
+    shifts = [
+        (names.index(nm), names.index(nm[0] + ("0" if _lag(nm) == 1 else f"m{_lag(nm) - 1}")))
+        for nm in lagged
+    ]
     rows = [names.index(qty + "0") for qty in "xva"]
     rows = slice(rows[0], rows[0] + 3) if rows == list(range(rows[0], rows[0] + 3)) else rows
     return L[:3].copy(), L[3:].copy(), c_u, shifts, rows
@@ -157,12 +160,18 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E
     for n in range(N - 1, -1, -1):
         mn, kp = m[n], kappa[n]
         SR[n] = S_R
-        g[n] = kp/(-S_R + alpha_u*mn + kp)
-        S_L = kp*(S_R - alpha_u*mn)/(-S_R + alpha_u*mn + kp)
-        af[n] = kp/(-S_R + alpha_u*mn + kp)
-        den[n] = -S_R + alpha_u*mn + kp
+        g[n] = kp / (-S_R + alpha_u * mn + kp)
+        S_L = kp * (S_R - alpha_u * mn) / (-S_R + alpha_u * mn + kp)
+        af[n] = kp / (-S_R + alpha_u * mn + kp)
+        den[n] = -S_R + alpha_u * mn + kp
         if sweep == "plain":
-            es[:, n] = ((-S_R + alpha_u*mn)/(-S_R + alpha_u*mn + kp), -kp*mn/(-S_R + alpha_u*mn + kp), 1.0/(-S_R + alpha_u*mn + kp), -1.0/(-S_R + alpha_u*mn + kp), -mn/(-S_R + alpha_u*mn + kp))
+            es[:, n] = (
+                (-S_R + alpha_u * mn) / (-S_R + alpha_u * mn + kp),
+                -kp * mn / (-S_R + alpha_u * mn + kp),
+                1.0 / (-S_R + alpha_u * mn + kp),
+                -1.0 / (-S_R + alpha_u * mn + kp),
+                -mn / (-S_R + alpha_u * mn + kp),
+            )
         S_R = S_L
     upper = np.ones((2, N))
     upper[0, 1:] = -g[:-1]
@@ -190,15 +199,17 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E
         P_u, P_f = 0.0, 1.0
         for n in range(N):
             mn, kp = ml[n], kl[n]
-            T12[n], T21[n], T22[n] = (1.0/kp), (alpha_u*mn), (alpha_u*mn/kp + 1.0)
+            T12[n], T21[n], T22[n] = (1.0 / kp), (alpha_u * mn), (alpha_u * mn / kp + 1.0)
             P_u, P_f = (1.0) * P_u + T12[n] * P_f, T21[n] * P_u + T22[n] * P_f
             Pu[n] = P_u
         PfN = P_f
         # eps_P: the rounding error of P_f,N against the same product in double-double
         uh, ul, fh, fl = 0.0, 0.0, 1.0, 0.0
         for n in range(N):
-            (uh, ul), (fh, fl) = (dd_axpy((1.0), uh, ul, T12[n], fh, fl),
-                                  dd_axpy(T21[n], uh, ul, T22[n], fh, fl))
+            (uh, ul), (fh, fl) = (
+                dd_axpy((1.0), uh, ul, T12[n], fh, fl),
+                dd_axpy(T21[n], uh, ul, T22[n], fh, fl),
+            )
         with np.errstate(all="ignore"):
             epsP = float(np.float64((PfN - fh) - fl) / fh)
         if not np.isfinite(epsP):
@@ -211,11 +222,11 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E
         Dl = k * np.diff(q, prepend=0.0) + c * np.diff(s, prepend=0.0)
         if sweep == "stable":
             mn, kp = m, kappa
-            h = (-Dl*SR + Dl*alpha_u*mn + Fe*kp - b*kp*mn) / den
+            h = (-Dl * SR + Dl * alpha_u * mn + Fe * kp - b * kp * mn) / den
             R, info = dtbtrs(upper, h[:, None], uplo="U", diag="U")
             R = R[:, 0]
             R_R = np.append(R[1:], 0.0)
-            u, info = dtbtrs(lower, ((-Dl + Fe + R_R - b*mn) / den)[:, None], uplo="L", diag="U")
+            u, info = dtbtrs(lower, ((-Dl + Fe + R_R - b * mn) / den)[:, None], uplo="L", diag="U")
             u = u[:, 0]
         else:
             u = np.empty(N)
@@ -223,14 +234,18 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E
             Q_u, Q_f = 0.0, 0.0
             for n in range(N):
                 mn, kp, Dn, Fn, bn = ml[n], kl[n], Dll[n], Fel[n], bl[n]
-                T13[n], T23[n] = (-Dn/kp), (-Dn*alpha_u*mn/kp - Fn + bn*mn)
-                Q_u, Q_f = ((1.0) * Q_u + T12[n] * Q_f + T13[n],
-                            T21[n] * Q_u + T22[n] * Q_f + T23[n])
+                T13[n], T23[n] = (-Dn / kp), (-Dn * alpha_u * mn / kp - Fn + bn * mn)
+                Q_u, Q_f = (
+                    (1.0) * Q_u + T12[n] * Q_f + T13[n],
+                    T21[n] * Q_u + T22[n] * Q_f + T23[n],
+                )
             f1 = -Q_f / PfN
             z_u, z_f = 0.0, f1
             for n in range(N):
-                z_u, z_f = ((1.0) * z_u + T12[n] * z_f + T13[n],
-                            T21[n] * z_u + T22[n] * z_f + T23[n])
+                z_u, z_f = (
+                    (1.0) * z_u + T12[n] * z_f + T13[n],
+                    T21[n] * z_u + T22[n] * z_f + T23[n],
+                )
                 u[n] = z_u
             # error estimate: both error histories' exact zero-force step plus this step's
             # rounding error, -eps_P f_1 P_u (E_s) and RANDOM_SPREAD s_j eps f_1 P_u (E_r)
@@ -246,8 +261,10 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E
                 E2[:, dst] = E2[:, src]
             E2[:, rows] = enew
             emax = max(emax, float(np.abs(enew[0, 0]).max() + np.abs(enew[1, 0]).max()))
-        new = {qty: combine(K, qty + "1", H, names, K[qty + "1_u"] * u if qty + "1_u" in K else None)
-               for qty in "xva"}
+        new = {
+            qty: combine(K, qty + "1", H, names, K[qty + "1_u"] * u if qty + "1_u" in K else None)
+            for qty in "xva"
+        }
         shift_history(H, names, new)
         if sweep == "plain":
             xmax = max(xmax, float(np.abs(new["x"]).max()))

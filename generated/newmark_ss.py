@@ -15,25 +15,28 @@ SHARPy's newmark_ss parameters: gamma = num_damp + 1/2, beta = (num_damp + 1)**2
 
 def sharpy_params(num_damp):
     """(beta, gamma) of SHARPy's newmark_ss for its num_damp."""
-    return ((1.0/4.0))*((num_damp + 1.0)*(num_damp + 1.0)), num_damp + (1.0/2.0)
+    return (1.0 / 4.0) * ((num_damp + 1.0) * (num_damp + 1.0)), num_damp + (1.0 / 2.0)
 
 
 def blocks(M, C, K, I, Z, dt, beta, gamma):
     """E1, E0 (2 x 2 block lists), G0, G1 (2 x 1): I identity, Z zero block, like M."""
     E1 = [
-        [(1.0) * M + (beta*(dt*dt)) * K, (beta*(dt*dt)) * C],
-        [(dt*gamma) * K, (1.0) * M + (dt*gamma) * C],
+        [(1.0) * M + (beta * (dt * dt)) * K, (beta * (dt * dt)) * C],
+        [(dt * gamma) * K, (1.0) * M + (dt * gamma) * C],
     ]
     E0 = [
-        [(1.0) * M + (-(dt*dt)*((1.0/2.0) - beta)) * K, (-(dt*dt)*((1.0/2.0) - beta)) * C + (dt) * M],
-        [(-dt*(1.0 - gamma)) * K, (1.0) * M + (-dt*(1.0 - gamma)) * C],
+        [
+            (1.0) * M + (-(dt * dt) * ((1.0 / 2.0) - beta)) * K,
+            (-(dt * dt) * ((1.0 / 2.0) - beta)) * C + (dt) * M,
+        ],
+        [(-dt * (1.0 - gamma)) * K, (1.0) * M + (-dt * (1.0 - gamma)) * C],
     ]
     G0 = [
-        [(-(dt*dt)*(beta + (-1.0/2.0))) * I],
-        [(-dt*(gamma - 1.0)) * I],
+        [(-(dt * dt) * (beta + (-1.0 / 2.0))) * I],
+        [(-dt * (gamma - 1.0)) * I],
     ]
     G1 = [
-        [(beta*(dt*dt)) * I],
-        [(dt*gamma) * I],
+        [(beta * (dt * dt)) * I],
+        [(dt * gamma) * I],
     ]
     return E1, E0, G0, G1

@@ -23,16 +23,23 @@
 #include <string.h>
 
 typedef long long int nl_int;
-typedef int (*chain_fn)(int form, int sweep, long N, long n_steps, const double *m, const double *k, const double *c, double dt, const double *params, long n_loaded, const long *loaded, const double *force, double *hist, long n_out, const long *out_idx, double *xo, double *vo, double *ao, double *work, double *ehist, double *err);
+typedef int (*chain_fn)(int form, int sweep, long N, long n_steps, const double *m, const double *k,
+                        const double *c, double dt, const double *params, long n_loaded,
+                        const long *loaded, const double *force, double *hist, long n_out,
+                        const long *out_idx, double *xo, double *vo, double *ao, double *work,
+                        double *ehist, double *err);
 /* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
    the definitions below against the ctypes bindings in generated/c_api.py */
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem);
-int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx, const double *const *mats, double *restrict H, double *restrict u, double *restrict g, double *restrict rate, double *const *out, double h, double tol, double *stats, long *fail, double *restrict work, nl_int *restrict iwork);
+int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
+                   const double *const *mats, double *restrict H, double *restrict u,
+                   double *restrict g, double *restrict rate, double *const *out, double h,
+                   double tol, double *stats, long *fail, double *restrict work,
+                   nl_int *restrict iwork);
 
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
 /* Solve J d = -r in place (J column-major n x n, from CasADi) by LU with partial pivoting. */
-static int lu_solve(long n, double *restrict J, double *restrict r)
-{
+static int lu_solve(long n, double *restrict J, double *restrict r) {
     long i, j, k, p;
     for (k = 0; k < n; ++k) {
         double best = fabs(J[k * n + k]);
@@ -47,9 +54,13 @@ static int lu_solve(long n, double *restrict J, double *restrict r)
         if (p != k) {
             double t;
             for (j = 0; j < n; ++j) {
-                t = J[j * n + k]; J[j * n + k] = J[j * n + p]; J[j * n + p] = t;
+                t = J[j * n + k];
+                J[j * n + k] = J[j * n + p];
+                J[j * n + p] = t;
             }
-            t = r[k]; r[k] = r[p]; r[p] = t;
+            t = r[k];
+            r[k] = r[p];
+            r[p] = t;
         }
         for (i = k + 1; i < n; ++i) {
             const double l = J[k * n + i] / J[k * n + k];
@@ -70,8 +81,7 @@ static int lu_solve(long n, double *restrict J, double *restrict r)
     return 0;
 }
 
-static double norm_inf(long n, const double *v)
-{
+static double norm_inf(long n, const double *v) {
     double m = 0.0;
     long i;
     for (i = 0; i < n; ++i) {
@@ -84,15 +94,13 @@ static double norm_inf(long n, const double *v)
     return m;
 }
 
-static inline void copy(long n, const double *restrict src, double *restrict dst)
-{
+static inline void copy(long n, const double *restrict src, double *restrict dst) {
     long i;
     for (i = 0; i < n; ++i)
         dst[i] = src[i];
 }
 
-static inline void zero(long n, double *restrict dst)
-{
+static inline void zero(long n, double *restrict dst) {
     long i;
     for (i = 0; i < n; ++i)
         dst[i] = 0.0;
@@ -115,8 +123,7 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                    const double *const *mats, double *restrict H, double *restrict u,
                    double *restrict g, double *restrict rate, double *const *out, double h,
                    double tol, double *stats, long *fail, double *restrict work,
-                   nl_int *restrict iwork)
-{
+                   nl_int *restrict iwork) {
     const long N = dims[0], nh = dims[1], nl = dims[2], nf = dims[3], ne = dims[4];
     const long nw = dims[5], nz = dims[6], no = dims[7], n_samples = dims[8], S = dims[9];
     const long max_iter = dims[10], ix = dims[12], iv = dims[13], ia = dims[14];
@@ -133,8 +140,15 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
     double *res[4];
     double scale = 0.0;
     long n, j, i, e, o, t, it;
-    arg[0] = u; arg[1] = Q; arg[2] = zold; arg[3] = rold; arg[4] = par;
-    res[0] = r; res[1] = J; res[2] = gn; res[3] = rn_;
+    arg[0] = u;
+    arg[1] = Q;
+    arg[2] = zold;
+    arg[3] = rold;
+    arg[4] = par;
+    res[0] = r;
+    res[1] = J;
+    res[2] = gn;
+    res[3] = rn_;
     stats[0] = stats[1] = stats[2] = stats[3] = 0.0;
     for (n = 0; n < n_samples; ++n) {
         const double *f0 = force + n * nf, *f1 = f0 + nf;
@@ -158,8 +172,8 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                 if (pj[e] >= 0)
                     frc[pj[e]] += g[e];
             }
-            if (sweep(form, (n == 0 && j == 0) ? 0 : 2, N, 1, m, k, c, h, params, nl, loaded,
-                      frc, H, 0, NULL, NULL, NULL, NULL, cwork, NULL, NULL))
+            if (sweep(form, (n == 0 && j == 0) ? 0 : 2, N, 1, m, k, c, h, params, nl, loaded, frc,
+                      H, 0, NULL, NULL, NULL, NULL, cwork, NULL, NULL))
                 return 4;
             for (e = 0; e < ne; ++e) {
                 Q[e] = H[ix * N + ei[e]] - (ej[e] >= 0 ? H[ix * N + ej[e]] : 0.0);

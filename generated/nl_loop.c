@@ -16,10 +16,10 @@
  * Between samples the force is linear: f at sub-step j of sample n is f_n + (j/S)(f_{n+1} - f_n).
  *
  * Newton stops when |r|_inf <= max(tol, 16 eps |J|_inf) * (the largest |u|_inf or |Q|_inf so
- * far): the second term is the round-off floor of r for stiff elements. Matrices are column-major; par
- * holds Dwg, then h. Returns 0, or 1 when Newton failed at step fail[0] (sub-step
- * index) with residual stats[3] (non-finite, singular Jacobian or max_iter iterations), 3 (see
- * below) when the step is beyond its stability limit.
+ * far): the second term is the round-off floor of r for stiff elements. Matrices are column-major;
+ * par holds Dwg, then h. Returns 0, or 1 when Newton failed at step fail[0] (sub-step index) with
+ * residual stats[3] (non-finite, singular Jacobian or max_iter iterations), 3 (see below) when the
+ * step is beyond its stability limit.
  */
 #include <float.h>
 #include <math.h>
@@ -28,12 +28,14 @@ typedef long long int nl_int;
 /* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
    the definitions below against the ctypes bindings in generated/c_api.py */
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem);
-int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force, double *restrict x, double *restrict u, double *restrict g, double *restrict rate, double *restrict out, double tol, double theta_limit, double *stats, long *fail, double *restrict work, nl_int *restrict iwork);
+int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
+                 double *restrict x, double *restrict u, double *restrict g, double *restrict rate,
+                 double *restrict out, double tol, double theta_limit, double *stats, long *fail,
+                 double *restrict work, nl_int *restrict iwork);
 
 /* y += A x with A column-major (rows x cols): independent axpys, no long add chains */
 static inline void matvec_add(long rows, long cols, const double *restrict A,
-                              const double *restrict x, double *restrict y)
-{
+                              const double *restrict x, double *restrict y) {
     long i, j;
     for (j = 0; j < cols; ++j) {
         const double xj = x[j];
@@ -45,8 +47,7 @@ static inline void matvec_add(long rows, long cols, const double *restrict A,
 
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
 /* Solve J d = -r in place (J column-major n x n, from CasADi) by LU with partial pivoting. */
-static int lu_solve(long n, double *restrict J, double *restrict r)
-{
+static int lu_solve(long n, double *restrict J, double *restrict r) {
     long i, j, k, p;
     for (k = 0; k < n; ++k) {
         double best = fabs(J[k * n + k]);
@@ -61,9 +62,13 @@ static int lu_solve(long n, double *restrict J, double *restrict r)
         if (p != k) {
             double t;
             for (j = 0; j < n; ++j) {
-                t = J[j * n + k]; J[j * n + k] = J[j * n + p]; J[j * n + p] = t;
+                t = J[j * n + k];
+                J[j * n + k] = J[j * n + p];
+                J[j * n + p] = t;
             }
-            t = r[k]; r[k] = r[p]; r[p] = t;
+            t = r[k];
+            r[k] = r[p];
+            r[p] = t;
         }
         for (i = k + 1; i < n; ++i) {
             const double l = J[k * n + i] / J[k * n + k];
@@ -84,8 +89,7 @@ static int lu_solve(long n, double *restrict J, double *restrict r)
     return 0;
 }
 
-static double norm_inf(long n, const double *v)
-{
+static double norm_inf(long n, const double *v) {
     double m = 0.0;
     long i;
     for (i = 0; i < n; ++i) {
@@ -98,15 +102,13 @@ static double norm_inf(long n, const double *v)
     return m;
 }
 
-static inline void copy(long n, const double *restrict src, double *restrict dst)
-{
+static inline void copy(long n, const double *restrict src, double *restrict dst) {
     long i;
     for (i = 0; i < n; ++i)
         dst[i] = src[i];
 }
 
-static inline void zero(long n, double *restrict dst)
-{
+static inline void zero(long n, double *restrict dst) {
     long i;
     for (i = 0; i < n; ++i)
         dst[i] = 0.0;
@@ -122,11 +124,9 @@ static inline void zero(long n, double *restrict dst)
  * stability limit for the elements' tangent stiffness) at step fail[0].
  */
 int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
-                 double *restrict x, double *restrict u, double *restrict g,
-                 double *restrict rate, double *restrict out, double tol, double theta_limit,
-                 double *stats,
-                 long *fail, double *restrict work, nl_int *restrict iwork)
-{
+                 double *restrict x, double *restrict u, double *restrict g, double *restrict rate,
+                 double *restrict out, double tol, double theta_limit, double *stats, long *fail,
+                 double *restrict work, nl_int *restrict iwork) {
     enum { ns = NL_NS, nf = NL_NF, ne = NL_NE, nw = NL_NW, nz = NL_NZ, no = NL_NO };
     const long n_samples = dims[6], S = dims[7], max_iter = dims[8];
     enum { nu = NL_NW + NL_NZ };
@@ -140,8 +140,15 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     double *res[4];
     double scale = 0.0;
     long n, j, i, k, it;
-    arg[0] = u; arg[1] = Q; arg[2] = zold; arg[3] = rold; arg[4] = par;
-    res[0] = r; res[1] = J; res[2] = g; res[3] = rate;
+    arg[0] = u;
+    arg[1] = Q;
+    arg[2] = zold;
+    arg[3] = rold;
+    arg[4] = par;
+    res[0] = r;
+    res[1] = J;
+    res[2] = g;
+    res[3] = rate;
     stats[0] = stats[1] = stats[2] = stats[3] = stats[4] = 0.0;
     if (dims[0] != ns || dims[1] != nf || dims[2] != ne || dims[3] != nw || dims[4] != nz ||
         dims[5] != no)
@@ -207,7 +214,8 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
             }
             if (rn > stats[2])
                 stats[2] = rn;
-            { /* theta = |J_yy - I|_inf = |B0 dg/dy|_inf: the elements' stiffness seen by the step */
+            { /* theta = |J_yy - I|_inf = |B0 dg/dy|_inf: the elements' stiffness seen by the step
+               */
                 double theta = 0.0;
                 for (i = 0; i < ne; ++i) {
                     double row = 0.0;

@@ -16,20 +16,27 @@ NAME = "average_acceleration"
 TITLE = "Newmark average acceleration (trapezoidal)"
 PARAMS = ()
 DEFAULTS = {}
-HISTORY = ("x0", "v0", "a0", )
+HISTORY = (
+    "x0",
+    "v0",
+    "a0",
+)
 STARTUP_STEPS = 0
 ORDER = 2
 EXPLICIT = False
-FORMS = ("displacement", "acceleration", )
+FORMS = (
+    "displacement",
+    "acceleration",
+)
 
 
 def coefficients(form, dt):
     """Per-run constants of ``form``: w0, w1, p, r, alpha, q_*, s_*, b_*, x1_*, v1_*, a1_*."""
     if form == "displacement":
-        k0 = 1.0/dt
-        k1 = 2.0*k0
-        k2 = 4.0/(dt*dt)
-        k3 = -4.0*k0
+        k0 = 1.0 / dt
+        k1 = 2.0 * k0
+        k2 = 4.0 / (dt * dt)
+        k3 = -4.0 * k0
         return {
             "w0": 0.0,
             "w1": 1.0,
@@ -49,8 +56,8 @@ def coefficients(form, dt):
             "a1_u": k2,
         }
     if form == "acceleration":
-        k0 = ((1.0/4.0))*(dt*dt)
-        k1 = ((1.0/2.0))*dt
+        k0 = (1.0 / 4.0) * (dt * dt)
+        k1 = (1.0 / 2.0) * dt
         return {
             "w0": 0.0,
             "w1": 1.0,

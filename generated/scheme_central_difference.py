@@ -16,18 +16,22 @@ NAME = "central_difference"
 TITLE = "Central difference (Newmark beta = 0, explicit)"
 PARAMS = ()
 DEFAULTS = {}
-HISTORY = ("x0", "v0", "a0", )
+HISTORY = (
+    "x0",
+    "v0",
+    "a0",
+)
 STARTUP_STEPS = 0
 ORDER = 2
 EXPLICIT = True
-FORMS = ("acceleration", )
+FORMS = ("acceleration",)
 
 
 def coefficients(form, dt):
     """Per-run constants of ``form``: w0, w1, p, r, alpha, q_*, s_*, b_*, x1_*, v1_*, a1_*."""
     if form == "acceleration":
-        k0 = ((1.0/2.0))*dt
-        k1 = ((1.0/2.0))*(dt*dt)
+        k0 = (1.0 / 2.0) * dt
+        k1 = (1.0 / 2.0) * (dt * dt)
         return {
             "w0": 0.0,
             "w1": 1.0,

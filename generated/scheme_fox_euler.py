@@ -16,18 +16,25 @@ NAME = "fox_euler"
 TITLE = "Fox-Euler (Newmark beta = 1/2, gamma = 1)"
 PARAMS = ()
 DEFAULTS = {}
-HISTORY = ("x0", "v0", "a0", )
+HISTORY = (
+    "x0",
+    "v0",
+    "a0",
+)
 STARTUP_STEPS = 0
 ORDER = 1
 EXPLICIT = False
-FORMS = ("displacement", "acceleration", )
+FORMS = (
+    "displacement",
+    "acceleration",
+)
 
 
 def coefficients(form, dt):
     """Per-run constants of ``form``: w0, w1, p, r, alpha, q_*, s_*, b_*, x1_*, v1_*, a1_*."""
     if form == "displacement":
-        k0 = 2.0/dt
-        k1 = 2.0/(dt*dt)
+        k0 = 2.0 / dt
+        k1 = 2.0 / (dt * dt)
         k2 = -k0
         return {
             "w0": 0.0,
@@ -46,7 +53,7 @@ def coefficients(form, dt):
             "a1_u": k1,
         }
     if form == "acceleration":
-        k0 = ((1.0/2.0))*(dt*dt)
+        k0 = (1.0 / 2.0) * (dt * dt)
         return {
             "w0": 0.0,
             "w1": 1.0,

@@ -14,86 +14,93 @@ dtdyn.derive.kernels.
 
 NAME = "generalized_alpha"
 TITLE = "Generalized-alpha"
-PARAMS = ("rho_inf", )
+PARAMS = ("rho_inf",)
 DEFAULTS = {"rho_inf": 0.8}
-HISTORY = ("x0", "v0", "a0", )
+HISTORY = (
+    "x0",
+    "v0",
+    "a0",
+)
 STARTUP_STEPS = 0
 ORDER = 2
 EXPLICIT = False
-FORMS = ("displacement", "acceleration", )
+FORMS = (
+    "displacement",
+    "acceleration",
+)
 
 
 def coefficients(form, dt, rho_inf):
     """Per-run constants of ``form``: w0, w1, p, r, alpha, q_*, s_*, b_*, x1_*, v1_*, a1_*."""
     if form == "displacement":
         k0 = rho_inf + 1.0
-        k1 = 1.0/k0
-        k2 = 2.0*rho_inf
-        k3 = (rho_inf*rho_inf)
+        k1 = 1.0 / k0
+        k2 = 2.0 * rho_inf
+        k3 = rho_inf * rho_inf
         k4 = -k3
-        k5 = 1.0/dt
-        k6 = ((1.0/2.0))*k5
-        k7 = (1.0/(dt*dt))
-        k8 = 3.0*rho_inf
-        k9 = (rho_inf*rho_inf*rho_inf)
+        k5 = 1.0 / dt
+        k6 = (1.0 / 2.0) * k5
+        k7 = 1.0 / (dt * dt)
+        k8 = 3.0 * rho_inf
+        k9 = rho_inf * rho_inf * rho_inf
         k10 = -k9
-        k11 = ((1.0/2.0))*rho_inf
+        k11 = (1.0 / 2.0) * rho_inf
         k12 = k3 + 1.0
-        k13 = ((1.0/4.0))*dt*(k12 - k2)
-        k14 = ((1.0/2.0))*k3
+        k13 = (1.0 / 4.0) * dt * (k12 - k2)
+        k14 = (1.0 / 2.0) * k3
         return {
-            "w0": k1*rho_inf,
+            "w0": k1 * rho_inf,
             "w1": k1,
             "p": 1.0,
-            "r": k6*(k2 + k4 + 3.0),
-            "alpha_u": k7*(k10 + k8 + 2.0),
+            "r": k6 * (k2 + k4 + 3.0),
+            "alpha_u": k7 * (k10 + k8 + 2.0),
             "q_x0": 1.0,
-            "s_v0": k11 + (-1.0/2.0),
-            "s_a0": k1*k13,
-            "b_v0": k5*(-k4 - rho_inf - 2.0),
-            "b_a0": k11*(rho_inf - 1.0),
+            "s_v0": k11 + (-1.0 / 2.0),
+            "s_a0": k1 * k13,
+            "b_v0": k5 * (-k4 - rho_inf - 2.0),
+            "b_a0": k11 * (rho_inf - 1.0),
             "x1_x0": 1.0,
             "x1_u": k0,
-            "v1_v0": k14 - rho_inf + (-1.0/2.0),
+            "v1_v0": k14 - rho_inf + (-1.0 / 2.0),
             "v1_a0": k13,
-            "v1_u": k6*(k10 + k3 + 5.0*rho_inf + 3.0),
-            "a1_v0": k5*(-k12 - k2),
-            "a1_a0": -k14 - rho_inf + (1.0/2.0),
-            "a1_u": k7*(3.0*k3 + k8 + k9 + 1.0),
+            "v1_u": k6 * (k10 + k3 + 5.0 * rho_inf + 3.0),
+            "a1_v0": k5 * (-k12 - k2),
+            "a1_a0": -k14 - rho_inf + (1.0 / 2.0),
+            "a1_u": k7 * (3.0 * k3 + k8 + k9 + 1.0),
         }
     if form == "acceleration":
         k0 = rho_inf + 1.0
-        k1 = 1.0/k0
-        k2 = (dt*dt)
-        k3 = k2/(-(rho_inf*rho_inf*rho_inf) + 3.0*rho_inf + 2.0)
-        k4 = -(rho_inf*rho_inf) + rho_inf + 2.0
-        k5 = ((1.0/2.0))*dt
-        k6 = k5*(rho_inf - 3.0)
+        k1 = 1.0 / k0
+        k2 = dt * dt
+        k3 = k2 / (-(rho_inf * rho_inf * rho_inf) + 3.0 * rho_inf + 2.0)
+        k4 = -(rho_inf * rho_inf) + rho_inf + 2.0
+        k5 = (1.0 / 2.0) * dt
+        k6 = k5 * (rho_inf - 3.0)
         k7 = rho_inf - 1.0
         k8 = -k7
-        k9 = ((1.0/2.0))*k8*rho_inf
-        k10 = 1.0/k4
-        k11 = k10*k2
-        k12 = 1.0/(rho_inf - 2.0)
+        k9 = (1.0 / 2.0) * k8 * rho_inf
+        k10 = 1.0 / k4
+        k11 = k10 * k2
+        k12 = 1.0 / (rho_inf - 2.0)
         return {
-            "w0": k1*rho_inf,
+            "w0": k1 * rho_inf,
             "w1": k1,
             "p": k3,
-            "r": -k6/k4,
+            "r": -k6 / k4,
             "alpha_u": 1.0,
             "q_x0": 1.0,
-            "q_v0": dt*k1,
-            "q_a0": k3*k9,
+            "q_v0": dt * k1,
+            "q_a0": k3 * k9,
             "s_v0": 1.0,
-            "s_a0": k10*k5*k8,
+            "s_a0": k10 * k5 * k8,
             "x1_x0": 1.0,
             "x1_v0": dt,
-            "x1_a0": k11*k9,
+            "x1_a0": k11 * k9,
             "x1_u": k11,
             "v1_v0": 1.0,
-            "v1_a0": k12*k5*k7,
-            "v1_u": k12*k6,
-            "a1_a0": k12*(2.0*rho_inf - 1.0),
-            "a1_u": -k0*k12,
+            "v1_a0": k12 * k5 * k7,
+            "v1_u": k12 * k6,
+            "a1_a0": k12 * (2.0 * rho_inf - 1.0),
+            "a1_u": -k0 * k12,
         }
     raise ValueError(f"generalized_alpha has no {form!r} form; available: {FORMS}")

@@ -14,13 +14,20 @@ dtdyn.derive.kernels.
 
 NAME = "hht"
 TITLE = "HHT-alpha"
-PARAMS = ("alpha", )
+PARAMS = ("alpha",)
 DEFAULTS = {"alpha": -0.05}
-HISTORY = ("x0", "v0", "a0", )
+HISTORY = (
+    "x0",
+    "v0",
+    "a0",
+)
 STARTUP_STEPS = 0
 ORDER = 2
 EXPLICIT = False
-FORMS = ("displacement", "acceleration", )
+FORMS = (
+    "displacement",
+    "acceleration",
+)
 
 
 def coefficients(form, dt, alpha):
@@ -28,35 +35,35 @@ def coefficients(form, dt, alpha):
     if form == "displacement":
         k0 = -alpha
         k1 = alpha + 1.0
-        k2 = 2.0*alpha
-        k3 = (alpha*alpha)
-        k4 = 1.0/(-k2 + k3 + 1.0)
-        k5 = 1.0/dt
-        k6 = k4*k5
+        k2 = 2.0 * alpha
+        k3 = alpha * alpha
+        k4 = 1.0 / (-k2 + k3 + 1.0)
+        k5 = 1.0 / dt
+        k6 = k4 * k5
         k7 = k2 - 1.0
-        k8 = -2.0*k7
+        k8 = -2.0 * k7
         k9 = 1.0 - k3
-        k10 = 1.0/((alpha*alpha*alpha) + k0 + k9)
-        k11 = 4.0*k10/(dt*dt)
-        k12 = dt*k3*k4
-        k13 = -4.0*k6
-        k14 = k4*(-k2 - k9)
+        k10 = 1.0 / ((alpha * alpha * alpha) + k0 + k9)
+        k11 = 4.0 * k10 / (dt * dt)
+        k12 = dt * k3 * k4
+        k13 = -4.0 * k6
+        k14 = k4 * (-k2 - k9)
         return {
             "w0": k0,
             "w1": k1,
             "p": 1.0,
-            "r": k6*k8,
+            "r": k6 * k8,
             "alpha_u": k11,
             "q_x0": 1.0,
-            "s_v0": k4*(5.0*k3 - 1.0),
-            "s_a0": k1*k12,
+            "s_v0": k4 * (5.0 * k3 - 1.0),
+            "s_a0": k1 * k12,
             "b_v0": k13,
             "b_a0": k14,
             "x1_x0": 1.0,
-            "x1_u": 1.0/k1,
-            "v1_v0": k4*(k3 + k7),
+            "x1_u": 1.0 / k1,
+            "v1_v0": k4 * (k3 + k7),
             "v1_a0": k12,
-            "v1_u": k10*k5*k8,
+            "v1_u": k10 * k5 * k8,
             "a1_v0": k13,
             "a1_a0": k14,
             "a1_u": k11,
@@ -64,32 +71,32 @@ def coefficients(form, dt, alpha):
     if form == "acceleration":
         k0 = -alpha
         k1 = alpha + 1.0
-        k2 = (alpha*alpha*alpha)
-        k3 = (alpha*alpha)
+        k2 = alpha * alpha * alpha
+        k3 = alpha * alpha
         k4 = 1.0 - k3
-        k5 = ((1.0/4.0))*(dt*dt)
-        k6 = 2.0*k3
-        k7 = ((1.0/2.0))*dt
-        k8 = 3.0*alpha + 1.0
-        k9 = 2.0*alpha
+        k5 = (1.0 / 4.0) * (dt * dt)
+        k6 = 2.0 * k3
+        k7 = (1.0 / 2.0) * dt
+        k8 = 3.0 * alpha + 1.0
+        k9 = 2.0 * alpha
         return {
             "w0": k0,
             "w1": k1,
-            "p": k5*(k0 + k2 + k4),
-            "r": k7*(-alpha - k6 + 1.0),
+            "p": k5 * (k0 + k2 + k4),
+            "r": k7 * (-alpha - k6 + 1.0),
             "alpha_u": 1.0,
             "q_x0": 1.0,
-            "q_v0": dt*k1,
-            "q_a0": k5*(-k2 + k3 + k8),
+            "q_v0": dt * k1,
+            "q_a0": k5 * (-k2 + k3 + k8),
             "s_v0": 1.0,
-            "s_a0": k7*(k6 + k8),
+            "s_a0": k7 * (k6 + k8),
             "x1_x0": 1.0,
             "x1_v0": dt,
-            "x1_a0": k5*(k4 + k9),
-            "x1_u": k5*(k3 - k9 + 1.0),
+            "x1_a0": k5 * (k4 + k9),
+            "x1_u": k5 * (k3 - k9 + 1.0),
             "v1_v0": 1.0,
-            "v1_a0": dt*(alpha + (1.0/2.0)),
-            "v1_u": dt*((1.0/2.0) - alpha),
+            "v1_a0": dt * (alpha + (1.0 / 2.0)),
+            "v1_u": dt * ((1.0 / 2.0) - alpha),
             "a1_u": 1.0,
         }
     raise ValueError(f"hht has no {form!r} form; available: {FORMS}")

@@ -16,23 +16,32 @@ NAME = "houbolt"
 TITLE = "Houbolt"
 PARAMS = ()
 DEFAULTS = {}
-HISTORY = ("x0", "v0", "a0", "xm1", "xm2", )
+HISTORY = (
+    "x0",
+    "v0",
+    "a0",
+    "xm1",
+    "xm2",
+)
 STARTUP_STEPS = 2
 ORDER = 2
 EXPLICIT = False
-FORMS = ("displacement", "acceleration", )
+FORMS = (
+    "displacement",
+    "acceleration",
+)
 
 
 def coefficients(form, dt):
     """Per-run constants of ``form``: w0, w1, p, r, alpha, q_*, s_*, b_*, x1_*, v1_*, a1_*."""
     if form == "displacement":
-        k0 = 1.0/dt
-        k1 = ((11.0/6.0))*k0
-        k2 = (1.0/(dt*dt))
-        k3 = 2.0*k2
-        k4 = -(7.0/6.0)*k0
-        k5 = ((1.0/3.0))*k0
-        k6 = -3.0*k2
+        k0 = 1.0 / dt
+        k1 = (11.0 / 6.0) * k0
+        k2 = 1.0 / (dt * dt)
+        k3 = 2.0 * k2
+        k4 = -(7.0 / 6.0) * k0
+        k5 = (1.0 / 3.0) * k0
+        k6 = -3.0 * k2
         return {
             "w0": 0.0,
             "w1": 1.0,
@@ -54,27 +63,27 @@ def coefficients(form, dt):
             "a1_u": k3,
         }
     if form == "acceleration":
-        k0 = ((1.0/2.0))*(dt*dt)
-        k1 = ((11.0/12.0))*dt
-        k2 = 1.0/dt
-        k3 = ((19.0/12.0))*k2
-        k4 = -(13.0/6.0)*k2
-        k5 = ((7.0/12.0))*k2
+        k0 = (1.0 / 2.0) * (dt * dt)
+        k1 = (11.0 / 12.0) * dt
+        k2 = 1.0 / dt
+        k3 = (19.0 / 12.0) * k2
+        k4 = -(13.0 / 6.0) * k2
+        k5 = (7.0 / 12.0) * k2
         return {
             "w0": 0.0,
             "w1": 1.0,
             "p": k0,
             "r": k1,
             "alpha_u": 1.0,
-            "q_x0": (5.0/2.0),
+            "q_x0": (5.0 / 2.0),
             "q_xm1": -2.0,
-            "q_xm2": (1.0/2.0),
+            "q_xm2": (1.0 / 2.0),
             "s_x0": k3,
             "s_xm1": k4,
             "s_xm2": k5,
-            "x1_x0": (5.0/2.0),
+            "x1_x0": (5.0 / 2.0),
             "x1_xm1": -2.0,
-            "x1_xm2": (1.0/2.0),
+            "x1_xm2": (1.0 / 2.0),
             "x1_u": k0,
             "v1_x0": k3,
             "v1_xm1": k4,

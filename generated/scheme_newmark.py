@@ -14,26 +14,36 @@ dtdyn.derive.kernels.
 
 NAME = "newmark"
 TITLE = "Newmark beta-gamma"
-PARAMS = ("beta", "gamma", )
+PARAMS = (
+    "beta",
+    "gamma",
+)
 DEFAULTS = {"beta": 0.25, "gamma": 0.5}
-HISTORY = ("x0", "v0", "a0", )
+HISTORY = (
+    "x0",
+    "v0",
+    "a0",
+)
 STARTUP_STEPS = 0
 ORDER = 2
 EXPLICIT = False
-FORMS = ("displacement", "acceleration", )
+FORMS = (
+    "displacement",
+    "acceleration",
+)
 
 
 def coefficients(form, dt, beta, gamma):
     """Per-run constants of ``form``: w0, w1, p, r, alpha, q_*, s_*, b_*, x1_*, v1_*, a1_*."""
     if form == "displacement":
-        k0 = 1.0/beta
-        k1 = k0/dt
-        k2 = gamma*k1
-        k3 = k0/(dt*dt)
-        k4 = k0*(beta - gamma)
-        k5 = -(1.0/2.0)*dt*gamma*k0 + dt
+        k0 = 1.0 / beta
+        k1 = k0 / dt
+        k2 = gamma * k1
+        k3 = k0 / (dt * dt)
+        k4 = k0 * (beta - gamma)
+        k5 = -(1.0 / 2.0) * dt * gamma * k0 + dt
         k6 = -k1
-        k7 = k0*(beta + (-1.0/2.0))
+        k7 = k0 * (beta + (-1.0 / 2.0))
         return {
             "w0": 0.0,
             "w1": 1.0,
@@ -55,11 +65,11 @@ def coefficients(form, dt, beta, gamma):
             "a1_u": k3,
         }
     if form == "acceleration":
-        k0 = (dt*dt)
-        k1 = beta*k0
-        k2 = dt*gamma
-        k3 = k0*((1.0/2.0) - beta)
-        k4 = dt*(1.0 - gamma)
+        k0 = dt * dt
+        k1 = beta * k0
+        k2 = dt * gamma
+        k3 = k0 * ((1.0 / 2.0) - beta)
+        k4 = dt * (1.0 - gamma)
         return {
             "w0": 0.0,
             "w1": 1.0,

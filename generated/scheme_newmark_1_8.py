@@ -16,21 +16,28 @@ NAME = "newmark_1_8"
 TITLE = "Newmark beta = 1/8 (the source\u0027s favourite)"
 PARAMS = ()
 DEFAULTS = {}
-HISTORY = ("x0", "v0", "a0", )
+HISTORY = (
+    "x0",
+    "v0",
+    "a0",
+)
 STARTUP_STEPS = 0
 ORDER = 2
 EXPLICIT = False
-FORMS = ("displacement", "acceleration", )
+FORMS = (
+    "displacement",
+    "acceleration",
+)
 
 
 def coefficients(form, dt):
     """Per-run constants of ``form``: w0, w1, p, r, alpha, q_*, s_*, b_*, x1_*, v1_*, a1_*."""
     if form == "displacement":
-        k0 = 1.0/dt
-        k1 = 4.0*k0
-        k2 = 8.0/(dt*dt)
+        k0 = 1.0 / dt
+        k1 = 4.0 * k0
+        k2 = 8.0 / (dt * dt)
         k3 = -dt
-        k4 = -8.0*k0
+        k4 = -8.0 * k0
         return {
             "w0": 0.0,
             "w1": 1.0,
@@ -52,10 +59,10 @@ def coefficients(form, dt):
             "a1_u": k2,
         }
     if form == "acceleration":
-        k0 = (dt*dt)
-        k1 = ((1.0/8.0))*k0
-        k2 = ((1.0/2.0))*dt
-        k3 = ((3.0/8.0))*k0
+        k0 = dt * dt
+        k1 = (1.0 / 8.0) * k0
+        k2 = (1.0 / 2.0) * dt
+        k3 = (3.0 / 8.0) * k0
         return {
             "w0": 0.0,
             "w1": 1.0,

@@ -14,77 +14,84 @@ dtdyn.derive.kernels.
 
 NAME = "wilson"
 TITLE = "Wilson theta"
-PARAMS = ("theta", )
+PARAMS = ("theta",)
 DEFAULTS = {"theta": 1.4}
-HISTORY = ("x0", "v0", "a0", )
+HISTORY = (
+    "x0",
+    "v0",
+    "a0",
+)
 STARTUP_STEPS = 0
 ORDER = 2
 EXPLICIT = False
-FORMS = ("displacement", "acceleration", )
+FORMS = (
+    "displacement",
+    "acceleration",
+)
 
 
 def coefficients(form, dt, theta):
     """Per-run constants of ``form``: w0, w1, p, r, alpha, q_*, s_*, b_*, x1_*, v1_*, a1_*."""
     if form == "displacement":
         k0 = theta - 1.0
-        k1 = 1.0/theta
-        k2 = 1.0/dt
-        k3 = k1*k2
-        k4 = (dt*dt)
-        k5 = 1.0/k4
-        k6 = (1.0/(theta*theta))
-        k7 = 6.0*k6
-        k8 = (1.0/(theta*theta*theta))
+        k1 = 1.0 / theta
+        k2 = 1.0 / dt
+        k3 = k1 * k2
+        k4 = dt * dt
+        k5 = 1.0 / k4
+        k6 = 1.0 / (theta * theta)
+        k7 = 6.0 * k6
+        k8 = 1.0 / (theta * theta * theta)
         return {
             "w0": -k0,
             "w1": theta,
             "p": 1.0,
-            "r": 3.0*k3,
-            "alpha_u": k5*k7,
+            "r": 3.0 * k3,
+            "alpha_u": k5 * k7,
             "q_x0": 1.0,
             "s_v0": -2.0,
-            "s_a0": -(1.0/2.0)*dt*theta,
-            "b_v0": -6.0*k3,
+            "s_a0": -(1.0 / 2.0) * dt * theta,
+            "b_v0": -6.0 * k3,
             "b_a0": -2.0,
             "x1_x0": 1.0,
-            "x1_v0": -dt*k6 + dt,
-            "x1_a0": ((1.0/2.0))*k0*k1*k4,
+            "x1_v0": -dt * k6 + dt,
+            "x1_a0": (1.0 / 2.0) * k0 * k1 * k4,
             "x1_u": k8,
-            "v1_v0": 1.0 - 3.0*k6,
-            "v1_a0": -(3.0/2.0)*dt*k1 + dt,
-            "v1_u": 3.0*k2*k8,
-            "a1_v0": -k2*k7,
-            "a1_a0": k1*(theta - 3.0),
-            "a1_u": 6.0*k5*k8,
+            "v1_v0": 1.0 - 3.0 * k6,
+            "v1_a0": -(3.0 / 2.0) * dt * k1 + dt,
+            "v1_u": 3.0 * k2 * k8,
+            "a1_v0": -k2 * k7,
+            "a1_a0": k1 * (theta - 3.0),
+            "a1_u": 6.0 * k5 * k8,
         }
     if form == "acceleration":
         k0 = theta - 1.0
-        k1 = (dt*dt)
-        k2 = k1*(theta*theta)
-        k3 = dt*theta
-        k4 = ((1.0/2.0))*k3
-        k5 = 1.0/theta
-        k6 = ((1.0/6.0))*k1*k5
-        k7 = ((1.0/2.0))*dt*k5
+        k1 = dt * dt
+        k2 = k1 * (theta * theta)
+        k3 = dt * theta
+        k4 = (1.0 / 2.0) * k3
+        k5 = 1.0 / theta
+        k6 = (1.0 / 6.0) * k1 * k5
+        k7 = (1.0 / 2.0) * dt * k5
         return {
             "w0": -k0,
             "w1": theta,
-            "p": ((1.0/6.0))*k2,
+            "p": (1.0 / 6.0) * k2,
             "r": k4,
             "alpha_u": 1.0,
             "q_x0": 1.0,
             "q_v0": k3,
-            "q_a0": ((1.0/3.0))*k2,
+            "q_a0": (1.0 / 3.0) * k2,
             "s_v0": 1.0,
             "s_a0": k4,
             "x1_x0": 1.0,
             "x1_v0": dt,
-            "x1_a0": k6*(3.0*theta - 1.0),
+            "x1_a0": k6 * (3.0 * theta - 1.0),
             "x1_u": k6,
             "v1_v0": 1.0,
             "v1_a0": dt - k7,
             "v1_u": k7,
-            "a1_a0": k0*k5,
+            "a1_a0": k0 * k5,
             "a1_u": k5,
         }
     raise ValueError(f"wilson has no {form!r} form; available: {FORMS}")

@@ -4,21 +4,76 @@
 (x, dt v, dt^2 a, lags), derived from each scheme's relations applied to
 x'' + 2 zeta omega x' + omega^2 x = 0 (Omega = omega dt). See dtdyn.derive.stability.
 """
+
 import numpy as np
 
 HISTORY = {
-    "newmark": ("x0", "v0", "a0", ),
-    "average_acceleration": ("x0", "v0", "a0", ),
-    "linear_acceleration": ("x0", "v0", "a0", ),
-    "fox_goodwin": ("x0", "v0", "a0", ),
-    "newmark_1_8": ("x0", "v0", "a0", ),
-    "central_difference": ("x0", "v0", "a0", ),
-    "fox_euler": ("x0", "v0", "a0", ),
-    "wilson": ("x0", "v0", "a0", ),
-    "houbolt": ("x0", "v0", "a0", "xm1", "xm2", ),
-    "park": ("x0", "v0", "a0", "xm1", "xm2", "vm1", "vm2", ),
-    "hht": ("x0", "v0", "a0", ),
-    "generalized_alpha": ("x0", "v0", "a0", ),
+    "newmark": (
+        "x0",
+        "v0",
+        "a0",
+    ),
+    "average_acceleration": (
+        "x0",
+        "v0",
+        "a0",
+    ),
+    "linear_acceleration": (
+        "x0",
+        "v0",
+        "a0",
+    ),
+    "fox_goodwin": (
+        "x0",
+        "v0",
+        "a0",
+    ),
+    "newmark_1_8": (
+        "x0",
+        "v0",
+        "a0",
+    ),
+    "central_difference": (
+        "x0",
+        "v0",
+        "a0",
+    ),
+    "fox_euler": (
+        "x0",
+        "v0",
+        "a0",
+    ),
+    "wilson": (
+        "x0",
+        "v0",
+        "a0",
+    ),
+    "houbolt": (
+        "x0",
+        "v0",
+        "a0",
+        "xm1",
+        "xm2",
+    ),
+    "park": (
+        "x0",
+        "v0",
+        "a0",
+        "xm1",
+        "xm2",
+        "vm1",
+        "vm2",
+    ),
+    "hht": (
+        "x0",
+        "v0",
+        "a0",
+    ),
+    "generalized_alpha": (
+        "x0",
+        "v0",
+        "a0",
+    ),
 }
 
 
@@ -27,25 +82,27 @@ def amplification_newmark(Omega, zeta, beta, gamma):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = 2.0*zeta
-    t1 = Omega*gamma*t0 + 1.0
-    t2 = (Omega*Omega)
-    t3 = beta*t2
-    t4 = 1.0/(t1 + t3)
-    t5 = Omega*beta*t0
-    t6 = gamma*t2
+    t0 = 2.0 * zeta
+    t1 = Omega * gamma * t0 + 1.0
+    t2 = Omega * Omega
+    t3 = beta * t2
+    t4 = 1.0 / (t1 + t3)
+    t5 = Omega * beta * t0
+    t6 = gamma * t2
     t7 = t3 + 1.0
-    t8 = Omega*t4
+    t8 = Omega * t4
     A = np.empty((Omega.size, 3, 3))
-    A[:, 0, 0] = (t1*t4) * one
-    A[:, 0, 1] = (t4*(t1 - t5)) * one
-    A[:, 0, 2] = (t4*(Omega*gamma*zeta - beta - t5 + (1.0/2.0))) * one
-    A[:, 1, 0] = (-t4*t6) * one
-    A[:, 1, 1] = (t4*(-t6 + t7)) * one
-    A[:, 1, 2] = (t4*(-gamma - (1.0/2.0)*t6 + t7)) * one
-    A[:, 2, 0] = (-t2*t4) * one
-    A[:, 2, 1] = (t8*(-Omega - t0)) * one
-    A[:, 2, 2] = (((1.0/2.0))*t8*(Omega*(2.0*beta - 1.0) + 4.0*zeta*(gamma - 1.0))) * one
+    A[:, 0, 0] = (t1 * t4) * one
+    A[:, 0, 1] = (t4 * (t1 - t5)) * one
+    A[:, 0, 2] = (t4 * (Omega * gamma * zeta - beta - t5 + (1.0 / 2.0))) * one
+    A[:, 1, 0] = (-t4 * t6) * one
+    A[:, 1, 1] = (t4 * (-t6 + t7)) * one
+    A[:, 1, 2] = (t4 * (-gamma - (1.0 / 2.0) * t6 + t7)) * one
+    A[:, 2, 0] = (-t2 * t4) * one
+    A[:, 2, 1] = (t8 * (-Omega - t0)) * one
+    A[:, 2, 2] = (
+        (1.0 / 2.0) * t8 * (Omega * (2.0 * beta - 1.0) + 4.0 * zeta * (gamma - 1.0))
+    ) * one
     return A
 
 
@@ -54,21 +111,21 @@ def amplification_average_acceleration(Omega, zeta):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = Omega*zeta
-    t1 = (Omega*Omega)
-    t2 = 1.0/(4.0*t0 + t1 + 4.0)
-    t3 = 4.0*t2
-    t4 = 2.0*t2
+    t0 = Omega * zeta
+    t1 = Omega * Omega
+    t2 = 1.0 / (4.0 * t0 + t1 + 4.0)
+    t3 = 4.0 * t2
+    t4 = 2.0 * t2
     A = np.empty((Omega.size, 3, 3))
-    A[:, 0, 0] = (t3*(t0 + 1.0)) * one
-    A[:, 0, 1] = (t4*(t0 + 2.0)) * one
+    A[:, 0, 0] = (t3 * (t0 + 1.0)) * one
+    A[:, 0, 1] = (t4 * (t0 + 2.0)) * one
     A[:, 0, 2] = (t2) * one
-    A[:, 1, 0] = (-t1*t4) * one
-    A[:, 1, 1] = (t2*(4.0 - t1)) * one
+    A[:, 1, 0] = (-t1 * t4) * one
+    A[:, 1, 1] = (t2 * (4.0 - t1)) * one
     A[:, 1, 2] = (t4) * one
-    A[:, 2, 0] = (-t1*t3) * one
-    A[:, 2, 1] = (Omega*t3*(-Omega - 2.0*zeta)) * one
-    A[:, 2, 2] = (Omega*t2*(-Omega - 4.0*zeta)) * one
+    A[:, 2, 0] = (-t1 * t3) * one
+    A[:, 2, 1] = (Omega * t3 * (-Omega - 2.0 * zeta)) * one
+    A[:, 2, 2] = (Omega * t2 * (-Omega - 4.0 * zeta)) * one
     return A
 
 
@@ -77,21 +134,21 @@ def amplification_linear_acceleration(Omega, zeta):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = Omega*zeta
-    t1 = (Omega*Omega)
-    t2 = 1.0/(6.0*t0 + t1 + 6.0)
-    t3 = 6.0*t2
-    t4 = 2.0*t2
+    t0 = Omega * zeta
+    t1 = Omega * Omega
+    t2 = 1.0 / (6.0 * t0 + t1 + 6.0)
+    t3 = 6.0 * t2
+    t4 = 2.0 * t2
     A = np.empty((Omega.size, 3, 3))
-    A[:, 0, 0] = (t3*(t0 + 1.0)) * one
-    A[:, 0, 1] = (t4*(2.0*t0 + 3.0)) * one
-    A[:, 0, 2] = (t2*(t0 + 2.0)) * one
-    A[:, 1, 0] = (-3.0*t1*t2) * one
-    A[:, 1, 1] = (t4*(3.0 - t1)) * one
-    A[:, 1, 2] = (((1.0/2.0))*t2*(6.0 - t1)) * one
-    A[:, 2, 0] = (-t1*t3) * one
-    A[:, 2, 1] = (Omega*t3*(-Omega - 2.0*zeta)) * one
-    A[:, 2, 2] = (Omega*t4*(-Omega - 3.0*zeta)) * one
+    A[:, 0, 0] = (t3 * (t0 + 1.0)) * one
+    A[:, 0, 1] = (t4 * (2.0 * t0 + 3.0)) * one
+    A[:, 0, 2] = (t2 * (t0 + 2.0)) * one
+    A[:, 1, 0] = (-3.0 * t1 * t2) * one
+    A[:, 1, 1] = (t4 * (3.0 - t1)) * one
+    A[:, 1, 2] = ((1.0 / 2.0) * t2 * (6.0 - t1)) * one
+    A[:, 2, 0] = (-t1 * t3) * one
+    A[:, 2, 1] = (Omega * t3 * (-Omega - 2.0 * zeta)) * one
+    A[:, 2, 2] = (Omega * t4 * (-Omega - 3.0 * zeta)) * one
     return A
 
 
@@ -100,21 +157,21 @@ def amplification_fox_goodwin(Omega, zeta):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = Omega*zeta
-    t1 = (Omega*Omega)
-    t2 = 1.0/(12.0*t0 + t1 + 12.0)
-    t3 = 12.0*t2
-    t4 = 2.0*t2
+    t0 = Omega * zeta
+    t1 = Omega * Omega
+    t2 = 1.0 / (12.0 * t0 + t1 + 12.0)
+    t3 = 12.0 * t2
+    t4 = 2.0 * t2
     A = np.empty((Omega.size, 3, 3))
-    A[:, 0, 0] = (t3*(t0 + 1.0)) * one
-    A[:, 0, 1] = (t4*(5.0*t0 + 6.0)) * one
-    A[:, 0, 2] = (t2*(4.0*t0 + 5.0)) * one
-    A[:, 1, 0] = (-6.0*t1*t2) * one
-    A[:, 1, 1] = (t2*(12.0 - 5.0*t1)) * one
-    A[:, 1, 2] = (t4*(3.0 - t1)) * one
-    A[:, 2, 0] = (-t1*t3) * one
-    A[:, 2, 1] = (Omega*t3*(-Omega - 2.0*zeta)) * one
-    A[:, 2, 2] = (Omega*t2*(-5.0*Omega - 12.0*zeta)) * one
+    A[:, 0, 0] = (t3 * (t0 + 1.0)) * one
+    A[:, 0, 1] = (t4 * (5.0 * t0 + 6.0)) * one
+    A[:, 0, 2] = (t2 * (4.0 * t0 + 5.0)) * one
+    A[:, 1, 0] = (-6.0 * t1 * t2) * one
+    A[:, 1, 1] = (t2 * (12.0 - 5.0 * t1)) * one
+    A[:, 1, 2] = (t4 * (3.0 - t1)) * one
+    A[:, 2, 0] = (-t1 * t3) * one
+    A[:, 2, 1] = (Omega * t3 * (-Omega - 2.0 * zeta)) * one
+    A[:, 2, 2] = (Omega * t2 * (-5.0 * Omega - 12.0 * zeta)) * one
     return A
 
 
@@ -123,20 +180,20 @@ def amplification_newmark_1_8(Omega, zeta):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = Omega*zeta
-    t1 = (Omega*Omega)
-    t2 = 1.0/(8.0*t0 + t1 + 8.0)
-    t3 = 8.0*t2
+    t0 = Omega * zeta
+    t1 = Omega * Omega
+    t2 = 1.0 / (8.0 * t0 + t1 + 8.0)
+    t3 = 8.0 * t2
     A = np.empty((Omega.size, 3, 3))
-    A[:, 0, 0] = (t3*(t0 + 1.0)) * one
-    A[:, 0, 1] = (2.0*t2*(3.0*t0 + 4.0)) * one
-    A[:, 0, 2] = (t2*(2.0*t0 + 3.0)) * one
-    A[:, 1, 0] = (-4.0*t1*t2) * one
-    A[:, 1, 1] = (t2*(8.0 - 3.0*t1)) * one
-    A[:, 1, 2] = (t2*(4.0 - t1)) * one
-    A[:, 2, 0] = (-t1*t3) * one
-    A[:, 2, 1] = (Omega*t3*(-Omega - 2.0*zeta)) * one
-    A[:, 2, 2] = (Omega*t2*(-3.0*Omega - 8.0*zeta)) * one
+    A[:, 0, 0] = (t3 * (t0 + 1.0)) * one
+    A[:, 0, 1] = (2.0 * t2 * (3.0 * t0 + 4.0)) * one
+    A[:, 0, 2] = (t2 * (2.0 * t0 + 3.0)) * one
+    A[:, 1, 0] = (-4.0 * t1 * t2) * one
+    A[:, 1, 1] = (t2 * (8.0 - 3.0 * t1)) * one
+    A[:, 1, 2] = (t2 * (4.0 - t1)) * one
+    A[:, 2, 0] = (-t1 * t3) * one
+    A[:, 2, 1] = (Omega * t3 * (-Omega - 2.0 * zeta)) * one
+    A[:, 2, 2] = (Omega * t2 * (-3.0 * Omega - 8.0 * zeta)) * one
     return A
 
 
@@ -145,21 +202,21 @@ def amplification_central_difference(Omega, zeta):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = (Omega*Omega)
-    t1 = Omega*zeta
-    t2 = 1.0/(t1 + 1.0)
-    t3 = t2*(2.0 - t0)
-    t4 = Omega*t2*(-Omega - 2.0*zeta)
+    t0 = Omega * Omega
+    t1 = Omega * zeta
+    t2 = 1.0 / (t1 + 1.0)
+    t3 = t2 * (2.0 - t0)
+    t4 = Omega * t2 * (-Omega - 2.0 * zeta)
     A = np.empty((Omega.size, 3, 3))
     A[:, 0, 0] = (1.0) * one
     A[:, 0, 1] = (1.0) * one
-    A[:, 0, 2] = ((1.0/2.0)) * one
-    A[:, 1, 0] = (-t0/(2.0*t1 + 2.0)) * one
-    A[:, 1, 1] = (((1.0/2.0))*t3) * one
-    A[:, 1, 2] = (((1.0/4.0))*t3) * one
-    A[:, 2, 0] = (-t0*t2) * one
+    A[:, 0, 2] = (1.0 / 2.0) * one
+    A[:, 1, 0] = (-t0 / (2.0 * t1 + 2.0)) * one
+    A[:, 1, 1] = ((1.0 / 2.0) * t3) * one
+    A[:, 1, 2] = ((1.0 / 4.0) * t3) * one
+    A[:, 2, 0] = (-t0 * t2) * one
     A[:, 2, 1] = (t4) * one
-    A[:, 2, 2] = (((1.0/2.0))*t4) * one
+    A[:, 2, 2] = ((1.0 / 2.0) * t4) * one
     return A
 
 
@@ -168,20 +225,20 @@ def amplification_fox_euler(Omega, zeta):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = Omega*zeta
-    t1 = (Omega*Omega)
-    t2 = 1.0/(4.0*t0 + t1 + 2.0)
-    t3 = 2.0*t2
-    t4 = -t1*t3
+    t0 = Omega * zeta
+    t1 = Omega * Omega
+    t2 = 1.0 / (4.0 * t0 + t1 + 2.0)
+    t3 = 2.0 * t2
+    t4 = -t1 * t3
     A = np.empty((Omega.size, 3, 3))
-    A[:, 0, 0] = (t3*(2.0*t0 + 1.0)) * one
-    A[:, 0, 1] = (t3*(t0 + 1.0)) * one
+    A[:, 0, 0] = (t3 * (2.0 * t0 + 1.0)) * one
+    A[:, 0, 1] = (t3 * (t0 + 1.0)) * one
     A[:, 0, 2] = (0.0) * one
     A[:, 1, 0] = (t4) * one
-    A[:, 1, 1] = (t2*(2.0 - t1)) * one
+    A[:, 1, 1] = (t2 * (2.0 - t1)) * one
     A[:, 1, 2] = (0.0) * one
     A[:, 2, 0] = (t4) * one
-    A[:, 2, 1] = (Omega*t3*(-Omega - 2.0*zeta)) * one
+    A[:, 2, 1] = (Omega * t3 * (-Omega - 2.0 * zeta)) * one
     A[:, 2, 2] = (0.0) * one
     return A
 
@@ -191,30 +248,32 @@ def amplification_wilson(Omega, zeta, theta):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = (Omega*Omega)
-    t1 = Omega*theta
-    t2 = 6.0*zeta
-    t3 = t1*t2
-    t4 = (theta*theta)
-    t5 = t0*t4
+    t0 = Omega * Omega
+    t1 = Omega * theta
+    t2 = 6.0 * zeta
+    t3 = t1 * t2
+    t4 = theta * theta
+    t5 = t0 * t4
     t6 = t3 + t5 + 6.0
-    t7 = -t6*theta
-    t8 = 1.0/(t6*theta)
-    t9 = t1 + 2.0*zeta
-    t10 = 2.0*t1*(t1 + 3.0*zeta)
-    t11 = 3.0*theta
-    t12 = t0*t8
-    t13 = Omega*t2
+    t7 = -t6 * theta
+    t8 = 1.0 / (t6 * theta)
+    t9 = t1 + 2.0 * zeta
+    t10 = 2.0 * t1 * (t1 + 3.0 * zeta)
+    t11 = 3.0 * theta
+    t12 = t0 * t8
+    t13 = Omega * t2
     A = np.empty((Omega.size, 3, 3))
-    A[:, 0, 0] = (t8*(-t0 - t7)) * one
-    A[:, 0, 1] = (t8*(-Omega*t9 - t7)) * one
-    A[:, 0, 2] = (((1.0/6.0))*t8*(-t10 + t6*(t11 - 1.0))) * one
-    A[:, 1, 0] = (-3.0*t12) * one
-    A[:, 1, 1] = (t8*(-t0*t11 - t13 - t7)) * one
-    A[:, 1, 2] = (t8*(t0*(theta*theta*theta) + t13*t4 - t3 - (3.0/2.0)*t5 + 6.0*theta - 3.0)) * one
-    A[:, 2, 0] = (-6.0*t12) * one
-    A[:, 2, 1] = (-6.0*Omega*t8*t9) * one
-    A[:, 2, 2] = (t8*(-t10 + t6*(theta - 1.0))) * one
+    A[:, 0, 0] = (t8 * (-t0 - t7)) * one
+    A[:, 0, 1] = (t8 * (-Omega * t9 - t7)) * one
+    A[:, 0, 2] = ((1.0 / 6.0) * t8 * (-t10 + t6 * (t11 - 1.0))) * one
+    A[:, 1, 0] = (-3.0 * t12) * one
+    A[:, 1, 1] = (t8 * (-t0 * t11 - t13 - t7)) * one
+    A[:, 1, 2] = (
+        t8 * (t0 * (theta * theta * theta) + t13 * t4 - t3 - (3.0 / 2.0) * t5 + 6.0 * theta - 3.0)
+    ) * one
+    A[:, 2, 0] = (-6.0 * t12) * one
+    A[:, 2, 1] = (-6.0 * Omega * t8 * t9) * one
+    A[:, 2, 2] = (t8 * (-t10 + t6 * (theta - 1.0))) * one
     return A
 
 
@@ -223,30 +282,30 @@ def amplification_houbolt(Omega, zeta):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = 6.0*Omega
-    t1 = Omega*zeta
-    t2 = (Omega*Omega)
-    t3 = 1.0/(11.0*t1 + 3.0*t2 + 6.0)
-    t4 = 3.0*t3
-    t5 = 3.0*Omega
-    t6 = ((1.0/2.0))*t3
-    t7 = Omega*t3
+    t0 = 6.0 * Omega
+    t1 = Omega * zeta
+    t2 = Omega * Omega
+    t3 = 1.0 / (11.0 * t1 + 3.0 * t2 + 6.0)
+    t4 = 3.0 * t3
+    t5 = 3.0 * Omega
+    t6 = (1.0 / 2.0) * t3
+    t7 = Omega * t3
     A = np.empty((Omega.size, 5, 5))
-    A[:, 0, 0] = (t4*(t0*zeta + 5.0)) * one
+    A[:, 0, 0] = (t4 * (t0 * zeta + 5.0)) * one
     A[:, 0, 1] = (0.0) * one
     A[:, 0, 2] = (0.0) * one
-    A[:, 0, 3] = (t4*(-t5*zeta - 4.0)) * one
-    A[:, 0, 4] = (t3*(2.0*t1 + 3.0)) * one
-    A[:, 1, 0] = (t6*(19.0 - 18.0*t2)) * one
+    A[:, 0, 3] = (t4 * (-t5 * zeta - 4.0)) * one
+    A[:, 0, 4] = (t3 * (2.0 * t1 + 3.0)) * one
+    A[:, 1, 0] = (t6 * (19.0 - 18.0 * t2)) * one
     A[:, 1, 1] = (0.0) * one
     A[:, 1, 2] = (0.0) * one
-    A[:, 1, 3] = (t6*(9.0*t2 - 26.0)) * one
-    A[:, 1, 4] = (t6*(7.0 - 2.0*t2)) * one
-    A[:, 2, 0] = (t7*(-15.0*Omega - 19.0*zeta)) * one
+    A[:, 1, 3] = (t6 * (9.0 * t2 - 26.0)) * one
+    A[:, 1, 4] = (t6 * (7.0 - 2.0 * t2)) * one
+    A[:, 2, 0] = (t7 * (-15.0 * Omega - 19.0 * zeta)) * one
     A[:, 2, 1] = (0.0) * one
     A[:, 2, 2] = (0.0) * one
-    A[:, 2, 3] = (2.0*t7*(t0 + 13.0*zeta)) * one
-    A[:, 2, 4] = (t7*(-t5 - 7.0*zeta)) * one
+    A[:, 2, 3] = (2.0 * t7 * (t0 + 13.0 * zeta)) * one
+    A[:, 2, 4] = (t7 * (-t5 - 7.0 * zeta)) * one
     A[:, 3, 0] = (1.0) * one
     A[:, 3, 1] = (0.0) * one
     A[:, 3, 2] = (0.0) * one
@@ -265,39 +324,39 @@ def amplification_park(Omega, zeta):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = Omega*zeta
-    t1 = (Omega*Omega)
-    t2 = 9.0*t1
-    t3 = 1.0/(30.0*t0 + t2 + 25.0)
-    t4 = 6.0*t0 + 5.0
-    t5 = t3*t4
-    t6 = t1/(60.0*t0 + 18.0*t1 + 50.0)
-    t7 = 15.0*t3
-    t8 = 3.0*Omega
-    t9 = t8 + 10.0*zeta
-    t10 = -Omega*t3*t9
+    t0 = Omega * zeta
+    t1 = Omega * Omega
+    t2 = 9.0 * t1
+    t3 = 1.0 / (30.0 * t0 + t2 + 25.0)
+    t4 = 6.0 * t0 + 5.0
+    t5 = t3 * t4
+    t6 = t1 / (60.0 * t0 + 18.0 * t1 + 50.0)
+    t7 = 15.0 * t3
+    t8 = 3.0 * Omega
+    t9 = t8 + 10.0 * zeta
+    t10 = -Omega * t3 * t9
     A = np.empty((Omega.size, 7, 7))
-    A[:, 0, 0] = (((15.0/2.0))*t5) * one
-    A[:, 0, 1] = (((45.0/2.0))*t3) * one
+    A[:, 0, 0] = ((15.0 / 2.0) * t5) * one
+    A[:, 0, 1] = ((45.0 / 2.0) * t3) * one
     A[:, 0, 2] = (0.0) * one
-    A[:, 0, 3] = (-3.0*t3*t4) * one
-    A[:, 0, 4] = (((1.0/2.0))*t5) * one
-    A[:, 0, 5] = (-9.0*t3) * one
-    A[:, 0, 6] = (((3.0/2.0))*t3) * one
-    A[:, 1, 0] = (-45.0*t6) * one
-    A[:, 1, 1] = (((75.0/2.0))*t3) * one
+    A[:, 0, 3] = (-3.0 * t3 * t4) * one
+    A[:, 0, 4] = ((1.0 / 2.0) * t5) * one
+    A[:, 0, 5] = (-9.0 * t3) * one
+    A[:, 0, 6] = ((3.0 / 2.0) * t3) * one
+    A[:, 1, 0] = (-45.0 * t6) * one
+    A[:, 1, 1] = ((75.0 / 2.0) * t3) * one
     A[:, 1, 2] = (0.0) * one
-    A[:, 1, 3] = (t2*t3) * one
-    A[:, 1, 4] = (-3.0*t6) * one
+    A[:, 1, 3] = (t2 * t3) * one
+    A[:, 1, 4] = (-3.0 * t6) * one
     A[:, 1, 5] = (-t7) * one
-    A[:, 1, 6] = (((5.0/2.0))*t3) * one
-    A[:, 2, 0] = (-75.0*t6) * one
-    A[:, 2, 1] = (((15.0/2.0))*t10) * one
+    A[:, 1, 6] = ((5.0 / 2.0) * t3) * one
+    A[:, 2, 0] = (-75.0 * t6) * one
+    A[:, 2, 1] = ((15.0 / 2.0) * t10) * one
     A[:, 2, 2] = (0.0) * one
-    A[:, 2, 3] = (t1*t7) * one
-    A[:, 2, 4] = (-5.0*t6) * one
-    A[:, 2, 5] = (t3*t8*t9) * one
-    A[:, 2, 6] = (((1.0/2.0))*t10) * one
+    A[:, 2, 3] = (t1 * t7) * one
+    A[:, 2, 4] = (-5.0 * t6) * one
+    A[:, 2, 5] = (t3 * t8 * t9) * one
+    A[:, 2, 6] = ((1.0 / 2.0) * t10) * one
     A[:, 3, 0] = (1.0) * one
     A[:, 3, 1] = (0.0) * one
     A[:, 3, 2] = (0.0) * one
@@ -334,36 +393,36 @@ def amplification_hht(Omega, zeta, alpha):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = (alpha*alpha)
-    t1 = 2.0*t0
-    t2 = Omega*zeta
-    t3 = 4.0*t2
-    t4 = (Omega*Omega)
-    t5 = (alpha*alpha*alpha)
-    t6 = -t3*(alpha + t1 - 1.0) + t4*(-alpha - t0 + t5 + 1.0) + 4.0
-    t7 = 1.0/t6
-    t8 = -2.0*alpha
+    t0 = alpha * alpha
+    t1 = 2.0 * t0
+    t2 = Omega * zeta
+    t3 = 4.0 * t2
+    t4 = Omega * Omega
+    t5 = alpha * alpha * alpha
+    t6 = -t3 * (alpha + t1 - 1.0) + t4 * (-alpha - t0 + t5 + 1.0) + 4.0
+    t7 = 1.0 / t6
+    t8 = -2.0 * alpha
     t9 = t0 + 1.0
-    t10 = t0*t2
-    t11 = 4.0*alpha
-    t12 = t4*t5
-    t13 = t0*t4
-    t14 = 1.0/(-alpha*t4 - 8.0*t10 - t11*t2 + t12 - t13 + t3 + t4 + 4.0)
-    t15 = t4*t7
-    t16 = 2.0*zeta
+    t10 = t0 * t2
+    t11 = 4.0 * alpha
+    t12 = t4 * t5
+    t13 = t0 * t4
+    t14 = 1.0 / (-alpha * t4 - 8.0 * t10 - t11 * t2 + t12 - t13 + t3 + t4 + 4.0)
+    t15 = t4 * t7
+    t16 = 2.0 * zeta
     t17 = alpha + 1.0
-    t18 = Omega*t7
-    t19 = 3.0*alpha
+    t18 = Omega * t7
+    t19 = 3.0 * alpha
     A = np.empty((Omega.size, 3, 3))
-    A[:, 0, 0] = (t7*(t4*(-t8 - t9) + t6)) * one
-    A[:, 0, 1] = (2.0*t14*(-5.0*t10 + t2 + 2.0)) * one
-    A[:, 0, 2] = (t14*(-t0 - t1*t2 - 2.0*t2*t5 - t8 + 1.0)) * one
-    A[:, 1, 0] = (t15*(t11 - 2.0)) * one
-    A[:, 1, 1] = (t7*(2.0*Omega*(2.0*alpha - 1.0)*(Omega*t17 + t16) + t6)) * one
-    A[:, 1, 2] = (t14*(t11 + t12 + t13 + 2.0)) * one
-    A[:, 2, 0] = (-4.0*t15) * one
-    A[:, 2, 1] = (4.0*t18*(-Omega*t17 - t16)) * one
-    A[:, 2, 2] = (t18*(Omega*(-t19 + t5 - t9) - 4.0*zeta*(t1 + t19 + 1.0))) * one
+    A[:, 0, 0] = (t7 * (t4 * (-t8 - t9) + t6)) * one
+    A[:, 0, 1] = (2.0 * t14 * (-5.0 * t10 + t2 + 2.0)) * one
+    A[:, 0, 2] = (t14 * (-t0 - t1 * t2 - 2.0 * t2 * t5 - t8 + 1.0)) * one
+    A[:, 1, 0] = (t15 * (t11 - 2.0)) * one
+    A[:, 1, 1] = (t7 * (2.0 * Omega * (2.0 * alpha - 1.0) * (Omega * t17 + t16) + t6)) * one
+    A[:, 1, 2] = (t14 * (t11 + t12 + t13 + 2.0)) * one
+    A[:, 2, 0] = (-4.0 * t15) * one
+    A[:, 2, 1] = (4.0 * t18 * (-Omega * t17 - t16)) * one
+    A[:, 2, 2] = (t18 * (Omega * (-t19 + t5 - t9) - 4.0 * zeta * (t1 + t19 + 1.0))) * one
     return A
 
 
@@ -372,35 +431,41 @@ def amplification_generalized_alpha(Omega, zeta, rho_inf):
     Omega = np.asarray(Omega, dtype=float).reshape(-1)
     zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
     one = np.ones_like(Omega)
-    t0 = (Omega*Omega)
-    t1 = Omega*zeta
-    t2 = 2.0*rho_inf
-    t3 = t1*t2
-    t4 = (rho_inf*rho_inf*rho_inf)
+    t0 = Omega * Omega
+    t1 = Omega * zeta
+    t2 = 2.0 * rho_inf
+    t3 = t1 * t2
+    t4 = rho_inf * rho_inf * rho_inf
     t5 = -t4
-    t6 = 3.0*rho_inf
-    t7 = (rho_inf*rho_inf)
-    t8 = t1*t7
+    t6 = 3.0 * rho_inf
+    t7 = rho_inf * rho_inf
+    t8 = t1 * t7
     t9 = t5 + t6 - t8 + 2.0
-    t10 = 3.0*t1 + t3 + t9
-    t11 = 1.0/(t0 + t10)
-    t12 = rho_inf*t0
-    t13 = ((1.0/2.0))*t0
-    t14 = 2.0*t7
-    t15 = t13*t7
-    t16 = 2.0*t4
-    t17 = 3.0*t7
-    t18 = 6.0*zeta
+    t10 = 3.0 * t1 + t3 + t9
+    t11 = 1.0 / (t0 + t10)
+    t12 = rho_inf * t0
+    t13 = (1.0 / 2.0) * t0
+    t14 = 2.0 * t7
+    t15 = t13 * t7
+    t16 = 2.0 * t4
+    t17 = 3.0 * t7
+    t18 = 6.0 * zeta
     A = np.empty((Omega.size, 3, 3))
-    A[:, 0, 0] = (t11*(t10 - t12)) * one
-    A[:, 0, 1] = (t11*(t1 + t9)) * one
-    A[:, 0, 2] = (((1.0/2.0))*t11*(rho_inf - t1 + t3 - t4 - t8)) * one
-    A[:, 1, 0] = (t11*t13*(-5.0*rho_inf - t5 - t7 - 3.0)) * one
-    A[:, 1, 1] = (t11*(Omega*t4*zeta - t1*t14 - t1*t6 - t12 - t13 + t15 - t4 + t6 + 2.0)) * one
-    A[:, 1, 2] = (((1.0/4.0))*t11*(t0*t7 + t0 - 2.0*t12 - t14 - t16 + t2 + 2.0)) * one
-    A[:, 2, 0] = (t0*t11*(-t17 - t4 - t6 - 1.0)) * one
-    A[:, 2, 1] = (Omega*t11*(-Omega*t2 - Omega*t7 - Omega - rho_inf*t18 - t16*zeta - t18*t7 - 2.0*zeta)) * one
-    A[:, 2, 2] = (t11*(-t1*t17 + t1 - t12 + t13 - t15 - t16 - t17 - t3 + 1.0)) * one
+    A[:, 0, 0] = (t11 * (t10 - t12)) * one
+    A[:, 0, 1] = (t11 * (t1 + t9)) * one
+    A[:, 0, 2] = ((1.0 / 2.0) * t11 * (rho_inf - t1 + t3 - t4 - t8)) * one
+    A[:, 1, 0] = (t11 * t13 * (-5.0 * rho_inf - t5 - t7 - 3.0)) * one
+    A[:, 1, 1] = (
+        t11 * (Omega * t4 * zeta - t1 * t14 - t1 * t6 - t12 - t13 + t15 - t4 + t6 + 2.0)
+    ) * one
+    A[:, 1, 2] = ((1.0 / 4.0) * t11 * (t0 * t7 + t0 - 2.0 * t12 - t14 - t16 + t2 + 2.0)) * one
+    A[:, 2, 0] = (t0 * t11 * (-t17 - t4 - t6 - 1.0)) * one
+    A[:, 2, 1] = (
+        Omega
+        * t11
+        * (-Omega * t2 - Omega * t7 - Omega - rho_inf * t18 - t16 * zeta - t18 * t7 - 2.0 * zeta)
+    ) * one
+    A[:, 2, 2] = (t11 * (-t1 * t17 + t1 - t12 + t13 - t15 - t16 - t17 - t3 + 1.0)) * one
     return A
 
 
