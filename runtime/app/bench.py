@@ -272,26 +272,35 @@ def write_report(runs, meta, out_dir, command):
 
 
 def _plot(runs, meta, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(8.5, 5.5))
-    methods = list(dict.fromkeys(r.method for r in runs))
-    styles = ["o-", "s-", "^-", "v-", "D-", "x-", "+-", "*-", "<-", ">-"]
-    for k, m in enumerate(methods):
-        pts = sorted((r.run_time, max(r.max_error, 1e-17)) for r in runs if r.method == m)
-        ax.loglog([p[0] * 1e3 for p in pts], [p[1] for p in pts], styles[k % len(styles)],
-                  ms=4, lw=1, label=m, color=plt.cm.tab20(k % 20))
+    """Error against run time, one line per method: a marker shape per family (DT-TMM, state
+    space, modal filters, nonlinear, peer) and a colour per method within it."""
+    from dtdyn._engine.extras import require
+    require("matplotlib", "plot", "dtdyn bench")
+    from matplotlib import colormaps
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8.5, 5.5), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    families = list(dict.fromkeys(r.family for r in runs))
+    markers = "osD^v<>ph*X"
+    colors = colormaps["tab10"].colors
+    for f, family in enumerate(families):
+        methods = list(dict.fromkeys(r.method for r in runs if r.family == family))
+        for k, m in enumerate(methods):
+            pts = sorted((r.run_time, max(r.max_error, 1e-17)) for r in runs if r.method == m)
+            ax.loglog([p[0] * 1e3 for p in pts], [p[1] for p in pts],
+                      marker=markers[f % len(markers)], ls=("-", "--", ":")[k // 10 % 3],
+                      ms=4.5, lw=1, label=m, color=colors[k % len(colors)])
     for target in meta["targets"]:
         ax.axhline(target, color="gray", lw=0.7, ls="--")
     ax.set_xlabel("run time [ms]")
     ax.set_ylabel("max relative error over time")
-    ax.set_title(f"{meta['problem']}: error against run time")
+    ax.set_title(f"{meta['problem']}: error against run time (marker: family)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=6.5, ncol=2, loc="best")
-    fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def run(names, out_dir, quick=False, command="dtdyn bench"):

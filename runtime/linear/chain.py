@@ -170,8 +170,10 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
 
     f0 = np.zeros(m.size)
     f0[loaded] = force[0]
-    _, C, K = chain_matrices(m, k, c, sparse=True)
-    a0 = (f0 - C @ v0 - K @ x0) / m
+    if x0.any() or v0.any():  # a_0 = M^-1 (f_0 - C v_0 - K x_0), consistent with the start
+        _, C, K = chain_matrices(m, k, c, sparse=True)
+        f0 = f0 - C @ v0 - K @ x0
+    a0 = f0 / m
     res = stepping.integrate(info, form, dt, force, (x0, v0, a0), make_advance, outputs,
                              quantities, progress)
     used = "c" if backend == "c" and kernels.c_chain_function(info.name) else "numpy"
