@@ -79,7 +79,7 @@ def main(quick=False):
     for scheme in SCHEMES:
         forms = ("acceleration",) if scheme == "central_difference" else tuple(worst)
         for form in forms:
-            kw = dict(loaded=[10, 500, 999], scheme=scheme, form=form, quantities=("x",))
+            kw = dict(force_dofs=[10, 500, 999], scheme=scheme, form=form, quantities=("x",))
             a = simulate_chain(m, k, c, F, 1e-4, backend="c", **kw)
             b = simulate_chain(m, k, c, F, 1e-4, backend="numpy", **kw)
             d = np.max(np.abs(a.x - b.x)) / np.max(np.abs(b.x))

@@ -292,9 +292,13 @@ def state_space_response(model: DiscreteModel, force, *, force_dofs=None, output
     f0[dofs] = f[0]
     state0 = model.initial_state(x0, v0, f0)
     rows = np.concatenate([model.quantities.index(q) * n + outputs for q in quantities])
+    every = rows.size == model.C.shape[0] and np.array_equal(rows, np.arange(rows.size))
+    all_in = dofs.size == n and np.array_equal(dofs, np.arange(n))
+    C = model.C if every else model.C[rows]  # no copies when everything is asked for
+    D = model.D if every else model.D[rows]
     start = time.perf_counter()
-    y = run_recursion(model.A, model.B[:, dofs], model.C[rows], model.D[rows][:, dofs], f,
-                      state0, backend)
+    y = run_recursion(model.A, model.B if all_in else model.B[:, dofs], C,
+                      D if all_in else D[:, dofs], f, state0, backend)
     run_time = time.perf_counter() - start
     k = outputs.size
     store = {q: np.ascontiguousarray(y[:, i * k:(i + 1) * k]) for i, q in enumerate(quantities)}
