@@ -250,6 +250,28 @@ def _stability_context() -> dict:
     return {"schemes": out}
 
 
+def _chain_macros(ctx) -> dict:
+    """The statements the chain_loop.h macros hold, per form (chain.c.jinja defines them)."""
+    history = ctx["history"]
+    forms = []
+    for f in ctx["forms_c"]:
+        plain = f["error_step"] + f["plain"]["run"] + f["plain"]["step"]
+        forms.append({
+            **f,
+            "constants": [f"const double {p} = params[{i}];" for i, p in enumerate(ctx["params"])]
+                         + [f"const double {n} = {e};" for n, e in f["temps"] + f["rows"]],
+            "plain_rows": [f"double *{n} = work + {20 + i} * N;" for i, (n, _) in enumerate(plain)],
+            "plain_voids": [f"(void){n};" for n, _ in plain],
+            "error_step_lines": [f"{n}[n] = {e};" for n, e in f["error_step"]],
+            "plain_run_lines": [f"{n}[n] = {e};" for n, e in f["plain"]["run"]],
+            "plain_step_lines": [f"{n}[n] = {e};" for n, e in f["plain"]["step"]],
+        })
+    lines = [f"double *{h} = hist + {i} * N;" for i, h in enumerate(history)]
+    lines += [f"pair *e{h} = sweep ? (pair *)(ehist + {2 * i} * N) : NULL;"
+              for i, h in enumerate(history)]
+    return {"forms": forms, "history_lines": lines}
+
+
 def render_all() -> dict[str, str]:
     """Every generated file as {name: text}."""
     env = environment()
@@ -292,7 +314,7 @@ def render_all() -> dict[str, str]:
         ctx = _scheme_context(name)
         src = f"dtdyn.derive.integrators.SCHEMES[{name!r}]"
         render("numpy/scheme.py.jinja", f"scheme_{name}.py", src, **ctx, forms=ctx["forms_py"])
-        render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, forms=ctx["forms_c"],
+        render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, **_chain_macros(ctx),
                prototypes=c_api.prototype("dtdyn_chain", f"dtdyn_chain_{name}"))
         render("markdown/scheme.md.jinja", f"scheme_{name}.md", src, **ctx,
                latex=_latex_rows(ctx["derived"]),
@@ -300,6 +322,7 @@ def render_all() -> dict[str, str]:
                                                              ctx["derived"].scheme.relations],
                substitutions=[(sp.latex(k), sp.latex(v)) for k, v in
                               ctx["derived"].scheme.substitutions.items()])
+    render("c/chain_loop.h.jinja", "chain_loop.h", "the DT-TMM chain loop (every scheme)")
     render("numpy/init.py.jinja", "__init__.py", "dtdyn.derive.integrators.SCHEMES",
            schemes=names)
     render("numpy/c_api.py.jinja", "c_api.py", "dtdyn.derive.c_api",
@@ -316,7 +339,8 @@ def render_all() -> dict[str, str]:
 #: gives the same bytes on every machine
 FORMATTERS = {"ruff": "0.8.6", "clang-format": "19.1.6"}
 CLANG_STYLE = ("{BasedOnStyle: LLVM, IndentWidth: 4, ColumnLimit: 100, "
-               "AllowShortFunctionsOnASingleLine: None, SortIncludes: Never}")
+               "AllowShortFunctionsOnASingleLine: None, SortIncludes: Never, "
+               "AlignEscapedNewlines: DontAlign}")
 
 
 def _formatter(name: str) -> str:

@@ -18,582 +18,301 @@
  * rounding error of P_f,N, from the product in double-double), 1.5 s_j eps f_1 P_u to
  * E_r (s_j: a pseudo-random sign of the step index). The estimate is err[0] / (err[1] - err[0]),
  * derived in dtdyn.derive.dttmm.
+ * The loop itself is chain_loop.h (shared by every scheme); this file defines the scheme's
+ * derived expressions for it.
  * The stable sweep's two recurrences use fma(), as the OpenBLAS triangular solve of the NumPy
  * backend does, so the two backends round alike (bitwise equal where that BLAS uses FMA).
  */
-#include <math.h>
-#include <float.h>
-#include <stddef.h>
-#include <stdint.h>
-#include <string.h>
-
-/* a pair of doubles (the two error histories); alignment 8, as the arrays NumPy allocates */
-typedef double pair __attribute__((vector_size(16), aligned(8)));
-
-/* Error-free transformations (Veltkamp split, no fma: the NumPy backend runs the same steps). */
-static void two_prod(double a, double b, double *p, double *e) {
-    const double ta = 134217729.0 * a, tb = 134217729.0 * b;
-    const double ah = ta - (ta - a), al = a - ah, bh = tb - (tb - b), bl = b - bh;
-    *p = a * b;
-    *e = ((ah * bh - *p) + ah * bl + al * bh) + al * bl;
-}
-
-static void two_sum(double a, double b, double *s, double *e) {
-    const double t = a + b, bb = t - a;
-    *s = t;
-    *e = (a - (t - bb)) + (b - bb);
-}
-
-/* a x + b y in double-double arithmetic (x = xh + xl, y = yh + yl) */
-static void dd_axpy(double a, double xh, double xl, double b, double yh, double yl, double *rh,
-                    double *rl) {
-    double p, pe, q, qe, t, te;
-    two_prod(a, xh, &p, &pe);
-    two_prod(b, yh, &q, &qe);
-    two_sum(p, q, &t, &te);
-    te += pe + qe + a * xl + b * yl;
-    two_sum(t, te, rh, rl);
-}
-
-/* +1 or -1 from the step index j (the top bit of splitmix64 of j) */
-static double step_sign(uint64_t j) {
-    uint64_t z = (j + 1u) * UINT64_C(0x9E3779B97F4A7C15);
-    z = (z ^ (z >> 30)) * UINT64_C(0xBF58476D1CE4E5B9);
-    z = (z ^ (z >> 27)) * UINT64_C(0x94D049BB133111EB);
-    z ^= z >> 31;
-    return (z >> 63) ? 1.0 : -1.0;
-}
-
-static int run_displacement(int sweep, long N, long n_steps, const double *m, const double *k,
-                            const double *c, double dt, const double *params, long n_loaded,
-                            const long *loaded, const double *force, double *hist, long n_out,
-                            const long *out_idx, double *xo, double *vo, double *ao, double *work,
-                            double *ehist, double *err) {
-    const int reuse = sweep == 2; /* the stable sweep with the factors already in work */
-    if (reuse)
-        sweep = 0;
-    const double rho_inf = params[0];
-    const double k0 = rho_inf + 1;
-    const double k1 = 1.0 / k0;
-    const double k2 = 2 * rho_inf;
-    const double k3 = (rho_inf * rho_inf);
-    const double k4 = -k3;
-    const double k5 = 1.0 / dt;
-    const double k6 = ((1.0 / 2.0)) * k5;
-    const double k7 = (1.0 / (dt * dt));
-    const double k8 = 3 * rho_inf;
-    const double k9 = (rho_inf * rho_inf * rho_inf);
-    const double k10 = -k9;
-    const double k11 = ((1.0 / 2.0)) * rho_inf;
-    const double k12 = k3 + 1;
-    const double k13 = ((1.0 / 4.0)) * dt * (k12 - k2);
-    const double k14 = ((1.0 / 2.0)) * k3;
-    const double w0 = k1 * rho_inf;
-    const double w1 = k1;
-    const double p = 1;
-    const double r = k6 * (k2 + k4 + 3);
-    const double alpha_u = k7 * (k10 + k8 + 2);
-    const double q_x0 = 1;
-    const double s_v0 = k11 + (-1.0 / 2.0);
-    const double s_a0 = k1 * k13;
-    const double b_v0 = k5 * (-k4 - rho_inf - 2);
-    const double b_a0 = k11 * (rho_inf - 1);
-    const double x1_x0 = 1;
-    const double x1_u = k0;
-    const double v1_v0 = k14 - rho_inf + (-1.0 / 2.0);
-    const double v1_a0 = k13;
-    const double v1_u = k6 * (k10 + k3 + 5 * rho_inf + 3);
-    const double a1_v0 = k5 * (-k12 - k2);
-    const double a1_a0 = -k14 - rho_inf + (1.0 / 2.0);
+/* displacement form */
+#define CHAIN_RUN run_displacement
+#define CHAIN_CONSTANTS \
+    const double rho_inf = params[0]; \
+    const double k0 = rho_inf + 1; \
+    const double k1 = 1.0 / k0; \
+    const double k2 = 2 * rho_inf; \
+    const double k3 = (rho_inf * rho_inf); \
+    const double k4 = -k3; \
+    const double k5 = 1.0 / dt; \
+    const double k6 = ((1.0 / 2.0)) * k5; \
+    const double k7 = (1.0 / (dt * dt)); \
+    const double k8 = 3 * rho_inf; \
+    const double k9 = (rho_inf * rho_inf * rho_inf); \
+    const double k10 = -k9; \
+    const double k11 = ((1.0 / 2.0)) * rho_inf; \
+    const double k12 = k3 + 1; \
+    const double k13 = ((1.0 / 4.0)) * dt * (k12 - k2); \
+    const double k14 = ((1.0 / 2.0)) * k3; \
+    const double w0 = k1 * rho_inf; \
+    const double w1 = k1; \
+    const double p = 1; \
+    const double r = k6 * (k2 + k4 + 3); \
+    const double alpha_u = k7 * (k10 + k8 + 2); \
+    const double q_x0 = 1; \
+    const double s_v0 = k11 + (-1.0 / 2.0); \
+    const double s_a0 = k1 * k13; \
+    const double b_v0 = k5 * (-k4 - rho_inf - 2); \
+    const double b_a0 = k11 * (rho_inf - 1); \
+    const double x1_x0 = 1; \
+    const double x1_u = k0; \
+    const double v1_v0 = k14 - rho_inf + (-1.0 / 2.0); \
+    const double v1_a0 = k13; \
+    const double v1_u = k6 * (k10 + k3 + 5 * rho_inf + 3); \
+    const double a1_v0 = k5 * (-k12 - k2); \
+    const double a1_a0 = -k14 - rho_inf + (1.0 / 2.0); \
     const double a1_u = k7 * (3 * k3 + k8 + k9 + 1);
-    double *x0 = hist + 0 * N;
-    double *v0 = hist + 1 * N;
-    double *a0 = hist + 2 * N;
-    pair *ex0 = sweep ? (pair *)(ehist + 0 * N) : NULL;
-    pair *ev0 = sweep ? (pair *)(ehist + 2 * N) : NULL;
+#define CHAIN_HISTORY \
+    double *x0 = hist + 0 * N; \
+    double *v0 = hist + 1 * N; \
+    double *a0 = hist + 2 * N; \
+    pair *ex0 = sweep ? (pair *)(ehist + 0 * N) : NULL; \
+    pair *ev0 = sweep ? (pair *)(ehist + 2 * N) : NULL; \
     pair *ea0 = sweep ? (pair *)(ehist + 4 * N) : NULL;
-    double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
-    double *SR = work + 5 * N, *g = work + 6 * N, *af = work + 7 * N, *R = work + 8 * N;
-    double *u = work + 9 * N, *Pu = work + 10 * N, *den = work + 11 * N;
-    /* plain sweep only: the error histories' unknown, terms and Riccati R (pairs); the
-       coefficients of the zero-force step; the station matrix entries per run and per step
-       (30 rows in all) */
-    pair *eu = (pair *)(work + 12 * N), *eb = (pair *)(work + 14 * N);
-    pair *eDl = (pair *)(work + 16 * N), *eR = (pair *)(work + 18 * N);
-    double *hD = work + 20 * N;
-    double *hb = work + 21 * N;
-    double *fR = work + 22 * N;
-    double *fD = work + 23 * N;
-    double *fb = work + 24 * N;
-    double *T12 = work + 25 * N;
-    double *T21 = work + 26 * N;
-    double *T22 = work + 27 * N;
-    double *T13 = work + 28 * N;
+#define CHAIN_PLAIN_ROWS \
+    double *hD = work + 20 * N; \
+    double *hb = work + 21 * N; \
+    double *fR = work + 22 * N; \
+    double *fD = work + 23 * N; \
+    double *fb = work + 24 * N; \
+    double *T12 = work + 25 * N; \
+    double *T21 = work + 26 * N; \
+    double *T22 = work + 27 * N; \
+    double *T13 = work + 28 * N; \
     double *T23 = work + 29 * N;
-    double PfN = 1.0, epsP = 0.0, emax = sweep ? err[0] : 0.0, xmax = sweep ? err[1] : 0.0;
-    uint64_t jstep = sweep ? (uint64_t)err[2] : 0u;
-    long n, i, j, step;
-    (void)dt;
-    (void)params;
-    (void)alpha_u;
-    (void)q;
-    (void)b;
-    (void)R;
-    (void)Pu;
-    (void)SR;
-    (void)g;
-    (void)af;
-    (void)den;
-    (void)eu;
-    (void)eb;
-    (void)eDl;
-    (void)eR;
-    (void)hD;
-    (void)hb;
-    (void)fR;
-    (void)fD;
-    (void)fb;
-    (void)T12;
-    (void)T21;
-    (void)T22;
-    (void)T13;
+#define CHAIN_PLAIN_VOIDS \
+    (void)hD; \
+    (void)hb; \
+    (void)fR; \
+    (void)fD; \
+    (void)fb; \
+    (void)T12; \
+    (void)T21; \
+    (void)T22; \
+    (void)T13; \
     (void)T23;
-    if (!reuse) { /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
-        double S_R = 0.0;
-        for (n = N - 1; n >= 0; --n) {
-            const double mn = m[n], kp = k[n] * p + c[n] * r;
-            double S_L;
-            SR[n] = S_R;
-            g[n] = kp / (-SR[n] + alpha_u * mn + kp);
-            S_L = kp * (SR[n] - alpha_u * mn) / (-SR[n] + alpha_u * mn + kp);
-            af[n] = kp / (-SR[n] + alpha_u * mn + kp);
-            den[n] = -SR[n] + alpha_u * mn + kp;
-            if (sweep) {
-                hD[n] = (-SR[n] + alpha_u * mn) / (-SR[n] + alpha_u * mn + kp);
-                hb[n] = -kp * mn / (-SR[n] + alpha_u * mn + kp);
-                fR[n] = 1.0 / (-SR[n] + alpha_u * mn + kp);
-                fD[n] = -1 / (-SR[n] + alpha_u * mn + kp);
-                fb[n] = -mn / (-SR[n] + alpha_u * mn + kp);
-            }
-            S_R = S_L;
-        }
-    }
-    if (sweep) {
-        double P_u = 0.0, P_f = 1.0;
-        for (n = 0; n < N; ++n) {
-            const double mn = m[n], kp = k[n] * p + c[n] * r;
-            T12[n] = (1.0 / kp);
-            T21[n] = (alpha_u * mn);
-            T22[n] = (alpha_u * mn / kp + 1);
-            (void)mn;
-            (void)kp;
-            const double nu = (1) * P_u + T12[n] * P_f;
-            P_f = T21[n] * P_u + T22[n] * P_f;
-            P_u = nu;
-            Pu[n] = P_u;
-        }
-        PfN = P_f;
-        { /* eps_P: the rounding error of P_f,N against the same product in double-double */
-            double uh = 0.0, ul = 0.0, fh = 1.0, fl = 0.0;
-            for (n = 0; n < N; ++n) {
-                double nh, nl, gh, gl;
-                dd_axpy((1), uh, ul, T12[n], fh, fl, &nh, &nl);
-                dd_axpy(T21[n], uh, ul, T22[n], fh, fl, &gh, &gl);
-                uh = nh;
-                ul = nl;
-                fh = gh;
-                fl = gl;
-            }
-            epsP = ((PfN - fh) - fl) / fh;
-            if (!isfinite(epsP))
-                epsP = DBL_EPSILON; /* the product overflowed: an eps-sized systematic part */
-        }
-    }
-    memset(Fe, 0, (size_t)N * sizeof(double));
-    for (step = 0; step < n_steps; ++step) {
-        for (j = 0; j < n_loaded; ++j)
-            Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
-        for (i = 0; i < N; ++i) {
-            q[i] = q_x0 * x0[i];
-            s[i] = s_v0 * v0[i] + s_a0 * a0[i];
-            b[i] = b_v0 * v0[i] + b_a0 * a0[i];
-        }
-        for (n = 0; n < N; ++n) {
-            const double qp = n ? q[n - 1] : 0.0, sp = n ? s[n - 1] : 0.0;
-            Dl[n] = k[n] * (q[n] - qp) + c[n] * (s[n] - sp);
-        }
-        if (sweep == 0) {
-            double up = 0.0;
-            for (n = N - 1; n >= 0; --n) {
-                const double mn = m[n], kp = k[n] * p + c[n] * r;
-                R[n] = fma(g[n], n + 1 < N ? R[n + 1] : 0.0,
-                           (-Dl[n] * SR[n] + Dl[n] * alpha_u * mn + Fe[n] * kp - b[n] * kp * mn) /
-                               den[n]);
-            }
-            for (n = 0; n < N; ++n) {
-                const double mn = m[n];
-                const double R_R = n + 1 < N ? R[n + 1] : 0.0;
-                (void)mn;
-                up = fma(af[n], up, (-Dl[n] + Fe[n] + R_R - b[n] * mn) / den[n]);
-                u[n] = up;
-            }
-        } else {
-            const pair zero2 = {0.0, 0.0};
-            double Q_u = 0.0, Q_f = 0.0, z_u = 0.0, z_f, f1;
-            pair kick, eup = zero2, eqp = zero2, esp = zero2;
-            /* the error histories' terms (error estimate, see the header); their Riccati passes
-               run inside the solution's two passes (independent recurrences) */
-            for (i = 0; i < N; ++i) {
-                const pair eq = q_x0 * ex0[i];
-                const pair es = s_v0 * ev0[i] + s_a0 * ea0[i];
-                eb[i] = b_v0 * ev0[i] + b_a0 * ea0[i];
-                eDl[i] = k[i] * (eq - eqp) + c[i] * (es - esp);
-                eqp = eq;
-                esp = es;
-            }
-            for (n = 0; n < N; ++n) {
-                const long nb = N - 1 - n;
-                const double mn = m[n], kp = k[n] * p + c[n] * r;
-                double nu;
-                (void)mn;
-                (void)kp;
-                T13[n] = (-Dl[n] / kp);
-                T23[n] = (-Dl[n] * alpha_u * mn / kp - Fe[n] + b[n] * mn);
-                nu = (1) * Q_u + T12[n] * Q_f + T13[n];
-                Q_f = T21[n] * Q_u + T22[n] * Q_f + T23[n];
-                Q_u = nu;
-                eR[nb] =
-                    g[nb] * (nb + 1 < N ? eR[nb + 1] : zero2) + hD[nb] * eDl[nb] + hb[nb] * eb[nb];
-            }
-            z_f = f1 = -Q_f / PfN;
-            kick[0] = -epsP * f1;
-            kick[1] = 1.5 * step_sign(jstep++) * DBL_EPSILON * f1;
-            for (n = 0; n < N; ++n) {
-                const double nu = (1) * z_u + T12[n] * z_f + T13[n];
-                z_f = T21[n] * z_u + T22[n] * z_f + T23[n];
-                z_u = nu;
-                u[n] = z_u;
-                eup = af[n] * eup + fR[n] * (n + 1 < N ? eR[n + 1] : zero2) + fD[n] * eDl[n] +
-                      fb[n] * eb[n];
-                eu[n] = eup + kick * Pu[n];
-            }
-        }
-        if (sweep == 0) {
-            for (i = 0; i < N; ++i) {
-                const double x1 = x1_x0 * x0[i] + x1_u * u[i];
-                const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
-                const double a1 = a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i];
-                x0[i] = x1;
-                v0[i] = v1;
-                a0[i] = a1;
-            }
-        } else {
-            double ms = 0.0, mr = 0.0;
-            for (i = 0; i < N; ++i) {
-                const pair ex1 = x1_x0 * ex0[i] + x1_u * eu[i];
-                const pair ev1 = v1_v0 * ev0[i] + v1_a0 * ea0[i] + v1_u * eu[i];
-                const pair ea1 = a1_v0 * ev0[i] + a1_a0 * ea0[i] + a1_u * eu[i];
-                const double x1 = x1_x0 * x0[i] + x1_u * u[i];
-                const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
-                const double a1 = a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i];
-                x0[i] = x1;
-                v0[i] = v1;
-                a0[i] = a1;
-                ex0[i] = ex1;
-                ev0[i] = ev1;
-                ea0[i] = ea1;
-                if (fabs(x0[i]) > xmax)
-                    xmax = fabs(x0[i]);
-                if (fabs(ex1[0]) > ms)
-                    ms = fabs(ex1[0]);
-                if (fabs(ex1[1]) > mr)
-                    mr = fabs(ex1[1]);
-            }
-            if (ms + mr > emax)
-                emax = ms + mr;
-        }
-        for (j = 0; j < n_out; ++j) {
-            const long o = out_idx[j], row = (step + 1) * n_out + j;
-            if (xo)
-                xo[row] = x0[o];
-            if (vo)
-                vo[row] = v0[o];
-            if (ao)
-                ao[row] = a0[o];
-        }
-    }
-    if (sweep) {
-        err[0] = emax;
-        err[1] = xmax;
-        err[2] = (double)jstep;
-    }
-    return 0;
-}
+#define CHAIN_G kp / (-SR[n] + alpha_u * mn + kp)
+#define CHAIN_S_L kp *(SR[n] - alpha_u * mn) / (-SR[n] + alpha_u * mn + kp)
+#define CHAIN_AF kp / (-SR[n] + alpha_u * mn + kp)
+#define CHAIN_DEN -SR[n] + alpha_u *mn + kp
+#define CHAIN_ERROR_STEP \
+    hD[n] = (-SR[n] + alpha_u * mn) / (-SR[n] + alpha_u * mn + kp); \
+    hb[n] = -kp * mn / (-SR[n] + alpha_u * mn + kp); \
+    fR[n] = 1.0 / (-SR[n] + alpha_u * mn + kp); \
+    fD[n] = -1 / (-SR[n] + alpha_u * mn + kp); \
+    fb[n] = -mn / (-SR[n] + alpha_u * mn + kp);
+#define CHAIN_PLAIN_RUN \
+    T12[n] = (1.0 / kp); \
+    T21[n] = (alpha_u * mn); \
+    T22[n] = (alpha_u * mn / kp + 1);
+#define CHAIN_PLAIN_STEP \
+    T13[n] = (-Dl[n] / kp); \
+    T23[n] = (-Dl[n] * alpha_u * mn / kp - Fe[n] + b[n] * mn);
+#define CHAIN_USE0 (1)
+#define CHAIN_USE1 T12[n]
+#define CHAIN_USE2 T13[n]
+#define CHAIN_USE3 T21[n]
+#define CHAIN_USE4 T22[n]
+#define CHAIN_USE5 T23[n]
+#define CHAIN_Q q_x0 *x0[i]
+#define CHAIN_SV s_v0 *v0[i] + s_a0 *a0[i]
+#define CHAIN_B b_v0 *v0[i] + b_a0 *a0[i]
+#define CHAIN_H_NUM -Dl[n] * SR[n] + Dl[n] * alpha_u *mn + Fe[n] * kp - b[n] * kp *mn
+#define CHAIN_B_NUM -Dl[n] + Fe[n] + R_R - b[n] * mn
+#define CHAIN_EQ q_x0 *ex0[i]
+#define CHAIN_ES s_v0 *ev0[i] + s_a0 *ea0[i]
+#define CHAIN_EB b_v0 *ev0[i] + b_a0 *ea0[i]
+#define CHAIN_RANDOM_SPREAD 1.5
+#define CHAIN_UPDATE \
+    const double x1 = x1_x0 * x0[i] + x1_u * u[i]; \
+    const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i]; \
+    const double a1 = a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i]; \
+    x0[i] = x1; \
+    v0[i] = v1; \
+    a0[i] = a1;
+#define CHAIN_EX1 x1_x0 *ex0[i] + x1_u *eu[i]
+#define CHAIN_EV1 v1_v0 *ev0[i] + v1_a0 *ea0[i] + v1_u *eu[i]
+#define CHAIN_EA1 a1_v0 *ev0[i] + a1_a0 *ea0[i] + a1_u *eu[i]
+#define CHAIN_ERROR_SHIFT \
+    ex0[i] = ex1; \
+    ev0[i] = ev1; \
+    ea0[i] = ea1;
+#include "chain_loop.h"
+#undef CHAIN_RUN
+#undef CHAIN_CONSTANTS
+#undef CHAIN_HISTORY
+#undef CHAIN_PLAIN_ROWS
+#undef CHAIN_PLAIN_VOIDS
+#undef CHAIN_G
+#undef CHAIN_S_L
+#undef CHAIN_AF
+#undef CHAIN_DEN
+#undef CHAIN_ERROR_STEP
+#undef CHAIN_PLAIN_RUN
+#undef CHAIN_PLAIN_STEP
+#undef CHAIN_USE0
+#undef CHAIN_USE1
+#undef CHAIN_USE2
+#undef CHAIN_USE3
+#undef CHAIN_USE4
+#undef CHAIN_USE5
+#undef CHAIN_Q
+#undef CHAIN_SV
+#undef CHAIN_B
+#undef CHAIN_H_NUM
+#undef CHAIN_B_NUM
+#undef CHAIN_EQ
+#undef CHAIN_ES
+#undef CHAIN_EB
+#undef CHAIN_RANDOM_SPREAD
+#undef CHAIN_UPDATE
+#undef CHAIN_EX1
+#undef CHAIN_EV1
+#undef CHAIN_EA1
+#undef CHAIN_ERROR_SHIFT
 
-static int run_acceleration(int sweep, long N, long n_steps, const double *m, const double *k,
-                            const double *c, double dt, const double *params, long n_loaded,
-                            const long *loaded, const double *force, double *hist, long n_out,
-                            const long *out_idx, double *xo, double *vo, double *ao, double *work,
-                            double *ehist, double *err) {
-    const int reuse = sweep == 2; /* the stable sweep with the factors already in work */
-    if (reuse)
-        sweep = 0;
-    const double rho_inf = params[0];
-    const double k0 = rho_inf + 1;
-    const double k1 = 1.0 / k0;
-    const double k2 = (dt * dt);
-    const double k3 = k2 / (-(rho_inf * rho_inf * rho_inf) + 3 * rho_inf + 2);
-    const double k4 = -(rho_inf * rho_inf) + rho_inf + 2;
-    const double k5 = ((1.0 / 2.0)) * dt;
-    const double k6 = k5 * (rho_inf - 3);
-    const double k7 = rho_inf - 1;
-    const double k8 = -k7;
-    const double k9 = ((1.0 / 2.0)) * k8 * rho_inf;
-    const double k10 = 1.0 / k4;
-    const double k11 = k10 * k2;
-    const double k12 = 1.0 / (rho_inf - 2);
-    const double w0 = k1 * rho_inf;
-    const double w1 = k1;
-    const double p = k3;
-    const double r = -k6 / k4;
-    const double alpha_u = 1;
-    const double q_x0 = 1;
-    const double q_v0 = dt * k1;
-    const double q_a0 = k3 * k9;
-    const double s_v0 = 1;
-    const double s_a0 = k10 * k5 * k8;
-    const double x1_x0 = 1;
-    const double x1_v0 = dt;
-    const double x1_a0 = k11 * k9;
-    const double x1_u = k11;
-    const double v1_v0 = 1;
-    const double v1_a0 = k12 * k5 * k7;
-    const double v1_u = k12 * k6;
-    const double a1_a0 = k12 * (2 * rho_inf - 1);
+/* acceleration form */
+#define CHAIN_RUN run_acceleration
+#define CHAIN_CONSTANTS \
+    const double rho_inf = params[0]; \
+    const double k0 = rho_inf + 1; \
+    const double k1 = 1.0 / k0; \
+    const double k2 = (dt * dt); \
+    const double k3 = k2 / (-(rho_inf * rho_inf * rho_inf) + 3 * rho_inf + 2); \
+    const double k4 = -(rho_inf * rho_inf) + rho_inf + 2; \
+    const double k5 = ((1.0 / 2.0)) * dt; \
+    const double k6 = k5 * (rho_inf - 3); \
+    const double k7 = rho_inf - 1; \
+    const double k8 = -k7; \
+    const double k9 = ((1.0 / 2.0)) * k8 * rho_inf; \
+    const double k10 = 1.0 / k4; \
+    const double k11 = k10 * k2; \
+    const double k12 = 1.0 / (rho_inf - 2); \
+    const double w0 = k1 * rho_inf; \
+    const double w1 = k1; \
+    const double p = k3; \
+    const double r = -k6 / k4; \
+    const double alpha_u = 1; \
+    const double q_x0 = 1; \
+    const double q_v0 = dt * k1; \
+    const double q_a0 = k3 * k9; \
+    const double s_v0 = 1; \
+    const double s_a0 = k10 * k5 * k8; \
+    const double x1_x0 = 1; \
+    const double x1_v0 = dt; \
+    const double x1_a0 = k11 * k9; \
+    const double x1_u = k11; \
+    const double v1_v0 = 1; \
+    const double v1_a0 = k12 * k5 * k7; \
+    const double v1_u = k12 * k6; \
+    const double a1_a0 = k12 * (2 * rho_inf - 1); \
     const double a1_u = -k0 * k12;
-    double *x0 = hist + 0 * N;
-    double *v0 = hist + 1 * N;
-    double *a0 = hist + 2 * N;
-    pair *ex0 = sweep ? (pair *)(ehist + 0 * N) : NULL;
-    pair *ev0 = sweep ? (pair *)(ehist + 2 * N) : NULL;
+#define CHAIN_HISTORY \
+    double *x0 = hist + 0 * N; \
+    double *v0 = hist + 1 * N; \
+    double *a0 = hist + 2 * N; \
+    pair *ex0 = sweep ? (pair *)(ehist + 0 * N) : NULL; \
+    pair *ev0 = sweep ? (pair *)(ehist + 2 * N) : NULL; \
     pair *ea0 = sweep ? (pair *)(ehist + 4 * N) : NULL;
-    double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
-    double *SR = work + 5 * N, *g = work + 6 * N, *af = work + 7 * N, *R = work + 8 * N;
-    double *u = work + 9 * N, *Pu = work + 10 * N, *den = work + 11 * N;
-    /* plain sweep only: the error histories' unknown, terms and Riccati R (pairs); the
-       coefficients of the zero-force step; the station matrix entries per run and per step
-       (30 rows in all) */
-    pair *eu = (pair *)(work + 12 * N), *eb = (pair *)(work + 14 * N);
-    pair *eDl = (pair *)(work + 16 * N), *eR = (pair *)(work + 18 * N);
-    double *hD = work + 20 * N;
-    double *hb = work + 21 * N;
-    double *fR = work + 22 * N;
-    double *fD = work + 23 * N;
-    double *fb = work + 24 * N;
-    double *T12 = work + 25 * N;
-    double *T21 = work + 26 * N;
-    double *T22 = work + 27 * N;
-    double *T13 = work + 28 * N;
+#define CHAIN_PLAIN_ROWS \
+    double *hD = work + 20 * N; \
+    double *hb = work + 21 * N; \
+    double *fR = work + 22 * N; \
+    double *fD = work + 23 * N; \
+    double *fb = work + 24 * N; \
+    double *T12 = work + 25 * N; \
+    double *T21 = work + 26 * N; \
+    double *T22 = work + 27 * N; \
+    double *T13 = work + 28 * N; \
     double *T23 = work + 29 * N;
-    double PfN = 1.0, epsP = 0.0, emax = sweep ? err[0] : 0.0, xmax = sweep ? err[1] : 0.0;
-    uint64_t jstep = sweep ? (uint64_t)err[2] : 0u;
-    long n, i, j, step;
-    (void)dt;
-    (void)params;
-    (void)alpha_u;
-    (void)q;
-    (void)b;
-    (void)R;
-    (void)Pu;
-    (void)SR;
-    (void)g;
-    (void)af;
-    (void)den;
-    (void)eu;
-    (void)eb;
-    (void)eDl;
-    (void)eR;
-    (void)hD;
-    (void)hb;
-    (void)fR;
-    (void)fD;
-    (void)fb;
-    (void)T12;
-    (void)T21;
-    (void)T22;
-    (void)T13;
+#define CHAIN_PLAIN_VOIDS \
+    (void)hD; \
+    (void)hb; \
+    (void)fR; \
+    (void)fD; \
+    (void)fb; \
+    (void)T12; \
+    (void)T21; \
+    (void)T22; \
+    (void)T13; \
     (void)T23;
-    if (!reuse) { /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
-        double S_R = 0.0;
-        for (n = N - 1; n >= 0; --n) {
-            const double mn = m[n], kp = k[n] * p + c[n] * r;
-            double S_L;
-            SR[n] = S_R;
-            g[n] = kp / (-SR[n] + alpha_u * mn + kp);
-            S_L = kp * (SR[n] - alpha_u * mn) / (-SR[n] + alpha_u * mn + kp);
-            af[n] = kp / (-SR[n] + alpha_u * mn + kp);
-            den[n] = -SR[n] + alpha_u * mn + kp;
-            if (sweep) {
-                hD[n] = (-SR[n] + alpha_u * mn) / (-SR[n] + alpha_u * mn + kp);
-                hb[n] = -kp * mn / (-SR[n] + alpha_u * mn + kp);
-                fR[n] = 1.0 / (-SR[n] + alpha_u * mn + kp);
-                fD[n] = -1 / (-SR[n] + alpha_u * mn + kp);
-                fb[n] = -mn / (-SR[n] + alpha_u * mn + kp);
-            }
-            S_R = S_L;
-        }
-    }
-    if (sweep) {
-        double P_u = 0.0, P_f = 1.0;
-        for (n = 0; n < N; ++n) {
-            const double mn = m[n], kp = k[n] * p + c[n] * r;
-            T12[n] = (1.0 / kp);
-            T21[n] = (alpha_u * mn);
-            T22[n] = (alpha_u * mn / kp + 1);
-            (void)mn;
-            (void)kp;
-            const double nu = (1) * P_u + T12[n] * P_f;
-            P_f = T21[n] * P_u + T22[n] * P_f;
-            P_u = nu;
-            Pu[n] = P_u;
-        }
-        PfN = P_f;
-        { /* eps_P: the rounding error of P_f,N against the same product in double-double */
-            double uh = 0.0, ul = 0.0, fh = 1.0, fl = 0.0;
-            for (n = 0; n < N; ++n) {
-                double nh, nl, gh, gl;
-                dd_axpy((1), uh, ul, T12[n], fh, fl, &nh, &nl);
-                dd_axpy(T21[n], uh, ul, T22[n], fh, fl, &gh, &gl);
-                uh = nh;
-                ul = nl;
-                fh = gh;
-                fl = gl;
-            }
-            epsP = ((PfN - fh) - fl) / fh;
-            if (!isfinite(epsP))
-                epsP = DBL_EPSILON; /* the product overflowed: an eps-sized systematic part */
-        }
-    }
-    memset(Fe, 0, (size_t)N * sizeof(double));
-    for (step = 0; step < n_steps; ++step) {
-        for (j = 0; j < n_loaded; ++j)
-            Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
-        for (i = 0; i < N; ++i) {
-            q[i] = q_x0 * x0[i] + q_v0 * v0[i] + q_a0 * a0[i];
-            s[i] = s_v0 * v0[i] + s_a0 * a0[i];
-            b[i] = 0.0;
-        }
-        for (n = 0; n < N; ++n) {
-            const double qp = n ? q[n - 1] : 0.0, sp = n ? s[n - 1] : 0.0;
-            Dl[n] = k[n] * (q[n] - qp) + c[n] * (s[n] - sp);
-        }
-        if (sweep == 0) {
-            double up = 0.0;
-            for (n = N - 1; n >= 0; --n) {
-                const double mn = m[n], kp = k[n] * p + c[n] * r;
-                R[n] = fma(g[n], n + 1 < N ? R[n + 1] : 0.0,
-                           (-Dl[n] * SR[n] + Dl[n] * alpha_u * mn + Fe[n] * kp - b[n] * kp * mn) /
-                               den[n]);
-            }
-            for (n = 0; n < N; ++n) {
-                const double mn = m[n];
-                const double R_R = n + 1 < N ? R[n + 1] : 0.0;
-                (void)mn;
-                up = fma(af[n], up, (-Dl[n] + Fe[n] + R_R - b[n] * mn) / den[n]);
-                u[n] = up;
-            }
-        } else {
-            const pair zero2 = {0.0, 0.0};
-            double Q_u = 0.0, Q_f = 0.0, z_u = 0.0, z_f, f1;
-            pair kick, eup = zero2, eqp = zero2, esp = zero2;
-            /* the error histories' terms (error estimate, see the header); their Riccati passes
-               run inside the solution's two passes (independent recurrences) */
-            for (i = 0; i < N; ++i) {
-                const pair eq = q_x0 * ex0[i] + q_v0 * ev0[i] + q_a0 * ea0[i];
-                const pair es = s_v0 * ev0[i] + s_a0 * ea0[i];
-                eb[i] = zero2;
-                eDl[i] = k[i] * (eq - eqp) + c[i] * (es - esp);
-                eqp = eq;
-                esp = es;
-            }
-            for (n = 0; n < N; ++n) {
-                const long nb = N - 1 - n;
-                const double mn = m[n], kp = k[n] * p + c[n] * r;
-                double nu;
-                (void)mn;
-                (void)kp;
-                T13[n] = (-Dl[n] / kp);
-                T23[n] = (-Dl[n] * alpha_u * mn / kp - Fe[n] + b[n] * mn);
-                nu = (1) * Q_u + T12[n] * Q_f + T13[n];
-                Q_f = T21[n] * Q_u + T22[n] * Q_f + T23[n];
-                Q_u = nu;
-                eR[nb] =
-                    g[nb] * (nb + 1 < N ? eR[nb + 1] : zero2) + hD[nb] * eDl[nb] + hb[nb] * eb[nb];
-            }
-            z_f = f1 = -Q_f / PfN;
-            kick[0] = -epsP * f1;
-            kick[1] = 1.5 * step_sign(jstep++) * DBL_EPSILON * f1;
-            for (n = 0; n < N; ++n) {
-                const double nu = (1) * z_u + T12[n] * z_f + T13[n];
-                z_f = T21[n] * z_u + T22[n] * z_f + T23[n];
-                z_u = nu;
-                u[n] = z_u;
-                eup = af[n] * eup + fR[n] * (n + 1 < N ? eR[n + 1] : zero2) + fD[n] * eDl[n] +
-                      fb[n] * eb[n];
-                eu[n] = eup + kick * Pu[n];
-            }
-        }
-        if (sweep == 0) {
-            for (i = 0; i < N; ++i) {
-                const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * u[i];
-                const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
-                const double a1 = a1_a0 * a0[i] + a1_u * u[i];
-                x0[i] = x1;
-                v0[i] = v1;
-                a0[i] = a1;
-            }
-        } else {
-            double ms = 0.0, mr = 0.0;
-            for (i = 0; i < N; ++i) {
-                const pair ex1 = x1_x0 * ex0[i] + x1_v0 * ev0[i] + x1_a0 * ea0[i] + x1_u * eu[i];
-                const pair ev1 = v1_v0 * ev0[i] + v1_a0 * ea0[i] + v1_u * eu[i];
-                const pair ea1 = a1_a0 * ea0[i] + a1_u * eu[i];
-                const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * u[i];
-                const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i];
-                const double a1 = a1_a0 * a0[i] + a1_u * u[i];
-                x0[i] = x1;
-                v0[i] = v1;
-                a0[i] = a1;
-                ex0[i] = ex1;
-                ev0[i] = ev1;
-                ea0[i] = ea1;
-                if (fabs(x0[i]) > xmax)
-                    xmax = fabs(x0[i]);
-                if (fabs(ex1[0]) > ms)
-                    ms = fabs(ex1[0]);
-                if (fabs(ex1[1]) > mr)
-                    mr = fabs(ex1[1]);
-            }
-            if (ms + mr > emax)
-                emax = ms + mr;
-        }
-        for (j = 0; j < n_out; ++j) {
-            const long o = out_idx[j], row = (step + 1) * n_out + j;
-            if (xo)
-                xo[row] = x0[o];
-            if (vo)
-                vo[row] = v0[o];
-            if (ao)
-                ao[row] = a0[o];
-        }
-    }
-    if (sweep) {
-        err[0] = emax;
-        err[1] = xmax;
-        err[2] = (double)jstep;
-    }
-    return 0;
-}
+#define CHAIN_G kp / (-SR[n] + alpha_u * mn + kp)
+#define CHAIN_S_L kp *(SR[n] - alpha_u * mn) / (-SR[n] + alpha_u * mn + kp)
+#define CHAIN_AF kp / (-SR[n] + alpha_u * mn + kp)
+#define CHAIN_DEN -SR[n] + alpha_u *mn + kp
+#define CHAIN_ERROR_STEP \
+    hD[n] = (-SR[n] + alpha_u * mn) / (-SR[n] + alpha_u * mn + kp); \
+    hb[n] = -kp * mn / (-SR[n] + alpha_u * mn + kp); \
+    fR[n] = 1.0 / (-SR[n] + alpha_u * mn + kp); \
+    fD[n] = -1 / (-SR[n] + alpha_u * mn + kp); \
+    fb[n] = -mn / (-SR[n] + alpha_u * mn + kp);
+#define CHAIN_PLAIN_RUN \
+    T12[n] = (1.0 / kp); \
+    T21[n] = (alpha_u * mn); \
+    T22[n] = (alpha_u * mn / kp + 1);
+#define CHAIN_PLAIN_STEP \
+    T13[n] = (-Dl[n] / kp); \
+    T23[n] = (-Dl[n] * alpha_u * mn / kp - Fe[n] + b[n] * mn);
+#define CHAIN_USE0 (1)
+#define CHAIN_USE1 T12[n]
+#define CHAIN_USE2 T13[n]
+#define CHAIN_USE3 T21[n]
+#define CHAIN_USE4 T22[n]
+#define CHAIN_USE5 T23[n]
+#define CHAIN_Q q_x0 *x0[i] + q_v0 *v0[i] + q_a0 *a0[i]
+#define CHAIN_SV s_v0 *v0[i] + s_a0 *a0[i]
+#define CHAIN_B 0.0
+#define CHAIN_H_NUM -Dl[n] * SR[n] + Dl[n] * alpha_u *mn + Fe[n] * kp - b[n] * kp *mn
+#define CHAIN_B_NUM -Dl[n] + Fe[n] + R_R - b[n] * mn
+#define CHAIN_EQ q_x0 *ex0[i] + q_v0 *ev0[i] + q_a0 *ea0[i]
+#define CHAIN_ES s_v0 *ev0[i] + s_a0 *ea0[i]
+#define CHAIN_EB zero2
+#define CHAIN_RANDOM_SPREAD 1.5
+#define CHAIN_UPDATE \
+    const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * u[i]; \
+    const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i]; \
+    const double a1 = a1_a0 * a0[i] + a1_u * u[i]; \
+    x0[i] = x1; \
+    v0[i] = v1; \
+    a0[i] = a1;
+#define CHAIN_EX1 x1_x0 *ex0[i] + x1_v0 *ev0[i] + x1_a0 *ea0[i] + x1_u *eu[i]
+#define CHAIN_EV1 v1_v0 *ev0[i] + v1_a0 *ea0[i] + v1_u *eu[i]
+#define CHAIN_EA1 a1_a0 *ea0[i] + a1_u *eu[i]
+#define CHAIN_ERROR_SHIFT \
+    ex0[i] = ex1; \
+    ev0[i] = ev1; \
+    ea0[i] = ea1;
+#include "chain_loop.h"
+#undef CHAIN_RUN
+#undef CHAIN_CONSTANTS
+#undef CHAIN_HISTORY
+#undef CHAIN_PLAIN_ROWS
+#undef CHAIN_PLAIN_VOIDS
+#undef CHAIN_G
+#undef CHAIN_S_L
+#undef CHAIN_AF
+#undef CHAIN_DEN
+#undef CHAIN_ERROR_STEP
+#undef CHAIN_PLAIN_RUN
+#undef CHAIN_PLAIN_STEP
+#undef CHAIN_USE0
+#undef CHAIN_USE1
+#undef CHAIN_USE2
+#undef CHAIN_USE3
+#undef CHAIN_USE4
+#undef CHAIN_USE5
+#undef CHAIN_Q
+#undef CHAIN_SV
+#undef CHAIN_B
+#undef CHAIN_H_NUM
+#undef CHAIN_B_NUM
+#undef CHAIN_EQ
+#undef CHAIN_ES
+#undef CHAIN_EB
+#undef CHAIN_RANDOM_SPREAD
+#undef CHAIN_UPDATE
+#undef CHAIN_EX1
+#undef CHAIN_EV1
+#undef CHAIN_EA1
+#undef CHAIN_ERROR_SHIFT
 
 /* form: 0 displacement, 1 acceleration; sweep: 0 stable, 1 plain, 2 stable reusing the Riccati
    factors a previous call (same chain, dt, scheme and form) left in work. Returns 0, or -1 for

@@ -302,6 +302,20 @@ def load_library(source: str, name: str) -> ctypes.CDLL | None:
     return lib
 
 
+def generated_source(filename: str) -> str:
+    """A generated C source as one translation unit: its ``#include "x.h"`` lines of files that
+    dtdyn.generated ships (chain_loop.h) are replaced by their text, so the compile needs no
+    include path and the cache key covers the included code."""
+    from importlib import resources
+
+    folder = resources.files("dtdyn.generated")
+    out = []
+    for line in folder.joinpath(filename).read_text().splitlines(keepends=True):
+        match = re.fullmatch(r'#include "([A-Za-z0-9_]+\.h)"\s*', line)
+        out.append(folder.joinpath(match.group(1)).read_text() if match else line)
+    return "".join(out)
+
+
 def bind(lib, kernel: str, symbol: str | None = None):
     """The function ``symbol`` (default ``kernel``) of a loaded library with its argtypes and
     restype from the generated signature table (the same spec as its C declaration)."""

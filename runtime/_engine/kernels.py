@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 from functools import lru_cache
-from importlib import resources
 
 import numpy as np
 
@@ -66,7 +65,7 @@ class PlainSweepError:
 @lru_cache(maxsize=None)
 def c_chain_function(scheme: str):
     """The ctypes function dtdyn_chain_<scheme>, or None when C is unavailable."""
-    source = resources.files("dtdyn.generated").joinpath(f"chain_{scheme}.c").read_text()
+    source = cbuild.generated_source(f"chain_{scheme}.c")
     lib = cbuild.load_library(source, f"chain_{scheme}")
     if lib is None:
         return None
