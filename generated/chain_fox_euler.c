@@ -119,38 +119,6 @@
     ev0[i] = ev1; \
     ea0[i] = ea1;
 #include "chain_loop.h"
-#undef CHAIN_RUN
-#undef CHAIN_CONSTANTS
-#undef CHAIN_HISTORY
-#undef CHAIN_PLAIN_ROWS
-#undef CHAIN_PLAIN_VOIDS
-#undef CHAIN_G
-#undef CHAIN_S_L
-#undef CHAIN_AF
-#undef CHAIN_DEN
-#undef CHAIN_ERROR_STEP
-#undef CHAIN_PLAIN_RUN
-#undef CHAIN_PLAIN_STEP
-#undef CHAIN_USE0
-#undef CHAIN_USE1
-#undef CHAIN_USE2
-#undef CHAIN_USE3
-#undef CHAIN_USE4
-#undef CHAIN_USE5
-#undef CHAIN_Q
-#undef CHAIN_SV
-#undef CHAIN_B
-#undef CHAIN_H_NUM
-#undef CHAIN_B_NUM
-#undef CHAIN_EQ
-#undef CHAIN_ES
-#undef CHAIN_EB
-#undef CHAIN_RANDOM_SPREAD
-#undef CHAIN_UPDATE
-#undef CHAIN_EX1
-#undef CHAIN_EV1
-#undef CHAIN_EA1
-#undef CHAIN_ERROR_SHIFT
 
 /* acceleration form */
 #define CHAIN_RUN run_acceleration
@@ -246,38 +214,6 @@
     ev0[i] = ev1; \
     ea0[i] = ea1;
 #include "chain_loop.h"
-#undef CHAIN_RUN
-#undef CHAIN_CONSTANTS
-#undef CHAIN_HISTORY
-#undef CHAIN_PLAIN_ROWS
-#undef CHAIN_PLAIN_VOIDS
-#undef CHAIN_G
-#undef CHAIN_S_L
-#undef CHAIN_AF
-#undef CHAIN_DEN
-#undef CHAIN_ERROR_STEP
-#undef CHAIN_PLAIN_RUN
-#undef CHAIN_PLAIN_STEP
-#undef CHAIN_USE0
-#undef CHAIN_USE1
-#undef CHAIN_USE2
-#undef CHAIN_USE3
-#undef CHAIN_USE4
-#undef CHAIN_USE5
-#undef CHAIN_Q
-#undef CHAIN_SV
-#undef CHAIN_B
-#undef CHAIN_H_NUM
-#undef CHAIN_B_NUM
-#undef CHAIN_EQ
-#undef CHAIN_ES
-#undef CHAIN_EB
-#undef CHAIN_RANDOM_SPREAD
-#undef CHAIN_UPDATE
-#undef CHAIN_EX1
-#undef CHAIN_EV1
-#undef CHAIN_EA1
-#undef CHAIN_ERROR_SHIFT
 
 /* form: 0 displacement, 1 acceleration; sweep: 0 stable, 1 plain, 2 stable reusing the Riccati
    factors a previous call (same chain, dt, scheme and form) left in work. Returns 0, or -1 for

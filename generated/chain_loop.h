@@ -3,7 +3,8 @@
 /*
  * The DT-TMM time loop of a chain, written once for every scheme and form: chain_<scheme>.c
  * defines the scheme's derived expressions as the CHAIN_* macros and includes this file once
- * per form (CHAIN_RUN names the function). See chain_<scheme>.c for the arguments.
+ * per form (CHAIN_RUN names the function); the macros are undefined at the end. See
+ * chain_<scheme>.c for the arguments.
  */
 #ifndef DTDYN_CHAIN_HELPERS
 #define DTDYN_CHAIN_HELPERS
@@ -222,3 +223,36 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     return 0;
 }
 
+/* the next form defines its own */
+#undef CHAIN_RUN
+#undef CHAIN_CONSTANTS
+#undef CHAIN_HISTORY
+#undef CHAIN_PLAIN_ROWS
+#undef CHAIN_PLAIN_VOIDS
+#undef CHAIN_G
+#undef CHAIN_S_L
+#undef CHAIN_AF
+#undef CHAIN_DEN
+#undef CHAIN_ERROR_STEP
+#undef CHAIN_PLAIN_RUN
+#undef CHAIN_PLAIN_STEP
+#undef CHAIN_USE0
+#undef CHAIN_USE1
+#undef CHAIN_USE2
+#undef CHAIN_USE3
+#undef CHAIN_USE4
+#undef CHAIN_USE5
+#undef CHAIN_Q
+#undef CHAIN_SV
+#undef CHAIN_B
+#undef CHAIN_H_NUM
+#undef CHAIN_B_NUM
+#undef CHAIN_EQ
+#undef CHAIN_ES
+#undef CHAIN_EB
+#undef CHAIN_RANDOM_SPREAD
+#undef CHAIN_UPDATE
+#undef CHAIN_EX1
+#undef CHAIN_EV1
+#undef CHAIN_EA1
+#undef CHAIN_ERROR_SHIFT
