@@ -1,7 +1,7 @@
 """Shock response spectra by ramp-invariant modal filters (ISO 18431-4, Smallwood's algorithm).
 
-(About 670 lines, a hundred of them this derivation and many the examples: the windows, the exact peaks and the
-error bounds share the one filter bank and its state, so they stay together.)
+(About 670 lines, a hundred of them this derivation: the windows, the exact peaks and the error
+bounds share the one filter bank and its state, so they stay together.)
 
 Model
 -----
