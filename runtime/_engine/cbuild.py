@@ -179,8 +179,35 @@ def _unlink(path: str | os.PathLike[str]) -> None:
         pass
 
 
+def _digest(path: Path) -> str:
+    """``"<size> <sha256>"`` of a file (the sidecar's content)."""
+    data = path.read_bytes()
+    return f"{len(data)} {hashlib.sha256(data).hexdigest()}"
+
+
+def _verified(so_path: Path) -> bool:
+    """True when the library matches the size and hash its build wrote next to it: a cache file
+    cut short, emptied, overwritten or swapped is never handed to the loader (a truncated ELF
+    file can crash dlopen; checking it first, in this process, makes that impossible)."""
+    sidecar = so_path.with_name(so_path.name + ".sha256")
+    try:
+        return sidecar.read_text().strip() == _digest(so_path)
+    except OSError:
+        return False
+
+
+def _discard(so_path: Path) -> None:
+    for path in (so_path, so_path.with_name(so_path.name + ".sha256")):
+        _unlink(path)
+
+
 def _compile(source: str, argv: tuple[str, ...], folder: Path, stem: str) -> Path:
-    """Compile ``source`` into ``folder/stem.so`` unless another process already did.
+    """``folder/stem.so``, verified: reused when its sidecar matches, else (re)built by this
+    process under an exclusive lock (a racing process waits and reuses it).
+
+    A build counts only when the compiler exits 0 and leaves a non-empty shared object (ELF
+    header); then the sidecar ``stem.so.sha256`` (size and hash) is written atomically and
+    the library renamed into place. Anything else is never cached.
 
     Raises
     ------
@@ -193,8 +220,9 @@ def _compile(source: str, argv: tuple[str, ...], folder: Path, stem: str) -> Pat
     lock_fd = os.open(folder / f"{stem}.so.lock", os.O_RDWR | os.O_CREAT, 0o644)
     try:
         fcntl.flock(lock_fd, fcntl.LOCK_EX)
-        if so_path.exists():  # built by another process while we waited
+        if so_path.exists() and _verified(so_path):  # built by another process while we waited
             return so_path
+        _discard(so_path)  # stale, damaged or foreign: rebuilt below
         c_path = folder / f"{stem}.c"
         _write_atomic(c_path, source)
         fd, tmp = tempfile.mkstemp(prefix=f"{stem}.", suffix=".so", dir=folder)
@@ -217,6 +245,12 @@ def _compile(source: str, argv: tuple[str, ...], folder: Path, stem: str) -> Pat
                 raise _Unavailable(
                     f"compiling {c_path} failed (exit code {proc.returncode}):\n{head}"
                 )
+            with open(tmp, "rb") as fh:
+                magic = fh.read(4)
+            if magic != b"\x7fELF":
+                raise _Unavailable(f"{argv[0]!r} exited 0 but produced no shared library "
+                                   f"({os.path.getsize(tmp)} bytes); nothing was cached")
+            _write_atomic(so_path.with_name(so_path.name + ".sha256"), _digest(Path(tmp)))
             os.replace(tmp, so_path)
         finally:
             _unlink(tmp)
@@ -289,9 +323,13 @@ def load_library(source: str, name: str) -> ctypes.CDLL | None:
             folder = cache_dir()
             stem = f"{name}-{key[:16]}"
             so_path = folder / f"{stem}.so"
-            if not so_path.exists():
+            if not (so_path.exists() and _verified(so_path)):
                 so_path = _compile(source, argv, folder, stem)
-            lib = ctypes.CDLL(str(so_path))
+            try:
+                lib = ctypes.CDLL(str(so_path))
+            except OSError:  # verified yet not loadable: rebuild once
+                _discard(so_path)
+                lib = ctypes.CDLL(str(_compile(source, argv, folder, stem)))
         except _Unavailable as exc:
             reason = str(exc)
         except (OSError, RuntimeError) as exc:  # cache not writable, no home, dlopen error

@@ -4,6 +4,8 @@ from __future__ import annotations
 import ctypes
 import multiprocessing
 import os
+import subprocess
+import sys
 import uuid
 import warnings
 
@@ -117,7 +119,7 @@ def test_two_processes_race(_isolated):
     names = sorted(p.name for p in _isolated.iterdir())
     (so,) = [n for n in names if n.endswith(".so")]
     stem = so[: -len(".so")]
-    assert names == sorted([f"{stem}.so", f"{stem}.c", f"{stem}.so.lock"])
+    assert names == sorted([f"{stem}.so", f"{stem}.c", f"{stem}.so.lock", f"{stem}.so.sha256"])
     assert str(_isolated / so) in paths
 
 
@@ -161,3 +163,56 @@ def test_fallback_compile_error(_isolated):
 def test_rejects_bad_name(bad):
     with pytest.raises(ValueError, match="name"):
         cbuild.load_library(AXPY_SRC, bad)
+
+
+# --- cache integrity: a damaged, emptied or swapped library is rebuilt, never loaded -------------
+
+OTHER_SRC = "double other(double x) { return -x; }\n"
+
+
+@needs_cc
+@pytest.mark.parametrize("damage", ["truncated", "empty", "garbage", "swapped", "no sidecar"])
+def test_damaged_cache_file_is_rebuilt(_isolated, damage):
+    """The library is checked against the size and hash its build recorded before dlopen sees
+    it (a truncated ELF file used to crash every later run with SIGBUS); a bad one is rebuilt
+    once and gives the right answer."""
+    # built by another process (a library mapped by this one must not be written to)
+    code = ("from dtdyn._engine import cbuild; "
+            f"assert cbuild.load_library({AXPY_SRC!r}, 'axpy_damage'); "
+            f"assert cbuild.load_library({OTHER_SRC!r}, 'other_lib')")
+    subprocess.run([sys.executable, "-c", code], check=True, timeout=300,
+                   env=dict(os.environ, DTDYN_CACHE=str(_isolated)))
+    (so,) = _isolated.glob("axpy_damage-*.so")
+    (other_so,) = _isolated.glob("other_lib-*.so")
+    data = so.read_bytes()
+    if damage == "truncated":
+        so.write_bytes(data[: len(data) // 2])
+    elif damage == "empty":
+        so.write_bytes(b"")
+    elif damage == "garbage":
+        so.write_bytes(b"\x7fELF" + os.urandom(2000))
+    elif damage == "swapped":  # another valid library in its place
+        so.write_bytes(other_so.read_bytes())
+    else:
+        so.with_name(so.name + ".sha256").unlink()
+    cbuild.reset_for_tests()  # a new process: nothing memoised
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", cbuild.DtdynFallbackWarning)
+        lib = cbuild.load_library(AXPY_SRC, "axpy_damage")
+    assert _axpy(lib)(2.0, 3.0, 0.5) == 6.5
+    assert so.read_bytes() == data and cbuild._verified(so)
+
+
+@needs_cc
+def test_a_compiler_that_builds_nothing_is_not_cached(_isolated, monkeypatch):
+    """CC=/bin/true exits 0 without writing a library: the NumPy fallback with one warning, and
+    no cached file that would stop a later real compiler from building it."""
+    monkeypatch.setenv("CC", "/bin/true")
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        assert cbuild.load_library(AXPY_SRC, "axpy_true") is None
+    assert any("produced no shared library" in str(w.message) for w in _fallback_warnings(record))
+    assert list(_isolated.glob("axpy_true-*.so")) == []
+    monkeypatch.delenv("CC")
+    cbuild.reset_for_tests()
+    assert _axpy(cbuild.load_library(AXPY_SRC, "axpy_true"))(1.0, 1.0, 1.0) == 2.0
