@@ -13,8 +13,9 @@ the reference problems) and the private engine `dtdyn._engine`. The generated ke
 `dtdyn.generated`, the SymPy derivations in `dtdyn.derive` (needs the ``[derive]`` extra).
 """
 from dtdyn._engine.errors import (DtdynAccuracyWarning, DtdynFallbackWarning,
-                                  DtdynStabilityWarning, DtdynStepStabilityError, NewtonError,
-                                  SingularMassError, SRSSamplingWarning)
+                                  DtdynStabilityWarning, DtdynStepStabilityError,
+                                  DtdynUnstableError, NewtonError, SingularMassError,
+                                  SRSSamplingWarning)
 from dtdyn._engine.result import Response
 from dtdyn._engine.result_io import load_result
 from dtdyn.app.problems import p1, p2, p3, p4
@@ -56,7 +57,8 @@ __all__ = [
     "Scene", "load_scene", "scene_from_dict", "run_scene", "Response", "load_result",
     "p1", "p2", "p3", "p4",
     # errors and warnings
-    "NewtonError", "DtdynStepStabilityError", "SingularMassError", "DtdynAccuracyWarning",
+    "NewtonError", "DtdynStepStabilityError", "DtdynUnstableError", "SingularMassError",
+    "DtdynAccuracyWarning",
     "DtdynStabilityWarning", "DtdynFallbackWarning", "SRSSamplingWarning",
     "__version__",
 ]

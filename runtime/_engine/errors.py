@@ -1,6 +1,6 @@
 """Every exception and warning dtdyn raises of its own, in one place (all re-exported by `dtdyn`)."""
 
-__all__ = ["NewtonError", "DtdynStepStabilityError", "DtdynStabilityWarning", "DtdynAccuracyWarning", "SingularMassError", "SRSSamplingWarning", "DtdynFallbackWarning"]
+__all__ = ["NewtonError", "DtdynStepStabilityError", "DtdynUnstableError", "DtdynStabilityWarning", "DtdynAccuracyWarning", "SingularMassError", "SRSSamplingWarning", "DtdynFallbackWarning"]
 
 
 class NewtonError(RuntimeError):
@@ -9,6 +9,11 @@ class NewtonError(RuntimeError):
 
 class DtdynStepStabilityError(ValueError):
     """The elements' tangent stiffness is beyond the method's stability limit at this step."""
+
+
+class DtdynUnstableError(ValueError):
+    """The scheme is unstable at this dt for the model's highest mode (or a discrete model's
+    recursion grows): the run would return growing garbage, so it does not start."""
 
 
 class DtdynStabilityWarning(RuntimeWarning):

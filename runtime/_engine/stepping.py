@@ -68,28 +68,44 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
     pad = max(_lag(nm) for nm in scheme.history) + 1 - len(states)
     H = history_from_states(scheme.history, [states[0]] * pad + states)
     advance = make_advance(scheme, scheme.coefficients(form, dt))
-    n_chunks = 1 if not progress else min(100, max(1, n_steps - step))
-    bounds = np.linspace(step, n_steps, n_chunks + 1).astype(int)
+    # blocks of at most CHECK_BLOCK steps: a response that leaves the finite numbers stops at
+    # the end of its block, named by its first non-finite step (and the bar moves per block)
+    n_chunks = max(-(-(n_steps - step) // CHECK_BLOCK), min(100, n_steps - step) if progress else 1)
+    bounds = np.linspace(step, n_steps, max(n_chunks, 1) + 1).astype(int)
     bar = _progress(n_steps, step) if progress else None
-    for lo, hi in zip(bounds[:-1], bounds[1:]):
-        if hi > lo:
-            err_est = advance(force[lo:hi + 1], H, *_rows(store, lo))
-            if bar is not None:
-                bar.update(hi - lo)
-    if bar is not None:
-        bar.close()
+    try:
+        for lo, hi in zip(bounds[:-1], bounds[1:]):
+            if hi > lo:
+                err_est = advance(force[lo:hi + 1], H, *_rows(store, lo))
+                _check_finite(scheme, dt, H, store, quantities, lo, hi)
+                if bar is not None:
+                    bar.update(hi - lo)
+    finally:
+        if bar is not None:
+            bar.close()
     run_time = time.perf_counter() - t_start
     t = dt * np.arange(n_steps + 1)
-    for q in quantities:
-        if not np.all(np.isfinite(store[q])):
-            i = int(np.argwhere(~np.isfinite(store[q]))[0][0])
-            raise FloatingPointError(f"{scheme.name}: the response is not finite from step {i} "
-                                     f"(t = {t[i]:.6g} s): the scheme is unstable at dt = {dt!r} "
-                                     "or the sweep overflowed")
     return Response(t, out_idx, store["x"], store["v"], store["a"],
                     info={"scheme": scheme.name, "params": dict(scheme.params), "form": form,
                           "dt": dt, "n_steps": n_steps, "run_time": run_time,
                           "error_estimate": err_est})
+
+
+#: steps per block between the checks for non-finite values
+CHECK_BLOCK = 4096
+
+
+def _check_finite(scheme, dt, H, store, quantities, lo, hi) -> None:
+    """FloatingPointError naming the first step of rows lo..hi whose stored values (or, when
+    nothing of them is stored, the history at hi) are not finite."""
+    bad_rows = [np.flatnonzero(~np.isfinite(store[q][lo:hi + 1]).all(axis=1)) for q in quantities]
+    first = min((int(r[0]) + lo for r in bad_rows if r.size), default=None)
+    if first is None and not np.isfinite(H).all():
+        first = hi
+    if first is not None:
+        raise FloatingPointError(f"{scheme.name}: the response is not finite from step {first} "
+                                 f"(t = {first * dt:.6g} s): the scheme is unstable at dt = "
+                                 f"{dt!r} or the sweep overflowed")
 
 
 def _rows(store, start):

@@ -381,7 +381,8 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     """Run the `dtdyn` command; returns the exit code (0 ok, 1 a failed run or check, 2 bad
     input). Errors are one line on stderr (``--debug`` shows the traceback)."""
-    from dtdyn._engine.errors import DtdynStepStabilityError, NewtonError, SingularMassError
+    from dtdyn._engine.errors import (DtdynStepStabilityError, DtdynUnstableError, NewtonError,
+                                      SingularMassError)
 
     parser = _parser()
     try:
@@ -396,7 +397,7 @@ def main(argv=None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
-    except (NewtonError, DtdynStepStabilityError, FloatingPointError) as exc:
+    except (NewtonError, DtdynStepStabilityError, DtdynUnstableError, FloatingPointError) as exc:
         if args.debug:
             raise
         print(f"dtdyn {args.command}: run failed: {exc}", file=sys.stderr)

@@ -21,6 +21,7 @@ from dtdyn._engine import validate
 from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.errors import DtdynAccuracyWarning
+from dtdyn.linear.stability import chain_highest_frequency, check_dt
 
 #: the plain sweep warns above this estimated relative error
 PLAIN_SWEEP_TOLERANCE = 1e-6
@@ -77,8 +78,8 @@ def chain_matrices(mass, stiffness, damping, sparse: bool | None = None):
 
 def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, scheme="newmark",
                    form="displacement", sweep="stable", backend="c", outputs=None,
-                   quantities=("x", "v", "a"), x0=None, v0=None, progress=False,
-                   **scheme_params) -> Response:
+                   quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
+                   progress=False, **scheme_params) -> Response:
     """Time history of a chain by the discrete-time transfer matrix method (DT-TMM).
 
     Parameters
@@ -116,6 +117,10 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
     x0, v0 : (N,) array_like, optional
         Initial displacement and velocity (rest when None); the initial acceleration is the
         consistent one, a_0 = M^-1 (f_0 - C v0 - K x0).
+    unstable : {"raise", "warn"}
+        A conditionally stable scheme whose limit the chain's highest mode exceeds at this dt:
+        DtdynUnstableError before the run, or a DtdynStabilityWarning and the run (for study).
+        Any run stops with FloatingPointError at its first non-finite step.
     progress : bool
         Show a progress bar (tqdm) on long runs.
 
@@ -154,6 +159,7 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
     if backend not in ("c", "numpy"):
         raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
     info = get_scheme(scheme, **scheme_params)
+    check_dt(info, dt, lambda: chain_highest_frequency(m, k), unstable)
     K0 = info.coefficients(form, dt)
     kappa = k * K0["p"] + c * K0["r"]
     if np.any(kappa == 0.0):

@@ -20,6 +20,7 @@ from dtdyn._engine import stepping
 from dtdyn._engine import validate
 from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
+from dtdyn.linear.stability import check_dt, highest_frequency
 
 
 def _initial_acceleration(M, f0):
@@ -40,8 +41,8 @@ def _initial_acceleration(M, f0):
 
 
 def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outputs=None,
-                 quantities=("x", "v", "a"), x0=None, v0=None, progress=False,
-                 **scheme_params) -> Response:
+                 quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
+                 progress=False, **scheme_params) -> Response:
     """Time history of M q'' + C q' + K q = L f(t) by one of the generated integrators.
 
     Parameters
@@ -64,6 +65,9 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
         What is stored; the others are None in the result.
     x0, v0 : (N,) array_like, optional
         Initial displacement and velocity (rest when None); a_0 = M^-1 (f_0 - C v0 - K x0).
+    unstable : {"raise", "warn"}
+        As `simulate_chain`: a conditionally stable scheme beyond its limit for the highest mode
+        (when that can be computed: M nonsingular) is refused before the run, or warned about.
     progress : bool
         Show a progress bar on long runs.
 
@@ -87,6 +91,7 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     outputs = validate.dof_indices("outputs", outputs, n)
     quantities = stepping.check_quantities(quantities)
     info = get_scheme(scheme, **scheme_params)
+    check_dt(info, dt, lambda: highest_frequency(M, K), unstable)
     f0 = np.zeros(n)
     f0[loaded] = force[0]
     a0 = _initial_acceleration(M, f0 - C @ v0 - K @ x0)

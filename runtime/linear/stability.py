@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from dtdyn.generated import stability as _amp
 
 from dtdyn._engine.schemes import get_scheme
-from dtdyn._engine.errors import DtdynStabilityWarning
+from dtdyn._engine.errors import DtdynStabilityWarning, DtdynUnstableError
 
 
 @dataclass
@@ -151,3 +152,65 @@ def warn_if_unstable(scheme, omegas, dt, zeta=0.0, **scheme_params) -> bool:
                       "mode(s))", DtdynStabilityWarning, stacklevel=2)
         return True
     return False
+
+
+@lru_cache(maxsize=128)
+def _critical(scheme: str, params: tuple) -> float:
+    return critical_omega_dt(scheme, **dict(params))
+
+
+def check_dt(info, dt: float, omega_max, unstable: str = "raise") -> None:
+    """Refuse (DtdynUnstableError) or, with ``unstable="warn"``, warn about a run whose
+    Omega = omega_max dt exceeds the scheme's critical Omega (undamped; derived spectral radius).
+
+    ``info`` is the resolved scheme (`dtdyn._engine.schemes.get_scheme`); ``omega_max`` the
+    model's highest natural frequency in rad/s, or a callable returning it (called only for
+    conditionally stable schemes), or None when it is unknown.
+    """
+    if unstable not in ("raise", "warn"):
+        raise ValueError(f"unstable must be 'raise' or 'warn', got {unstable!r}")
+    crit = _critical(info.name, tuple(sorted(info.params.items())))
+    if not np.isfinite(crit):
+        return
+    omega = omega_max() if callable(omega_max) else omega_max
+    if omega is None or not omega * dt > crit:
+        return
+    msg = (f"scheme {info.name!r} is unstable at dt = {dt:g} s: the highest mode "
+           f"(omega = {omega:.6g} rad/s) has Omega = omega dt = {omega * dt:.4g} > {crit:.4g}, "
+           f"its stability limit; use dt < {crit / omega:.4g} s or an unconditionally stable "
+           "scheme (unstable='warn' runs it anyway, for study)")
+    if unstable == "raise":
+        raise DtdynUnstableError(msg)
+    warnings.warn(msg, DtdynStabilityWarning, stacklevel=3)
+
+
+def highest_frequency(M, K):
+    """The largest undamped natural frequency (rad/s) of M q'' + K q = 0, or None when M is
+    singular or the eigenproblem cannot be solved (dense: LAPACK; sparse: ARPACK)."""
+    import scipy.linalg as sla
+    import scipy.sparse as sps
+    import scipy.sparse.linalg as spla
+
+    try:
+        if sps.issparse(M) or sps.issparse(K):
+            lam = spla.eigsh(sps.csc_matrix(K), k=1, M=sps.csc_matrix(M), which="LA",
+                             return_eigenvectors=False)[0]
+        else:
+            n = np.shape(M)[0]
+            lam = sla.eigh(K, M, eigvals_only=True, subset_by_index=[n - 1, n - 1])[0]
+    except (np.linalg.LinAlgError, ValueError, RuntimeError, spla.ArpackError):
+        return None
+    return float(np.sqrt(max(lam, 0.0)))
+
+
+def chain_highest_frequency(mass, stiffness) -> float:
+    """The largest undamped natural frequency (rad/s) of a chain: the top eigenvalue of the
+    tridiagonal M^-1/2 K M^-1/2, O(N)."""
+    import scipy.linalg as sla
+
+    m, k = np.asarray(mass, float), np.asarray(stiffness, float)
+    s = 1.0 / np.sqrt(m)
+    d, e = (k + np.append(k[1:], 0.0)) * s * s, -k[1:] * s[:-1] * s[1:]
+    lam = sla.eigh_tridiagonal(d, e, eigvals_only=True, select="i",
+                               select_range=(m.size - 1, m.size - 1))[0]
+    return float(np.sqrt(max(lam, 0.0)))

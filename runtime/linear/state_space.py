@@ -17,6 +17,7 @@ A = Phi, B = Gamma0 + Phi Gamma1, and the outputs y_n = S z_n = S x_n + S Gamma1
 from __future__ import annotations
 
 import time
+import warnings
 from functools import lru_cache
 from importlib import resources
 
@@ -28,6 +29,7 @@ from dtdyn.generated import newmark_ss as _blocks
 from dtdyn._engine import cbuild
 from dtdyn._engine import linalg
 from dtdyn._engine import validate
+from dtdyn._engine.errors import DtdynStabilityWarning, DtdynUnstableError
 from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.stepping import check_quantities
@@ -227,7 +229,7 @@ def _c_loop():
 
 
 def state_space_response(model: DiscreteModel, force, *, force_dofs=None, outputs=None,
-                         quantities=None, x0=None, v0=None,
+                         quantities=None, x0=None, v0=None, unstable="raise",
                          backend="c") -> Response:
     """Response of a discrete model (`newmark_ss`, `discrete_state_space`, `discretize`) to a
     force record, starting from rest at t_0 (or from ``x0``, ``v0``) whatever the model's state
@@ -250,6 +252,9 @@ def state_space_response(model: DiscreteModel, force, *, force_dofs=None, output
         Initial displacement and velocity (rest when None), mapped to the model's state by
         `DiscreteModel.initial_state` (the state of these models is shifted by the feedthrough
         of f_0, so a zero state is not rest under a nonzero first force sample).
+    unstable : {"raise", "warn"}
+        When the spectral radius of A exceeds 1 (the recursion grows): DtdynUnstableError
+        before the run, or a DtdynStabilityWarning and the run.
     backend : {"c", "numpy"}
         The generated C recursion or a NumPy loop.
 
@@ -288,6 +293,7 @@ def state_space_response(model: DiscreteModel, force, *, force_dofs=None, output
     if missing:
         raise ValueError(f"quantities = {quantities}: this model outputs {model.quantities} only "
                          "(discrete_state_space(..., acceleration=True) adds 'a')")
+    _check_radius(model, unstable)
     f0 = np.zeros(n)
     f0[dofs] = f[0]
     state0 = model.initial_state(x0, v0, f0)
@@ -307,6 +313,23 @@ def state_space_response(model: DiscreteModel, force, *, force_dofs=None, output
                                           "n_steps": f.shape[0] - 1, "run_time": run_time,
                                           "backend": "c" if backend == "c" and _c_loop() else
                                           "numpy"})
+
+
+def _check_radius(model: DiscreteModel, unstable: str) -> None:
+    """DtdynUnstableError (or a warning) when max |eig A| > 1 + 1e-6. The margin is the
+    eigensolver's error on the unit circle: the lossless models (average acceleration) have
+    |eig| = 1 exactly, computed to ~eps, but ~sqrt(eps) = 1.5e-8 for a defective pair (massless
+    DOFs); a real growth below 1e-6 per step is not refused."""
+    if unstable not in ("raise", "warn"):
+        raise ValueError(f"unstable must be 'raise' or 'warn', got {unstable!r}")
+    rho = float(np.max(np.abs(np.linalg.eigvals(model.A)))) if model.A.size else 0.0
+    if rho > 1.0 + 1e-6:
+        msg = (f"the discrete model ({model.source or 'user matrices'}, dt = {model.dt:g} s) is "
+               f"unstable: the spectral radius of A is {rho:.10g} > 1, so its response grows "
+               "without bound (unstable='warn' runs it anyway)")
+        if unstable == "raise":
+            raise DtdynUnstableError(msg)
+        warnings.warn(msg, DtdynStabilityWarning, stacklevel=3)
 
 
 def run_recursion(Ad, Bd, Cd, Dd, force, state0=None, backend="c") -> np.ndarray:
