@@ -159,7 +159,7 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
     if backend not in ("c", "numpy"):
         raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
     info = get_scheme(scheme, **scheme_params)
-    check_dt(info, dt, lambda: chain_highest_frequency(m, k), unstable)
+    check_dt(info, dt, lambda limit: chain_highest_frequency(m, k, limit), unstable)
     K0 = info.coefficients(form, dt)
     kappa = k * K0["p"] + c * K0["r"]
     if np.any(kappa == 0.0):

@@ -91,7 +91,7 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     outputs = validate.dof_indices("outputs", outputs, n)
     quantities = stepping.check_quantities(quantities)
     info = get_scheme(scheme, **scheme_params)
-    check_dt(info, dt, lambda: highest_frequency(M, K), unstable)
+    check_dt(info, dt, lambda limit: highest_frequency(M, K, limit), unstable)
     f0 = np.zeros(n)
     f0[loaded] = force[0]
     a0 = _initial_acceleration(M, f0 - C @ v0 - K @ x0)
