@@ -62,6 +62,9 @@ MAX_LENGTH = 1000
 #: the deepest nesting of operations accepted (keeps every tree walk far from Python's
 #: recursion limit; a sum of n terms nests n deep)
 MAX_DEPTH = 200
+#: the largest |exponent| a constant power may have (x**400 overflows for |x| > 6: no force law
+#: needs more; 9**9**9 would otherwise be an exact integer of 370 million digits)
+MAX_EXPONENT = 64
 
 #: function name -> (number of arguments, attribute of ``ops``, SymPy name)
 FUNCTIONS = {
@@ -135,7 +138,9 @@ class _Parser:
             if type(node.op) not in _BINOPS:
                 self.refuse(f"operator {_OP_TEXT.get(type(node.op), type(node.op).__name__)} is "
                             "not allowed; allowed operators: + - * / **", node)
-            return self.check(node.left, d) | self.check(node.right, d)
+            used = self.check(node.left, d) | self.check(node.right, d)
+            self.check_constants(node)
+            return used
         if isinstance(node, ast.UnaryOp):
             if type(node.op) not in _UNARYOPS:
                 self.refuse(f"operator {_OP_TEXT.get(type(node.op), type(node.op).__name__)} is "
@@ -169,6 +174,18 @@ class _Parser:
         text = _NODE_TEXT.get(type(node), f"'{type(node).__name__}'")
         self.refuse(f"{text} is not allowed", node)
 
+    def check_constants(self, node: ast.BinOp) -> None:
+        """Fold constant operands in floats: a constant exponent beyond MAX_EXPONENT, or a
+        constant part that is not a finite float, is refused (no exact huge integers, ever)."""
+        if isinstance(node.op, ast.Pow):
+            exponent = _constant(node.right)
+            if exponent is not None and abs(exponent) > MAX_EXPONENT:
+                self.refuse(f"the constant exponent {exponent:g} is larger than {MAX_EXPONENT} "
+                            "in magnitude", node)
+        value = _constant(node)
+        if value is not None and not math.isfinite(value):
+            self.refuse("this constant part is not a finite float", node)
+
     def check_call(self, node: ast.Call, depth: int) -> set:
         listed = ", ".join(FUNCTIONS)
         if not isinstance(node.func, ast.Name):
@@ -194,6 +211,31 @@ class _Parser:
         return used
 
 
+def _constant(node):
+    """The float value of a constant subtree (numbers, + - * / ** of them, -x), inf when it
+    overflows, None when it holds a name or a call."""
+    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) \
+            and not isinstance(node.value, bool):
+        try:
+            return float(node.value)
+        except OverflowError:
+            return math.inf
+    if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARYOPS:
+        value = _constant(node.operand)
+        return None if value is None else (-value if isinstance(node.op, ast.USub) else value)
+    if isinstance(node, ast.BinOp) and type(node.op) in _BINOPS:
+        a, b = _constant(node.left), _constant(node.right)
+        if a is None or b is None:
+            return None
+        if isinstance(node.op, ast.Pow) and abs(b) > MAX_EXPONENT:
+            return math.inf
+        try:
+            return float(_BINOPS[type(node.op)](a, b))
+        except (OverflowError, ZeroDivisionError, ValueError):
+            return math.inf
+    return None
+
+
 def _names(kind: str, names, field_name: str) -> tuple:
     if isinstance(names, str):
         names = (names,)
@@ -202,9 +244,10 @@ def _names(kind: str, names, field_name: str) -> tuple:
     except TypeError:
         raise ValueError(f"{field_name}: {kind} must be a list of names, got {names!r}") from None
     for n in names:
-        if not isinstance(n, str) or not n.isidentifier() or keyword.iskeyword(n):
+        if not isinstance(n, str) or not n.isascii() or not n.isidentifier() \
+                or keyword.iskeyword(n):
             raise ValueError(f"{field_name}: {kind[:-1]} name {n!r} is not a valid name "
-                             "(letters, digits and _, not starting with a digit)")
+                             "(ASCII letters, digits and _, not starting with a digit)")
         if n in FUNCTIONS or n in BUILTIN_NAMES:
             raise ValueError(f"{field_name}: {kind[:-1]} name {n!r} is reserved (a function "
                              "or pi); choose another name")
@@ -382,6 +425,10 @@ def parse_expression(text, variables=("x", "v"), constants=(), name="expression"
         raise ValueError(f"{name} is empty; give an expression such as 'k*x**3 + c*v'")
     if len(text) > MAX_LENGTH:
         raise ValueError(f"{name} is {len(text)} characters long; the limit is {MAX_LENGTH}")
+    if not text.isascii():  # Python would read fullwidth letters (NFKC) as the ASCII ones
+        bad = next(ch for ch in text if not ch.isascii())
+        raise ValueError(f"{name} = {_short(text)!r}: the character {bad!r} (U+{ord(bad):04X}) "
+                         "is not allowed; write the expression in plain ASCII")
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except SyntaxError as exc:

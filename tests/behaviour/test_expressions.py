@@ -7,6 +7,7 @@ and every refusal names the field and happens at parse time.
 import math
 import os
 import pickle
+import re
 import subprocess
 import sys
 import warnings
@@ -98,7 +99,10 @@ def test_numpy_semantics_for_python_floats():
         warnings.simplefilter("ignore", RuntimeWarning)
         assert parse_expression("1/x").evaluate(NUMPY_OPS, x=0.0) == np.inf
         assert np.isnan(parse_expression("x**0.5").evaluate(NUMPY_OPS, x=-1.0))
-        assert parse_expression("10**10**10").evaluate(NUMPY_OPS) == np.inf  # no big-int hang
+    # a constant power too large for a float is refused at parse time (issue 12: it used to
+    # evaluate to inf here, to an exact 10-billion-digit integer in SymPy)
+    with pytest.raises(ValueError, match="constant exponent"):
+        parse_expression("10**10**10")
 
 
 @pytest.mark.parametrize("values, words", [
@@ -229,3 +233,23 @@ def test_imports_without_sympy():
                           env=dict(os.environ), timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert float(proc.stdout) == 6.0
+
+
+@pytest.mark.parametrize("text, words", [
+    ("9**9**9*x", "constant exponent 3.8742e+08 is larger than 64"),
+    ("x**65", "constant exponent 65"),
+    ("1e308*10*x", "not a finite float"),
+    ("(1/0.0)*x", "not a finite float"),
+    ("\uff58**3", "U+FF58"),                       # a fullwidth x, which Python reads as x
+])
+def test_constants_and_names_are_bounded(text, words):
+    """Constant parts are folded in floats with limits (no exact 9**387420489, which used to
+    hang to_sympy and overflow at run time); only plain ASCII is read."""
+    with pytest.raises(ValueError, match=re.escape(words)):
+        parse_expression(text)
+
+
+def test_constant_names_are_ascii():
+    with pytest.raises(ValueError, match="ASCII letters"):
+        parse_expression("k*x", constants=("k\uff4b",))
+    assert parse_expression("x**64 + 2.0**10*x").names == frozenset({"x"})
