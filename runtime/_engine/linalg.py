@@ -37,11 +37,47 @@ def square_matrix(name: str, value, n: int | None = None, keep_sparse: bool = Fa
     return arr
 
 
-def mck(M, C, K, keep_sparse: bool = False):
-    """Checked (M, C, K) of one size."""
+def mck(M, C, K, keep_sparse: bool = False, physical: bool = True):
+    """Checked (M, C, K) of one size; ``physical``: M is a mass matrix (`check_mass`)."""
     M = square_matrix("M", M, keep_sparse=keep_sparse)
+    if physical:
+        check_mass(M)
     n = M.shape[0]
     return M, square_matrix("C", C, n, keep_sparse), square_matrix("K", K, n, keep_sparse)
+
+
+#: relative tolerance of the mass checks: |M - M^T| <= SYM_TOL max|M|, and the eigenvalues of M
+#: >= -SYM_TOL max|M| (round-off of an assembled matrix, far below any physical mass)
+SYM_TOL = 1e-10
+
+
+def check_mass(M) -> None:
+    """M of a structure: symmetric and positive semi-definite (zero rows allowed: massless DOFs),
+    to SYM_TOL relative to its largest entry. A negative diagonal entry is named by its DOF;
+    dense M is tested by a Cholesky factorization of M + SYM_TOL max|M| I, sparse M by its
+    diagonal only. C and K are not restricted: gyroscopic and circulatory terms are
+    non-symmetric and negative stiffness is physical (the stability checks see its growth)."""
+    diag = M.diagonal()
+    bad = np.flatnonzero(diag < 0.0)
+    if bad.size:
+        i = int(bad[0])
+        raise ValueError(f"M[{i}, {i}] = {float(diag[i])!r}: negative mass at DOF {i} (M must be "
+                         "symmetric positive semi-definite)")
+    scale = abs(M).max()
+    if scale == 0.0:
+        return
+    asym = abs(M - M.T).max()
+    if asym > SYM_TOL * scale:
+        raise ValueError(f"M is not symmetric: max |M - M^T| = {asym:.3g} > {SYM_TOL:g} max |M| "
+                         f"= {SYM_TOL * scale:.3g}")
+    if sps.issparse(M) or np.count_nonzero(M - np.diag(diag)) == 0:
+        return
+    try:
+        np.linalg.cholesky(M + SYM_TOL * scale * np.eye(M.shape[0]))
+    except np.linalg.LinAlgError:
+        low = float(np.linalg.eigvalsh(0.5 * (M + M.T))[0])
+        raise ValueError(f"M is not positive semi-definite: its smallest eigenvalue is "
+                         f"{low:.6g} (a mass matrix has none below 0)") from None
 
 
 def solver(A, what: str, why: str = ""):

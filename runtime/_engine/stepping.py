@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from dtdyn._engine import validate
 from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import SchemeInfo, get_scheme
 from dtdyn.generated.scheme_table import TABLE
@@ -47,6 +48,7 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
     """Run ``len(force) - 1`` steps from ``state0 = (x0, v0, a0)`` (full-length arrays)."""
     n_steps = force.shape[0] - 1
     n_out = out_idx.size
+    validate.output_size(f"{scheme.name} response", n_steps + 1, n_out * len(quantities))
     store = {q: np.empty((n_steps + 1, n_out)) if q in quantities else None for q in QUANTITIES}
     for q, arr in zip(QUANTITIES, state0):
         if store[q] is not None:

@@ -101,3 +101,49 @@ def force_samples(force, n_steps: int, loaded: np.ndarray) -> np.ndarray:
     if f.shape[0] != n_steps + 1:
         raise ValueError(f"force has {f.shape[0]} samples, expected n_steps + 1 = {n_steps + 1}")
     return f
+
+
+def available_memory() -> int:
+    """Bytes this process may still allocate: MemAvailable of /proc/meminfo, capped by the
+    address-space limit (RLIMIT_AS) less what the process maps now; None where unknown."""
+    avail = None
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    avail = int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        import os
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft != resource.RLIM_INFINITY:
+            with open("/proc/self/statm") as fh:
+                mapped = int(fh.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+            room = max(0, soft - mapped)
+            avail = room if avail is None else min(avail, room)
+    except (ImportError, OSError, ValueError):
+        pass
+    return avail
+
+
+def output_size(what: str, n_samples: int, n_columns: int, itemsize: int = 8) -> int:
+    """Refuse, before anything is allocated, a result of n_samples x n_columns values that does
+    not fit in the memory available (MemoryError naming ``what``, the shape and the size)."""
+    need = int(n_samples) * int(n_columns) * itemsize
+    avail = available_memory()
+    if avail is not None and need > avail:
+        raise MemoryError(f"{what}: {int(n_samples):,} samples x {int(n_columns):,} values need "
+                          f"{_bytes(need)}, more than the {_bytes(avail)} available; ask for "
+                          "fewer outputs or quantities, or a shorter record")
+    return need
+
+
+def _bytes(n: int) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if n < 1024 or unit == "TiB":
+            return f"{n:.3g} {unit}" if unit != "B" else f"{n} B"
+        n /= 1024
+    return f"{n:.3g} TiB"

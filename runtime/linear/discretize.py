@@ -31,8 +31,10 @@ def first_order_form(M, C, K):
     Parameters
     ----------
     M, C, K : (N, N) array_like or scipy.sparse matrix
-        Mass, damping and stiffness matrices (densified). ``M`` must be invertible; every
-        entry must be finite.
+        Mass, damping and stiffness matrices (densified). ``M`` must be invertible (it may be
+        non-symmetric or indefinite: this is the algebra of any second-order system; the
+        time-history entry points require a mass matrix, symmetric positive semi-definite);
+        every entry must be finite.
 
     Returns
     -------
@@ -64,7 +66,7 @@ def first_order_form(M, C, K):
     array([[ 0. ,  1. ],
            [-4. , -0.2]])
     """
-    M, C, K = linalg.mck(M, C, K)
+    M, C, K = linalg.mck(M, C, K, physical=False)  # any nonsingular M
     N = M.shape[0]
     solve = linalg.solver(M, "M", "a first-order form needs an invertible mass matrix")
     rhs = solve(np.hstack((K, C, np.eye(N))))      # [M^-1 K, M^-1 C, M^-1] in one solve

@@ -194,6 +194,8 @@ def exact_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     outputs = validate.dof_indices("outputs", outputs, N)
     quantities = stepping.check_quantities(quantities)
     q0, qd0 = validate.initial_conditions(x0, v0, N)
+    # the state record and the inputs' share (n_steps x at most 2N each), then the outputs
+    validate.output_size("exact_response", n_steps + 1, 4 * N + outputs.size * len(quantities))
 
     try:
         A, B, Vz, Vf, m = _reduced_form(M, C, K, loaded)

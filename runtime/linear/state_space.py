@@ -355,6 +355,7 @@ def run_recursion(Ad, Bd, Cd, Dd, force, state0=None, backend="c") -> np.ndarray
     fn = _c_loop() if backend == "c" else None
     At = np.ascontiguousarray(A.T)
     identity = Cm.shape == (ns, ns) and np.array_equal(Cm, np.eye(ns))
+    validate.output_size("state_space_response", n_steps, no)
     y = np.empty((n_steps, no))
     X = np.empty((min(n_steps, SS_BLOCK) + 1, ns))  # row 0: the state entering the block
     X[0] = x

@@ -427,6 +427,7 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     f = validate.force_record(force, model.force_dofs.size)
     fs = 1.0 / dt
     n_out, n_in = model.outputs.size, model.force_dofs.size
+    validate.output_size("modal_filter_response", f.shape[0], n_out * len(quantities))
     n_sec = model.n_modes * n_out * n_in
     # at rest at t_0 under f_0: the ramp invariant's filters would start from a ramp from 0 at
     # t_{-1} (run_modes); the step invariant is at rest already, the impulse one models an

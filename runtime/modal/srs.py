@@ -495,6 +495,9 @@ def shock_response_spectrum(accel, dt, freqs, damping=0.05, response="absolute_a
     _warn_sampling(f, fs, fs_e, peak_err, bias, exact_peaks)
 
     N = a.size
+    # the record upsampled u times, and a block of filter outputs per worker
+    validate.output_size(f"shock_response_spectrum (the record upsampled {u} times)",
+                         u * (N + 1), 1 + 2 * max(1, min(f.size, _BLOCK_BYTES // (8 * u * (N + 1)))))
     e = _extended_input(a, u)
     J_end, j_N = u * N, u * (N + 1)
     s1, R = _poles_residues(f, zeta, response)
@@ -571,6 +574,8 @@ def sdof_response(accel, dt, freqs, damping=0.05, response="absolute_acceleratio
     """
     a, fs, f, zeta, ppc = _check_common(accel, dt, freqs, damping, response, points_per_cycle)
     u = _upsample_factor(float(f.max()), fs, ppc)
+    validate.output_size(f"sdof_response (the record upsampled {u} times)", u * a.size,
+                         1 + f.size)
     e = _extended_input(a, u)
     s1, R = _poles_residues(f, zeta, response)
     sos = np.stack(coef.pair_sections("ramp", s1, R, 1.0 / (u * fs)), axis=-1)

@@ -77,6 +77,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                                  f"the chain's masses 0..{N - 1}")
     S = validate.step_count("substeps", substeps)
     f = validate.force_record(force, force_dofs.size)
+    validate.output_size("nonlinear_chain_response", f.shape[0], 3 * outputs.size)
     info = get_scheme(scheme, **scheme_params)
     if info.startup_steps:
         raise ValueError(f"scheme {info.name!r} is multistep; the nonlinear chain needs a "

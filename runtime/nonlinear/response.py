@@ -147,9 +147,10 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
 # backend "casadi": rootfinder per sub-step, mapaccum over the record
 
 
-#: samples per inner mapaccum block: the record is a mapaccum of mapaccums, so building it costs
-#: O(BLOCK + n_samples / BLOCK) graph nodes instead of O(n_samples)
+#: samples per inner mapaccum block, and inner blocks per call of the record function: a call
+#: runs at most BLOCK * CHUNK_BLOCKS samples, so its graph and work arrays are bounded
 BLOCK = 256
+CHUNK_BLOCKS = 16
 
 
 _RECORDS: dict = {}
@@ -161,7 +162,8 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     [max |u|; |r| per sub-step; theta per sub-step (``with_theta`` only)].
 
     x_aug = [x; u; g; z'] (state, last solution, forces, rates); one column per sample, the
-    record padded to n_blocks * BLOCK samples; the step's matrices are constants of the graph.
+    chunk of n_blocks * BLOCK samples (the record padded at its end); the step's matrices
+    are constants of the graph.
     Returns (function, construct time, compile time); cached per process.
     """
     import hashlib
@@ -244,23 +246,51 @@ def _c_source(fn) -> str:
     return cg.dump()
 
 
-def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, with_theta):
-    """(out, |u| per sample, |r| and theta per step (n S + j; theta empty without
-    ``with_theta``), build, compile and run times)."""
+def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, method, fs):
+    """Run the record in chunks of at most CHUNK_BLOCKS * BLOCK samples, the state carried from
+    chunk to chunk, so memory is one chunk plus the outputs whatever the record's length; every
+    chunk is checked before the next runs (the first failure raises, as in the C loop).
+
+    Returns (out, largest final residual, largest theta or None, build, compile, run times)."""
     n = f.shape[0]
-    n_blocks = -(-n // BLOCK)
+    n_blocks = min(CHUNK_BLOCKS, -(-n // BLOCK))
+    chunk = n_blocks * BLOCK
+    with_theta = method in THETA_LIMIT
+    limit = THETA_LIMIT.get(method, np.inf)
     record, t_build, t_compile = _casadi_record(elements, step, S, n_blocks, solver, tol,
                                                 max_iter, compiled, with_theta)
-    padded = np.vstack([f, np.repeat(f[-1:], n_blocks * BLOCK - n + 1, axis=0)])
-    ff = np.hstack([padded[:-1], padded[1:]]).T
-    t0 = time.perf_counter()
-    _, out, check = record(xa, ff)
-    t_run = time.perf_counter() - t0
-    out, check = np.asarray(out).T[:n], np.asarray(check)[:, :n]
-    # (sample n, sub-step j) -> step n S + j; the last sample runs one step, as in the C loop
-    per_step = lambda rows: rows.T.ravel()[:(n - 1) * S + 1]  # noqa: E731
-    return (out, check[0], per_step(check[1:S + 1]), per_step(check[S + 1:]), t_build,
-            t_compile, t_run)
+    out = np.empty((n, step.Co.shape[0]))
+    scale, worst, theta, t_run = 1.0, 0.0, -np.inf, 0.0
+    last_step = (n - 1) * S  # the last sample runs one step, as in the C loop
+    for start in range(0, n, chunk):
+        seg = f[start:start + chunk + 1]
+        seg = np.vstack([seg, np.repeat(seg[-1:], chunk + 1 - seg.shape[0], axis=0)])
+        t0 = time.perf_counter()
+        xs, o, check = record(xa, np.hstack([seg[:-1], seg[1:]]).T)
+        t_run += time.perf_counter() - t0
+        xa = xs[:, -1]  # the state after the chunk's last sample
+        m = min(chunk, n - start)
+        out[start:start + m] = np.asarray(o).T[:m]
+        check = np.asarray(check)[:, :m]
+        # (sample, sub-step j) -> step sample S + j; tol is CasADi's absolute abstolStep,
+        # scaled here by the largest |u| so far as the C loop scales its test
+        k0, keep = start * S, min(m * S, last_step - start * S + 1)
+        resid = check[1:S + 1].T.ravel()[:keep]
+        thetas = check[S + 1:].T.ravel()[:keep]
+        sc = np.maximum.accumulate(np.maximum(scale, check[0]))
+        scale = float(sc[-1])
+        bad = ~((resid <= 10.0 * tol * np.repeat(sc, S)[:keep]) | (resid == 0))
+        bad |= np.repeat(~np.isfinite(out[start:start + m]).all(axis=1), S)[:keep]
+        bad = np.flatnonzero(bad)
+        unstable = np.flatnonzero(thetas > limit)
+        if unstable.size and (not bad.size or unstable[0] < bad[0]):
+            _stability_error(method, k0 + int(unstable[0]), S, fs, float(thetas[unstable[0]]))
+        if bad.size:
+            _newton_error(k0 + int(bad[0]), S, fs, float(resid[bad[0]]), max_iter)
+        worst = max(worst, float(resid.max()))
+        if thetas.size:
+            theta = max(theta, float(thetas.max()))
+    return out, worst, (theta if with_theta else None), t_build, t_compile, t_run
 
 
 # ----------------------------------------------------------------------------------------------
@@ -358,6 +388,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         raise ValueError("compiled=True needs solver='fast_newton': CasADi cannot generate C for "
                          "its 'newton' rootfinder")
     f = validate.force_record(force, force_dofs.size)
+    validate.output_size("nonlinear_response", f.shape[0], 3 * outputs.size)
     L = element_matrix(elements, n)
     sz = _sizes(elements)
     h = dt / S
@@ -388,24 +419,9 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         worst, theta = float(stats[2]), float(stats[4])
     else:
         xa = np.concatenate([x, u, g0, rate0])
-        out, unorm, resid, thetas, t_build, t_compile, t_run = _run_casadi(
-            elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, method in THETA_LIMIT)
-        # the whole record has run: report the first failure at step k = n S + j, as the C loop
-        # stops at it (Newton before stability at the same step); tol is CasADi's absolute
-        # abstolStep, scaled here by the largest |u| so far as the C loop scales its test
-        steps = resid.size
-        scale = np.repeat(np.maximum.accumulate(np.maximum(1.0, unorm)), S)[:steps]
-        bad = ~((resid <= 10.0 * tol * scale) | (resid == 0))
-        bad |= np.repeat(~np.isfinite(out).all(axis=1), S)[:steps]
-        bad = np.flatnonzero(bad)
-        unstable = np.flatnonzero(thetas > THETA_LIMIT.get(method, np.inf))
-        if unstable.size and (not bad.size or unstable[0] < bad[0]):
-            _stability_error(method, int(unstable[0]), S, fs, float(thetas[unstable[0]]))
-        if bad.size:
-            k = int(bad[0])
-            _newton_error(k, S, fs, float(resid[k]), max_iter)
-        iters, worst = None, float(resid.max())
-        theta = float(thetas.max()) if thetas.size else None
+        out, worst, theta, t_build, t_compile, t_run = _run_casadi(
+            elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, method, fs)
+        iters = None
     no = outputs.size
     store = {q: out[:, i * no:(i + 1) * no] if q in quantities else None
              for i, q in enumerate(("x", "v", "a"))}

@@ -243,6 +243,27 @@ def test_backends_report_the_same_failure(method, level):
     assert messages[0] == messages[1]
 
 
+def test_casadi_backend_runs_in_chunks(P4, monkeypatch):
+    """The CasADi record runs in chunks of BLOCK * CHUNK_BLOCKS samples with the state carried:
+    with chunks of 64 samples (N_SHORT = 3000 is not a multiple) it equals the C loop, and a
+    failure in a later chunk is named by the same step as the C loop names it."""
+    monkeypatch.setattr(NL, "BLOCK", 16)
+    monkeypatch.setattr(NL, "CHUNK_BLOCKS", 4)
+    kw = dict(scheme="modal_parabolic", substeps=2)
+    c, ca = _run(P4, backend="c", **kw), _run(P4, backend="casadi", **kw)
+    assert np.abs(ca.x - c.x).max() <= 1e-9 * np.abs(c.x).max()
+    M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
+    f = np.zeros((300, 1))
+    f[201:] = 1e9
+    messages = []
+    for backend in ("c", "casadi"):
+        with pytest.raises(NL.NewtonError, match=r"step 201 ") as info:
+            NL.nonlinear_response(M, C, K, f, 0.01, force_dofs=[0],
+                                  elements=[Cubic(0, k3=1e14)], scheme="newmark", backend=backend)
+        messages.append(str(info.value).split(": residual")[0])
+    assert messages[0] == messages[1]
+
+
 def test_casadi_backend_checks_every_step():
     M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
     fs, n = 100.0, 200

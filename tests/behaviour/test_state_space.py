@@ -245,8 +245,10 @@ def test_bad_input():
         discrete_state_space(np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3)), 0.01)
     with pytest.raises(ValueError, match="num_damp"):
         newmark_ss(M, C, K, 0.01, num_damp=-1.0)
-    with pytest.raises(ValueError, match="not positive definite"):
+    with pytest.raises(ValueError, match=r"M\[0, 0\] = -.*negative mass at DOF 0"):
         newmark_ss(-M, C, K, 0.01, M_is_SPD=True)
+    with pytest.raises(ValueError, match="not positive definite"):  # semi-definite: massless DOF
+        newmark_ss(np.diag([1.0, 0.0, 1.0]), C, K, 0.01, M_is_SPD=True)
     with pytest.raises(ValueError, match="B has 3 rows"):
         DiscreteModel(np.eye(2), np.ones((3, 1)), np.eye(2), np.zeros((2, 1)), 0.1)
     raw = DiscreteModel(np.eye(2), np.ones((2, 1)), np.eye(2), np.zeros((2, 1)), 0.1)

@@ -173,6 +173,9 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         if kind == "matrices":
             backend = "scipy.sparse" if sps.issparse(M) else "numpy"
     outputs, quantities = _parse_output(data.get("output", {}), n_dof, names)
+    # the time, the force of each loaded DOF and the outputs asked, before any is built
+    validate.output_size(f"{source}: time.duration / time.dt = {n_steps} steps", n_steps + 1,
+                         1 + n_dof + outputs.size * len(quantities))
     t = np.arange(n_steps + 1) * dt
     loads, loaded, force = _parse_loads(data["load"], n_dof, t, base_dir, names)
     return Scene(title=title, mass=mass, stiffness=stiffness, damping=damping, loads=loads,
