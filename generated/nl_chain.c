@@ -15,7 +15,7 @@
  * kernel of the scheme, called through a pointer one step at a time; after the first call it
  * reuses the Riccati factors left in its work (sweep code 2). The residual, its Jacobian, g and
  * z' come from `nl_residual` (CasADi code generation of the element laws, appended to this
- * source). Newton stops when |r|_inf <= tol * (the largest |Q|_inf or |u|_inf so far).
+ * source). Newton accepts u by the rule of every backend (newton_solve in newton.c).
  * Returns 0; 1 when Newton failed (not converged in max_iter iterations, singular Jacobian or
  * non-finite) at step fail[0] with residual stats[3]; 4 when the chain kernel failed.
  */
@@ -38,6 +38,7 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                    nl_int *restrict iwork);
 
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
+#include <float.h>
 /* Solve J d = -r in place (J column-major n x n, from CasADi) by LU with partial pivoting. */
 static int lu_solve(long n, double *restrict J, double *restrict r) {
     long i, j, k, p;
@@ -106,6 +107,57 @@ static inline void zero(long n, double *restrict dst) {
         dst[i] = 0.0;
 }
 
+/* s raised to v when v is larger and finite (a non-finite iterate never loosens the tests) */
+static inline double grow(double s, double v) {
+    return (v > s && v < INFINITY) ? v : s;
+}
+
+/*
+ * One step's Newton iteration under the acceptance rule of every backend (docs/nonlinear.md):
+ * u is accepted when
+ *
+ *     |r(u)|_inf <= tol s_r   (residual test)   or   |J(u)^-1 r(u)|_inf <= tol s_u   (step test),
+ *
+ * s_r = max(scale_r, DBL_MIN) the size of the residual's terms, s_u = max(scale_u, DBL_MIN)
+ * that of the unknowns. The step test accepts a residual at its round-off floor (stiff
+ * elements); the step that passes it is not taken, so r, J, g and z' stay those of u.
+ * nl_residual evaluates them through arg/res (wired by the caller to u, r, J, g, z'). *theta =
+ * |J_yy - I|_inf over the first ne rows and columns of the accepted u. Returns the iterations,
+ * or -1 when u is not accepted (non-finite r, singular J, or neither test passed after
+ * max_iter steps); *rn = |r(u)|_inf of the last u.
+ */
+static long newton_solve(long nu, long ne, double *restrict u, double *restrict r,
+                         double *restrict J, double scale_r, double scale_u, double tol,
+                         long max_iter, const double **arg, double **res, nl_int *iw, double *w,
+                         double *rn, double *theta) {
+    const double lim_r = tol * fmax(scale_r, DBL_MIN), lim_u = tol * fmax(scale_u, DBL_MIN);
+    long it, i, k;
+    for (it = 0;; ++it) {
+        nl_residual(arg, res, iw, w, 0);
+        *rn = norm_inf(nu, r);
+        if (!(*rn < INFINITY))
+            return -1;
+        *theta = 0.0;
+        for (i = 0; i < ne; ++i) {
+            double row = 0.0;
+            for (k = 0; k < ne; ++k)
+                row += fabs(J[k * nu + i] - (i == k ? 1.0 : 0.0));
+            if (row > *theta)
+                *theta = row;
+        }
+        if (*rn <= lim_r)
+            return it;
+        if (lu_solve(nu, J, r))
+            return -1;
+        if (norm_inf(nu, r) <= lim_u)
+            return it;
+        if (it == max_iter)
+            return -1;
+        for (i = 0; i < nu; ++i)
+            u[i] += r[i];
+    }
+}
+
 /*
  * dims: N, nh, n_loaded, nf (force columns), ne, nw, nz, no, n_samples, S, max_iter, form,
  *       ix, iv, ia (the rows of x0, v0, a0 in H).
@@ -138,7 +190,7 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
     double *cw = rn_ + nz;
     const double *arg[5];
     double *res[4];
-    double scale = 0.0;
+    double scale = 0.0, scale_u = 0.0;
     long n, j, i, e, o, t, it;
     arg[0] = u;
     arg[1] = Q;
@@ -161,7 +213,7 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
             break;
         for (j = 0; j < S; ++j) {
             const double ca = (double)j / (double)S, cb = (double)(j + 1) / (double)S;
-            double rn = INFINITY;
+            double rn = INFINITY, theta = 0.0;
             zero(2 * nl, frc);
             for (i = 0; i < nf; ++i) {
                 frc[pf[i]] += f0[i] + ca * (f1[i] - f0[i]);
@@ -191,33 +243,19 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
             }
             for (i = 0; i < nz; ++i)
                 u[nw + i] = zold[i] + h * rold[i];
-            {
-                const double qn = norm_inf(nw, Q);
-                if (qn > scale && qn < INFINITY)
-                    scale = qn;
-            }
-            for (it = 0;; ++it) {
-                double un;
-                nl_residual(arg, res, iwork, cw, 0);
-                rn = norm_inf(nu, r);
-                un = norm_inf(nu, u);
-                if (un > scale && un < INFINITY)
-                    scale = un;
-                if (rn <= tol * scale || !(rn < INFINITY) || it == max_iter)
-                    break;
-                if (lu_solve(nu, J, r))
-                    break;
-                for (i = 0; i < nu; ++i)
-                    u[i] += r[i];
-            }
-            stats[1] += (double)it;
-            if ((double)it > stats[0])
-                stats[0] = (double)it;
-            if (!(rn <= tol * scale) || !(norm_inf(ne, gn) < INFINITY)) {
+            scale = grow(scale, norm_inf(nw, Q));
+            it = newton_solve(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork, cw,
+                              &rn, &theta);
+            if (it < 0 || !(norm_inf(ne, gn) < INFINITY)) {
                 fail[0] = n * S + j;
                 stats[3] = rn;
                 return 1;
             }
+            scale_u = grow(scale_u, norm_inf(nu, u));
+            scale = grow(scale, scale_u);
+            stats[1] += (double)it;
+            if ((double)it > stats[0])
+                stats[0] = (double)it;
             if (rn > stats[2])
                 stats[2] = rn;
             copy(ne, gn, g);

@@ -15,11 +15,12 @@
  * `nl_residual` (CasADi code generation of the element laws, appended to this source).
  * Between samples the force is linear: f at sub-step j of sample n is f_n + (j/S)(f_{n+1} - f_n).
  *
- * Newton stops when |r|_inf <= max(tol, 16 eps |J|_inf) * (the largest |u|_inf or |Q|_inf so
- * far): the second term is the round-off floor of r for stiff elements. Matrices are column-major;
- * par holds Dwg, then h. Returns 0, or 1 when Newton failed at step fail[0] (sub-step index) with
- * residual stats[3] (non-finite, singular Jacobian or max_iter iterations), 3 (see below) when the
- * step is beyond its stability limit.
+ * Newton accepts u by the rule of every backend (newton_solve in newton.c): |r|_inf <= tol s_r
+ * or the next Newton step |J^-1 r|_inf <= tol s_u, s_r = the largest |Q|_inf or |u|_inf and
+ * s_u = the largest |u|_inf accepted so far (s_r raised by Q before a step). Matrices are
+ * column-major; par holds Dwg, then h. Returns 0, or 1 when Newton failed at step fail[0] (sub-step
+ * index) with residual stats[3] (non-finite, singular Jacobian or max_iter iterations), 3 (see
+ * below) when the step is beyond its stability limit.
  */
 #include <float.h>
 #include <math.h>
@@ -46,6 +47,7 @@ static inline void matvec_add(long rows, long cols, const double *restrict A,
 }
 
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
+#include <float.h>
 /* Solve J d = -r in place (J column-major n x n, from CasADi) by LU with partial pivoting. */
 static int lu_solve(long n, double *restrict J, double *restrict r) {
     long i, j, k, p;
@@ -113,6 +115,57 @@ static inline void zero(long n, double *restrict dst) {
     for (i = 0; i < n; ++i)
         dst[i] = 0.0;
 }
+
+/* s raised to v when v is larger and finite (a non-finite iterate never loosens the tests) */
+static inline double grow(double s, double v) {
+    return (v > s && v < INFINITY) ? v : s;
+}
+
+/*
+ * One step's Newton iteration under the acceptance rule of every backend (docs/nonlinear.md):
+ * u is accepted when
+ *
+ *     |r(u)|_inf <= tol s_r   (residual test)   or   |J(u)^-1 r(u)|_inf <= tol s_u   (step test),
+ *
+ * s_r = max(scale_r, DBL_MIN) the size of the residual's terms, s_u = max(scale_u, DBL_MIN)
+ * that of the unknowns. The step test accepts a residual at its round-off floor (stiff
+ * elements); the step that passes it is not taken, so r, J, g and z' stay those of u.
+ * nl_residual evaluates them through arg/res (wired by the caller to u, r, J, g, z'). *theta =
+ * |J_yy - I|_inf over the first ne rows and columns of the accepted u. Returns the iterations,
+ * or -1 when u is not accepted (non-finite r, singular J, or neither test passed after
+ * max_iter steps); *rn = |r(u)|_inf of the last u.
+ */
+static long newton_solve(long nu, long ne, double *restrict u, double *restrict r,
+                         double *restrict J, double scale_r, double scale_u, double tol,
+                         long max_iter, const double **arg, double **res, nl_int *iw, double *w,
+                         double *rn, double *theta) {
+    const double lim_r = tol * fmax(scale_r, DBL_MIN), lim_u = tol * fmax(scale_u, DBL_MIN);
+    long it, i, k;
+    for (it = 0;; ++it) {
+        nl_residual(arg, res, iw, w, 0);
+        *rn = norm_inf(nu, r);
+        if (!(*rn < INFINITY))
+            return -1;
+        *theta = 0.0;
+        for (i = 0; i < ne; ++i) {
+            double row = 0.0;
+            for (k = 0; k < ne; ++k)
+                row += fabs(J[k * nu + i] - (i == k ? 1.0 : 0.0));
+            if (row > *theta)
+                *theta = row;
+        }
+        if (*rn <= lim_r)
+            return it;
+        if (lu_solve(nu, J, r))
+            return -1;
+        if (norm_inf(nu, r) <= lim_u)
+            return it;
+        if (it == max_iter)
+            return -1;
+        for (i = 0; i < nu; ++i)
+            u[i] += r[i];
+    }
+}
 /*
  * dims: ns, nf, ne, nw, nz, no (checked against the compile-time sizes NL_NS .. NL_NO, which
  * let the compiler unroll the small products), n_samples, substeps, max_iter.
@@ -134,12 +187,12 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     const double *Dwg = mats[5], *par = mats[6], *Co = mats[7], *Dof = mats[8];
     const double *Dog = mats[9];
     double f[nf + 1], Q[nw + 1], zold[nz + 1], rold[nz + 1], r[nu + 1], J[nu * nu + 1];
-    double xn[ns], limit = 0.0;
+    double xn[ns];
     double *cw = work; /* CasADi work */
     const double *arg[5];
     double *res[4];
-    double scale = 0.0;
-    long n, j, i, k, it;
+    double scale = 0.0, scale_u = 0.0;
+    long n, j, i, it;
     arg[0] = u;
     arg[1] = Q;
     arg[2] = zold;
@@ -159,7 +212,7 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
         const long nsub = (n + 1 < n_samples) ? S : 1;
         for (j = 0; j < nsub; ++j) {
             const double c = (double)j / (double)S;
-            double rn = INFINITY;
+            double rn = INFINITY, theta = 0.0;
             for (i = 0; i < nf; ++i)
                 f[i] = f0[i] + c * (f1[i] - f0[i]);
             /* Q = Cw x + Dwf f; predictor u = [Q + Dwg g_prev; z_prev + h z'_prev] */
@@ -172,65 +225,28 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
             copy(nz, rate, rold);
             for (i = 0; i < nz; ++i)
                 u[nw + i] = zold[i] + par[nw * ne] * rold[i];
-            /* Newton to |r|_inf <= max(tol, 16 eps |J|_inf) * scale (header comment) */
-            {
-                const double qn = norm_inf(nw, Q);
-                if (qn > scale && qn < INFINITY)
-                    scale = qn;
-            }
-            for (it = 0;; ++it) {
-                double un, floor = 0.0;
-                nl_residual(arg, res, iwork, cw, 0);
-                rn = norm_inf(nu, r);
-                un = norm_inf(nu, u);
-                if (un > scale && un < INFINITY)
-                    scale = un;
-                limit = tol * scale;
-                if (rn > limit && rn < INFINITY) {
-                    for (i = 0; i < nu; ++i) { /* round-off floor of r: 16 eps |J|_inf scale */
-                        double row = 0.0;
-                        for (k = 0; k < nu; ++k)
-                            row += fabs(J[k * nu + i]);
-                        if (row > floor)
-                            floor = row;
-                    }
-                    limit = fmax(tol, 16.0 * DBL_EPSILON * floor) * scale;
-                }
-                if (rn <= limit || it == max_iter || !(rn < INFINITY))
-                    break;
-                if (lu_solve(nu, J, r))
-                    break;
-                for (i = 0; i < nu; ++i)
-                    u[i] += r[i];
-            }
-            stats[1] += (double)it;
-            if ((double)it > stats[0])
-                stats[0] = (double)it;
-            if (!(rn <= limit) || !(norm_inf(ne, g) < INFINITY) ||
-                !(norm_inf(nz, rate) < INFINITY)) {
+            /* Newton under the shared acceptance rule (newton_solve), scale fixed per step */
+            scale = grow(scale, norm_inf(nw, Q));
+            it = newton_solve(nu, ne, u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork, cw,
+                              &rn, &theta);
+            if (it < 0 || !(norm_inf(ne, g) < INFINITY) || !(norm_inf(nz, rate) < INFINITY)) {
                 fail[0] = n * S + j;
                 stats[3] = rn;
                 return 1;
             }
+            scale_u = grow(scale_u, norm_inf(nu, u));
+            scale = grow(scale, scale_u);
+            stats[1] += (double)it;
+            if ((double)it > stats[0])
+                stats[0] = (double)it;
             if (rn > stats[2])
                 stats[2] = rn;
-            { /* theta = |J_yy - I|_inf = |B0 dg/dy|_inf: the elements' stiffness seen by the step
-               */
-                double theta = 0.0;
-                for (i = 0; i < ne; ++i) {
-                    double row = 0.0;
-                    for (k = 0; k < ne; ++k)
-                        row += fabs(J[k * nu + i] - (i == k ? 1.0 : 0.0));
-                    if (row > theta)
-                        theta = row;
-                }
-                if (theta > stats[4])
-                    stats[4] = theta;
-                if (theta > theta_limit) {
-                    fail[0] = n * S + j;
-                    stats[3] = theta;
-                    return 3;
-                }
+            if (theta > stats[4])
+                stats[4] = theta;
+            if (theta > theta_limit) { /* theta = |B0 dg/dy|_inf: the elements' stiffness */
+                fail[0] = n * S + j;
+                stats[3] = theta;
+                return 3;
             }
             if (j == 0) {
                 double *o = out + n * no;

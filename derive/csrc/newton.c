@@ -1,4 +1,5 @@
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
+#include <float.h>
 /* Solve J d = -r in place (J column-major n x n, from CasADi) by LU with partial pivoting. */
 static int lu_solve(long n, double *restrict J, double *restrict r)
 {
@@ -65,4 +66,58 @@ static inline void zero(long n, double *restrict dst)
     long i;
     for (i = 0; i < n; ++i)
         dst[i] = 0.0;
+}
+
+/* s raised to v when v is larger and finite (a non-finite iterate never loosens the tests) */
+static inline double grow(double s, double v)
+{
+    return (v > s && v < INFINITY) ? v : s;
+}
+
+/*
+ * One step's Newton iteration under the acceptance rule of every backend (docs/nonlinear.md):
+ * u is accepted when
+ *
+ *     |r(u)|_inf <= tol s_r   (residual test)   or   |J(u)^-1 r(u)|_inf <= tol s_u   (step test),
+ *
+ * s_r = max(scale_r, DBL_MIN) the size of the residual's terms, s_u = max(scale_u, DBL_MIN)
+ * that of the unknowns. The step test accepts a residual at its round-off floor (stiff
+ * elements); the step that passes it is not taken, so r, J, g and z' stay those of u.
+ * nl_residual evaluates them through arg/res (wired by the caller to u, r, J, g, z'). *theta =
+ * |J_yy - I|_inf over the first ne rows and columns of the accepted u. Returns the iterations,
+ * or -1 when u is not accepted (non-finite r, singular J, or neither test passed after
+ * max_iter steps); *rn = |r(u)|_inf of the last u.
+ */
+static long newton_solve(long nu, long ne, double *restrict u, double *restrict r,
+                         double *restrict J, double scale_r, double scale_u, double tol,
+                         long max_iter,
+                         const double **arg, double **res, nl_int *iw, double *w, double *rn,
+                         double *theta)
+{
+    const double lim_r = tol * fmax(scale_r, DBL_MIN), lim_u = tol * fmax(scale_u, DBL_MIN);
+    long it, i, k;
+    for (it = 0;; ++it) {
+        nl_residual(arg, res, iw, w, 0);
+        *rn = norm_inf(nu, r);
+        if (!(*rn < INFINITY))
+            return -1;
+        *theta = 0.0;
+        for (i = 0; i < ne; ++i) {
+            double row = 0.0;
+            for (k = 0; k < ne; ++k)
+                row += fabs(J[k * nu + i] - (i == k ? 1.0 : 0.0));
+            if (row > *theta)
+                *theta = row;
+        }
+        if (*rn <= lim_r)
+            return it;
+        if (lu_solve(nu, J, r))
+            return -1;
+        if (norm_inf(nu, r) <= lim_u)
+            return it;
+        if (it == max_iter)
+            return -1;
+        for (i = 0; i < nu; ++i)
+            u[i] += r[i];
+    }
 }

@@ -144,7 +144,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                                      tol, S)
     else:
         fn = _residual_evaluator(elements, sz, backend)
-        scale, iters, worst, total = 0.0, 0, 0.0, 0
+        scale, scale_u, iters, worst, total = 0.0, 0.0, 0, 0.0, 0
         for n in range(n_samples):
             for q, i in zip("xva", (ix, iv, ia)):
                 store[q][n] = H[i, outputs]
@@ -158,18 +158,15 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                 Q = kin(H)
                 zold, rold = u[sz.nw:].copy(), rate
                 u = np.concatenate([Q + Dwg @ g, zold + h * rold])
-                scale = max(scale, np.abs(Q).max(initial=0.0))
-                for it in range(max_iter + 1):
-                    r, J, g_new, rate_new = fn(u, Q, zold, rold, par)
-                    rn = np.abs(r).max(initial=0.0)
-                    scale = max(scale, np.abs(u).max(initial=0.0))
-                    if rn <= tol * scale or not np.isfinite(rn) or it == max_iter:
-                        break
-                    u = u - np.linalg.solve(J, r)
+                scale = _grow(scale, Q)
+                u, it, rn, (g_new, rate_new) = newton_solve(
+                    lambda v: fn(v, Q, zold, rold, par), u, scale, scale_u, tol, max_iter)
+                if it < 0 or not np.isfinite(g_new).all():
+                    _newton_error(n * S + j, S, h, rn, max_iter)
+                scale_u = _grow(scale_u, u)
+                scale = max(scale, scale_u)
                 total += it
                 iters = max(iters, it)
-                if not (rn <= tol * scale) or not np.isfinite(g_new).all():
-                    _newton_error(n * S + j, S, h, rn, max_iter)
                 worst = max(worst, rn)
                 g, rate = g_new, rate_new
                 H += np.tensordot(g, U, axes=1)
@@ -185,6 +182,37 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                           "newton_iterations": {"max": iters,
                                                 "mean": total / max((n_samples - 1) * S, 1)},
                           "max_residual": worst})
+
+
+def newton_solve(evaluate, u, scale_r, scale_u, tol, max_iter):
+    """The Newton iteration and acceptance rule of every backend (C: newton_solve of newton.c):
+    u is accepted when |r(u)|_inf <= tol s_r or |J(u)^-1 r(u)|_inf <= tol s_u (s = max(scale,
+    DBL_MIN)); the step passing the second test is not taken. ``evaluate(u) -> (r, J, *rest)``.
+    Returns (u, iterations or -1 when not accepted, |r(u)|_inf, rest at u)."""
+    tiny = np.finfo(float).tiny
+    lim_r, lim_u = tol * max(scale_r, tiny), tol * max(scale_u, tiny)
+    for it in range(max_iter + 1):
+        r, J, *rest = evaluate(u)
+        rn = float(np.abs(r).max(initial=0.0))
+        if not np.isfinite(rn):
+            return u, -1, rn, rest
+        if rn <= lim_r:
+            return u, it, rn, rest
+        try:
+            d = np.linalg.solve(J, r)
+        except np.linalg.LinAlgError:
+            return u, -1, rn, rest
+        if np.abs(d).max(initial=0.0) <= lim_u:
+            return u, it, rn, rest
+        if it == max_iter:
+            return u, -1, rn, rest
+        u = u - d
+
+
+def _grow(s, v):
+    """s raised to |v|_inf when that is larger and finite (as grow() of newton.c)."""
+    m = float(np.abs(np.asarray(v)).max(initial=0.0))
+    return m if s < m < np.inf else s
 
 
 def _newton_error(kk, S, h, rn, max_iter):

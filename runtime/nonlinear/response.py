@@ -12,6 +12,18 @@ step as a CasADi rootfinder inside Function.mapaccum over the record; `compiled=
 and compiles it). Both check every step: a Newton failure raises NewtonError naming the step,
 the time and the residual; a modal step beyond its stability limit for the elements' tangent
 stiffness (THETA_LIMIT) raises DtdynStepStabilityError.
+
+Newton acceptance, the same rule in every backend (C loops: newton_solve of newton.c; CasADi:
+its absolute tests on the problem scaled by s; the chain's Python loop: chain.newton_solve):
+u is accepted when
+
+    |r(u)|_inf <= tol s_r    or    |J(u)^-1 r(u)|_inf <= tol s_u,
+
+s_r = the largest |Q|_inf or |u|_inf and s_u = the largest |u|_inf of the solutions accepted so
+far (s_r raised by Q before a step; both fixed during its iterations). The residual test is
+relative to the size of the residual's terms; the step test, relative to the size of the
+unknowns, accepts a residual at its round-off floor, eps |J| |u| for a stiff element (a gap of
+1e12 N/m), where no iterate can do better but the solution is known to tol.
 """
 from __future__ import annotations
 
@@ -159,9 +171,11 @@ _RECORDS: dict = {}
 def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_iter, compiled,
                    with_theta):
     """F(x_aug, [f_n; f_{n+1}] columns) -> (x_aug', out columns, check columns), check =
-    [max |u|; |r| per sub-step; theta per sub-step (``with_theta`` only)].
+    [|r| per sub-step; rho = min(|r| / s_r, |J^-1 r| / s_u) per sub-step; theta per sub-step
+    (``with_theta`` only)].
 
-    x_aug = [x; u; g; z'] (state, last solution, forces, rates); one column per sample, the
+    x_aug = [x; u; g; z'; s_r; s_u] (state, last solution, forces, rates, scales of the
+    acceptance rule); one column per sample, the
     chunk of n_blocks * BLOCK samples (the record padded at its end); the step's matrices
     are constants of the graph.
     Returns (function, construct time, compile time); cached per process.
@@ -180,43 +194,59 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     sz = _sizes(elements)
     e = _residual_expressions(elements, sz)
     nu = sz.nw + sz.nz
-    p = ca.vertcat(e["Q"], e["zold"], e["rold"], e["par"])
-    # failures are not raised inside CasADi: every step's final residual is checked afterwards
-    opts = {"abstol": 1e-300, "abstolStep": tol, "max_iter": max_iter, "error_on_fail": False,
-            "show_eval_warnings": False}
-    rf = ca.rootfinder("rf", solver, {"x": e["u"], "p": p, "g": e["r"]}, opts)
-    outs = [e["r"], e["g"], e["rate"]]
-    if with_theta:  # theta = |J_yy - I|_inf = |B0 dg/dy|_inf, as the C loop measures it
-        J_yy = ca.jacobian(e["r"][:sz.ne], e["u"][:sz.ne]) - ca.SX.eye(sz.ne)
-        outs.append(ca.mmax(ca.sum2(ca.fabs(J_yy))))
-    post = ca.Function("post", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]], outs)
+    # the rootfinder solves for u / s_u with the residual r / s_r, so CasADi's absolute tests
+    # (abstol on the residual, abstolStep on the step) are the relative tests of the shared
+    # rule (module docstring) with the same scales as the C loop
+    ut, sr_, su_ = ca.SX.sym("ut", nu), ca.SX.sym("sr"), ca.SX.sym("su")
+    p = ca.vertcat(e["Q"], e["zold"], e["rold"], e["par"], sr_, su_)
+    r_scaled = ca.substitute(e["r"], e["u"], su_ * ut) / sr_
+    # failures are not raised inside CasADi: every step's acceptance is checked afterwards
+    # plain Newton steps, as the C loop takes them (CasADi's "newton" would add a line search)
+    opts = {"abstol": tol, "abstolStep": tol, "max_iter": max_iter, "error_on_fail": False,
+            "show_eval_warnings": False, **({"line_search": False} if solver == "newton" else {})}
+    rf = ca.rootfinder("rf", solver, {"x": ut, "p": p, "g": r_scaled}, opts)
+    J = ca.densify(ca.jacobian(e["r"], e["u"]))
+    # theta = |J_yy - I|_inf = |B0 dg/dy|_inf, as the C loop measures it
+    J_yy = J[:sz.ne, :sz.ne] - ca.SX.eye(sz.ne)
+    post = ca.Function("post", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]],
+                       [e["r"], J, e["g"], e["rate"], ca.mmax(ca.sum2(ca.fabs(J_yy)))])
     MX = ca.MX
     A, Bf, Bg, Cw, Dwf, Dwg, Co, Dof, Dog = (ca.DM(m) for m in mats)
     h = step.h
-    xa = MX.sym("xa", ns + nu + sz.ne + sz.nz)
+    xa = MX.sym("xa", ns + nu + sz.ne + sz.nz + 2)
     ff = MX.sym("ff", 2 * nf)
     def part(v, start, size):  # CasADi slices an empty range as 1x0; keep columns
         return v[start:start + size] if size else MX(0, 1)
 
+    def grow(s, v):  # as grow() of newton.c: a non-finite v never raises the scale
+        return ca.if_else(v < np.inf, ca.fmax(s, v), s)
+
     x, u = xa[:ns], xa[ns:ns + nu]
     g, rate = xa[ns + nu:ns + nu + sz.ne], part(xa, ns + nu + sz.ne, sz.nz)
+    scale, scale_u = xa[-2], xa[-1]
+    tiny = np.finfo(float).tiny
     par = ca.vertcat(ca.vec(Dwg), h)
-    resid, unorm, thetas, out = [], MX(0), [], None
+    resid, rho, thetas, out = [], [], [], None
     for j in range(S):
         f = ff[:nf] + (j / S) * (ff[nf:] - ff[:nf])
         Q = ca.mtimes(Cw, x) + ca.mtimes(Dwf, f)
         zold = part(u, sz.nw, sz.nz)
         guess = ca.vertcat(Q + ca.mtimes(Dwg, g), zold + h * rate)
-        u = rf(guess, ca.vertcat(Q, zold, rate, par))
-        r, g, rate, *theta = post(u, Q, zold, rate, par)
+        scale = grow(scale, ca.norm_inf(Q))
+        sr, su = ca.fmax(scale, tiny), ca.fmax(scale_u, tiny)
+        u = su * rf(guess / su, ca.vertcat(Q, zold, rate, par, sr, su))
+        r, Jv, g, rate, theta = post(u, Q, zold, rate, par)
         resid.append(ca.norm_inf(r))
-        thetas += theta
-        unorm = ca.fmax(unorm, ca.norm_inf(u))
+        rho.append(ca.fmin(ca.norm_inf(r) / sr, ca.norm_inf(ca.solve(Jv, r, "qr")) / su))
+        thetas.append(theta)
+        scale_u = grow(scale_u, ca.norm_inf(u))
+        scale = ca.fmax(scale, scale_u)
         if j == 0:
             out = ca.mtimes(Co, x) + ca.mtimes(Dof, f) + ca.mtimes(Dog, g)
         x = ca.mtimes(A, x) + ca.mtimes(Bf, f) + ca.mtimes(Bg, g)
-    one = ca.Function("nl_step", [xa, ff], [ca.vertcat(x, u, g, rate), out,
-                                             ca.vertcat(unorm, *resid, *thetas)])
+    checks = resid + rho + (thetas if with_theta else [])
+    one = ca.Function("nl_step", [xa, ff], [ca.vertcat(x, u, g, rate, scale, scale_u), out,
+                                             ca.vertcat(*checks)])
     inner = one.mapaccum("nl_block", BLOCK, [0], [0])
     record = inner.mapaccum("nl_record", n_blocks, [0], [0])
     t1 = time.perf_counter()
@@ -260,7 +290,7 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, m
     record, t_build, t_compile = _casadi_record(elements, step, S, n_blocks, solver, tol,
                                                 max_iter, compiled, with_theta)
     out = np.empty((n, step.Co.shape[0]))
-    scale, worst, theta, t_run = 1.0, 0.0, -np.inf, 0.0
+    worst, theta, t_run = 0.0, -np.inf, 0.0
     last_step = (n - 1) * S  # the last sample runs one step, as in the C loop
     for start in range(0, n, chunk):
         seg = f[start:start + chunk + 1]
@@ -272,14 +302,11 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, m
         m = min(chunk, n - start)
         out[start:start + m] = np.asarray(o).T[:m]
         check = np.asarray(check)[:, :m]
-        # (sample, sub-step j) -> step sample S + j; tol is CasADi's absolute abstolStep,
-        # scaled here by the largest |u| so far as the C loop scales its test
+        # (sample, sub-step j) -> step sample S + j; a step is accepted by the shared rule
+        # (module docstring): rho = min(|r| / s_r, |J^-1 r| / s_u) <= tol
         k0, keep = start * S, min(m * S, last_step - start * S + 1)
-        resid = check[1:S + 1].T.ravel()[:keep]
-        thetas = check[S + 1:].T.ravel()[:keep]
-        sc = np.maximum.accumulate(np.maximum(scale, check[0]))
-        scale = float(sc[-1])
-        bad = ~((resid <= 10.0 * tol * np.repeat(sc, S)[:keep]) | (resid == 0))
+        resid, rho, thetas = (check[i * S:(i + 1) * S].T.ravel()[:keep] for i in range(3))
+        bad = ~(rho <= tol)
         bad |= np.repeat(~np.isfinite(out[start:start + m]).all(axis=1), S)[:keep]
         bad = np.flatnonzero(bad)
         unstable = np.flatnonzero(thetas > limit)
@@ -332,7 +359,9 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     backend : {"c", "casadi"}
         "c": the generated loop (falls back to "casadi", with one warning, without a compiler).
     tol : float
-        Newton stops when |r|_inf <= tol * (the largest |u|_inf or |Q|_inf so far), u = [w; z].
+        Newton accepts u = [w; z] when |r|_inf <= tol * (the largest |u|_inf or |Q|_inf of
+        the record so far) or the next Newton step |J^-1 r|_inf <= tol * (the largest
+        |u|_inf so far), in every backend.
     max_iter : int
         Newton iterations per step before NewtonError.
     solver : {"newton", "fast_newton"}
@@ -418,7 +447,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         iters = {"max": int(stats[0]), "mean": stats[1] / ((f.shape[0] - 1) * S + 1)}
         worst, theta = float(stats[2]), float(stats[4])
     else:
-        xa = np.concatenate([x, u, g0, rate0])
+        xa = np.concatenate([x, u, g0, rate0, [0.0, 0.0]])
         out, worst, theta, t_build, t_compile, t_run = _run_casadi(
             elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, method, fs)
         iters = None

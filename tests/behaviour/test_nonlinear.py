@@ -196,14 +196,14 @@ def test_bouc_wen_hysteresis_matches_reference():
 
 # --- failures are loud --------------------------------------------------------------------------
 
-def _impact(method, substeps, smoothing=1e-4, stiffness=1e12, backend="c"):
+def _impact(method, substeps, smoothing=1e-4, stiffness=1e12, backend="c", **kw):
     M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
     fs, n = 100.0, 200
     f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]
     return NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0],
                                  elements=[Gap(0, gap=1e-2, stiffness=stiffness,
                                                            smoothing=smoothing)],
-                                 scheme=method, substeps=substeps, backend=backend)
+                                 scheme=method, substeps=substeps, backend=backend, **kw)
 
 
 def test_newton_failure_names_the_step_and_substeps_cure_it():
@@ -211,6 +211,31 @@ def test_newton_failure_names_the_step_and_substeps_cure_it():
         _impact("newmark", 1)
     r = _impact("newmark", 16)
     assert np.isfinite(r.x).all() and np.abs(r.x).max() < 1.1e-2
+
+
+@pytest.mark.parametrize("substeps", [1, 2, 16])
+def test_one_newton_rule_on_the_stiff_gap(substeps):
+    """The gap of 1e12 N/m: C and CasADi ("newton", its line search off) take the same plain
+    Newton steps and accept by the same rule (|r| <= tol s_r or |J^-1 r| <= tol s_u), so they
+    accept or refuse the same steps. At 1 sub-step the element's round-off floor (|r| ~ 2e-13,
+    next step ~ 2e-12 |u|) is above tol = 1e-12 at step 20; at 2 sub-steps a step needs 32
+    iterations (> max_iter = 30): both refuse the same step. At 16 both accept and agree to
+    1e-6 of the peak (this map amplifies per-step differences of tol s: a force changed by 1e-15
+    moves a 200-sample record by up to 2e-2 at 3 sub-steps); the largest residual accepted is
+    1e-7 of the peak (before the rule, the C loop's floor 16 eps |J| s accepted 3.3e-4)."""
+    runs = {}
+    for backend in ("c", "casadi"):
+        try:
+            runs[backend] = _impact("newmark", substeps, backend=backend)
+        except NL.NewtonError as exc:
+            runs[backend] = str(exc).split(": residual")[0]
+    if substeps < 16:
+        assert runs["c"] == runs["casadi"] and "did not converge at step" in runs["c"]
+        return
+    peak = np.abs(runs["c"].x).max()
+    assert np.abs(runs["casadi"].x - runs["c"].x).max() <= 1e-6 * peak
+    for r in runs.values():
+        assert r.info["max_residual"] <= 1e-7 * peak
 
 
 @pytest.mark.parametrize("substeps", [1, 3])
