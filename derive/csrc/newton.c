@@ -75,7 +75,7 @@ static inline double grow(double s, double v)
 }
 
 /*
- * One step's Newton iteration under the acceptance rule of every backend (docs/nonlinear.md):
+ * One step's Newton iteration under the acceptance rule of every backend (docs/newton.md):
  * u is accepted when
  *
  *     |r(u)|_inf <= tol s_r   (residual test)   or   |J(u)^-1 r(u)|_inf <= tol s_u   (step test),
