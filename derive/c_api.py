@@ -19,6 +19,7 @@ KERNELS = {
         "long n", "long n_in", "long n_out", "long n_sec", "const double *restrict sos",
         "const long *restrict in_col", "const long *restrict out_col",
         "const double *restrict xt", "double *restrict yt", "double *restrict state")),
+    "dtdyn_set_stop": ("int", ("int value",)),  # csrc/stop.c, in every library with a long loop
     "dtdyn_modal_filters_lanes": ("int", ("void",)),
     "dtdyn_modal_filters_work": ("long", ("long m", "long n_out")),
     "dtdyn_modal_filters": ("int", (
@@ -45,11 +46,11 @@ KERNELS = {
 #: the kernels each generated source defines
 SOURCES = {
     "ss_response.c": ("dtdyn_ss_states",),
-    "filter_bank.c": ("dtdyn_filter_bank",),
-    "modal_states.c": ("dtdyn_modal_filters_lanes", "dtdyn_modal_filters_work",
+    "filter_bank.c": ("dtdyn_set_stop", "dtdyn_filter_bank"),
+    "modal_states.c": ("dtdyn_set_stop", "dtdyn_modal_filters_lanes", "dtdyn_modal_filters_work",
                        "dtdyn_modal_filters"),
-    "nl_loop.c": ("nl_residual", "dtdyn_nl_run"),
-    "nl_chain.c": ("nl_residual", "dtdyn_nl_chain"),
+    "nl_loop.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_run"),
+    "nl_chain.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_chain"),
 }
 
 _SCALARS = {"int": "c_int", "long": "c_long", "double": "c_double"}

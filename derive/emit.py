@@ -288,13 +288,13 @@ def render_all() -> dict[str, str]:
     render("numpy/newmark_ss.py.jinja", "newmark_ss.py", "dtdyn.derive.state_space",
            **_newmark_ss_context())
     render("c/verbatim.c.jinja", "ss_response.c", "derive/csrc/ss_response.c (hand-written)",
-           csource="ss_response.c")
+           csource="ss_response.c", with_stop=False)
     render("c/nl_chain.c.jinja", "nl_chain.c", "dtdyn.nonlinear.chain (its loop)",
            chain_typedef=c_api.pointer_typedef("chain_fn", "dtdyn_chain"))
     render("numpy/modal_filters.py.jinja", "modal_filters.py", "dtdyn.derive.modal_filters",
            **_modal_filters_context())
     render("c/verbatim.c.jinja", "filter_bank.c", "derive/csrc/filter_bank.c (hand-written)",
-           csource="filter_bank.c")
+           csource="filter_bank.c", with_stop=True)
     render("c/modal_states.c.jinja", "modal_states.c",
            "dtdyn.derive.modal_filters.increment_form",
            increments=[(k, sp.sstr(v)) for k, v in modal_filters.increment_form().items()])

@@ -47,6 +47,7 @@ SIGNATURES = {
             "c_void_p",
         ),
     ),
+    "dtdyn_set_stop": ("c_int", ("c_int",)),
     "dtdyn_modal_filters_lanes": ("c_int", ()),
     "dtdyn_modal_filters_work": ("c_long", ("c_long", "c_long")),
     "dtdyn_modal_filters": (

@@ -3,9 +3,22 @@
 // verify.
 /* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
    the definitions below against the ctypes bindings in generated/c_api.py */
+int dtdyn_set_stop(int value);
 int dtdyn_filter_bank(long n, long n_in, long n_out, long n_sec, const double *restrict sos,
                       const long *restrict in_col, const long *restrict out_col,
                       const double *restrict xt, double *restrict yt, double *restrict state);
+/*
+ * Cooperative stop (Ctrl-C). The runtime runs a long call of this library in a worker thread;
+ * on KeyboardInterrupt the main thread calls dtdyn_set_stop(1), and the loop returns
+ * DTDYN_STOPPED at its next check (every block of samples: well under a second).
+ */
+#define DTDYN_STOPPED 5
+static volatile int dtdyn_stop_flag = 0;
+
+int dtdyn_set_stop(int value) {
+    dtdyn_stop_flag = value;
+    return 0;
+}
 /*
  * A bank of parallel second-order sections (transposed direct form II):
  *   v_n = b0 x_n + s1;  s1 = b1 x_n - a1 v_n + s2;  s2 = b2 x_n - a2 v_n
@@ -15,7 +28,7 @@ int dtdyn_filter_bank(long n, long n_in, long n_out, long n_sec, const double *r
  * BLOCK samples; in each block every section runs in turn, its state carried in `state`
  * (2 n_sec, zeroed by the caller), so the block's inputs and outputs stay in cache. Each output
  * still receives its sections' outputs in the order k = 0, 1, ... (the sums do not depend on
- * BLOCK).
+ * BLOCK). Returns 0, or DTDYN_STOPPED (stop.c, included before this file) when stopped.
  */
 #include <stddef.h>
 
@@ -30,6 +43,8 @@ int dtdyn_filter_bank(long n, long n_in, long n_out, long n_sec, const double *r
     for (b = 0; b < n; b += BLOCK) {
         const long end = (b + BLOCK < n) ? b + BLOCK : n;
         for (k = 0; k < n_sec; ++k) {
+            if (dtdyn_stop_flag) /* per section: a block of many sections is long */
+                return DTDYN_STOPPED;
             const double b0 = sos[5 * k], b1 = sos[5 * k + 1], b2 = sos[5 * k + 2];
             const double a1 = sos[5 * k + 3], a2 = sos[5 * k + 4];
             const double *xi = xt + in_col[k] * n;

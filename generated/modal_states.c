@@ -134,12 +134,25 @@ static void outputs_axpy(long nb, long m, long n_out, int im_out, const double *
 
 /* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
    the definitions below against the ctypes bindings in generated/c_api.py */
+int dtdyn_set_stop(int value);
 int dtdyn_modal_filters_lanes(void);
 long dtdyn_modal_filters_work(long m, long n_out);
 int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
                         const double *restrict coef, const double *restrict wt,
                         const double *restrict x, double *restrict e, double *restrict y,
                         double *restrict work);
+/*
+ * Cooperative stop (Ctrl-C). The runtime runs a long call of this library in a worker thread;
+ * on KeyboardInterrupt the main thread calls dtdyn_set_stop(1), and the loop returns
+ * DTDYN_STOPPED at its next check (every block of samples: well under a second).
+ */
+#define DTDYN_STOPPED 5
+static volatile int dtdyn_stop_flag = 0;
+
+int dtdyn_set_stop(int value) {
+    dtdyn_stop_flag = value;
+    return 0;
+}
 
 int dtdyn_modal_filters_lanes(void) {
     return LANES;
@@ -164,6 +177,8 @@ int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
                 w[p * n_out + o] = wt[o * 2 * m + p];
     for (b = 0; b < n; b += BLOCK) {
         const long nb = (n - b < BLOCK) ? n - b : BLOCK;
+        if (dtdyn_stop_flag)
+            return DTDYN_STOPPED;
         if (n_in == 1) /* the common case, with the input loop unrolled */
             states_block(nb, m, 1, coef, x + b, e, ec);
         else

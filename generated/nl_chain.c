@@ -16,8 +16,9 @@
  * reuses the Riccati factors left in its work (sweep code 2). The residual, its Jacobian, g and
  * z' come from `nl_residual` (CasADi code generation of the element laws, appended to this
  * source). Newton accepts u by the rule of every backend (newton_solve in newton.c).
- * Returns 0; 1 when Newton failed (not converged in max_iter iterations, singular Jacobian or
- * non-finite) at step fail[0] with residual stats[3]; 4 when the chain kernel failed.
+ * Returns 0; DTDYN_STOPPED (stop.c) when stopped; 1 when Newton failed (not converged in max_iter
+ * iterations, singular Jacobian or non-finite) at step fail[0] with residual stats[3]; 4 when the
+ * chain kernel failed.
  */
 #include <math.h>
 #include <string.h>
@@ -30,12 +31,25 @@ typedef int (*chain_fn)(int form, int sweep, long N, long n_steps, const double 
                         double *ehist, double *err);
 /* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
    the definitions below against the ctypes bindings in generated/c_api.py */
+int dtdyn_set_stop(int value);
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem);
 int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                    const double *const *mats, double *restrict H, double *restrict u,
                    double *restrict g, double *restrict rate, double *const *out, double h,
                    double tol, double *stats, long *fail, double *restrict work,
                    nl_int *restrict iwork);
+/*
+ * Cooperative stop (Ctrl-C). The runtime runs a long call of this library in a worker thread;
+ * on KeyboardInterrupt the main thread calls dtdyn_set_stop(1), and the loop returns
+ * DTDYN_STOPPED at its next check (every block of samples: well under a second).
+ */
+#define DTDYN_STOPPED 5
+static volatile int dtdyn_stop_flag = 0;
+
+int dtdyn_set_stop(int value) {
+    dtdyn_stop_flag = value;
+    return 0;
+}
 
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
 #include <float.h>
@@ -211,6 +225,8 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
         }
         if (n + 1 == n_samples)
             break;
+        if ((n & 63) == 0 && dtdyn_stop_flag) /* a sample sweeps the whole chain */
+            return DTDYN_STOPPED;
         for (j = 0; j < S; ++j) {
             const double ca = (double)j / (double)S, cb = (double)(j + 1) / (double)S;
             double rn = INFINITY, theta = 0.0;

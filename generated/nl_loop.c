@@ -20,7 +20,7 @@
  * s_u = the largest |u|_inf accepted so far (s_r raised by Q before a step). Matrices are
  * column-major; par holds Dwg, then h. Returns 0, or 1 when Newton failed at step fail[0] (sub-step
  * index) with residual stats[3] (non-finite, singular Jacobian or max_iter iterations), 3 (see
- * below) when the step is beyond its stability limit.
+ * below) when the step is beyond its stability limit, DTDYN_STOPPED (stop.c) when stopped.
  */
 #include <float.h>
 #include <math.h>
@@ -28,11 +28,24 @@
 typedef long long int nl_int;
 /* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
    the definitions below against the ctypes bindings in generated/c_api.py */
+int dtdyn_set_stop(int value);
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem);
 int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
                  double *restrict x, double *restrict u, double *restrict g, double *restrict rate,
                  double *restrict out, double tol, double theta_limit, double *stats, long *fail,
                  double *restrict work, nl_int *restrict iwork);
+/*
+ * Cooperative stop (Ctrl-C). The runtime runs a long call of this library in a worker thread;
+ * on KeyboardInterrupt the main thread calls dtdyn_set_stop(1), and the loop returns
+ * DTDYN_STOPPED at its next check (every block of samples: well under a second).
+ */
+#define DTDYN_STOPPED 5
+static volatile int dtdyn_stop_flag = 0;
+
+int dtdyn_set_stop(int value) {
+    dtdyn_stop_flag = value;
+    return 0;
+}
 
 /* y += A x with A column-major (rows x cols): independent axpys, no long add chains */
 static inline void matvec_add(long rows, long cols, const double *restrict A,
@@ -210,6 +223,8 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
         const double *f0 = force + n * nf;
         const double *f1 = (n + 1 < n_samples) ? f0 + nf : f0;
         const long nsub = (n + 1 < n_samples) ? S : 1;
+        if ((n & 1023) == 0 && dtdyn_stop_flag)
+            return DTDYN_STOPPED;
         for (j = 0; j < nsub; ++j) {
             const double c = (double)j / (double)S;
             double rn = INFINITY, theta = 0.0;

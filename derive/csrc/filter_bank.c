@@ -7,7 +7,7 @@
  * BLOCK samples; in each block every section runs in turn, its state carried in `state`
  * (2 n_sec, zeroed by the caller), so the block's inputs and outputs stay in cache. Each output
  * still receives its sections' outputs in the order k = 0, 1, ... (the sums do not depend on
- * BLOCK).
+ * BLOCK). Returns 0, or DTDYN_STOPPED (stop.c, included before this file) when stopped.
  */
 #include <stddef.h>
 
@@ -23,6 +23,8 @@ int dtdyn_filter_bank(long n, long n_in, long n_out, long n_sec, const double *r
     for (b = 0; b < n; b += BLOCK) {
         const long end = (b + BLOCK < n) ? b + BLOCK : n;
         for (k = 0; k < n_sec; ++k) {
+            if (dtdyn_stop_flag) /* per section: a block of many sections is long */
+                return DTDYN_STOPPED;
             const double b0 = sos[5 * k], b1 = sos[5 * k + 1], b2 = sos[5 * k + 2];
             const double a1 = sos[5 * k + 3], a2 = sos[5 * k + 4];
             const double *xi = xt + in_col[k] * n;

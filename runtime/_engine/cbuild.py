@@ -366,6 +366,53 @@ def bind(lib, kernel: str, symbol: str | None = None):
     return fn
 
 
+#: return code of a loop stopped through dtdyn_set_stop (derive/csrc/stop.c)
+STOPPED = 5
+
+#: below this much work (samples x the loop's size) a call runs in the calling thread: it ends
+#: within a second anyway, and a thread costs tens of microseconds
+INTERRUPTIBLE_WORK = 1 << 22
+
+
+def interruptible(lib, call, work: float):
+    """``call()`` (one ctypes call into ``lib``, whose loop polls the flag of dtdyn_set_stop)
+    such that Ctrl-C stops it within a second: in the main thread and for ``work`` above
+    INTERRUPTIBLE_WORK, the call runs in a worker thread while this thread waits; on
+    KeyboardInterrupt the flag is set, the loop returns at its next check and the interrupt is
+    raised again. Returns what ``call()`` returns (STOPPED only if stopped from elsewhere)."""
+    if work < INTERRUPTIBLE_WORK or threading.current_thread() is not threading.main_thread():
+        return call()
+    stop = bind(lib, "dtdyn_set_stop")
+    stop(0)
+    box, done = {}, threading.Event()
+
+    def run():
+        try:
+            box["rc"] = call()
+        except BaseException as exc:  # re-raised in the caller's thread
+            box["exc"] = exc
+        finally:
+            done.set()
+
+    # an Event, not Thread.join: an interrupted join marks a running thread as stopped
+    # (CPython 3.11), and the arrays the loop writes must outlive it
+    threading.Thread(target=run, name="dtdyn-kernel", daemon=True).start()
+    try:
+        while not done.wait(0.05):
+            pass
+    except KeyboardInterrupt:
+        stop(1)
+        while not done.is_set():  # the loop returns at its next check; a second Ctrl-C waits too
+            try:
+                done.wait(0.05)
+            except KeyboardInterrupt:
+                pass
+        raise
+    if "exc" in box:
+        raise box["exc"]
+    return box["rc"]
+
+
 def c_available() -> bool:
     """Tell whether the C backend can be tried.
 

@@ -70,9 +70,11 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
     pad = max(_lag(nm) for nm in scheme.history) + 1 - len(states)
     H = history_from_states(scheme.history, [states[0]] * pad + states)
     advance = make_advance(scheme, scheme.coefficients(form, dt))
-    # blocks of at most CHECK_BLOCK steps: a response that leaves the finite numbers stops at
-    # the end of its block, named by its first non-finite step (and the bar moves per block)
-    n_chunks = max(-(-(n_steps - step) // CHECK_BLOCK), min(100, n_steps - step) if progress else 1)
+    # blocks of at most CHECK_BLOCK steps and CHECK_WORK DOF-steps: a response that leaves the
+    # finite numbers stops at the end of its block, named by its first non-finite step; Ctrl-C
+    # acts between blocks (a fraction of a second each); the bar moves per block
+    block = max(1, min(CHECK_BLOCK, CHECK_WORK // max(1, H.shape[-1])))
+    n_chunks = max(-(-(n_steps - step) // block), min(100, n_steps - step) if progress else 1)
     bounds = np.linspace(step, n_steps, max(n_chunks, 1) + 1).astype(int)
     bar = _progress(n_steps, step) if progress else None
     try:
@@ -93,8 +95,10 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
                           "error_estimate": err_est})
 
 
-#: steps per block between the checks for non-finite values
+#: steps per block between the checks for non-finite values (and for Ctrl-C), and DOF-steps
+#: per block (a chain of 1e5 masses runs blocks of 167 steps, ~0.1 s each)
 CHECK_BLOCK = 4096
+CHECK_WORK = 1 << 24
 
 
 def _check_finite(scheme, dt, H, store, quantities, lo, hi) -> None:

@@ -147,3 +147,19 @@ def _bytes(n: int) -> str:
             return f"{n:.3g} {unit}" if unit != "B" else f"{n} B"
         n /= 1024
     return f"{n:.3g} TiB"
+
+
+def finite_response(what: str, dt: float, *records) -> None:
+    """FloatingPointError naming the first step (row) at which any of ``records`` (arrays of
+    shape (n_steps + 1, ...) or None) is not finite: a result never carries inf or NaN."""
+    first = None
+    for rec in records:
+        if rec is None:
+            continue
+        bad = np.flatnonzero(~np.isfinite(rec.reshape(rec.shape[0], -1)).all(axis=1))
+        if bad.size and (first is None or bad[0] < first):
+            first = int(bad[0])
+    if first is not None:
+        raise FloatingPointError(f"{what}: the response is not finite from step {first} "
+                                 f"(t = {first * dt:.6g} s): the model grows without bound "
+                                 "(an unstable pole) or the inputs overflow")

@@ -101,7 +101,6 @@ def _show(args) -> int:
 def _simulate_nonlinear(args, sc) -> int:
     """`dtdyn simulate` of a scene with [[element]]: run, store, print times and Newton stats."""
     from dtdyn.app import scene as scenes
-    from dtdyn.nonlinear.response import DtdynStepStabilityError, NewtonError
 
     params = "".join(f", {k} = {v:g}" for k, v in sc.scheme_params.items())
     substeps = sc.nonlinear.get("substeps", 1)
@@ -110,11 +109,7 @@ def _simulate_nonlinear(args, sc) -> int:
           f"({substeps} substep(s) per sample, backend {sc.backend})")
     for k, el in enumerate(sc.elements):
         print(f"  element[{k}]: {el.describe()}")
-    try:
-        response, report = scenes.run_scene(sc)
-    except (NewtonError, DtdynStepStabilityError) as exc:  # the run failed: nothing is written
-        print(f"dtdyn simulate: error: {exc}", file=sys.stderr)
-        return 1
+    response, report = scenes.run_scene(sc)  # a failed run raises: main() says it, writes nothing
     if args.out:
         scenes.save_results(args.out, response, sc)
     if args.plot:
@@ -152,6 +147,10 @@ def _simulate(args) -> int:
     _check_outputs(args)
     sc = scenes.load_scene(args.scene)
     if not sc.linear:
+        for flag, used in (("--no-check", args.no_check), ("--quiet", args.quiet)):
+            if used:
+                raise ValueError(f"{flag} applies to linear scenes only (a nonlinear run has no "
+                                 "exact check and no progress bar)")
         return _simulate_nonlinear(args, sc)
     if sc.kind == "matrices":
         how = (f"assembled {'sparse' if sc.sparse else 'dense'} M, C, K, {sc.form} form, "
@@ -380,7 +379,8 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     """Run the `dtdyn` command; returns the exit code (0 ok, 1 a failed run or check, 2 bad
-    input). Errors are one line on stderr (``--debug`` shows the traceback)."""
+    input or a result too large for memory, 3 an internal error, 130 Ctrl-C). Errors are one
+    line on stderr (``--debug`` shows the traceback)."""
     from dtdyn._engine.errors import (DtdynStepStabilityError, DtdynUnstableError, NewtonError,
                                       SingularMassError)
 
@@ -402,11 +402,22 @@ def main(argv=None) -> int:
             raise
         print(f"dtdyn {args.command}: run failed: {exc}", file=sys.stderr)
         return 1
-    except (ValueError, SingularMassError, OSError, ImportError) as exc:
+    except (ValueError, SingularMassError, OSError, ImportError, MemoryError) as exc:
         if args.debug:
             raise
         print(f"dtdyn {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: C loops stop within a second, nothing is written
+        if args.debug:
+            raise
+        print(f"dtdyn {args.command}: interrupted; nothing was written", file=sys.stderr)
+        return 130
+    except Exception as exc:  # a defect of dtdyn: still one line, the traceback on --debug
+        if args.debug:
+            raise
+        print(f"dtdyn {args.command}: internal error ({type(exc).__name__}: {exc}); rerun with "
+              "--debug for the traceback and report it", file=sys.stderr)
+        return 3
 
 
 if __name__ == "__main__":

@@ -219,20 +219,22 @@ def exact_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
                              f"massless DOFs (it must be {v_start[i]:g})")
     PhiT = np.ascontiguousarray(Phi.T)
     z = Z[0]
-    for n in range(n_steps):
-        z = z @ PhiT + g[n]
-        Z[n + 1] = z
+    with np.errstate(over="ignore", invalid="ignore"):  # a growing response is named below
+        for n in range(n_steps):
+            z = z @ PhiT + g[n]
+            Z[n + 1] = z
 
-    # q' = Vz z + Vf f and q'' = Vz (A z + B f) + Vf f', for the stored DOFs only; f' is the
-    # slope of the force segment ending at t_n (the first segment at t_0).
-    Vz_o, Vf_o = Vz[outputs], Vf[outputs]
-    vel = Z @ Vz_o.T + f @ Vf_o.T if "v" in quantities else None
-    acc = None
-    if "a" in quantities:
-        slope = np.diff(f, axis=0, prepend=2 * f[:1] - f[1:2]) / dt
-        acc = Z @ (Vz_o @ A).T + f @ (Vz_o @ B).T + slope @ Vf_o.T
+        # q' = Vz z + Vf f and q'' = Vz (A z + B f) + Vf f', for the stored DOFs only; f' is
+        # the slope of the force segment ending at t_n (the first segment at t_0).
+        Vz_o, Vf_o = Vz[outputs], Vf[outputs]
+        vel = Z @ Vz_o.T + f @ Vf_o.T if "v" in quantities else None
+        acc = None
+        if "a" in quantities:
+            slope = np.diff(f, axis=0, prepend=2 * f[:1] - f[1:2]) / dt
+            acc = Z @ (Vz_o @ A).T + f @ (Vz_o @ B).T + slope @ Vf_o.T
     disp = np.ascontiguousarray(Z[:, outputs]) if "x" in quantities else None
 
+    validate.finite_response("exact_response", dt, Z, vel, acc)
     t = dt * np.arange(n_steps + 1)
     return Response(t=t, outputs=outputs, x=disp, v=vel, a=acc,
                     info={"method": METHOD, "dt": dt, "n_steps": n_steps,

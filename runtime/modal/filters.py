@@ -233,8 +233,8 @@ def _c_bank():
     lib = cbuild.load_library(source, "filter_bank")
     if lib is None:
         return None
-    fn = cbuild.bind(lib, "dtdyn_filter_bank")
-    return fn
+    cbuild.bind(lib, "dtdyn_filter_bank")
+    return lib
 
 
 @lru_cache(maxsize=None)
@@ -246,7 +246,7 @@ def _c_modes():
     fn = cbuild.bind(lib, "dtdyn_modal_filters")
     cbuild.bind(lib, "dtdyn_modal_filters_work")
     cbuild.bind(lib, "dtdyn_modal_filters_lanes")
-    return fn, lib.dtdyn_modal_filters_lanes(), lib.dtdyn_modal_filters_work
+    return fn, lib.dtdyn_modal_filters_lanes(), lib.dtdyn_modal_filters_work, lib
 
 
 def run_bank(sos, in_col, out_col, direct, x, n_out, backend="c"):
@@ -261,8 +261,8 @@ def run_bank(sos, in_col, out_col, direct, x, n_out, backend="c"):
     in_col = np.ascontiguousarray(in_col, dtype=np.int64)
     out_col = np.ascontiguousarray(out_col, dtype=np.int64)
     yt = np.zeros((n_out, n))
-    fn = _c_bank() if backend == "c" else None
-    if fn is None:
+    lib = _c_bank() if backend == "c" else None
+    if lib is None:
         from scipy.signal import lfilter
 
         for (b0, b1, b2, a1, a2), i, o in zip(sos, in_col, out_col):
@@ -270,8 +270,9 @@ def run_bank(sos, in_col, out_col, direct, x, n_out, backend="c"):
     elif len(sos):
         xt = np.ascontiguousarray(x.T)
         state = np.zeros(2 * len(sos))
-        fn(n, n_in, n_out, len(sos), sos.ctypes.data, in_col.ctypes.data, out_col.ctypes.data,
-           xt.ctypes.data, yt.ctypes.data, state.ctypes.data)
+        args = (n, n_in, n_out, len(sos), sos.ctypes.data, in_col.ctypes.data,
+                out_col.ctypes.data, xt.ctypes.data, yt.ctypes.data, state.ctypes.data)
+        cbuild.interruptible(lib, lambda: lib.dtdyn_filter_bank(*args), work=n * len(sos))
     y = yt.T
     if np.any(direct):
         y += x @ np.asarray(direct).T
@@ -317,7 +318,7 @@ def run_modes(states: ModalStates, x, backend="c", at_rest_under=None):
                 p[j], zi[j] = lfilter(b[j], a[j], p[j], zi=zi[j])
             y[start:start + xb.shape[1]] = np.concatenate([p.real, p.imag]).T @ w2
     elif m:
-        fn, lanes, work_size = c
+        fn, lanes, work_size, lib = c
         mp = m + (-m % lanes)  # zero states up to a multiple of the kernel's chunk
 
         def padded(v):
@@ -335,8 +336,9 @@ def run_modes(states: ModalStates, x, backend="c", at_rest_under=None):
         xp = np.concatenate([np.zeros((1, n_in)), x])  # row 0: x_{-1} = 0 (at rest)
         e = np.concatenate([padded(eta0).real, padded(eta0).imag])
         work = np.empty(work_size(mp, n_out))
-        rc = fn(n, mp, n_in, n_out, im_out, coefs.ctypes.data, wt.ctypes.data, xp.ctypes.data,
+        args = (n, mp, n_in, n_out, im_out, coefs.ctypes.data, wt.ctypes.data, xp.ctypes.data,
                 e.ctypes.data, y.ctypes.data, work.ctypes.data)
+        rc = cbuild.interruptible(lib, lambda: fn(*args), work=n * mp * (n_in + n_out))
         if rc != 0:
             raise RuntimeError(f"dtdyn_modal_filters returned {rc}")
     if np.any(states.direct):
@@ -453,6 +455,7 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
             c_ok = _c_bank() is not None
         setup += t1 - t0
         run += time.perf_counter() - t1
+    validate.finite_response("modal_filter_response", dt, *store.values())
     return Response(dt * np.arange(f.shape[0]), model.outputs, store.get("x"), store.get("v"),
                     store.get("a"),
                     info={"method": f"modal filters ({invariant} invariant)", "filters": use,

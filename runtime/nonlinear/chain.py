@@ -24,6 +24,7 @@ from importlib import resources
 
 import numpy as np
 
+from dtdyn._engine import cbuild
 from dtdyn._engine import kernels
 from dtdyn._engine import validate
 from dtdyn.linear.chain import chain_parameters
@@ -226,7 +227,7 @@ def _newton_error(kk, S, h, rn, max_iter):
 
 @lru_cache(maxsize=None)
 def _c_driver(elements, sz):
-    """(dtdyn_nl_chain, CasADi work sizes) from generated/nl_chain.c with the elements' residual
+    """(dtdyn_nl_chain, CasADi work sizes, library) from generated/nl_chain.c with the elements' residual
     appended, or None without a compiler."""
     from dtdyn._engine import cbuild
     fn = _residual_function(elements, sz)
@@ -235,12 +236,12 @@ def _c_driver(elements, sz):
     if lib is None:
         return None
     run = cbuild.bind(lib, "dtdyn_nl_chain")
-    return run, int(fn.sz_w()), int(fn.sz_iw())
+    return run, int(fn.sz_w()), int(fn.sz_iw()), lib
 
 
 def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
     """The time loop in generated/nl_chain.c; (max iterations, total, largest residual)."""
-    run, n_w, n_iw = driver
+    run, n_w, n_iw, lib = driver
     max_iter = dims[10]
     N, nl, ne, nw, nz = dims[0], dims[2], dims[4], dims[5], dims[6]
     nu = nw + nz
@@ -253,10 +254,11 @@ def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
     fail = np.zeros(1, dtype=np.int64)
     work = np.zeros(12 * N + 2 * nl + nw + 2 * nz + nu * (nu + 1) + ne + nz + n_w + 1)
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
-    rc = run(dims.ctypes.data, ctypes.cast(chain, ctypes.c_void_p), pointers(idx),
-             pointers(mats), *(a.ctypes.data for a in state),
-             pointers([store[q] for q in "xva"]), h, tol, stats.ctypes.data, fail.ctypes.data,
-             work.ctypes.data, iwork.ctypes.data)
+    args = (dims.ctypes.data, ctypes.cast(chain, ctypes.c_void_p), pointers(idx),
+            pointers(mats), *(a.ctypes.data for a in state),
+            pointers([store[q] for q in "xva"]), h, tol, stats.ctypes.data, fail.ctypes.data,
+            work.ctypes.data, iwork.ctypes.data)
+    rc = cbuild.interruptible(lib, lambda: run(*args), work=dims[8] * dims[9] * N)
     if rc == 1:
         _newton_error(int(fail[0]), S, h, float(stats[3]), max_iter)
     if rc:

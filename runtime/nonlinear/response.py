@@ -128,7 +128,7 @@ def _c_runner(elements, dims):
     if lib is None:
         return None, t1 - t0, t2 - t1
     run = cbuild.bind(lib, "dtdyn_nl_run")
-    return (run, int(fn.sz_w()), int(fn.sz_iw())), t1 - t0, t2 - t1
+    return (run, int(fn.sz_w()), int(fn.sz_iw()), lib), t1 - t0, t2 - t1
 
 
 def _p(a):
@@ -136,7 +136,7 @@ def _p(a):
 
 
 def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate, theta_limit):
-    run, n_w, n_iw = runner
+    run, n_w, n_iw, lib = runner
     ns, nf, no = step.A.shape[0], force.shape[1], step.Co.shape[0]
     n_samples = force.shape[0]
     dims = np.array([ns, nf, sz.ne, sz.nw, sz.nz, no, n_samples, S, max_iter], dtype=np.int64)
@@ -150,8 +150,9 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     fail = np.zeros(1, dtype=np.int64)
     work = np.zeros(n_w + 1)
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
-    rc = run(_p(dims), ctypes.cast(ptrs, ctypes.c_void_p), _p(force), _p(x), _p(u), _p(g),
-             _p(rate), _p(out), tol, theta_limit, _p(stats), _p(fail), _p(work), _p(iwork))
+    args = (_p(dims), ctypes.cast(ptrs, ctypes.c_void_p), _p(force), _p(x), _p(u), _p(g),
+            _p(rate), _p(out), tol, theta_limit, _p(stats), _p(fail), _p(work), _p(iwork))
+    rc = cbuild.interruptible(lib, lambda: run(*args), work=n_samples * S * (ns + sz.nw) ** 2)
     return rc, out, stats, int(fail[0])
 
 

@@ -323,7 +323,7 @@ def test_newton_failure_names_the_step_and_more_substeps_cure_it(tmp_path, capsy
     out, plot = tmp_path / "r.npz", tmp_path / "r.png"
     assert main(["simulate", str(path), "--out", str(out), "--plot", str(plot)]) == 1
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("dtdyn simulate: error: ")
+    assert err.count("\n") == 1 and err.startswith("dtdyn simulate: run failed: ")
     assert "Newton did not converge at step 1" in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["stiff.toml"]  # nothing written
 
