@@ -366,9 +366,6 @@ def bind(lib, kernel: str, symbol: str | None = None):
     return fn
 
 
-#: return code of a loop stopped through dtdyn_set_stop (derive/csrc/stop.c)
-STOPPED = 5
-
 #: below this much work (samples x the loop's size) a call runs in the calling thread: it ends
 #: within a second anyway, and a thread costs tens of microseconds
 INTERRUPTIBLE_WORK = 1 << 22
@@ -379,7 +376,7 @@ def interruptible(lib, call, work: float):
     such that Ctrl-C stops it within a second: in the main thread and for ``work`` above
     INTERRUPTIBLE_WORK, the call runs in a worker thread while this thread waits; on
     KeyboardInterrupt the flag is set, the loop returns at its next check and the interrupt is
-    raised again. Returns what ``call()`` returns (STOPPED only if stopped from elsewhere)."""
+    raised again. Returns what ``call()`` returns."""
     if work < INTERRUPTIBLE_WORK or threading.current_thread() is not threading.main_thread():
         return call()
     stop = bind(lib, "dtdyn_set_stop")

@@ -1,6 +1,8 @@
 """Input checks shared by every entry point: each error names the field and the value."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 
@@ -91,7 +93,8 @@ def force_record(force, n_inputs: int, what: str = "force_dofs") -> np.ndarray:
     bad = ~np.isfinite(f)
     if bad.any():
         i, j = np.argwhere(bad)[0]
-        raise ValueError(f"force[{i}, {j}] = {f[i, j]!r} (sample {i}, column {j}) is not finite")
+        raise ValueError(f"force[{i}, {j}] = {float(f[i, j])!r} (sample {i}, column {j}) is not "
+                         "finite")
     return np.ascontiguousarray(f)
 
 
@@ -103,7 +106,7 @@ def force_samples(force, n_steps: int, loaded: np.ndarray) -> np.ndarray:
     return f
 
 
-def available_memory() -> int:
+def available_memory() -> int | None:
     """Bytes this process may still allocate: MemAvailable of /proc/meminfo, capped by the
     address-space limit (RLIMIT_AS) less what the process maps now; None where unknown."""
     avail = None
@@ -115,8 +118,7 @@ def available_memory() -> int:
     except (OSError, ValueError, IndexError):
         pass
     try:
-        import os
-        import resource
+        import resource  # POSIX only
 
         soft = resource.getrlimit(resource.RLIMIT_AS)[0]
         if soft != resource.RLIM_INFINITY:
@@ -141,12 +143,12 @@ def output_size(what: str, n_samples: int, n_columns: int, itemsize: int = 8) ->
     return need
 
 
-def _bytes(n: int) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if n < 1024 or unit == "TiB":
-            return f"{n:.3g} {unit}" if unit != "B" else f"{n} B"
-        n /= 1024
-    return f"{n:.3g} TiB"
+def _bytes(n: float) -> str:
+    units = ("B", "KiB", "MiB", "GiB", "TiB", "PiB")
+    k = 0
+    while n >= 1024 and k < len(units) - 1:
+        n, k = n / 1024, k + 1
+    return f"{n:.3g} {units[k]}"
 
 
 def finite_response(what: str, dt: float, *records) -> None:

@@ -117,10 +117,14 @@ class DiscreteModel:
         f = np.zeros(n) if f0 is None else validate.vector("f0", f0, length=n)
         return self._physical_state(q0, qd0, f)
 
-    def simulate(self, force, state0=None, backend: str = "c") -> np.ndarray:
+    def simulate(self, force, state0=None, backend: str = "c", unstable: str = "raise"
+                 ) -> np.ndarray:
         """The raw recursion: outputs y_n, shape (n_samples, rows of C), for inputs ``force``
-        (n_samples, columns of B), from ``state0`` (zero when None)."""
-        from dtdyn.linear.state_space import run_recursion
+        (n_samples, columns of B), from ``state0`` (zero when None). A model whose spectral
+        radius exceeds 1 raises DtdynUnstableError (``unstable="warn"``: a warning, and it
+        runs)."""
+        from dtdyn.linear.state_space import _check_radius, run_recursion
+        _check_radius(self, unstable)
         return run_recursion(self.A, self.B, self.C, self.D, force, state0, backend)
 
     def to_dlti(self) -> scipy.signal.dlti:

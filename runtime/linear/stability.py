@@ -187,8 +187,10 @@ def check_dt(info, dt: float, omega_max, unstable: str = "raise") -> None:
 
 def highest_frequency(M, K, limit=None):
     """The largest undamped natural frequency (rad/s) of M q'' + K q = 0, or None when M is
-    singular or the eigenproblem cannot be solved (dense: LAPACK; sparse: ARPACK). ``limit``
-    is accepted for `check_dt` (no cheaper bound is used for general matrices)."""
+    singular or the eigenproblem cannot be solved (dense: LAPACK; sparse: ARPACK). A dense K
+    that is not symmetric (circulatory terms) gives sqrt of the largest |eigenvalue| of the
+    general pencil (K, M) (eigh would read one triangle only). ``limit`` is accepted for
+    `check_dt` (no cheaper bound is used for general matrices)."""
     import scipy.linalg as sla
     import scipy.sparse as sps
     import scipy.sparse.linalg as spla
@@ -197,6 +199,8 @@ def highest_frequency(M, K, limit=None):
         if sps.issparse(M) or sps.issparse(K):
             lam = spla.eigsh(sps.csc_matrix(K), k=1, M=sps.csc_matrix(M), which="LA",
                              return_eigenvectors=False)[0]
+        elif np.abs(K - K.T).max() > 1e-10 * np.abs(K).max():
+            lam = float(np.abs(sla.eigvals(K, M)).max())
         else:
             n = np.shape(M)[0]
             lam = sla.eigh(K, M, eigvals_only=True, subset_by_index=[n - 1, n - 1])[0]
