@@ -32,6 +32,7 @@ from dtdyn.modal.filter_errors import (continuous_frequency_response, discrete_f
                                        ramp_bias, truncation_error)
 from dtdyn.modal.filters import modal_filter_response, to_sos
 from dtdyn.modal.model import ModalModel, from_poles_residues, modal_model
+from dtdyn.modal.modes import Modes, modes
 from dtdyn.modal.srs import SRS, load_record, sdof_response, shock_response_spectrum
 from dtdyn.nonlinear.chain import nonlinear_chain_response
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
@@ -47,7 +48,7 @@ __all__ = [
     "discretize", "first_order_form", "DiscreteModel",
     "frequency_response", "undamped_poles", "stability", "critical_omega_dt", "Stability",
     # modal
-    "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",
+    "modes", "Modes", "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",
     "discrete_frequency_response", "continuous_frequency_response", "ramp_bias",
     "truncation_error", "shock_response_spectrum", "sdof_response", "SRS", "load_record",
     # nonlinear

@@ -257,6 +257,48 @@ def _stability(args) -> int:
     return 0
 
 
+#: dense eigenproblems up to this many DOFs when --count is not given
+MODES_DENSE_MAX = 2000
+
+
+def _modes(args) -> int:
+    import json
+
+    import numpy as np
+    import scipy.sparse as sps
+
+    from dtdyn.app import scene as scenes
+    from dtdyn.modal.modes import modes
+
+    sc = scenes.load_scene(args.scene)
+    M, C, K = sc.matrices()
+    n = sc.n_dof
+    if args.count is not None and not 1 <= args.count <= n:
+        raise ValueError(f"--count {args.count}: must be 1 .. {n} (the DOFs of the scene)")
+    if sps.issparse(M) and (args.count is None or args.count >= n):
+        if n > MODES_DENSE_MAX:
+            raise ValueError(f"{n} DOFs: give --count N (< {n}) for the lowest modes by "
+                             "shift-invert")
+        M, C, K = (A.toarray() for A in (M, C, K))
+    damped = not sps.issparse(C) and np.any(C)
+    m = modes(M, K, C if damped else None, count=args.count)
+    if args.json:
+        print(json.dumps({"scene": sc.title, "n_dof": n, **m.to_dict()}))
+        return 0
+    print(f"{sc.title}: {n} DOF, {m.omega.size} mode(s); participation for the influence "
+          f"vector of ones, total mass {m.total_mass:.6g}")
+    head = f"{'mode':>4s} {'f [Hz]':>12s} {'omega [rad/s]':>14s} {'T [s]':>11s}"
+    head += f" {'zeta':>9s}" if damped else ""
+    print(head + f" {'Gamma':>11s} {'m_eff':>11s} {'m_eff %':>8s} {'cum. %':>7s}")
+    cum = np.cumsum(m.effective_mass_ratio) * 100
+    for r in range(m.omega.size):
+        row = f"{r + 1:4d} {m.frequency_hz[r]:12.6g} {m.omega[r]:14.6g} {m.period[r]:11.5g}"
+        row += f" {m.damping_ratio[r]:9.4g}" if damped else ""
+        print(row + f" {m.participation[r]:11.4g} {m.effective_mass[r]:11.4g} "
+              f"{m.effective_mass_ratio[r] * 100:8.3f} {cum[r]:7.2f}")
+    return 0
+
+
 def _bench(args) -> int:
     from dtdyn.app import bench
     command = "dtdyn bench " + " ".join(args.problems) + (" --quick" if args.quick else "")
@@ -340,6 +382,11 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("--no-check", action="store_true",
                    help="skip the comparison with the exact response (matrix exponential)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    mo = sub.add_parser("modes", help="natural frequencies, participation factors and effective "
+                                      "masses of a scene's model (damping ratios when it has C)")
+    mo.add_argument("scene", nargs="?", help="scene TOML file (default: the embedded P3 scene)")
+    mo.add_argument("--count", type=int, default=None, help="the lowest N modes (default: all)")
+    mo.add_argument("--json", action="store_true", help="print the modes as JSON (for scripts)")
     sr = sub.add_parser("srs", help="shock response spectrum of a base-acceleration record")
     sr.add_argument("record", help=".npy or .csv record of acceleration samples")
     sr.add_argument("--dt", type=float, required=True, help="sample step of the record, s")
@@ -390,7 +437,8 @@ def main(argv=None) -> int:
     except SystemExit as exc:  # --help, --version (0) or a usage error (2), already printed
         return int(exc.code or 0)
     handler = {"generate": _generate, "show": _show, "simulate": _simulate,
-               "stability": _stability, "srs": _srs, "bench": _bench}[args.command]
+               "stability": _stability, "srs": _srs, "bench": _bench,
+               "modes": _modes}[args.command]
     try:
         return handler(args)
     except BrokenPipeError:  # `dtdyn ... | head`: stop quietly, no traceback at exit either

@@ -131,3 +131,23 @@ def test_cli_imports_without_derive_or_sympy():
                           timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert 'needs sympy, which is not installed: pip install "dtdyn[derive]"' in proc.stderr
+
+
+def test_modes_command(capsys, tmp_path):
+    """`dtdyn modes`: the table of the embedded P3 scene, JSON equal to dd.modes, errors in one
+    line."""
+    import json
+
+    import dtdyn as dd
+
+    assert main(["modes", "--count", "3"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[1].split()[:3] == ["mode", "f", "[Hz]"] and len(out) == 5
+    assert main(["modes", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    p = dd.p3()
+    ref = dd.modes(p["M"], p["K"])
+    np.testing.assert_allclose(data["omega_rad_s"], ref.omega, rtol=1e-14)
+    assert sum(data["effective_mass"]) == pytest.approx(p["mass"].sum(), rel=1e-12)
+    assert main(["modes", "--count", "0"]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
