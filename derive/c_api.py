@@ -19,7 +19,10 @@ KERNELS = {
         "long n", "long n_in", "long n_out", "long n_sec", "const double *restrict sos",
         "const long *restrict in_col", "const long *restrict out_col",
         "const double *restrict xt", "double *restrict yt", "double *restrict state")),
-    "dtdyn_set_stop": ("int", ("int value",)),  # csrc/stop.c, in every library with a long loop
+    "dtdyn_set_stop": ("int", ("int value",)),
+    "dtdyn_sturm_counts": ("int", (
+        "long N", "const double *restrict k", "const double *restrict m", "double pivmin",
+        "long n_lam", "const double *restrict lam", "long *restrict counts")),  # csrc/stop.c, in every library with a long loop
     "dtdyn_modal_filters_lanes": ("int", ("void",)),
     "dtdyn_modal_filters_work": ("long", ("long m", "long n_out")),
     "dtdyn_modal_filters": ("int", (
@@ -47,6 +50,7 @@ KERNELS = {
 SOURCES = {
     "ss_response.c": ("dtdyn_ss_states",),
     "filter_bank.c": ("dtdyn_set_stop", "dtdyn_filter_bank"),
+    "sturm.c": ("dtdyn_sturm_counts",),
     "modal_states.c": ("dtdyn_set_stop", "dtdyn_modal_filters_lanes", "dtdyn_modal_filters_work",
                        "dtdyn_modal_filters"),
     "nl_loop.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_run"),

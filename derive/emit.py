@@ -295,6 +295,8 @@ def render_all() -> dict[str, str]:
            **_modal_filters_context())
     render("c/verbatim.c.jinja", "filter_bank.c", "derive/csrc/filter_bank.c (hand-written)",
            csource="filter_bank.c", with_stop=True)
+    render("c/verbatim.c.jinja", "sturm.c", "derive/csrc/sturm.c (hand-written)",
+           csource="sturm.c", with_stop=False)
     render("c/modal_states.c.jinja", "modal_states.c",
            "dtdyn.derive.modal_filters.increment_form",
            increments=[(k, sp.sstr(v)) for k, v in modal_filters.increment_form().items()])

@@ -48,6 +48,10 @@ SIGNATURES = {
         ),
     ),
     "dtdyn_set_stop": ("c_int", ("c_int",)),
+    "dtdyn_sturm_counts": (
+        "c_int",
+        ("c_long", "c_void_p", "c_void_p", "c_double", "c_long", "c_void_p", "c_void_p"),
+    ),
     "dtdyn_modal_filters_lanes": ("c_int", ()),
     "dtdyn_modal_filters_work": ("c_long", ("c_long", "c_long")),
     "dtdyn_modal_filters": (

@@ -6,7 +6,6 @@ are the roots of U22(s).
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import brentq
 
 from dtdyn.generated import tmm as elements
 
@@ -70,8 +69,9 @@ def undamped_poles(mass, stiffness) -> np.ndarray:
     """Natural frequencies omega_n (rad/s, ascending) of an undamped chain: roots of U22(j omega).
 
     U22 is a polynomial of degree N in lambda = omega^2 whose N roots are simple (an irreducible
-    tridiagonal pencil has distinct eigenvalues); they are bracketed on a grid refined until N
-    sign changes are found, then solved by Brent's method to machine precision.
+    tridiagonal pencil has distinct eigenvalues). They are found by `chain_frequencies`: bisection
+    on the Wittrick-Williams count of the same chain, O(N) per evaluation, so no root is missed
+    or doubled and nothing overflows, however long the chain.
 
     Parameters
     ----------
@@ -92,20 +92,6 @@ def undamped_poles(mass, stiffness) -> np.ndarray:
     >>> round(float(w[0]), 2), round(float(w[-1]), 1)
     (9.49, 148.2)
     """
-    m, k, _ = chain_parameters(mass, stiffness, np.zeros(np.size(mass)))
+    from dtdyn.linear.frequencies import chain_frequencies
 
-    def u22(lam):
-        return system_matrix(m, k, np.zeros_like(m), 1j * np.sqrt(lam))[1, 1].real
-
-    lam_max = 1.01 * max(2.0 * (k[n] + (k[n + 1] if n + 1 < m.size else 0.0)) / m[n]
-                         for n in range(m.size))  # Gershgorin bound of M^-1 K
-    for points in (200 * m.size, 2000 * m.size, 20000 * m.size):
-        grid = np.linspace(0.0, np.sqrt(lam_max), points) ** 2
-        vals = np.array([u22(g) for g in grid])
-        idx = np.flatnonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) < 0)
-        if idx.size == m.size:
-            lams = [brentq(u22, grid[i], grid[i + 1], xtol=1e-300, rtol=4 * np.finfo(float).eps)
-                    for i in idx]
-            return np.sqrt(np.array(lams))
-    raise RuntimeError(f"found {idx.size} of {m.size} roots of U22; the chain is too ill-scaled "
-                       "for the grid search")
+    return chain_frequencies(mass, stiffness)

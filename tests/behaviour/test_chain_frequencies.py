@@ -1,0 +1,83 @@
+"""chain_frequencies (Wittrick-Williams count + bisection) against independent truths: the
+closed form of a uniform fixed-free chain, scipy.linalg.eigh_tridiagonal on the symmetrized
+pencil M^-1/2 K M^-1/2, and the count itself at every root."""
+import numpy as np
+import pytest
+import scipy.linalg as sla
+
+import dtdyn as dd
+from dtdyn.linear.frequencies import sturm_counts
+
+
+def _uniform_exact(N, m, k, count):
+    """omega_j = 2 sqrt(k/m) sin((2j - 1) pi / (2 (2N + 1))), j = 1 .. count (fixed-free)."""
+    j = np.arange(1, count + 1)
+    return 2.0 * np.sqrt(k / m) * np.sin((2 * j - 1) * np.pi / (2 * (2 * N + 1)))
+
+
+def _tridiagonal(m, k):
+    a = k + np.r_[k[1:], 0.0]
+    return a / m, -k[1:] / np.sqrt(m[1:] * m[:-1])
+
+
+@pytest.mark.parametrize("N", [1, 15, 2000, 100_000])
+def test_uniform_chain_to_a_few_ulps(N):
+    """Relative error of the lowest 10 against the closed form: <= 1e-12 even at N = 1e5, where
+    omega_1 / omega_max = 1.6e-5 (the series form of the recursion keeps small roots exact)."""
+    count = min(N, 10)
+    w = dd.chain_frequencies(np.full(N, 2.0), np.full(N, 1e4), count=count)
+    exact = _uniform_exact(N, 2.0, 1e4, count)
+    assert np.abs(w / exact - 1).max() <= 1e-12
+
+
+@pytest.mark.slow
+def test_random_100k_chain_lowest_ten():
+    """The issue's case: 100,000 random masses and springs, the lowest 10. eigh_tridiagonal
+    (LAPACK's bisection, accurate to a few ulps of the largest eigenvalue) agrees to 1e-12 of
+    omega_max^2; a relative check of ours is the uniform chain above."""
+    rng = np.random.default_rng(1)
+    m, k = rng.uniform(0.5, 2.0, 100_000), rng.uniform(5e3, 2e4, 100_000)
+    w = dd.chain_frequencies(m, k, count=10)
+    lam = sla.eigh_tridiagonal(*_tridiagonal(m, k), eigvals_only=True, select="i",
+                               select_range=(0, 9))
+    lam_max = np.max(2 * (k + np.r_[k[1:], 0.0]) / m)
+    assert np.abs(w**2 - lam).max() <= 1e-12 * lam_max
+    assert (sturm_counts(m, k, w * (1 - 1e-12)) == np.arange(10)).all()
+
+
+def test_all_frequencies_of_a_2000_mass_chain_and_the_count_at_every_root():
+    rng = np.random.default_rng(7)
+    m, k = rng.uniform(0.5, 2.0, 2000), rng.uniform(5e3, 2e4, 2000)
+    w = dd.chain_frequencies(m, k)
+    lam = sla.eigh_tridiagonal(*_tridiagonal(m, k), eigvals_only=True)
+    assert w.size == 2000 and np.all(np.diff(w) > 0)
+    lam_max = np.max(2 * (k + np.r_[k[1:], 0.0]) / m)
+    assert np.abs(w**2 - lam).max() <= 1e-12 * lam_max
+    assert (sturm_counts(m, k, w * (1 - 1e-12)) == np.arange(2000)).all()
+    assert (sturm_counts(m, k, w * (1 + 1e-12)) == np.arange(1, 2001)).all()
+
+
+def test_below_numpy_backend_and_p3(p3):
+    w = dd.chain_frequencies(p3["mass"], p3["stiffness"])
+    M, _, K = dd.chain_matrices(p3["mass"], p3["stiffness"], p3["damping"], sparse=False)
+    np.testing.assert_allclose(w, np.sqrt(sla.eigh(K, M, eigvals_only=True)), rtol=1e-12)
+    np.testing.assert_allclose(dd.chain_frequencies(p3["mass"], p3["stiffness"], below=50.0),
+                               w[w < 50.0], rtol=0)
+    np.testing.assert_array_equal(dd.chain_frequencies(p3["mass"], p3["stiffness"],
+                                                       backend="numpy"), w)
+    np.testing.assert_array_equal(dd.undamped_poles(p3["mass"], p3["stiffness"]), w)
+    assert dd.chain_frequencies(p3["mass"], p3["stiffness"], below=1.0).size == 0
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"count": 0}, "count must be an integer"),
+    ({"count": 16}, "count = 16 exceeds"),
+    ({"count": 2, "below": 3.0}, "not both"),
+    ({"below": -1.0}, "below must be finite and > 0"),
+    ({"backend": "fortran"}, "backend"),
+])
+def test_bad_input(p3, kw, match):
+    with pytest.raises(ValueError, match=match):
+        dd.chain_frequencies(p3["mass"], p3["stiffness"], **kw)
+    with pytest.raises(ValueError, match=r"stiffness\[1\] = 0.0"):
+        dd.chain_frequencies([1.0, 1.0], [1.0, 0.0])
