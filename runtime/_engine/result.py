@@ -25,6 +25,9 @@ class Response:
         with the result together with the versions of dtdyn, NumPy and SciPy.
     dof_names : tuple of str, optional
         Names of the stored DOFs (a scene's ``model.dofs``).
+    a_abs : (n_steps + 1, n_out) ndarray or None
+        Absolute acceleration a + r a_g of a run under support motion (``ground_acceleration``;
+        x, v, a are then relative to the support), when ``a`` is stored; None otherwise.
 
     Examples
     --------
@@ -43,6 +46,7 @@ class Response:
     info: dict = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
     dof_names: tuple | None = None
+    a_abs: np.ndarray | None = None
 
     def column(self, dof: int) -> int:
         """Column of ``x``, ``v``, ``a`` that holds 0-based DOF ``dof``."""

@@ -26,7 +26,7 @@ from dtdyn._engine.atomic import write_atomic
 from dtdyn._engine.extras import require
 
 FORMATS = (".npz", ".nc", ".csv")
-QUANTITIES = ("x", "v", "a")
+QUANTITIES = ("x", "v", "a", "a_abs")
 _META_KEY = "dtdyn_metadata"
 
 
@@ -191,7 +191,7 @@ def _build(t, outputs, quantities: dict, metadata: str, dof_names=None, arrays=N
     info = dict(meta["info"])
     info.update(arrays or {})
     return Response(np.asarray(t, dtype=float), np.asarray(outputs, dtype=np.int64),
-                    *(quantities.get(q) for q in QUANTITIES), info=info, meta=meta["meta"],
+                    **{q: quantities.get(q) for q in QUANTITIES}, info=info, meta=meta["meta"],
                     dof_names=None if dof_names is None else tuple(str(n) for n in dof_names))
 
 
@@ -230,7 +230,7 @@ def _read_csv(path: Path):
         cols = [i for i, h in enumerate(header) if h.startswith(f"{q}[")]
         if cols:
             quantities[q] = np.ascontiguousarray(table[:, cols])
-            dofs = [int(header[i][2:-1]) for i in cols]
+            dofs = [int(header[i][len(q) + 1:-1]) for i in cols]
             if outputs and dofs != outputs:
                 raise ValueError(f"the {q} columns name other DOFs than the first quantity's")
             outputs = dofs

@@ -15,6 +15,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sps
 
+from dtdyn._engine import ground as support
 from dtdyn._engine import kernels
 from dtdyn._engine import stepping
 from dtdyn._engine import validate
@@ -79,7 +80,8 @@ def chain_matrices(mass, stiffness, damping, sparse: bool | None = None):
 def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, scheme="newmark",
                    form="displacement", sweep="stable", backend="c", outputs=None,
                    quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
-                   progress=False, **scheme_params) -> Response:
+                   progress=False, ground_acceleration=None, influence=None,
+                   **scheme_params) -> Response:
     """Time history of a chain by the discrete-time transfer matrix method (DT-TMM).
 
     Parameters
@@ -123,6 +125,12 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
         Any run stops with FloatingPointError at its first non-finite step.
     progress : bool
         Show a progress bar (tqdm) on long runs.
+    ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
+        Support acceleration at the force's times, linear between samples: the DOFs are then
+        relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
+        (``force`` may be None).
+    influence : (N,) or (N, n_dir) array_like, optional
+        r, each DOF's motion per unit support motion (default: ones; a chain on a moving base).
 
     Returns
     -------
@@ -150,6 +158,8 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
     dynamics. Horner & Pilkey (1978), The Riccati transfer matrix method.
     """
     m, k, c = chain_parameters(mass, stiffness, damping)
+    force, force_dofs, ground = support.prepare(sps.diags(m), force, force_dofs, m.size,
+                                                ground_acceleration, influence)
     force, dt, loaded = validate.time_history(force, dt, force_dofs, m.size)
     x0, v0 = validate.initial_conditions(x0, v0, m.size)
     outputs = validate.dof_indices("outputs", outputs, m.size)
@@ -188,4 +198,4 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
         warnings.warn(f"plain DT-TMM sweep on {m.size} masses: estimated relative error "
                       f"{res.info['error_estimate']:.1e} (cancellation in the transfer-matrix "
                       "product); use sweep='stable'", DtdynAccuracyWarning, stacklevel=2)
-    return res
+    return support.finish(res, ground)

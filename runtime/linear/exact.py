@@ -11,6 +11,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse
 
+from dtdyn._engine import ground as support
 from dtdyn._engine import linalg
 from dtdyn._engine import stepping, validate
 from dtdyn.linear.discretize import first_order_form
@@ -89,7 +90,8 @@ def _reduced_form(M, C, K, loaded):
 
 
 def exact_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
-                   quantities=("x", "v", "a"), x0=None, v0=None) -> Response:
+                   quantities=("x", "v", "a"), x0=None, v0=None, ground_acceleration=None,
+                   influence=None) -> Response:
     r"""Exact response of ``M q'' + C q' + K q = L f(t)`` to a piecewise-linear force.
 
     The force is known at the samples :math:`t_n = n\,\Delta t` and is taken to be linear in
@@ -116,6 +118,13 @@ def exact_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
         What is stored; the others are None in the result.
     x0, v0 : (N,) array_like, optional
         Initial displacement and velocity (zero when None).
+
+    ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
+        Support acceleration at the force's times, linear between samples: the DOFs are then
+        relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
+        (``force`` may be None).
+    influence : (N,) or (N, n_dir) array_like, optional
+        r, each DOF's motion per unit support motion (default: ones).
 
     Returns
     -------
@@ -189,6 +198,8 @@ def exact_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     start = time.perf_counter()
     M, C, K = linalg.mck(M, C, K)
     N = M.shape[0]
+    force, force_dofs, ground = support.prepare(M, force, force_dofs, N, ground_acceleration,
+                                                influence)
     f, dt, loaded = validate.time_history(force, dt, force_dofs, N)
     n_steps = f.shape[0] - 1
     outputs = validate.dof_indices("outputs", outputs, N)
@@ -236,6 +247,6 @@ def exact_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
 
     validate.finite_response("exact_response", dt, Z, vel, acc)
     t = dt * np.arange(n_steps + 1)
-    return Response(t=t, outputs=outputs, x=disp, v=vel, a=acc,
+    return support.finish(Response(t=t, outputs=outputs, x=disp, v=vel, a=acc,
                     info={"method": METHOD, "dt": dt, "n_steps": n_steps,
-                          "run_time": time.perf_counter() - start})
+                          "run_time": time.perf_counter() - start}), ground)

@@ -15,6 +15,7 @@ import scipy.sparse as sps
 
 from dtdyn.generated.dttmm_sweep import combine, shift_history
 
+from dtdyn._engine import ground as support
 from dtdyn._engine import linalg
 from dtdyn._engine import stepping
 from dtdyn._engine import validate
@@ -42,7 +43,8 @@ def _initial_acceleration(M, f0):
 
 def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outputs=None,
                  quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
-                 progress=False, **scheme_params) -> Response:
+                 progress=False, ground_acceleration=None, influence=None,
+                 **scheme_params) -> Response:
     """Time history of M q'' + C q' + K q = L f(t) by one of the generated integrators.
 
     Parameters
@@ -70,6 +72,12 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
         (when that can be computed: M nonsingular) is refused before the run, or warned about.
     progress : bool
         Show a progress bar on long runs.
+    ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
+        Support acceleration at the force's times, linear between samples: the DOFs are then
+        relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
+        (``force`` may be None).
+    influence : (N,) or (N, n_dir) array_like, optional
+        r, each DOF's motion per unit support motion (default: ones).
 
     Returns
     -------
@@ -86,6 +94,8 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     """
     M, C, K = linalg.mck(M, C, K, keep_sparse=True)
     n = M.shape[0]
+    force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
+                                                influence)
     force, dt, loaded = validate.time_history(force, dt, force_dofs, n)
     x0, v0 = validate.initial_conditions(x0, v0, n)
     outputs = validate.dof_indices("outputs", outputs, n)
@@ -118,4 +128,4 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
                              outputs, quantities, progress)
     res.info.update(method="assembled matrices", sparse=sps.issparse(M),
                     backend="scipy.sparse" if sps.issparse(M) else "numpy")
-    return res
+    return support.finish(res, ground)

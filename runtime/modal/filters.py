@@ -43,6 +43,8 @@ import numpy as np
 
 from dtdyn.generated import modal_filters as coef
 
+from dtdyn._engine import ground as support
+from dtdyn._engine import linalg
 from dtdyn._engine import cbuild
 from dtdyn._engine import validate
 from dtdyn._engine.result import Response
@@ -368,7 +370,8 @@ def choose_method(states: ModalStates, n_sections: int, backend="c") -> str:
 
 def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
                           quantities=("x", "v", "a"), modes=None, invariant="ramp",
-                          algorithm="auto", backend="c") -> Response:
+                          algorithm="auto", backend="c", ground_acceleration=None,
+                          influence=None) -> Response:
     """Response of M q'' + C q' + K q = f by modal digital filters.
 
     Parameters
@@ -398,6 +401,13 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     backend : {"c", "numpy"}
         The generated C kernels, or scipy.signal.lfilter (also used when no compiler is found).
 
+    ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
+        Support acceleration at the force's times, linear between samples: the DOFs are then
+        relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
+        (``force`` may be None).
+    influence : (N,) or (N, n_dir) array_like, optional
+        r, each DOF's motion per unit support motion (default: ones).
+
     Returns
     -------
     Response
@@ -422,6 +432,9 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     if algorithm not in METHODS:
         raise ValueError(f"algorithm must be one of {METHODS}, got {algorithm!r}")
     quantities = check_quantities(quantities)
+    M_ = None if ground_acceleration is None else linalg.mck(M, C, K)[0]
+    force, force_dofs, ground = support.prepare(M_, force, force_dofs, np.shape(M)[0],
+                                                ground_acceleration, influence)
     model = modal_model(M, C, K, force_dofs, outputs)
     if modes is not None:
         model = model.select(modes)
@@ -456,10 +469,11 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
         setup += t1 - t0
         run += time.perf_counter() - t1
     validate.finite_response("modal_filter_response", dt, *store.values())
-    return Response(dt * np.arange(f.shape[0]), model.outputs, store.get("x"), store.get("v"),
-                    store.get("a"),
-                    info={"method": f"modal filters ({invariant} invariant)", "filters": use,
-                          "dt": dt, "n_steps": f.shape[0] - 1, "modes": int(model.poles.size),
-                          "states": states.n_states if use == "modes" else None,
-                          "sections": n_sec, "setup_time": setup, "run_time": run,
-                          "backend": "c" if backend == "c" and c_ok else "scipy.lfilter"})
+    response = Response(dt * np.arange(f.shape[0]), model.outputs, store.get("x"), store.get("v"),
+                        store.get("a"),
+                        info={"method": f"modal filters ({invariant} invariant)", "filters": use,
+                              "dt": dt, "n_steps": f.shape[0] - 1, "modes": int(model.poles.size),
+                              "states": states.n_states if use == "modes" else None,
+                              "sections": n_sec, "setup_time": setup, "run_time": run,
+                              "backend": "c" if backend == "c" and c_ok else "scipy.lfilter"})
+    return support.finish(response, ground)

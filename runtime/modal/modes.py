@@ -38,12 +38,32 @@ __all__ = ["Modes", "modes"]
 class Modes:
     """The result of `modes`; mode r is column r, sorted by frequency.
 
-    omega : (m,) rad/s; frequency_hz : (m,); period : (m,) s (inf for a rigid-body mode)
-    shapes : (n, m), mass-normalized, each with its largest-magnitude entry positive
-    influence : (n,) the vector r; participation : (m,) Gamma_r; effective_mass : (m,)
-    total_mass : r^T M r (the effective masses of all modes sum to it)
-    damping_ratio, damped_omega : (m,) or None (C not given): zeta_r and omega_n,r = |s_r| of
-    the damped modes; poles : (m,) complex s_r (Im > 0) or None; complex_shapes : (n, m) or None
+    Attributes
+    ----------
+    omega : (m,) ndarray
+        Natural frequencies, rad/s (``frequency_hz`` and ``period`` derive from it).
+    shapes : (n, m) ndarray
+        Mass-normalized shapes, each with its largest-magnitude entry positive.
+    influence : (n,) ndarray
+        The influence vector r.
+    participation, effective_mass : (m,) ndarray
+        Gamma_r = phi_r^T M r and m_eff,r = Gamma_r^2.
+    total_mass : float
+        r^T M r: the effective masses of all modes sum to it.
+    damping_ratio, damped_omega : (m,) ndarray or None
+        With C: zeta_r and omega_n,r = |s_r| of the damped modes.
+    poles : (m,) complex ndarray or None
+        With C: s_r, Im s_r > 0.
+    complex_shapes : (n, m) complex ndarray or None
+        With C: the displacement part of the damped eigenvectors, largest entry 1.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> M, C, K = dd.chain_matrices([1.0, 1.0], [2.0, 1.0], [0.1, 0.1])
+    >>> m = dd.modes(M, K, C)
+    >>> m.shapes.shape, bool(np.all(m.damping_ratio > 0))
+    ((2, 2), True)
     """
 
     omega: np.ndarray

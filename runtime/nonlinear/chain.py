@@ -25,6 +25,7 @@ from importlib import resources
 import numpy as np
 
 from dtdyn._engine import cbuild
+from dtdyn._engine import ground as support
 from dtdyn._engine import kernels
 from dtdyn._engine import validate
 from dtdyn.linear.chain import chain_parameters
@@ -38,6 +39,7 @@ from dtdyn._engine.schemes import get_scheme
 def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, force_dofs=None,
                              scheme="newmark", form="displacement", substeps=1, outputs=None,
                              quantities=("x", "v", "a"), backend="c", tol=1e-12, max_iter=30,
+                             ground_acceleration=None, influence=None,
                              **scheme_params) -> Response:
     """Forced response of a chain with nonlinear elements by the DT-TMM (module docstring).
 
@@ -45,6 +47,13 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
     len(force_dofs)) at t_k = k dt, linear between samples, ``scheme``, ``form``, ``outputs``,
     ``quantities``, ``backend``) and `nonlinear_response` (``elements``, ``substeps``,
     ``tol``, ``max_iter``). One-step schemes only.
+
+    ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
+        Support acceleration at the force's times, linear between samples: the DOFs are then
+        relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
+        (``force`` may be None).
+    influence : (N,) or (N, n_dir) array_like, optional
+        r, each DOF's motion per unit support motion (default: ones).
 
     Returns
     -------
@@ -65,6 +74,8 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
     m, k, c = chain_parameters(mass, stiffness, damping)
     N = m.size
     dt = validate.positive_scalar("dt", dt)
+    force, force_dofs, ground = support.prepare(np.diag(m), force, force_dofs, N,
+                                                ground_acceleration, influence)
     force_dofs = validate.dof_indices("force_dofs", force_dofs, N)
     outputs = validate.dof_indices("outputs", outputs, N)
     quantities = check_quantities(quantities)
@@ -172,7 +183,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                 g, rate = g_new, rate_new
                 H += np.tensordot(g, U, axes=1)
     t2 = time.perf_counter()
-    return Response(dt * np.arange(n_samples), outputs,
+    return support.finish(Response(dt * np.arange(n_samples), outputs,
                     **{q: store[q] if q in quantities else None for q in ("x", "v", "a")},
                     info={"method": f"DT-TMM {info.name} ({form} form, stable sweep)",
                           "scheme": info.name, "params": dict(info.params), "dt": dt,
@@ -182,7 +193,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                           "setup_time": t1 - t0, "run_time": t2 - t1,
                           "newton_iterations": {"max": iters,
                                                 "mean": total / max((n_samples - 1) * S, 1)},
-                          "max_residual": worst})
+                          "max_residual": worst}), ground)
 
 
 def newton_solve(evaluate, u, scale_r, scale_u, tol, max_iter):
@@ -227,8 +238,8 @@ def _newton_error(kk, S, h, rn, max_iter):
 
 @lru_cache(maxsize=None)
 def _c_driver(elements, sz):
-    """(dtdyn_nl_chain, CasADi work sizes, library) from generated/nl_chain.c with the elements' residual
-    appended, or None without a compiler."""
+    """(dtdyn_nl_chain, CasADi work sizes, library) from generated/nl_chain.c with the elements'
+    residual appended, or None without a compiler."""
     from dtdyn._engine import cbuild
     fn = _residual_function(elements, sz)
     loop = resources.files("dtdyn.generated").joinpath("nl_chain.c").read_text()

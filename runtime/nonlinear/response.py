@@ -35,6 +35,7 @@ from importlib import resources
 
 import numpy as np
 
+from dtdyn._engine import ground as support
 from dtdyn._engine import cbuild
 from dtdyn._engine import linalg
 from dtdyn._engine import validate
@@ -328,7 +329,7 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, m
 def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme="modal_ramp",
                        substeps=1, outputs=None, quantities=("x", "v", "a"), modes=None,
                        backend="c", tol=1e-12, max_iter=30, solver="newton", compiled=False,
-                       **scheme_params) -> Response:
+                       ground_acceleration=None, influence=None, **scheme_params) -> Response:
     """Forced response of M q'' + C q' + K q + L^T g = f with localized nonlinear elements.
 
     The equivalent of the source's ``nonlindxmck(F, fs, M, C, K, FD, nID, modes, resps)``.
@@ -370,6 +371,13 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     compiled : bool
         Backend "casadi": generate C for the whole record function and compile it (cached).
 
+    ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
+        Support acceleration at the force's times, linear between samples: the DOFs are then
+        relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
+        (``force`` may be None).
+    influence : (N,) or (N, n_dir) array_like, optional
+        r, each DOF's motion per unit support motion (default: ones).
+
     Returns
     -------
     Response
@@ -400,6 +408,8 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     method = scheme
     dt = validate.positive_scalar("dt", dt)
     fs = 1.0 / dt
+    force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
+                                                influence)
     force_dofs = validate.dof_indices("force_dofs", force_dofs, n)
     outputs = validate.dof_indices("outputs", outputs, n)
     quantities = check_quantities(quantities)
@@ -460,7 +470,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     no = outputs.size
     store = {q: out[:, asked.index(q) * no:(asked.index(q) + 1) * no] if q in asked else None
              for q in ("x", "v", "a")}
-    return Response(dt * np.arange(f.shape[0]), outputs, **store,
+    return support.finish(Response(dt * np.arange(f.shape[0]), outputs, **store,
                     info={"scheme": method, "substeps": S, "backend": used, "dt": dt,
                           "n_steps": f.shape[0] - 1,
                           "elements": [el.describe() for el in elements],
@@ -468,7 +478,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                           "compile_time": t_compile, "run_time": t_run,
                           "newton_iterations": iters, "max_residual": worst,
                           "max_theta": theta,
-                          **({"params": scheme_params} if scheme_params else {})})
+                          **({"params": scheme_params} if scheme_params else {})}), ground)
 
 
 def _stability_error(method, k, S, fs, theta):

@@ -1,0 +1,101 @@
+r"""Support motion: a ground acceleration record as an effective load, and the absolute
+acceleration of the result.
+
+With the DOFs measured relative to the moving support, :math:`u = x + r\,u_g` (r: the
+influence vector or matrix, one column per ground direction; ones when every DOF moves with the
+ground), the equations become
+
+.. math::
+
+    M \ddot x + C \dot x + K x = f - M r\, \ddot u_g(t), \qquad
+    \ddot u^{\mathrm{abs}} = \ddot x + r\, \ddot u_g
+
+(C r = K r = 0 for a rigid support motion; Chopra, *Dynamics of Structures*, sec. 9.4). The
+ground acceleration is sampled at the force's times and, like the force, linear between
+samples, so every entry point keeps its own treatment of the load. The run gives x, v, a
+relative to the support and ``a_abs``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from dtdyn._engine import validate
+
+
+class Ground:
+    """The checked record a_g (n_samples, n_dir) and influence r (n_dof, n_dir)."""
+
+    def __init__(self, ground_acceleration, influence, n_dof: int, n_samples: int | None):
+        a = np.asarray(ground_acceleration, dtype=float)
+        if a.ndim == 1:
+            a = a[:, None]
+        if a.ndim != 2 or a.shape[0] < 2 or a.shape[1] < 1:
+            raise ValueError(f"ground_acceleration has shape {np.shape(ground_acceleration)}, "
+                             "expected (n_samples,) or (n_samples, n_directions), n_samples >= 2")
+        if n_samples is not None and a.shape[0] != n_samples:
+            raise ValueError(f"ground_acceleration has {a.shape[0]} samples and force "
+                             f"{n_samples}: both are sampled at t_k = k dt")
+        bad = np.argwhere(~np.isfinite(a))
+        if bad.size:
+            i, j = bad[0]
+            raise ValueError(f"ground_acceleration[{i}, {j}] = {float(a[i, j])!r} is not finite")
+        if influence is None:
+            if a.shape[1] != 1:
+                raise ValueError(f"ground_acceleration has {a.shape[1]} directions: give the "
+                                 "influence matrix (n_dof, n_directions)")
+            r = np.ones((n_dof, 1))
+        else:
+            r = np.asarray(influence, dtype=float)
+            if r.ndim == 1:
+                r = r[:, None]
+            if r.shape != (n_dof, a.shape[1]) or not np.isfinite(r).all():
+                raise ValueError(f"influence has shape {np.shape(influence)}, expected "
+                                 f"({n_dof},) or ({n_dof}, {a.shape[1]}) finite values: one "
+                                 "column per direction of ground_acceleration")
+        self.a, self.r = np.ascontiguousarray(a), r
+
+    def load(self, M, force, force_dofs):
+        """(force', force_dofs'): f - M r a_g on the loaded DOFs and those M r reaches."""
+        p = np.asarray(M @ self.r)  # (n_dof, n_dir)
+        reached = np.flatnonzero(np.any(p != 0.0, axis=1))
+        dofs = reached if force is None else np.union1d(force_dofs, reached)
+        out = -(self.a @ p[dofs].T)
+        if force is not None:
+            out[:, np.searchsorted(dofs, force_dofs)] += force
+        return np.ascontiguousarray(out), dofs.astype(np.int64)
+
+    def absolute(self, a, outputs):
+        """a + r a_g at the outputs (None when a is not stored)."""
+        return None if a is None else a + self.a @ self.r[outputs].T
+
+    def describe(self) -> dict:
+        return {"directions": int(self.a.shape[1]), "peak": float(np.abs(self.a).max())}
+
+
+def prepare(M, force, force_dofs, n_dof, ground_acceleration, influence):
+    """The load every entry point runs: (force, force_dofs, ground or None).
+
+    Without ground motion the inputs come back as they are (``force`` required); with it,
+    ``force`` may be None (the support motion alone) and ``force_dofs`` is checked here."""
+    if ground_acceleration is None:
+        if influence is not None:
+            raise ValueError("influence is given without ground_acceleration")
+        if force is None:
+            raise ValueError("force is None: give a force record or a ground_acceleration")
+        return force, force_dofs, None
+    n_samples = None
+    if force is not None:
+        force_dofs = validate.dof_indices("force_dofs", force_dofs, n_dof)
+        force = validate.force_record(force, force_dofs.size)
+        n_samples = force.shape[0]
+    ground = Ground(ground_acceleration, influence, n_dof, n_samples)
+    force, dofs = ground.load(M, force, force_dofs)
+    return force, dofs, ground
+
+
+def finish(response, ground):
+    """The response with ``a_abs`` and ``info["ground"]`` when the run had support motion."""
+    if ground is not None:
+        response.a_abs = ground.absolute(response.a, response.outputs)
+        response.info["ground"] = ground.describe()
+    return response
