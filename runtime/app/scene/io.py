@@ -34,7 +34,9 @@ def scene_summary(scene: Scene) -> dict:
             "n_dof": scene.n_dof, "scheme": scene.scheme, "params": dict(scene.scheme_params),
             "dt": scene.dt, "n_steps": scene.n_steps, "force_dofs": scene.loaded.tolist(),
             "loads": scene.loads, "elements": [el.describe() for el in scene.elements],
-            "quantities": list(scene.quantities)}
+            "quantities": list(scene.quantities),
+            **({} if scene.ground is None else
+               {"ground_peak_m_s2": float(np.abs(scene.ground).max())})}
 
 
 #: more stored DOFs than this are drawn as a heat map (time x DOF) instead of one line each

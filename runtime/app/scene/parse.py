@@ -11,10 +11,10 @@ import scipy.sparse as sps
 
 from dtdyn._engine import validate
 from dtdyn.app.loads import finite_number, sample_load
-from dtdyn.app.scene.schema import (BACKENDS, DEFAULT_SCENE, FORMS, QUANTITIES, SWEEPS, Scene,
-                                    _OUTPUT_KEYS, _TIME_KEYS, _TOP_KEYS, _choice, _dof_index,
-                                    _model_kind, _parse_model, _required, _scheme_name_params,
-                                    _table)
+from dtdyn.app.scene.schema import (BACKENDS, DEFAULT_SCENE, FORMS, QUANTITIES,
+                                    STANDARD_GRAVITY, SWEEPS, Scene, _OUTPUT_KEYS, _TIME_KEYS,
+                                    _TOP_KEYS, _choice, _dof_index, _model_kind, _number_list,
+                                    _parse_model, _required, _scheme_name_params, _table)
 from dtdyn.app.scene.matrices import _parse_matrix_model
 from dtdyn.app.scene.elements import _parse_elements, _parse_nonlinear
 
@@ -94,6 +94,27 @@ def _parse_loads(loads, n_dof: int, t: np.ndarray, base_dir: Path,
     return [dict(x) for x in loads], loaded, validate.force_samples(force, t.size - 1, loaded)
 
 
+def _parse_ground(tbl, n_dof: int, t: np.ndarray, base_dir: Path, kind: str):
+    """(a_g samples in m/s^2, influence or None) of the [ground] table."""
+    if not isinstance(tbl, dict):
+        raise ValueError(f"ground = {tbl!r}: must be a [ground] table")
+    spec = dict(tbl)
+    scale = finite_number("ground.scale", spec.pop("scale", 1.0))
+    units = spec.pop("units", "m/s^2")
+    _choice("ground.units", units, ("m/s^2", "g"))
+    influence = spec.pop("influence", None)
+    if influence is not None:
+        if kind != "matrices":
+            raise ValueError("ground.influence: a chain moves with its base as a whole (ones); "
+                             "the key is for matrices scenes")
+        influence = np.asarray(_number_list("ground.influence", influence), dtype=float)
+        if influence.size != n_dof:
+            raise ValueError(f"ground.influence has {influence.size} entries, expected one per "
+                             f"DOF ({n_dof})")
+    samples = sample_load(spec, t, base_dir, name="ground")
+    return samples * scale * (STANDARD_GRAVITY if units == "g" else 1.0), influence
+
+
 # ----------------------------------------------------------------------------------------------
 # public API
 
@@ -133,7 +154,8 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         if key not in _TOP_KEYS:
             raise ValueError(f"{key}: unknown top-level key or table, allowed: {', '.join(_TOP_KEYS)}")
     nonlinear = bool(data.get("element"))  # [scheme] is optional then
-    for key in ("model", "load", "time") + (() if nonlinear else ("scheme",)):
+    needed = ("model", "time") + (() if "ground" in data else ("load",))
+    for key in needed + (() if nonlinear else ("scheme",)):
         if key not in data:
             hint = "[[load]]" if key == "load" else f"[{key}]"
             raise ValueError(f"{key} is required: add a {hint} table")
@@ -177,12 +199,17 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
     validate.output_size(f"{source}: time.duration / time.dt = {n_steps} steps", n_steps + 1,
                          1 + n_dof + outputs.size * len(quantities))
     t = np.arange(n_steps + 1) * dt
-    loads, loaded, force = _parse_loads(data["load"], n_dof, t, base_dir, names)
+    loads, loaded, force = [], np.zeros(0, dtype=np.int64), None
+    if "load" in data:
+        loads, loaded, force = _parse_loads(data["load"], n_dof, t, base_dir, names)
+    ground, influence = (None, None) if "ground" not in data else _parse_ground(
+        data["ground"], n_dof, t, base_dir, kind)
     return Scene(title=title, mass=mass, stiffness=stiffness, damping=damping, loads=loads,
                  loaded=loaded, force=force, scheme=scheme, scheme_params=params, form=form,
                  sweep=sweep, backend=backend, dt=dt, n_steps=n_steps, outputs=outputs,
                  quantities=quantities, source=source, base_dir=base_dir, kind=kind, M=M, C=C, K=K,
-                 dof_names=names, elements=elements, nonlinear=options)
+                 dof_names=names, elements=elements, nonlinear=options, ground=ground,
+                 influence=influence)
 
 
 def load_scene(path: str | os.PathLike | None = None) -> Scene:

@@ -64,6 +64,13 @@ def scene_matrices(scene: Scene):
     return chain_matrices(scene.mass, scene.stiffness, scene.damping, sparse=False)
 
 
+def _support(scene: Scene) -> dict:
+    """The [ground] keywords of the entry points (none without support motion)."""
+    if scene.ground is None:
+        return {}
+    return {"ground_acceleration": scene.ground, "influence": scene.influence}
+
+
 def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
     """``nonlinear_response`` on the scene; errors get the scene file's name."""
     from dtdyn.nonlinear import response as nonlinear
@@ -72,7 +79,8 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
     start = time.perf_counter()
     try:
         response = nonlinear.nonlinear_response(
-            M, C, K, scene.force, scene.dt, force_dofs=scene.loaded, elements=scene.elements,
+            M, C, K, scene.force, scene.dt, force_dofs=scene.loaded, **_support(scene),
+            elements=scene.elements,
             outputs=scene.outputs, quantities=scene.quantities, scheme=scene.scheme,
             **scene.nonlinear, **scene.scheme_params)
     except (nonlinear.NewtonError, nonlinear.DtdynStepStabilityError) as exc:
@@ -158,7 +166,7 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
 
         response = mck.simulate_mck(
             scene.M, scene.C, scene.K, scene.force, scene.dt, force_dofs=scene.loaded,
-            scheme=scene.scheme, outputs=scene.outputs, quantities=scene.quantities,
+            **_support(scene), scheme=scene.scheme, outputs=scene.outputs, quantities=scene.quantities,
             progress=progress, **scene.scheme_params)
         response.info.setdefault("backend", scene.backend)
     else:
@@ -166,7 +174,8 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
 
         response = chain.simulate_chain(
             scene.mass, scene.stiffness, scene.damping, scene.force, scene.dt,
-            force_dofs=scene.loaded, scheme=scene.scheme, form=scene.form, sweep=scene.sweep,
+            force_dofs=scene.loaded, **_support(scene), scheme=scene.scheme, form=scene.form,
+            sweep=scene.sweep,
             backend=scene.backend, outputs=scene.outputs, quantities=scene.quantities,
             progress=progress, **scene.scheme_params)
     run_time = time.perf_counter() - start
@@ -199,7 +208,7 @@ def _exact_check(scene: Scene, response: Response, report: dict) -> str:
     start = time.perf_counter()
     try:
         ref = exact.exact_response(M, C, K, scene.force, scene.dt, force_dofs=scene.loaded,
-                                   outputs=scene.outputs, quantities=("x",))
+                                   **_support(scene), outputs=scene.outputs, quantities=("x",))
     except exact.SingularMassError as exc:  # no exact solution to compare with
         return f"skipped: {exc}"
     report["exact_time_s"] = time.perf_counter() - start

@@ -13,6 +13,12 @@ reference problem P3)::
     dof = 14                            # 0-based mass index
     kind = "step"                       # and that kind's fields, see dtdyn.app.loads
     amplitude = 1.0
+    [ground]                            # optional support motion (then [[load]] is optional):
+    kind = "file"                       #   a ground acceleration record, any load kind, sampled
+    path = "record.csv"                 #   at the scene's times; the DOFs are then relative to
+    scale = 1.0                         #   the support and a_abs = a + r a_g is stored with a
+    units = "g"                         #   "g" (x 9.80665) or "m/s^2" (default)
+    influence = [1.0, 1.0]              #   matrices scenes: r, one entry per DOF (default ones)
     [scheme]
     name = "newmark"                    # plus that scheme's parameters: beta = 0.25, gamma = 0.5
     form = "displacement"               # optional
@@ -118,7 +124,10 @@ QUANTITIES = ("x", "v", "a")
 #: run_scene compares with the matrix-exponential solution up to this many DOFs
 EXACT_MAX_DOF = 2000
 
-_TOP_KEYS = ("title", "model", "load", "element", "nonlinear", "scheme", "time", "output")
+_TOP_KEYS = ("title", "model", "load", "ground", "element", "nonlinear", "scheme", "time",
+             "output")
+#: standard gravity, m/s^2 (a [ground] record in units of g)
+STANDARD_GRAVITY = 9.80665
 #: model kinds: a chain (mass, stiffness, damping vectors) or general M, C, K matrices
 MODEL_KINDS = ("chain", "matrices")
 _MODEL_KEYS = ("kind", "mass", "stiffness", "damping")
@@ -225,6 +234,8 @@ class Scene:
     dof_names: tuple[str, ...] | None = None
     elements: tuple = ()
     nonlinear: dict = field(default_factory=dict)
+    ground: np.ndarray | None = None
+    influence: np.ndarray | None = None
 
     @property
     def n_dof(self) -> int:
