@@ -34,6 +34,7 @@ from dtdyn.modal.filter_errors import (continuous_frequency_response, discrete_f
 from dtdyn.modal.filters import modal_filter_response, to_sos
 from dtdyn.modal.model import ModalModel, from_poles_residues, modal_model
 from dtdyn.modal.modes import Modes, modes
+from dtdyn.modal.spectrum import ResponseSpectrum, response_spectrum
 from dtdyn.modal.srs import SRS, load_record, sdof_response, shock_response_spectrum
 from dtdyn.nonlinear.chain import nonlinear_chain_response
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
@@ -52,6 +53,7 @@ __all__ = [
     "modes", "Modes", "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",
     "discrete_frequency_response", "continuous_frequency_response", "ramp_bias",
     "truncation_error", "shock_response_spectrum", "sdof_response", "SRS", "load_record",
+    "response_spectrum", "ResponseSpectrum",
     # nonlinear
     "nonlinear_response", "nonlinear_chain_response", "reference_response", "check_reference",
     "Cubic", "Polynomial", "Gap", "Law", "BoucWen",

@@ -299,6 +299,51 @@ def _modes(args) -> int:
     return 0
 
 
+def _spectrum(args) -> int:
+    import warnings
+
+    import numpy as np
+
+    from dtdyn._engine.atomic import write_atomic
+    from dtdyn.app.scene.schema import STANDARD_GRAVITY
+    from dtdyn.modal.spectrum import response_spectrum
+    from dtdyn.modal.srs import load_record
+
+    if args.out and (Path(args.out).is_dir() or not Path(args.out).resolve().parent.is_dir()):
+        raise ValueError(f"--out {args.out!r}: not a file in an existing folder")
+    ag = load_record(args.record, args.column)
+    if args.units == "g":
+        ag = ag * STANDARD_GRAVITY
+    tmin, tmax, n = args.periods
+    if float(n) != int(n) or int(n) < 1 or not 0.0 < tmin <= tmax:
+        raise ValueError(f"--periods: need 0 < TMIN <= TMAX and an integer N >= 1, got "
+                         f"{tmin!r} {tmax!r} {n!r}")
+    periods = np.geomspace(tmin, tmax, int(n))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        s = response_spectrum(ag, args.dt, periods, damping=args.damping)
+    for message in dict.fromkeys(str(w.message) for w in caught):
+        print(f"warning: {message}", file=sys.stderr)
+    print(f"response spectra of {args.record}: {ag.size} samples, dt = {args.dt:g} s, peak "
+          f"ground acceleration {np.abs(ag).max():.4g} m/s^2; SD [m], PSV [m/s], PSA and SA "
+          f"[m/s^2]; {s.info['run_time'] * 1e3:.1f} ms")
+    rows = np.unique(np.linspace(0, periods.size - 1, min(periods.size, 12)).round().astype(int))
+    lines = ["damping,period_s,sd_m,psv_m_s,psa_m_s2,sa_m_s2"]
+    for i, zeta in enumerate(s.damping):
+        print(f"damping {zeta:g}:\n{'T [s]':>10s} {'SD':>12s} {'PSV':>12s} {'PSA':>12s} "
+              f"{'SA':>12s}")
+        for j in rows:
+            print(f"{periods[j]:10.4g} {s.sd[i, j]:12.5g} {s.psv[i, j]:12.5g} "
+                  f"{s.psa[i, j]:12.5g} {s.sa[i, j]:12.5g}")
+        lines += [",".join(repr(float(v)) for v in (zeta, periods[j], s.sd[i, j], s.psv[i, j],
+                                                     s.psa[i, j], s.sa[i, j]))
+                  for j in range(periods.size)]
+    if args.out:
+        write_atomic(args.out, lambda fh: fh.write(("\n".join(lines) + "\n").encode()))
+        print(f"results: {args.out}")
+    return 0
+
+
 def _bench(args) -> int:
     from dtdyn.app import bench
     command = "dtdyn bench " + " ".join(args.problems) + (" --quick" if args.quick else "")
@@ -387,6 +432,20 @@ def _parser() -> argparse.ArgumentParser:
     mo.add_argument("scene", nargs="?", help="scene TOML file (default: the embedded P3 scene)")
     mo.add_argument("--count", type=int, default=None, help="the lowest N modes (default: all)")
     mo.add_argument("--json", action="store_true", help="print the modes as JSON (for scripts)")
+    sp = sub.add_parser("spectrum", help="earthquake response spectra (SD, PSV, PSA, SA) of a "
+                                         "ground acceleration record")
+    sp.add_argument("record", help=".npy or .csv record of ground acceleration samples")
+    sp.add_argument("--dt", type=float, required=True, help="sample step of the record, s")
+    sp.add_argument("--periods", type=float, nargs=3, default=[0.02, 5.0, 60],
+                    metavar=("TMIN", "TMAX", "N"), help="N log-spaced periods, s "
+                                                        "(default 0.02 5 60)")
+    sp.add_argument("--damping", type=float, nargs="+", default=[0.05],
+                    help="damping ratios (default 0.05)")
+    sp.add_argument("--units", choices=["m/s^2", "g"], default="m/s^2",
+                    help="unit of the record (g: times 9.80665)")
+    sp.add_argument("--column", type=int, default=None,
+                    help="column of a table holding the samples (default: the last)")
+    sp.add_argument("--out", help="write damping, period and the four spectra to this CSV")
     sr = sub.add_parser("srs", help="shock response spectrum of a base-acceleration record")
     sr.add_argument("record", help=".npy or .csv record of acceleration samples")
     sr.add_argument("--dt", type=float, required=True, help="sample step of the record, s")
@@ -438,7 +497,7 @@ def main(argv=None) -> int:
         return int(exc.code or 0)
     handler = {"generate": _generate, "show": _show, "simulate": _simulate,
                "stability": _stability, "srs": _srs, "bench": _bench,
-               "modes": _modes}[args.command]
+               "modes": _modes, "spectrum": _spectrum}[args.command]
     try:
         return handler(args)
     except BrokenPipeError:  # `dtdyn ... | head`: stop quietly, no traceback at exit either
