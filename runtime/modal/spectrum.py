@@ -83,6 +83,14 @@ def response_spectrum(ground_acceleration, dt, periods, damping=0.05, *,
     Returns
     -------
     ResponseSpectrum
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> ag = np.r_[0.0, np.ones(99), 0.0]             # a 1 s pulse of 1 m/s^2
+    >>> s = dd.response_spectrum(ag, 0.01, [0.5, 2.0])
+    >>> s.sd.shape                                     # (damping ratios, periods)
+    (1, 2)
     """
     a = validate.vector("ground_acceleration", ground_acceleration)
     T = validate.vector("periods", np.atleast_1d(np.asarray(periods, dtype=float)),
