@@ -181,7 +181,8 @@ static long newton_solve(long nu, long ne, double *restrict u, double *restrict 
 }
 /*
  * dims: ns, nf, ne, nw, nz, no (checked against the compile-time sizes NL_NS .. NL_NO, which
- * let the compiler unroll the small products), n_samples, substeps, max_iter.
+ * let the compiler unroll the small products), n_samples, substeps, max_iter, nzo. A row of
+ * out holds no + nzo values: Co x + Dof f + Dog g, then the first nzo internal states z.
  * mats (column-major): A, Bf, Bg, Cw, Dwf, Dwg, par = [Dwg; h], Co, Dof, Dog.
  * state: x (ns), u (nw + nz: last solution), g (ne), rate (nz); all updated in place.
  * stats: [max iterations, total iterations, max final residual, failing residual or theta,
@@ -194,7 +195,7 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                  double *restrict out, double tol, double theta_limit, double *stats, long *fail,
                  double *restrict work, nl_int *restrict iwork) {
     enum { ns = NL_NS, nf = NL_NF, ne = NL_NE, nw = NL_NW, nz = NL_NZ, no = NL_NO };
-    const long n_samples = dims[6], S = dims[7], max_iter = dims[8];
+    const long n_samples = dims[6], S = dims[7], max_iter = dims[8], nzo = dims[9];
     enum { nu = NL_NW + NL_NZ };
     const double *A = mats[0], *Bf = mats[1], *Bg = mats[2], *Cw = mats[3], *Dwf = mats[4];
     const double *Dwg = mats[5], *par = mats[6], *Co = mats[7], *Dof = mats[8];
@@ -264,11 +265,12 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                 return 3;
             }
             if (j == 0) {
-                double *o = out + n * no;
+                double *o = out + n * (no + nzo);
                 zero(no, o);
                 matvec_add(no, ns, Co, x, o);
                 matvec_add(no, nf, Dof, f, o);
                 matvec_add(no, ne, Dog, g, o);
+                copy(nzo, u + nw, o + no);
             }
             if (n + 1 < n_samples) {
                 zero(ns, xn);

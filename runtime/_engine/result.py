@@ -28,6 +28,8 @@ class Response:
     a_abs : (n_steps + 1, n_out) ndarray or None
         Absolute acceleration a + r a_g of a run under support motion (``ground_acceleration``;
         x, v, a are then relative to the support), when ``a`` is stored; None otherwise.
+    g, z : (n_steps + 1, n_elements) and (n_steps + 1, n_states) ndarray or None
+        Nonlinear runs asked for them: the element forces and the internal states.
 
     Examples
     --------
@@ -47,6 +49,8 @@ class Response:
     meta: dict = field(default_factory=dict)
     dof_names: tuple | None = None
     a_abs: np.ndarray | None = None
+    g: np.ndarray | None = None
+    z: np.ndarray | None = None
 
     def column(self, dof: int) -> int:
         """Column of ``x``, ``v``, ``a`` that holds 0-based DOF ``dof``."""

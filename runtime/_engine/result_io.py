@@ -27,6 +27,8 @@ from dtdyn._engine.extras import require
 
 FORMATS = (".npz", ".nc", ".csv")
 QUANTITIES = ("x", "v", "a", "a_abs")
+#: per element (g) or internal state (z), not per DOF: their columns are numbered 0, 1, ...
+ELEMENT_QUANTITIES = ("g", "z")
 _META_KEY = "dtdyn_metadata"
 
 
@@ -96,10 +98,14 @@ def _stored(response):
     return [q for q in QUANTITIES if getattr(response, q) is not None]
 
 
+def _stored_elements(response):
+    return [q for q in ELEMENT_QUANTITIES if getattr(response, q, None) is not None]
+
+
 def _write_npz(response, fh) -> None:
     arrays = {"t": np.asarray(response.t), "outputs": np.asarray(response.outputs),
               _META_KEY: np.array(_metadata(response))}
-    for q in _stored(response):
+    for q in _stored(response) + _stored_elements(response):
         arrays[q] = np.asarray(getattr(response, q))
     if response.dof_names is not None:
         arrays["dof_names"] = np.array(response.dof_names, dtype=str)
@@ -116,6 +122,8 @@ def to_xarray(response):
     if response.dof_names is not None:
         coords["dof_name"] = ("dof", np.array(response.dof_names, dtype=str))
     data = {q: (("time", "dof"), np.asarray(getattr(response, q))) for q in _stored(response)}
+    data.update({q: (("time", {"g": "element", "z": "state"}[q]), np.asarray(getattr(response, q)))
+                 for q in _stored_elements(response)})
     for key, value in _split_info(response.info)[1].items():
         dims = tuple(f"info_{key}_{i}" for i in range(value.ndim))
         if value.ndim >= 1 and value.shape[0] == len(response.t):
@@ -135,6 +143,10 @@ def _columns(response):
         for j, dof in enumerate(np.asarray(response.outputs)):
             names.append(f"{q}[{int(dof)}]")
             columns.append(values[:, j])
+    for q in _stored_elements(response):
+        values = np.asarray(getattr(response, q))
+        names += [f"{q}[{j}]" for j in range(values.shape[1])]
+        columns += list(values.T)
     return names, np.column_stack(columns)
 
 
@@ -191,14 +203,16 @@ def _build(t, outputs, quantities: dict, metadata: str, dof_names=None, arrays=N
     info = dict(meta["info"])
     info.update(arrays or {})
     return Response(np.asarray(t, dtype=float), np.asarray(outputs, dtype=np.int64),
-                    **{q: quantities.get(q) for q in QUANTITIES}, info=info, meta=meta["meta"],
+                    **{q: quantities.get(q) for q in QUANTITIES + ELEMENT_QUANTITIES},
+                    info=info, meta=meta["meta"],
                     dof_names=None if dof_names is None else tuple(str(n) for n in dof_names))
 
 
 def _read_npz(path: Path):
     with np.load(path, allow_pickle=False) as z:
         arrays = {k[5:]: z[k] for k in z.files if k.startswith("info.")}
-        return _build(z["t"], z["outputs"], {q: z[q] for q in QUANTITIES if q in z.files},
+        return _build(z["t"], z["outputs"],
+                      {q: z[q] for q in QUANTITIES + ELEMENT_QUANTITIES if q in z.files},
                       str(z[_META_KEY]), z["dof_names"] if "dof_names" in z.files else None,
                       arrays)
 
@@ -210,7 +224,8 @@ def _read_nc(path: Path):
         arrays = {k[5:]: ds[k].values for k in ds.data_vars if k.startswith("info.")}
         names = ds["dof_name"].values if "dof_name" in ds.coords else None
         return _build(ds["time"].values, ds["dof"].values,
-                      {q: ds[q].values for q in QUANTITIES if q in ds.data_vars},
+                      {q: ds[q].values for q in QUANTITIES + ELEMENT_QUANTITIES
+                       if q in ds.data_vars},
                       ds.attrs[_META_KEY], names, arrays)
 
 
@@ -234,4 +249,8 @@ def _read_csv(path: Path):
             if outputs and dofs != outputs:
                 raise ValueError(f"the {q} columns name other DOFs than the first quantity's")
             outputs = dofs
+    for q in ELEMENT_QUANTITIES:
+        cols = [i for i, h in enumerate(header) if h.startswith(f"{q}[")]
+        if cols:
+            quantities[q] = np.ascontiguousarray(table[:, cols])
     return _build(table[:, 0], outputs, quantities, json.dumps(meta), names)

@@ -14,7 +14,8 @@ the time and the residual; a modal step beyond its stability limit for the eleme
 stiffness (THETA_LIMIT) raises DtdynStepStabilityError.
 
 Newton acceptance, the same rule in every backend (C loops: newton_solve of newton.c; CasADi:
-its absolute tests on the problem scaled by s; the chain's Python loop: chain.newton_solve):
+its residual test on r / s_r while it iterates, both tests after the run; the chain's Python
+loop: chain.newton_solve):
 u is accepted when
 
     |r(u)|_inf <= tol s_r    or    |J(u)^-1 r(u)|_inf <= tol s_u,
@@ -41,7 +42,6 @@ from dtdyn._engine import linalg
 from dtdyn._engine import validate
 from dtdyn.nonlinear.elements import casadi_ops, check_elements, element_matrix
 from dtdyn._engine.result import Response
-from dtdyn._engine.stepping import check_quantities
 from dtdyn._engine.errors import DtdynStepStabilityError, NewtonError
 from dtdyn._engine.extras import require
 from dtdyn.nonlinear.linear_step import THETA_LIMIT, LinearStep, linear_step
@@ -136,17 +136,19 @@ def _p(a):
     return a.ctypes.data_as(ctypes.c_void_p)
 
 
-def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate, theta_limit):
+def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate, theta_limit,
+           nzo=0):
     run, n_w, n_iw, lib = runner
     ns, nf, no = step.A.shape[0], force.shape[1], step.Co.shape[0]
     n_samples = force.shape[0]
-    dims = np.array([ns, nf, sz.ne, sz.nw, sz.nz, no, n_samples, S, max_iter], dtype=np.int64)
+    dims = np.array([ns, nf, sz.ne, sz.nw, sz.nz, no, n_samples, S, max_iter, nzo],
+                    dtype=np.int64)
     par = np.concatenate([step.Dwg.ravel(order="F"), [step.h]])
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, par, step.Co, step.Dof,
             step.Dog]
     mats = [np.asfortranarray(m, dtype=float) for m in mats]
     ptrs = (ctypes.c_void_p * len(mats))(*[m.ctypes.data for m in mats])
-    out = np.empty((n_samples, no))
+    out = np.empty((n_samples, no + nzo))
     stats = np.zeros(5)
     fail = np.zeros(1, dtype=np.int64)
     work = np.zeros(n_w + 1)
@@ -171,7 +173,7 @@ _RECORDS: dict = {}
 
 
 def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_iter, compiled,
-                   with_theta):
+                   with_theta, nzo=0):
     """F(x_aug, [f_n; f_{n+1}] columns) -> (x_aug', out columns, check columns), check =
     [|r| per sub-step; rho = min(|r| / s_r, |J^-1 r| / s_u) per sub-step; theta per sub-step
     (``with_theta`` only)].
@@ -188,7 +190,7 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, step.Co, step.Dof, step.Dog]
     digest = hashlib.sha256(b"".join(np.ascontiguousarray(m).tobytes() for m in mats)
                             + repr([m.shape for m in mats] + [step.h]).encode()).hexdigest()
-    key = (elements, digest, S, n_blocks, solver, tol, max_iter, compiled, with_theta)
+    key = (elements, digest, S, n_blocks, solver, tol, max_iter, compiled, with_theta, nzo)
     if key in _RECORDS:
         return _RECORDS[key][0], 0.0, 0.0
     t0 = time.perf_counter()
@@ -196,17 +198,17 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     sz = _sizes(elements)
     e = _residual_expressions(elements, sz)
     nu = sz.nw + sz.nz
-    # the rootfinder solves for u / s_u with the residual r / s_r, so CasADi's absolute tests
-    # (abstol on the residual, abstolStep on the step) are the relative tests of the shared
-    # rule (module docstring) with the same scales as the C loop
-    ut, sr_, su_ = ca.SX.sym("ut", nu), ca.SX.sym("sr"), ca.SX.sym("su")
-    p = ca.vertcat(e["Q"], e["zold"], e["rold"], e["par"], sr_, su_)
-    r_scaled = ca.substitute(e["r"], e["u"], su_ * ut) / sr_
-    # failures are not raised inside CasADi: every step's acceptance is checked afterwards
-    # plain Newton steps, as the C loop takes them (CasADi's "newton" would add a line search)
-    opts = {"abstol": tol, "abstolStep": tol, "max_iter": max_iter, "error_on_fail": False,
+    # the rootfinder's residual is r / s_r, so CasADi's absolute test on it (abstol) is the
+    # shared rule's residual test (module docstring) with the C loop's scale; its step test is
+    # off (CasADi's is absolute): at a residual's round-off floor it iterates to max_iter, and
+    # the check after the run applies both tests of the rule to the u it returns. Failures are
+    # not raised inside CasADi; plain Newton steps, as the C loop takes them (CasADi's "newton"
+    # would add a line search)
+    sr_ = ca.SX.sym("sr")
+    p = ca.vertcat(e["Q"], e["zold"], e["rold"], e["par"], sr_)
+    opts = {"abstol": tol, "abstolStep": 1e-300, "max_iter": max_iter, "error_on_fail": False,
             "show_eval_warnings": False, **({"line_search": False} if solver == "newton" else {})}
-    rf = ca.rootfinder("rf", solver, {"x": ut, "p": p, "g": r_scaled}, opts)
+    rf = ca.rootfinder("rf", solver, {"x": e["u"], "p": p, "g": e["r"] / sr_}, opts)
     J = ca.densify(ca.jacobian(e["r"], e["u"]))
     # theta = |J_yy - I|_inf = |B0 dg/dy|_inf, as the C loop measures it
     J_yy = J[:sz.ne, :sz.ne] - ca.SX.eye(sz.ne)
@@ -236,15 +238,20 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
         guess = ca.vertcat(Q + ca.mtimes(Dwg, g), zold + h * rate)
         scale = grow(scale, ca.norm_inf(Q))
         sr, su = ca.fmax(scale, tiny), ca.fmax(scale_u, tiny)
-        u = su * rf(guess / su, ca.vertcat(Q, zold, rate, par, sr, su))
+        u = rf(guess, ca.vertcat(Q, zold, rate, par, sr))
         r, Jv, g, rate, theta = post(u, Q, zold, rate, par)
         resid.append(ca.norm_inf(r))
-        rho.append(ca.fmin(ca.norm_inf(r) / sr, ca.norm_inf(ca.solve(Jv, r, "qr")) / su))
+        # the step test only where the residual test fails (as newton_solve: a Jacobian that is
+        # not finite at an accepted u, e.g. Bouc-Wen's |z|^0 at z = 0, is never solved)
+        rr = ca.norm_inf(r) / sr
+        rho.append(ca.if_else(rr <= tol, rr,
+                              ca.fmin(rr, ca.norm_inf(ca.solve(Jv, r, "qr")) / su)))
         thetas.append(theta)
         scale_u = grow(scale_u, ca.norm_inf(u))
         scale = ca.fmax(scale, scale_u)
-        if j == 0:
-            out = ca.mtimes(Co, x) + ca.mtimes(Dof, f) + ca.mtimes(Dog, g)
+        if j == 0:  # the outputs at the sample, then its first nzo internal states
+            out = ca.vertcat(ca.mtimes(Co, x) + ca.mtimes(Dof, f) + ca.mtimes(Dog, g),
+                             part(u, sz.nw, nzo))
         x = ca.mtimes(A, x) + ca.mtimes(Bf, f) + ca.mtimes(Bg, g)
     checks = resid + rho + (thetas if with_theta else [])
     one = ca.Function("nl_step", [xa, ff], [ca.vertcat(x, u, g, rate, scale, scale_u), out,
@@ -278,7 +285,8 @@ def _c_source(fn) -> str:
     return cg.dump()
 
 
-def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, method, fs):
+def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, method, fs,
+                nzo=0):
     """Run the record in chunks of at most CHUNK_BLOCKS * BLOCK samples, the state carried from
     chunk to chunk, so memory is one chunk plus the outputs whatever the record's length; every
     chunk is checked before the next runs (the first failure raises, as in the C loop).
@@ -290,8 +298,8 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, m
     with_theta = method in THETA_LIMIT
     limit = THETA_LIMIT.get(method, np.inf)
     record, t_build, t_compile = _casadi_record(elements, step, S, n_blocks, solver, tol,
-                                                max_iter, compiled, with_theta)
-    out = np.empty((n, step.Co.shape[0]))
+                                                max_iter, compiled, with_theta, nzo)
+    out = np.empty((n, step.Co.shape[0] + nzo))
     worst, theta, t_run = 0.0, -np.inf, 0.0
     last_step = (n - 1) * S  # the last sample runs one step, as in the C loop
     for start in range(0, n, chunk):
@@ -325,6 +333,18 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, m
 # ----------------------------------------------------------------------------------------------
 # public entry point
 
+#: what a nonlinear run can store: motion of the output DOFs, element forces, internal states
+QUANTITIES = ("x", "v", "a", "g", "z")
+
+
+def _check_quantities(quantities) -> tuple:
+    q = tuple(quantities) if not isinstance(quantities, str) else (quantities,)
+    if not q or any(x not in QUANTITIES for x in q) or len(set(q)) != len(q):
+        raise ValueError(f"quantities must be a non-empty subset of {QUANTITIES}, got "
+                         f"{quantities!r}")
+    return q
+
+
 
 def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme="modal_ramp",
                        substeps=1, outputs=None, quantities=("x", "v", "a"), modes=None,
@@ -354,8 +374,10 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         Steps per sample (h = dt / substeps); the force is interpolated linearly.
     outputs : sequence of int, optional
         Response DOFs (all by default).
-    quantities : subset of ("x", "v", "a")
-        What is stored; the others are None in the result.
+    quantities : subset of ("x", "v", "a", "g", "z")
+        What is stored; the others are None in the result. "g": the element forces, one
+        column per element, at the samples (for the alpha methods, those of the step's
+        equilibrium point); "z": the elements' internal states (Bouc-Wen z), one column each.
     modes : sequence of int, optional
         Modal schemes only: the modes kept (indices into the modes sorted by |s|).
     backend : {"c", "casadi"}
@@ -412,7 +434,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                                                 influence)
     force_dofs = validate.dof_indices("force_dofs", force_dofs, n)
     outputs = validate.dof_indices("outputs", outputs, n)
-    quantities = check_quantities(quantities)
+    quantities = _check_quantities(quantities)
     elements = check_elements(elements)
     if not elements:
         raise ValueError("elements is empty: use simulate_mck or modal_filter_response for a "
@@ -428,17 +450,28 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         raise ValueError("compiled=True needs solver='fast_newton': CasADi cannot generate C for "
                          "its 'newton' rootfinder")
     f = validate.force_record(force, force_dofs.size)
-    validate.output_size("nonlinear_response", f.shape[0], len(quantities) * outputs.size)
+    validate.output_size("nonlinear_response", f.shape[0],
+                         len(quantities) * max(outputs.size, len(elements)))
     L = element_matrix(elements, n)
     sz = _sizes(elements)
     h = dt / S
     step = linear_step(method, M, C, K, h, force_dofs, L, outputs, modes, sz.need_v,
                        **scheme_params)
-    # only the quantities asked are computed and stored (rows of x, v, a per output DOF)
+    # only the quantities asked are computed and stored: rows of x, v, a per output DOF, then
+    # the element forces g (Dog = I), then the internal states z (copied by the loop)
     asked = [q for q in ("x", "v", "a") if q in quantities]
     rows = np.concatenate([np.arange(outputs.size) + outputs.size * "xva".index(q)
-                           for q in asked])
-    step = replace(step, Co=step.Co[rows], Dof=step.Dof[rows], Dog=step.Dog[rows])
+                           for q in asked] + [np.zeros(0, dtype=int)])
+    Co, Dof, Dog = step.Co[rows], step.Dof[rows], step.Dog[rows]
+    if "g" in quantities:
+        Co = np.vstack([Co, np.zeros((sz.ne, Co.shape[1]))])
+        Dof = np.vstack([Dof, np.zeros((sz.ne, Dof.shape[1]))])
+        Dog = np.vstack([Dog, np.eye(sz.ne)])
+    step = replace(step, Co=Co, Dof=Dof, Dog=Dog)
+    if "z" in quantities and not sz.nz:
+        raise ValueError("quantities asks for 'z', but no element has internal states (BoucWen "
+                         "has z)")
+    nzo = sz.nz if "z" in quantities else 0
     g0, rate0 = _forces_at_rest(elements, sz)
     x = np.ascontiguousarray(step.X0f @ f[0] + step.X0g @ g0)
     u = np.zeros(sz.nw + sz.nz)
@@ -452,7 +485,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     if used == "c":
         t2 = time.perf_counter()
         rc, out, stats, fail = _run_c(runner, step, sz, f, S, tol, max_iter, x, u, g0.copy(),
-                                      rate0.copy(), THETA_LIMIT.get(method, np.inf))
+                                      rate0.copy(), THETA_LIMIT.get(method, np.inf), nzo)
         t_run = time.perf_counter() - t2
         if rc == 2:
             raise RuntimeError(f"dtdyn_nl_run was compiled for other sizes than {dims}")
@@ -465,11 +498,14 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     else:
         xa = np.concatenate([x, u, g0, rate0, [0.0, 0.0]])
         out, worst, theta, t_build, t_compile, t_run = _run_casadi(
-            elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, method, fs)
+            elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, method, fs, nzo)
         iters = None
     no = outputs.size
     store = {q: out[:, asked.index(q) * no:(asked.index(q) + 1) * no] if q in asked else None
              for q in ("x", "v", "a")}
+    n_motion = len(asked) * no
+    store["g"] = out[:, n_motion:n_motion + sz.ne] if "g" in quantities else None
+    store["z"] = out[:, step.Co.shape[0]:] if nzo else None
     return support.finish(Response(dt * np.arange(f.shape[0]), outputs, **store,
                     info={"scheme": method, "substeps": S, "backend": used, "dt": dt,
                           "n_steps": f.shape[0] - 1,

@@ -10,7 +10,7 @@ import sympy as sp
 
 from dtdyn.derive import nonlinear as DN
 from dtdyn import exact_response
-from dtdyn import simulate_mck
+from dtdyn import load_result, simulate_mck
 from dtdyn.nonlinear import response as NL
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
 from dtdyn.nonlinear.reference import reference_response
@@ -418,3 +418,36 @@ def test_chain_refuses_multistep_and_bad_elements():
     with pytest.raises(ValueError, match="outside the chain"):
         nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3],
                                  elements=[Cubic(7, k3=1.0)])
+
+
+# --- element forces and internal states ---------------------------------------------------------
+
+@pytest.mark.parametrize("backend", ["c", "casadi"])
+def test_element_forces_and_internal_states_are_stored_when_asked(backend, tmp_path):
+    """quantities "g" and "z": the cubic's force equals k3 y^3 of the stored displacement, the
+    Bouc-Wen force alpha k y + (1 - alpha) k z of the stored y and z, with z bounded by its
+    ultimate value (A / (beta + gamma))^(1/n); both backends store the same; nothing else is
+    stored; the result saves and loads them."""
+    M, K, C = np.diag([1.0, 1.0]), np.array([[2e3, -1e3], [-1e3, 1e3]]), 0.5 * np.eye(2)
+    f = 30.0 * np.sin(2 * np.pi * 2.0 * np.arange(3001) * 1e-3)
+    bw = BoucWen(1, stiffness=2e3, alpha=0.1, beta=300.0, gamma=300.0)
+    els = [Cubic(0, k3=1e6), bw]
+    r = NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[1], elements=els, backend=backend,
+                              scheme="newmark", quantities=("x", "g", "z"))
+    assert r.v is None and r.a is None and r.g.shape == (3001, 2) and r.z.shape == (3001, 1)
+    y0, y1 = r.x[:, 0], r.x[:, 1]
+    np.testing.assert_allclose(r.g[:, 0], 1e6 * y0**3, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(r.g[:, 1], 0.1 * 2e3 * y1 + 0.9 * 2e3 * r.z[:, 0], rtol=1e-9,
+                               atol=1e-9)
+    assert np.abs(r.z).max() <= (1.0 / 600.0) * (1 + 1e-9) and np.abs(r.z).max() > 1e-3
+    only = NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[1], elements=els,
+                                 backend=backend, scheme="newmark", quantities=("g",))
+    np.testing.assert_allclose(only.g, r.g, rtol=0, atol=1e-12 * np.abs(r.g).max())
+    assert only.x is None and only.z is None
+    for suffix in (".npz", ".csv"):
+        back = load_result(r.save(tmp_path / f"r{suffix}"))
+        np.testing.assert_allclose(back.g, r.g, rtol=1e-15)
+        np.testing.assert_allclose(back.z, r.z, rtol=1e-15)
+    with pytest.raises(ValueError, match="no element has internal states"):
+        NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[1], elements=[Cubic(0, k3=1e6)],
+                              quantities=("x", "z"))
