@@ -20,6 +20,14 @@ KERNELS = {
         "const long *restrict in_col", "const long *restrict out_col",
         "const double *restrict xt", "double *restrict yt", "double *restrict state")),
     "dtdyn_set_stop": ("int", ("int value",)),
+    "dtdyn_mck_loop": ("int", (
+        "long n", "long n_hist", "long n_steps", "long n_loaded", "const long *restrict loaded",
+        "const double *restrict force", "const double *restrict K", "const double *restrict C",
+        "const double *restrict LU", "const long *restrict piv", "const double *restrict L",
+        "const double *restrict c_u", "double w0", "double w1", "long n_shift",
+        "const long *restrict shift", "const long *restrict rows", "double *restrict H",
+        "long n_out", "const long *restrict out_idx", "double *restrict xo",
+        "double *restrict vo", "double *restrict ao", "double *restrict work")),
     "dtdyn_sturm_counts": ("int", (
         "long N", "const double *restrict k", "const double *restrict m", "double pivmin",
         "long n_lam", "const double *restrict lam", "long *restrict counts")),  # csrc/stop.c, in every library with a long loop
@@ -51,6 +59,7 @@ SOURCES = {
     "ss_response.c": ("dtdyn_ss_states",),
     "filter_bank.c": ("dtdyn_set_stop", "dtdyn_filter_bank"),
     "sturm.c": ("dtdyn_sturm_counts",),
+    "mck_loop.c": ("dtdyn_set_stop", "dtdyn_mck_loop"),
     "modal_states.c": ("dtdyn_set_stop", "dtdyn_modal_filters_lanes", "dtdyn_modal_filters_work",
                        "dtdyn_modal_filters"),
     "nl_loop.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_run"),

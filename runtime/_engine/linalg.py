@@ -90,10 +90,16 @@ def solver(A, what: str, why: str = ""):
         except RuntimeError as exc:
             raise ValueError(f"{what} is singular ({exc}){tail}") from None
         return lu.solve
+    lu_piv = dense_lu(A, what, why)
+    return lambda B: sla.lu_solve(lu_piv, B, check_finite=False)
+
+
+def dense_lu(A, what: str, why: str = ""):
+    """(LU, piv) of a dense A (scipy.linalg.lu_factor), with the singularity check of `solver`."""
+    tail = f": {why}" if why else ""
     n = A.shape[0]
     cond = np.linalg.cond(A)
     if not np.isfinite(cond) or cond * n * np.finfo(float).eps >= 1.0:
         raise ValueError(f"{what} is singular or numerically singular (condition number "
                          f"{cond:.3g}){tail}")
-    lu_piv = sla.lu_factor(A, check_finite=False)
-    return lambda B: sla.lu_solve(lu_piv, B, check_finite=False)
+    return sla.lu_factor(A, check_finite=False)

@@ -10,11 +10,15 @@ equal, and the general-matrix path.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+from importlib import resources
+
 import numpy as np
 import scipy.sparse as sps
 
-from dtdyn.generated.dttmm_sweep import combine, shift_history
+from dtdyn.generated.dttmm_sweep import combine, expanded, shift_history
 
+from dtdyn._engine import cbuild
 from dtdyn._engine import ground as support
 from dtdyn._engine import linalg
 from dtdyn._engine import stepping
@@ -41,9 +45,57 @@ def _initial_acceleration(M, f0):
         return a0
 
 
+@lru_cache(maxsize=None)
+def _c_loop():
+    """The library of generated/mck_loop.c, or None without a compiler (one warning)."""
+    source = resources.files("dtdyn.generated").joinpath("mck_loop.c").read_text()
+    lib = cbuild.load_library(source, "mck_loop")
+    if lib is not None:
+        cbuild.bind(lib, "dtdyn_mck_loop")
+    return lib
+
+
+def _c_advance(lib, sch, K_, M, C, K, loaded, outputs):
+    """advance() of the dense C loop (mck_loop.c): the same step as the NumPy one."""
+    names = list(sch.history)
+    LU, piv = linalg.dense_lu(M + K_["r"] * C + K_["p"] * K,
+                              "the effective matrix M + Dv C + Dx K")
+    LU, piv = np.ascontiguousarray(LU), np.ascontiguousarray(piv, dtype=np.int64)
+    L = np.ascontiguousarray([expanded(K_, pre, names) for pre in ("q", "s", "x1", "v1", "a1")],
+                             dtype=float)
+    c_u = np.array([K_.get(f"{q}1_u", 0.0) for q in "xva"])
+    lagged = sorted((nm for nm in names if nm[1:] != "0"), key=lambda nm: int(nm[2:]),
+                    reverse=True)
+    shift = np.array([(names.index(nm), names.index(nm[0] + ("0" if nm[2:] == "1" else
+                                                              f"m{int(nm[2:]) - 1}")))
+                      for nm in lagged], dtype=np.int64).reshape(-1, 2)
+    rows = np.array([names.index(q + "0") for q in "xva"], dtype=np.int64)
+    Kd, Cd = np.ascontiguousarray(K, dtype=float), np.ascontiguousarray(C, dtype=float)
+    loaded = np.ascontiguousarray(loaded, dtype=np.int64)
+    out_idx = np.ascontiguousarray(outputs, dtype=np.int64)
+    n = M.shape[0]
+    work = np.empty(6 * n)
+    run = lib.dtdyn_mck_loop
+
+    def advance(frc, H, xo, vo, ao):
+        frc = np.ascontiguousarray(frc, dtype=float)
+        Hc = np.ascontiguousarray(H)
+        ptr = [0 if a is None else a.ctypes.data for a in (xo, vo, ao)]
+        args = (n, len(names), frc.shape[0] - 1, loaded.size, loaded.ctypes.data, frc.ctypes.data,
+                Kd.ctypes.data, Cd.ctypes.data, LU.ctypes.data, piv.ctypes.data, L.ctypes.data,
+                c_u.ctypes.data, K_["w0"], K_["w1"], shift.shape[0], shift.ctypes.data,
+                rows.ctypes.data, Hc.ctypes.data, out_idx.size, out_idx.ctypes.data, *ptr,
+                work.ctypes.data)
+        cbuild.interruptible(lib, lambda: run(*args), work=(frc.shape[0] - 1) * n * n)
+        if Hc is not H:
+            H[...] = Hc
+        return 0.0
+    return advance
+
+
 def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outputs=None,
                  quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
-                 progress=False, ground_acceleration=None, influence=None,
+                 progress=False, ground_acceleration=None, influence=None, backend="c",
                  **scheme_params) -> Response:
     """Time history of M q'' + C q' + K q = L f(t) by one of the generated integrators.
 
@@ -72,6 +124,10 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
         (when that can be computed: M nonsingular) is refused before the run, or warned about.
     progress : bool
         Show a progress bar on long runs.
+    backend : {"c", "numpy"}
+        Dense matrices: the generated C loop (the effective matrix factorized once, the whole
+        block of steps in one call; NumPy with one warning where no compiler exists) or the
+        NumPy loop. Sparse matrices always step with scipy.sparse.
     ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
@@ -94,6 +150,9 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     """
     M, C, K = linalg.mck(M, C, K, keep_sparse=True)
     n = M.shape[0]
+    if backend not in ("c", "numpy"):
+        raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
+    loop = _c_loop() if backend == "c" and not sps.issparse(M) else None
     force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
                                                 influence)
     force, dt, loaded = validate.time_history(force, dt, force_dofs, n)
@@ -107,6 +166,8 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     a0 = _initial_acceleration(M, f0 - C @ v0 - K @ x0)
 
     def make_advance(sch, K_):
+        if loop is not None:
+            return _c_advance(loop, sch, K_, M, C, K, loaded, outputs)
         solve = linalg.solver(M + K_["r"] * C + K_["p"] * K, "the effective matrix M + Dv C + Dx K")
         names = sch.history
 
@@ -127,5 +188,6 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     res = stepping.integrate(info, "acceleration", dt, force, (x0, v0, a0), make_advance,
                              outputs, quantities, progress)
     res.info.update(method="assembled matrices", sparse=sps.issparse(M),
-                    backend="scipy.sparse" if sps.issparse(M) else "numpy")
+                    backend="scipy.sparse" if sps.issparse(M) else
+                    ("c" if loop is not None else "numpy"))
     return support.finish(res, ground)
