@@ -368,10 +368,40 @@ def choose_method(states: ModalStates, n_sections: int, backend="c") -> str:
     return "modes" if modes <= cost["section"] * n_sections else "sections"
 
 
+#: samples per block of the free response (its exponentials are samples x modes)
+_FREE_BLOCK = 1 << 14
+
+
+def _free_response(M, C, K, outputs, modes, x0, v0, t, quantities):
+    """x, v, a at the outputs of M q'' + C q' + K q = 0 from q(0) = x0, q'(0) = v0:
+
+        q(t) = sum_r e^{s_r t} R_r (M v0 + C x0 + s_r M x0)   (+ conjugates),
+
+    R_r the residues from every DOF (Laplace transform of the equations with their initial
+    state, H(s) = sum_r R_r / (s - s_r)); v and a multiply each term by s_r and s_r^2."""
+    M, C, K = linalg.mck(M, C, K)
+    n = M.shape[0]
+    x0, v0 = validate.initial_conditions(x0, v0, n)
+    full = modal_model(M, C, K, None, outputs)
+    if modes is not None:
+        full = full.select(modes)
+    s = full.poles
+    weight = np.where(full.oscillatory, 2.0, 1.0)          # a pair's conjugate: 2 Re(.)
+    load = (M @ v0 + C @ x0)[None, :] + s[:, None] * (M @ x0)[None, :]   # (modes, n)
+    coef = weight[:, None] * np.einsum("rij,rj->ri", full.residues, load)  # (modes, n_out)
+    power = {"x": 0, "v": 1, "a": 2}
+    out = {q: np.empty((t.size, outputs.size)) for q in quantities}
+    for start in range(0, t.size, _FREE_BLOCK):
+        E = np.exp(np.outer(t[start:start + _FREE_BLOCK], s))
+        for q in quantities:
+            out[q][start:start + E.shape[0]] = (E @ (s[:, None] ** power[q] * coef)).real
+    return out
+
+
 def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
                           quantities=("x", "v", "a"), modes=None, invariant="ramp",
                           algorithm="auto", backend="c", ground_acceleration=None,
-                          influence=None) -> Response:
+                          influence=None, x0=None, v0=None) -> Response:
     """Response of M q'' + C q' + K q = f by modal digital filters.
 
     Parameters
@@ -401,6 +431,10 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     backend : {"c", "numpy"}
         The generated C kernels, or scipy.signal.lfilter (also used when no compiler is found).
 
+    x0, v0 : (N,) array_like, optional
+        Initial displacement and velocity (rest when None): their free response, the residue
+        sum of the module docstring of `dtdyn.modal.model` applied to M v0 + C x0 + s_r M x0,
+        is added (with ``modes``, of the kept modes only).
     ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
@@ -468,6 +502,11 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
             c_ok = _c_bank() is not None
         setup += t1 - t0
         run += time.perf_counter() - t1
+    if x0 is not None or v0 is not None:
+        free = _free_response(M, C, K, model.outputs, modes, x0, v0,
+                              dt * np.arange(f.shape[0]), store)
+        for q in store:
+            store[q] = store[q] + free[q]
     validate.finite_response("modal_filter_response", dt, *store.values())
     response = Response(dt * np.arange(f.shape[0]), model.outputs, store.get("x"), store.get("v"),
                         store.get("a"),

@@ -380,3 +380,27 @@ def test_ground_scene_runs_relative_to_the_support(tmp_path):
     back = dd.load_result(out)
     np.testing.assert_array_equal(back.a_abs, response.a_abs)
     assert back.meta["scene"]["ground_peak_m_s2"] == pytest.approx(np.abs(ag).max())
+
+
+def test_initial_state_scene(tmp_path):
+    """[initial] x0, v0: free vibration of a chain with no load but the state at t_0; the run
+    equals simulate_chain with the same x0, v0 and its exact check uses them too."""
+    import dtdyn as dd
+
+    path = tmp_path / "free.toml"
+    path.write_text('[model]\nmass = [1.0, 1.0]\nstiffness = [1e4, 1e4]\ndamping = [1.0, 1.0]\n'
+                    '[[load]]\ndof = 1\nkind = "step"\namplitude = 0.0\n'
+                    '[initial]\nx0 = [0.0, 0.01]\nv0 = [0.5, 0.0]\n'
+                    '[scheme]\nname = "average_acceleration"\n[time]\ndt = 1e-4\nduration = 0.5\n')
+    scene = dd.load_scene(path)
+    response, report = dd.run_scene(scene)
+    same = dd.simulate_chain([1.0, 1.0], [1e4, 1e4], [1.0, 1.0], np.zeros(5001), 1e-4,
+                             force_dofs=[1], scheme="average_acceleration", x0=[0.0, 0.01],
+                             v0=[0.5, 0.0], quantities=("x",))
+    np.testing.assert_array_equal(response.x, same.x)
+    assert response.x[0, 1] == 0.01
+    assert report["check"] == "done" and report["max_rel_error"] < 1e-3   # (omega dt)^2 / 12
+    bad = path.read_text().replace("x0 = [0.0, 0.01]", "x0 = [0.0]")
+    path.write_text(bad)
+    with pytest.raises(ValueError, match="initial.x0 has 1 entries"):
+        dd.load_scene(path)

@@ -94,6 +94,26 @@ def _parse_loads(loads, n_dof: int, t: np.ndarray, base_dir: Path,
     return [dict(x) for x in loads], loaded, validate.force_samples(force, t.size - 1, loaded)
 
 
+def _parse_initial(tbl, n_dof: int):
+    """(x0, v0) of the [initial] table, each of length n_dof or None."""
+    if not isinstance(tbl, dict):
+        raise ValueError(f"initial = {tbl!r}: must be an [initial] table")
+    out = []
+    for key in tbl:
+        if key not in ("x0", "v0"):
+            raise ValueError(f"initial.{key}: unknown key, allowed: x0, v0")
+    for key in ("x0", "v0"):
+        if key not in tbl:
+            out.append(None)
+            continue
+        values = _number_list(f"initial.{key}", tbl[key])
+        if values.size != n_dof:
+            raise ValueError(f"initial.{key} has {values.size} entries, expected one per DOF "
+                             f"({n_dof})")
+        out.append(values)
+    return tuple(out)
+
+
 def _parse_ground(tbl, n_dof: int, t: np.ndarray, base_dir: Path, kind: str):
     """(a_g samples in m/s^2, influence or None) of the [ground] table."""
     if not isinstance(tbl, dict):
@@ -204,12 +224,18 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         loads, loaded, force = _parse_loads(data["load"], n_dof, t, base_dir, names)
     ground, influence = (None, None) if "ground" not in data else _parse_ground(
         data["ground"], n_dof, t, base_dir, kind)
+    x0 = v0 = None
+    if "initial" in data:
+        if nonlinear:
+            raise ValueError("initial: a scene with [[element]] starts at rest (nonlinear runs "
+                             "take no x0, v0 yet); remove the [initial] table")
+        x0, v0 = _parse_initial(data["initial"], n_dof)
     return Scene(title=title, mass=mass, stiffness=stiffness, damping=damping, loads=loads,
                  loaded=loaded, force=force, scheme=scheme, scheme_params=params, form=form,
                  sweep=sweep, backend=backend, dt=dt, n_steps=n_steps, outputs=outputs,
                  quantities=quantities, source=source, base_dir=base_dir, kind=kind, M=M, C=C, K=K,
                  dof_names=names, elements=elements, nonlinear=options, ground=ground,
-                 influence=influence)
+                 influence=influence, x0=x0, v0=v0)
 
 
 def load_scene(path: str | os.PathLike | None = None) -> Scene:

@@ -65,10 +65,13 @@ def scene_matrices(scene: Scene):
 
 
 def _support(scene: Scene) -> dict:
-    """The [ground] keywords of the entry points (none without support motion)."""
-    if scene.ground is None:
-        return {}
-    return {"ground_acceleration": scene.ground, "influence": scene.influence}
+    """The [ground] and [initial] keywords of the entry points (those the scene has)."""
+    kw = {}
+    if scene.ground is not None:
+        kw.update(ground_acceleration=scene.ground, influence=scene.influence)
+    if scene.x0 is not None or scene.v0 is not None:
+        kw.update(x0=scene.x0, v0=scene.v0)
+    return kw
 
 
 def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:

@@ -19,6 +19,9 @@ reference problem P3)::
     scale = 1.0                         #   the support and a_abs = a + r a_g is stored with a
     units = "g"                         #   "g" (x 9.80665) or "m/s^2" (default)
     influence = [1.0, 1.0]              #   matrices scenes: r, one entry per DOF (default ones)
+    [initial]                           # optional (linear scenes): the state at t_0
+    x0 = [0.0, 0.01]                    #   displacement of every DOF (default zeros)
+    v0 = [0.0, 0.0]                     #   velocity of every DOF (default zeros)
     [scheme]
     name = "newmark"                    # plus that scheme's parameters: beta = 0.25, gamma = 0.5
     form = "displacement"               # optional
@@ -124,8 +127,8 @@ QUANTITIES = ("x", "v", "a")
 #: run_scene compares with the matrix-exponential solution up to this many DOFs
 EXACT_MAX_DOF = 2000
 
-_TOP_KEYS = ("title", "model", "load", "ground", "element", "nonlinear", "scheme", "time",
-             "output")
+_TOP_KEYS = ("title", "model", "load", "ground", "initial", "element", "nonlinear", "scheme",
+             "time", "output")
 #: standard gravity, m/s^2 (a [ground] record in units of g)
 STANDARD_GRAVITY = 9.80665
 #: model kinds: a chain (mass, stiffness, damping vectors) or general M, C, K matrices
@@ -236,6 +239,8 @@ class Scene:
     nonlinear: dict = field(default_factory=dict)
     ground: np.ndarray | None = None
     influence: np.ndarray | None = None
+    x0: np.ndarray | None = None
+    v0: np.ndarray | None = None
 
     @property
     def n_dof(self) -> int:
