@@ -26,7 +26,7 @@ int dtdyn_set_stop(int value) {
 /*
  * The time loop of simulate_mck for dense M, C, K (acceleration form of any one-step or
  * multistep scheme of the generated table). Per step, with the history H (n_hist rows of n:
- * x0, v0, a0 and lags) and the scheme's coefficient rows L (6 x n_hist: q, s, x1, v1, a1
+ * x0, v0, a0 and lags) and the scheme's coefficient rows L (5 x n_hist: q, s, x1, v1, a1
  * expanded over the history rows, from dttmm_sweep.expanded) and c_u (x1_u, v1_u, a1_u):
  *
  *     F   = w0 f_k + w1 f_{k+1}                 (on the loaded DOFs)

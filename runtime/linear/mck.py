@@ -16,7 +16,7 @@ from importlib import resources
 import numpy as np
 import scipy.sparse as sps
 
-from dtdyn.generated.dttmm_sweep import combine, expanded, shift_history
+from dtdyn.generated.dttmm_sweep import combine, error_history_maps, shift_history
 
 from dtdyn._engine import cbuild
 from dtdyn._engine import ground as support
@@ -61,15 +61,13 @@ def _c_advance(lib, sch, K_, M, C, K, loaded, outputs):
     LU, piv = linalg.dense_lu(M + K_["r"] * C + K_["p"] * K,
                               "the effective matrix M + Dv C + Dx K")
     LU, piv = np.ascontiguousarray(LU), np.ascontiguousarray(piv, dtype=np.int64)
-    L = np.ascontiguousarray([expanded(K_, pre, names) for pre in ("q", "s", "x1", "v1", "a1")],
-                             dtype=float)
-    c_u = np.array([K_.get(f"{q}1_u", 0.0) for q in "xva"])
-    lagged = sorted((nm for nm in names if nm[1:] != "0"), key=lambda nm: int(nm[2:]),
-                    reverse=True)
-    shift = np.array([(names.index(nm), names.index(nm[0] + ("0" if nm[2:] == "1" else
-                                                              f"m{int(nm[2:]) - 1}")))
-                      for nm in lagged], dtype=np.int64).reshape(-1, 2)
-    rows = np.array([names.index(q + "0") for q in "xva"], dtype=np.int64)
+    # the step as matrices on the history rows (the generated maps of the plain sweep's error
+    # history: the same step); rows q, s (b unused here), then x1, v1, a1
+    L_qsb, L_upd, c_u, shifts, rows = error_history_maps(K_, names)
+    L = np.ascontiguousarray(np.vstack([L_qsb[:2], L_upd]), dtype=float)
+    c_u = np.ascontiguousarray(c_u.ravel())
+    shift = np.array(shifts, dtype=np.int64).reshape(-1, 2)
+    rows = np.arange(len(names), dtype=np.int64)[rows]
     Kd, Cd = np.ascontiguousarray(K, dtype=float), np.ascontiguousarray(C, dtype=float)
     loaded = np.ascontiguousarray(loaded, dtype=np.int64)
     out_idx = np.ascontiguousarray(outputs, dtype=np.int64)

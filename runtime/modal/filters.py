@@ -469,6 +469,8 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     M_ = None if ground_acceleration is None else linalg.mck(M, C, K)[0]
     force, force_dofs, ground = support.prepare(M_, force, force_dofs, np.shape(M)[0],
                                                 ground_acceleration, influence)
+    if x0 is not None or v0 is not None:  # checked before the run, used after it
+        validate.initial_conditions(x0, v0, np.shape(M)[0])
     model = modal_model(M, C, K, force_dofs, outputs)
     if modes is not None:
         model = model.select(modes)

@@ -57,11 +57,7 @@ def check_stability(scene: Scene) -> bool:
 
 def scene_matrices(scene: Scene):
     """(M, C, K) of a scene: a chain's from ``chain_matrices`` (dense), else as held."""
-    if scene.kind == "matrices":
-        return scene.M, scene.C, scene.K
-    from dtdyn.linear.chain import chain_matrices
-
-    return chain_matrices(scene.mass, scene.stiffness, scene.damping, sparse=False)
+    return scene.matrices(sparse=False)
 
 
 def _support(scene: Scene) -> dict:

@@ -248,13 +248,13 @@ class Scene:
             return int(self.M.shape[0])
         return int(self.mass.size)
 
-    def matrices(self):
-        """(M, C, K) of the model: a chain's assembled matrices (scipy.sparse beyond 200
-        masses), or the matrices scene's own."""
+    def matrices(self, sparse: bool | None = None):
+        """(M, C, K) of the model: a chain's assembled matrices (``chain_matrices``: sparse
+        beyond 200 masses unless ``sparse`` says), or the matrices scene's own."""
         if self.kind == "matrices":
             return self.M, self.C, self.K
         from dtdyn.linear.chain import chain_matrices
-        return chain_matrices(self.mass, self.stiffness, self.damping)
+        return chain_matrices(self.mass, self.stiffness, self.damping, sparse=sparse)
 
     @property
     def sparse(self) -> bool:
