@@ -19,7 +19,7 @@ KERNELS = {
         "long n", "long n_in", "long n_out", "long n_sec", "const double *restrict sos",
         "const long *restrict in_col", "const long *restrict out_col",
         "const double *restrict xt", "double *restrict yt", "double *restrict state")),
-    "dtdyn_set_stop": ("int", ("int value",)),
+    "dtdyn_set_stop": ("int", ("int value",)),  # csrc/stop.c, in every library with a long loop
     "dtdyn_mck_loop": ("int", (
         "long n", "long n_hist", "long n_steps", "long n_loaded", "const long *restrict loaded",
         "const double *restrict force", "const double *restrict K", "const double *restrict C",
@@ -30,7 +30,7 @@ KERNELS = {
         "double *restrict vo", "double *restrict ao", "double *restrict work")),
     "dtdyn_sturm_counts": ("int", (
         "long N", "const double *restrict k", "const double *restrict m", "double pivmin",
-        "long n_lam", "const double *restrict lam", "long *restrict counts")),  # csrc/stop.c, in every library with a long loop
+        "long n_lam", "const double *restrict lam", "long *restrict counts")),
     "dtdyn_modal_filters_lanes": ("int", ("void",)),
     "dtdyn_modal_filters_work": ("long", ("long m", "long n_out")),
     "dtdyn_modal_filters": ("int", (

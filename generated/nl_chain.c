@@ -16,9 +16,9 @@
  * reuses the Riccati factors left in its work (sweep code 2). The residual, its Jacobian, g and
  * z' come from `nl_residual` (CasADi code generation of the element laws, appended to this
  * source). Newton accepts u by the rule of every backend (newton_solve in newton.c).
- * Returns 0; DTDYN_STOPPED (stop.c) when stopped; 1 when Newton failed (not converged in max_iter
- * iterations, singular Jacobian or non-finite) at step fail[0] with residual stats[3]; 4 when the
- * chain kernel failed.
+ * Returns 0; DTDYN_STOPPED (stop.c) when stopped; 1 when Newton failed (not converged in
+ * max_iter iterations, singular Jacobian or non-finite) at step fail[0] with residual
+ * stats[3]; 4 when the chain kernel failed.
  */
 #include <math.h>
 #include <string.h>

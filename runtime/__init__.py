@@ -48,7 +48,8 @@ __all__ = [
     "simulate_chain", "chain_matrices", "simulate_mck", "exact_response",
     "newmark_ss", "discrete_state_space", "state_space_response",
     "discretize", "first_order_form", "DiscreteModel",
-    "frequency_response", "undamped_poles", "chain_frequencies", "stability", "critical_omega_dt", "Stability",
+    "frequency_response", "undamped_poles", "chain_frequencies", "stability", "critical_omega_dt",
+    "Stability",
     # modal
     "modes", "Modes", "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",
     "discrete_frequency_response", "continuous_frequency_response", "ramp_bias",

@@ -333,12 +333,14 @@ def modal_model(M, C, K, force_dofs=None, outputs=None, modes=None) -> ModalMode
     return model if modes is None else model.select(modes)
 
 
-def modal_factors(M, C, K):
+def modal_factors(M, C, K, initial: bool = False):
     """All 2n poles s_r and rank-one residue factors of M q'' + C q' + K q = f.
 
     Returns (s, Psi_q, X_f) with H(s) = sum_r Psi_q[:, r] X_f[r, :] / (s - s_r) over all 2n
     eigenvalues (conjugates included), i.e. R_r = outer(Psi_q[:, r], X_f[r, :]); the velocity
     part of the eigenvector is s_r Psi_q[:, r]. Same checks as `modal_model` (module docstring).
+    ``initial``: also X_x, so that the modal coordinates of a state (q, q') are
+    eta = X_x q + X_f M q' (the left eigenvectors applied to B z).
     """
     M, C, K = linalg.mck(M, C, K)
     n = M.shape[0]
@@ -376,6 +378,8 @@ def modal_factors(M, C, K):
                       f"critically damped mode): modal sum relative error ~{estimate:.1e}",
                       DtdynAccuracyWarning, stacklevel=2)
     # H(s) = (1/(Omega^2 mu)) sum psi~ x~ / (s~ - s~_r) = sum psi~ x~ / (Omega mu (s - s_r))
+    if initial:  # eta = X B~ z~, z~ = [q; q' / Omega], B~ = diag(I, M / mu)
+        return s, Psi[:n], X[:, n:] / (omega_s * mu), X[:, :n]
     return s, Psi[:n], X[:, n:] / (omega_s * mu)
 
 

@@ -48,8 +48,8 @@ THETA_LIMIT = {"modal_ramp": 2.0, "modal_parabolic": 0.01}
 class LinearStep:
     """The shifted linear model of one (sub)step (module docstring).
 
-    Inputs u = [f; g]. X0f, X0g give the shifted initial state x_0 = X0f f_0 + X0g g_0 of a
-    system at rest (x_0 = z_0 - Gamma1 u_0, z_0 the scheme's history at t_0).
+    Inputs u = [f; g]. The shifted initial state is x_0 = X0f f_0 + X0g g_0 + X0x q_0 +
+    X0v q'_0 (x_0 = z_0 - Gamma1 u_0, z_0 the scheme's history at t_0; q_0 = q'_0 = 0: at rest).
     """
 
     h: float
@@ -64,12 +64,15 @@ class LinearStep:
     Dog: np.ndarray
     X0f: np.ndarray
     X0g: np.ndarray
+    X0x: np.ndarray
+    X0v: np.ndarray
 
 
-def _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h, direct=None) -> LinearStep:
+def _shifted(Phi, G0, G1, S, Z0, Zx, Zv, L, out, need_v, nf, h, direct=None) -> LinearStep:
     """LinearStep of z_{k+1} = Phi z_k + G0 u_k + G1 u_{k+1}, [q; q'; q''] = S z + direct u.
 
-    Shifted state x = z - G1 u (A = Phi, B = G0 + Phi G1, D = S G1); Z0 maps u_0 to z_0.
+    Shifted state x = z - G1 u (A = Phi, B = G0 + Phi G1, D = S G1); z_0 = Z0 u_0 + Zx q_0 +
+    Zv q'_0.
     """
     n = L.shape[1]
     q, v, a = S[:n], S[n:2 * n], S[2 * n:]
@@ -82,7 +85,8 @@ def _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h, direct=None) -> LinearSt
     X0 = Z0 - G1
     c = np.ascontiguousarray
     return LinearStep(h, c(Phi), c(B[:, :nf]), c(B[:, nf:]), c(W), c(Dw[:, :nf]), c(Dw[:, nf:]),
-                      c(O), c(Do[:, :nf]), c(Do[:, nf:]), c(X0[:, :nf]), c(X0[:, nf:]))
+                      c(O), c(Do[:, :nf]), c(Do[:, nf:]), c(X0[:, :nf]), c(X0[:, nf:]), c(Zx),
+                      c(Zv))
 
 
 def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> LinearStep:
@@ -100,7 +104,8 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> Li
     from dtdyn.generated.nl_modal import parabola_coefficient
 
     from dtdyn.modal.model import _pair_poles, modal_factors
-    s_all, Psi_q, X_f = modal_factors(M, C, K)
+    s_all, Psi_q, X_f, X_x = modal_factors(M, C, K, initial=True)
+    X_v = X_f @ M  # eta_0 = X_x q_0 + X_v q'_0
     keep, osc = _pair_poles(s_all)
     order = np.argsort(np.abs(s_all[keep]), kind="stable")
     idx, osc = keep[order], osc[order]
@@ -116,12 +121,13 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> Li
     psi = Psi_q[:, idx] * np.where(osc, 2.0, 1.0)
     Sc = np.vstack([psi, psi * s, psi * s**2])
     direct = np.vstack([np.zeros((2 * L.shape[1], nu)), ((psi * s) @ P).real])
-    A_blocks, rows = [], {"G0": [], "G1": [], "G2": [], "S": []}
+    A_blocks, rows = [], {"G0": [], "G1": [], "G2": [], "S": [], "Zx": [], "Zv": []}
     for r in range(idx.size):
         l, g0, g1, g2 = lam[r], N1[r] * P[r], N0[r] * P[r], N2[r] * P[r, nf:]
         g0[nf:] -= 2.0 * g2
         g1[nf:] += g2
-        parts = {"G0": g0, "G1": g1, "G2": g2, "S": Sc[:, r]}
+        parts = {"G0": g0, "G1": g1, "G2": g2, "S": Sc[:, r], "Zx": X_x[idx[r]],
+                 "Zv": X_v[idx[r]]}
         if osc[r]:  # real state (Re eta, Im eta)
             A_blocks.append(np.array([[l.real, -l.imag], [l.imag, l.real]]))
             for k, v in parts.items():
@@ -131,7 +137,7 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> Li
             for k, v in parts.items():
                 rows[k].append(v.real)
     Phi = block_diag(*A_blocks)
-    G0, G1, G2, S = (np.array(rows[k]) for k in ("G0", "G1", "G2", "S"))
+    G0, G1, G2, S, Zx, Zv = (np.array(rows[k]) for k in ("G0", "G1", "G2", "S", "Zx", "Zv"))
     S = S.T
     Z0 = np.zeros_like(G1)
     if parabolic:  # state [eta; g_{k-1}]
@@ -142,7 +148,8 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> Li
         G1 = np.vstack([G1, np.zeros((ne, nu))])
         S = np.hstack([S, np.zeros((S.shape[0], ne))])
         Z0 = np.vstack([Z0, E_g])
-    return _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h, direct)
+        Zx, Zv = (np.vstack([Z, np.zeros((ne, Z.shape[1]))]) for Z in (Zx, Zv))
+    return _shifted(Phi, G0, G1, S, Z0, Zx, Zv, L, out, need_v, nf, h, direct)
 
 
 def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearStep:
@@ -155,9 +162,13 @@ def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearSte
     Phi, G0, G1, S = scheme_blocks(M, C, K, h, scheme, acceleration=True, **params)
     n = M.shape[0]
     G0, G1 = G0 @ U, G1 @ U
+    Minv = np.linalg.pinv(M)
     Z0 = np.zeros_like(G1)
-    Z0[2 * n:3 * n] = np.linalg.pinv(M) @ U
-    return _shifted(Phi, G0, G1, S, Z0, L, out, need_v, nf, h)
+    Z0[2 * n:3 * n] = Minv @ U
+    # history [x0; v0; a0] at t_0 from q_0, q'_0: a_0 = M^+ (U u_0 - K q_0 - C q'_0)
+    eye, zero = np.eye(n), np.zeros((n, n))
+    Zx, Zv = np.vstack([eye, zero, -Minv @ K]), np.vstack([zero, eye, -Minv @ C])
+    return _shifted(Phi, G0, G1, S, Z0, Zx, Zv, L, out, need_v, nf, h)
 
 
 def linear_step(method, M, C, K, h, force_dofs, L, outputs, modes=None, need_v=False,

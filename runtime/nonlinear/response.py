@@ -98,13 +98,15 @@ def _residual_function(elements, sz: _Sizes):
                        [e["r"], J, e["g"], e["rate"]])
 
 
-def _forces_at_rest(elements, sz: _Sizes):
-    """g and z' at y = y' = 0, z = 0 (the state at t_0)."""
+def _forces_at_rest(elements, sz: _Sizes, y=None, yd=None):
+    """g and z' at t_0: the elements' deformations y, y' (zero: at rest) with z = 0."""
     from dtdyn.nonlinear.elements import NUMPY_OPS
-    g = np.array([float(el.force(0.0, 0.0, np.zeros(el.n_internal), NUMPY_OPS))
-                  for el in elements])
-    rate = [float(r) for el in elements for r in el.rate(0.0, 0.0, np.zeros(el.n_internal),
-                                                         NUMPY_OPS)]
+    y = np.zeros(len(elements)) if y is None else y
+    yd = np.zeros(len(elements)) if yd is None else yd
+    g = np.array([float(el.force(y[e], yd[e], np.zeros(el.n_internal), NUMPY_OPS))
+                  for e, el in enumerate(elements)])
+    rate = [float(r) for e, el in enumerate(elements)
+            for r in el.rate(y[e], yd[e], np.zeros(el.n_internal), NUMPY_OPS)]
     return g, np.array(rate)
 
 
@@ -349,7 +351,8 @@ def _check_quantities(quantities) -> tuple:
 def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme="modal_ramp",
                        substeps=1, outputs=None, quantities=("x", "v", "a"), modes=None,
                        backend="c", tol=1e-12, max_iter=30, solver="newton", compiled=False,
-                       ground_acceleration=None, influence=None, **scheme_params) -> Response:
+                       ground_acceleration=None, influence=None, x0=None, v0=None,
+                       **scheme_params) -> Response:
     """Forced response of M q'' + C q' + K q + L^T g = f with localized nonlinear elements.
 
     The equivalent of the source's ``nonlindxmck(F, fs, M, C, K, FD, nID, modes, resps)``.
@@ -393,6 +396,9 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     compiled : bool
         Backend "casadi": generate C for the whole record function and compile it (cached).
 
+    x0, v0 : (N,) array_like, optional
+        Displacement and velocity at t_0 (rest when None); the elements start from the
+        deformations they give, their internal states z from 0.
     ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
@@ -450,6 +456,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         raise ValueError("compiled=True needs solver='fast_newton': CasADi cannot generate C for "
                          "its 'newton' rootfinder")
     f = validate.force_record(force, force_dofs.size)
+    q0, qd0 = validate.initial_conditions(x0, v0, n)
     validate.output_size("nonlinear_response", f.shape[0],
                          len(quantities) * max(outputs.size, len(elements)))
     L = element_matrix(elements, n)
@@ -472,9 +479,10 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         raise ValueError("quantities asks for 'z', but no element has internal states (BoucWen "
                          "has z)")
     nzo = sz.nz if "z" in quantities else 0
-    g0, rate0 = _forces_at_rest(elements, sz)
-    x = np.ascontiguousarray(step.X0f @ f[0] + step.X0g @ g0)
-    u = np.zeros(sz.nw + sz.nz)
+    y0, yd0 = L @ q0, L @ qd0
+    g0, rate0 = _forces_at_rest(elements, sz, y0, yd0)
+    x = np.ascontiguousarray(step.X0f @ f[0] + step.X0g @ g0 + step.X0x @ q0 + step.X0v @ qd0)
+    u = np.concatenate([y0] + ([yd0] if sz.need_v else []) + [np.zeros(sz.nz)])
     t1 = time.perf_counter()
 
     used = backend

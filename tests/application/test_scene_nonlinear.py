@@ -370,3 +370,22 @@ def test_gap_element_direct_equivalence(tmp_path):
            'smoothing = 1e-5\nside = "positive"\n')
     sc = load_scene(write_scene(tmp_path, elements=gap))
     assert sc.elements == (Gap(2, 3, gap=1e-3, stiffness=1e6, smoothing=1e-5, side="positive"),)
+
+
+def test_nonlinear_scene_with_an_initial_state(tmp_path):
+    """[initial] in a scene with [[element]]: the run equals nonlinear_response with x0, v0."""
+    import dtdyn as dd
+
+    path = tmp_path / "duffing.toml"
+    path.write_text('[model]\nmass = [1.0]\nstiffness = [1e4]\ndamping = [2.0]\n'
+                    '[[load]]\ndof = 0\nkind = "step"\namplitude = 0.0\n'
+                    '[[element]]\nkind = "cubic"\ni = 0\nk3 = 1e9\n'
+                    '[initial]\nx0 = [0.01]\nv0 = [-0.5]\n'
+                    '[time]\ndt = 1e-3\nduration = 0.5\n')
+    scene = dd.load_scene(path)
+    response, _ = dd.run_scene(scene)
+    same = dd.nonlinear_response([[1.0]], [[2.0]], [[1e4]], np.zeros(501), 1e-3,
+                                 elements=[dd.Cubic(0, k3=1e9)], x0=[0.01], v0=[-0.5],
+                                 quantities=("x",))
+    np.testing.assert_array_equal(response.x, same.x)
+    assert response.x[0, 0] == pytest.approx(0.01, rel=1e-12)   # the modal state, projected

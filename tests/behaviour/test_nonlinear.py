@@ -451,3 +451,37 @@ def test_element_forces_and_internal_states_are_stored_when_asked(backend, tmp_p
     with pytest.raises(ValueError, match="no element has internal states"):
         NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[1], elements=[Cubic(0, k3=1e6)],
                               quantities=("x", "z"))
+
+
+def test_initial_conditions_linear_limit_and_duffing_orders():
+    """x0, v0: with a negligible element the modal methods equal exact_response and the
+    one-step schemes simulate_mck (same initial state, 1e-12); a Duffing oscillator released
+    from x0, v0 converges to solve_ivp (DOP853, rtol 1e-12) at the methods' orders, 2 for
+    Newmark and 3 for modal_parabolic, on both backends."""
+    from scipy.integrate import solve_ivp
+
+    M, C, K = np.diag([1.0, 2.0, 1.5]), np.diag([1.0, 2.0, 1.0]), np.array(
+        [[3e4, -2e4, 0.0], [-2e4, 3e4, -1e4], [0.0, -1e4, 1e4]])
+    x0, v0 = np.array([1e-3, -2e-3, 3e-3]), np.array([0.1, 0.0, -0.2])
+    f = np.sin(np.arange(3001) * 1e-3 * 20)[:, None]
+    ex = exact_response(M, C, K, f, 1e-3, force_dofs=[2], x0=x0, v0=v0)
+    for scheme in ("modal_ramp", "newmark"):
+        r = NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[2], scheme=scheme, x0=x0, v0=v0,
+                                  elements=[Cubic(0, k3=1e-20)])
+        ref = ex if scheme == "modal_ramp" else simulate_mck(M, C, K, f, 1e-3, force_dofs=[2],
+                                                             x0=x0, v0=v0, scheme=scheme)
+        for q in "xva":
+            assert np.abs(getattr(r, q) - getattr(ref, q)).max() <= 1e-12 * np.abs(
+                getattr(ref, q)).max(), (scheme, q)
+    m, c, k, k3, a0, b0 = 1.0, 2.0, 1e4, 1e9, 1e-2, -0.5
+    t = np.arange(501) * 1e-3
+    sol = solve_ivp(lambda _, y: [y[1], -(c * y[1] + k * y[0] + k3 * y[0] ** 3) / m],
+                    (0.0, t[-1]), [a0, b0], method="DOP853", rtol=1e-12, atol=1e-15, t_eval=t)
+    peak = np.abs(sol.y[0]).max()
+    for scheme, order in (("newmark", 2), ("modal_parabolic", 3)):
+        for backend in ("c", "casadi"):
+            errs = [np.abs(NL.nonlinear_response(
+                [[m]], [[c]], [[k]], np.zeros(501), 1e-3, elements=[Cubic(0, k3=k3)],
+                scheme=scheme, substeps=S, x0=[a0], v0=[b0], backend=backend).x[:, 0]
+                - sol.y[0]).max() / peak for S in (4, 8)]
+            assert 0.8 * 2**order <= errs[0] / errs[1] <= 1.2 * 2**order, (scheme, errs)

@@ -226,9 +226,6 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         data["ground"], n_dof, t, base_dir, kind)
     x0 = v0 = None
     if "initial" in data:
-        if nonlinear:
-            raise ValueError("initial: a scene with [[element]] starts at rest (nonlinear runs "
-                             "take no x0, v0 yet); remove the [initial] table")
         x0, v0 = _parse_initial(data["initial"], n_dof)
     return Scene(title=title, mass=mass, stiffness=stiffness, damping=damping, loads=loads,
                  loaded=loaded, force=force, scheme=scheme, scheme_params=params, form=form,

@@ -165,8 +165,8 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
 
         response = mck.simulate_mck(
             scene.M, scene.C, scene.K, scene.force, scene.dt, force_dofs=scene.loaded,
-            **_support(scene), scheme=scene.scheme, outputs=scene.outputs, quantities=scene.quantities,
-            progress=progress, **scene.scheme_params)
+            **_support(scene), scheme=scene.scheme, outputs=scene.outputs,
+            quantities=scene.quantities, progress=progress, **scene.scheme_params)
         response.info.setdefault("backend", scene.backend)
     else:
         from dtdyn.linear import chain  # imported here: chain may compile kernels on first use

@@ -19,7 +19,7 @@ reference problem P3)::
     scale = 1.0                         #   the support and a_abs = a + r a_g is stored with a
     units = "g"                         #   "g" (x 9.80665) or "m/s^2" (default)
     influence = [1.0, 1.0]              #   matrices scenes: r, one entry per DOF (default ones)
-    [initial]                           # optional (linear scenes): the state at t_0
+    [initial]                           # optional: the state at t_0
     x0 = [0.0, 0.01]                    #   displacement of every DOF (default zeros)
     v0 = [0.0, 0.0]                     #   velocity of every DOF (default zeros)
     [scheme]
