@@ -180,7 +180,8 @@ static long newton_solve(long nu, long ne, double *restrict u, double *restrict 
  * mats: m, k, c, params (the scheme's), U (ne x nh x N), par ([Dwg; h], Dwg nw x ne
  *       column-major), force (n_samples x nf, linear between samples).
  * state: H, u (nw + nz: the last solution), g (ne), rate (nz); updated in place.
- * out:  x, v, a (n_samples x no each).
+ * out:  x, v, a (n_samples x no each), then g (n_samples x ne) and z (n_samples x nz), NULL
+ *       when not stored.
  * stats: [max iterations, total iterations, max final residual, failing residual].
  * work: 12 N (chain kernel) + 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz, then
  *       the CasADi work.
@@ -223,6 +224,10 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
             out[1][n * no + o] = H[iv * N + outs[o]];
             out[2][n * no + o] = H[ia * N + outs[o]];
         }
+        if (out[3])
+            copy(ne, g, out[3] + n * ne);
+        if (out[4])
+            copy(nz, u + nw, out[4] + n * nz);
         if (n + 1 == n_samples)
             break;
         if ((n & 63) == 0 && dtdyn_stop_flag) /* a sample sweeps the whole chain */

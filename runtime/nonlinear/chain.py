@@ -28,25 +28,25 @@ from dtdyn._engine import cbuild
 from dtdyn._engine import ground as support
 from dtdyn._engine import kernels
 from dtdyn._engine import validate
-from dtdyn.linear.chain import chain_parameters
+from dtdyn.linear.chain import chain_matrices, chain_parameters
 from dtdyn.nonlinear.elements import check_elements
-from dtdyn.nonlinear.response import NewtonError, _c_source, _forces_at_rest, _residual_function, _sizes
+from dtdyn.nonlinear.response import (NewtonError, _c_source, _check_quantities, _forces_at_rest,
+                                     _residual_function, _sizes)
 from dtdyn._engine.result import Response
-from dtdyn._engine.stepping import check_quantities
 from dtdyn._engine.schemes import get_scheme
 
 
 def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, force_dofs=None,
                              scheme="newmark", form="displacement", substeps=1, outputs=None,
                              quantities=("x", "v", "a"), backend="c", tol=1e-12, max_iter=30,
-                             ground_acceleration=None, influence=None,
+                             ground_acceleration=None, influence=None, x0=None, v0=None,
                              **scheme_params) -> Response:
     """Forced response of a chain with nonlinear elements by the DT-TMM (module docstring).
 
     Parameters as `simulate_chain` (chain data, ``force`` of shape (n_steps + 1,
     len(force_dofs)) at t_k = k dt, linear between samples, ``scheme``, ``form``, ``outputs``,
-    ``quantities``, ``backend``) and `nonlinear_response` (``elements``, ``substeps``,
-    ``tol``, ``max_iter``). One-step schemes only.
+    ``quantities``, ``backend``, ``x0``, ``v0``) and `nonlinear_response` (``elements``,
+    ``substeps``, ``tol``, ``max_iter``, the quantities "g" and "z"). One-step schemes only.
 
     ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
         Support acceleration at the force's times, linear between samples: the DOFs are then
@@ -78,7 +78,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                                                 ground_acceleration, influence)
     force_dofs = validate.dof_indices("force_dofs", force_dofs, N)
     outputs = validate.dof_indices("outputs", outputs, N)
-    quantities = check_quantities(quantities)
+    quantities = _check_quantities(quantities)
     elements = check_elements(elements)
     if not elements:
         raise ValueError("elements is empty: use simulate_chain for a linear chain")
@@ -89,6 +89,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                                  f"the chain's masses 0..{N - 1}")
     S = validate.step_count("substeps", substeps)
     f = validate.force_record(force, force_dofs.size)
+    x0, v0 = validate.initial_conditions(x0, v0, N)
     validate.output_size("nonlinear_chain_response", f.shape[0], 3 * outputs.size)
     info = get_scheme(scheme, **scheme_params)
     if info.startup_steps:
@@ -138,12 +139,23 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
     Dwg = np.array([kin(Ue) for Ue in U]).T  # (nw, ne)
     par = np.concatenate([Dwg.ravel(order="F"), [h]])
 
-    g, rate = _forces_at_rest(elements, sz)
     H = np.zeros((len(names), N))
-    H[ia] = np.bincount(loaded, loads(f[0], g), minlength=N) / m
-    u = np.concatenate([kin(H), np.zeros(sz.nz)])
+    H[ix], H[iv] = x0, v0
+    w0 = kin(H)  # the elements start from the deformations of x0, v0, z from 0
+    g, rate = _forces_at_rest(elements, sz, w0[:sz.ne], w0[sz.ne:] if sz.need_v else None)
+    f0 = np.bincount(loaded, loads(f[0], g), minlength=N)
+    if x0.any() or v0.any():  # a_0 = M^-1 (f_0 - L^T g_0 - C v_0 - K x_0)
+        _, Cc, Kc = chain_matrices(m, k, c, sparse=True)
+        f0 = f0 - Cc @ v0 - Kc @ x0
+    H[ia] = f0 / m
+    u = np.concatenate([w0, np.zeros(sz.nz)])
     n_samples = f.shape[0]
     store = {q: np.empty((n_samples, outputs.size)) for q in "xva"}
+    store["g"] = np.empty((n_samples, sz.ne)) if "g" in quantities else None
+    store["z"] = np.empty((n_samples, sz.nz)) if "z" in quantities else None
+    if "z" in quantities and not sz.nz:
+        raise ValueError("quantities asks for 'z', but no element has internal states (BoucWen "
+                         "has z)")
     t1 = time.perf_counter()
     driver = _c_driver(elements, sz) if backend == "c" else None
     chain = kernels.c_chain_function(info.name) if driver else None
@@ -160,6 +172,10 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
         for n in range(n_samples):
             for q, i in zip("xva", (ix, iv, ia)):
                 store[q][n] = H[i, outputs]
+            if store["g"] is not None:
+                store["g"][n] = g
+            if store["z"] is not None:
+                store["z"][n] = u[sz.nw:]
             if n + 1 == n_samples:
                 break
             for j in range(S):
@@ -185,6 +201,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
     t2 = time.perf_counter()
     return support.finish(Response(dt * np.arange(n_samples), outputs,
                     **{q: store[q] if q in quantities else None for q in ("x", "v", "a")},
+                    g=store["g"], z=store["z"],
                     info={"method": f"DT-TMM {info.name} ({form} form, stable sweep)",
                           "scheme": info.name, "params": dict(info.params), "dt": dt,
                           "n_steps": n_samples - 1, "substeps": S, "backend": backend,
@@ -267,7 +284,9 @@ def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
     args = (dims.ctypes.data, ctypes.cast(chain, ctypes.c_void_p), pointers(idx),
             pointers(mats), *(a.ctypes.data for a in state),
-            pointers([store[q] for q in "xva"]), h, tol, stats.ctypes.data, fail.ctypes.data,
+            (ctypes.c_void_p * 5)(*[0 if store[q] is None else store[q].ctypes.data
+                                    for q in "xvagz"]), h, tol, stats.ctypes.data,
+            fail.ctypes.data,
             work.ctypes.data, iwork.ctypes.data)
     rc = cbuild.interruptible(lib, lambda: run(*args), work=dims[8] * dims[9] * N)
     if rc == 1:

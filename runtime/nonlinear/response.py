@@ -481,6 +481,10 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     nzo = sz.nz if "z" in quantities else 0
     y0, yd0 = L @ q0, L @ qd0
     g0, rate0 = _forces_at_rest(elements, sz, y0, yd0)
+    # the loop solves every sample's step, t_0's too, with the trapezoidal z_k = z_{k-1} +
+    # h/2 (z'_k + z'_{k-1}): "previous" values z = 0, z' = -z'_0 make z_0 = 0 its solution
+    # (the states start from 0, whatever y'_0 is)
+    rate0 = -rate0
     x = np.ascontiguousarray(step.X0f @ f[0] + step.X0g @ g0 + step.X0x @ q0 + step.X0v @ qd0)
     u = np.concatenate([y0] + ([yd0] if sz.need_v else []) + [np.zeros(sz.nz)])
     t1 = time.perf_counter()
