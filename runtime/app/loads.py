@@ -60,7 +60,8 @@ def _time_step(t: np.ndarray) -> float | None:
     return float(t[-1] - t[0]) / (t.size - 1)
 
 
-def _read_file(name: str, spec: dict, n: int, base_dir: Path) -> np.ndarray:
+def _read_file(name: str, spec: dict, n: int | None, base_dir: Path) -> np.ndarray:
+    """The samples of a "file" load (n: the count it must have; None: any, at least 2)."""
     raw = spec["path"]
     if not isinstance(raw, str) or not raw.strip():
         raise ValueError(f"{name}.path = {raw!r}: must be a non-empty string")
@@ -86,9 +87,10 @@ def _read_file(name: str, spec: dict, n: int, base_dir: Path) -> np.ndarray:
     if column >= data.shape[1]:
         raise ValueError(f"{name}.column = {column}: the file {raw!r} has {data.shape[1]} column(s)")
     samples = data[:, column]
-    if samples.size != n:
-        raise ValueError(f"{name}.path = {raw!r}: has {samples.size} samples, expected {n} "
-                         "(one per time step t_0 .. t_n at the scene's dt)")
+    if (n is not None and samples.size != n) or samples.size < 2:
+        raise ValueError(f"{name}.path = {raw!r}: has {samples.size} samples, expected "
+                         f"{n if n is not None else 'at least 2'} (one per time step t_0 .. t_n "
+                         "at the scene's dt, or at the ground record's own dt)")
     bad = ~np.isfinite(samples)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])

@@ -404,3 +404,25 @@ def test_initial_state_scene(tmp_path):
     path.write_text(bad)
     with pytest.raises(ValueError, match="initial.x0 has 1 entries"):
         dd.load_scene(path)
+
+
+def test_ground_record_at_its_own_step(tmp_path):
+    """[ground] dt: a record sampled at 0.005 s, a scene at 0.002 s: the scene's samples are
+    the record linear between its samples, and 0 after its end (the building then rings)."""
+    import dtdyn as dd
+
+    rec = np.sin(np.arange(201) * 0.005 * 2 * np.pi * 1.5)           # 1 s of record
+    np.save(tmp_path / "rec.npy", rec)
+    (tmp_path / "q.toml").write_text(
+        '[model]\nmass = [2e5, 2e5]\nstiffness = [3e8, 2e8]\ndamping = [4e5, 4e5]\n'
+        '[ground]\nkind = "file"\npath = "rec.npy"\ndt = 0.005\n'
+        '[scheme]\nname = "average_acceleration"\n[time]\ndt = 0.002\nduration = 1.5\n')
+    scene = dd.load_scene(tmp_path / "q.toml")
+    t = np.arange(751) * 0.002
+    np.testing.assert_allclose(scene.ground, np.interp(t, np.arange(201) * 0.005, rec, right=0),
+                               rtol=0, atol=1e-15)
+    assert np.all(scene.ground[t > 1.0 + 1e-9] == 0.0)
+    (tmp_path / "bad.toml").write_text((tmp_path / "q.toml").read_text().replace(
+        'kind = "file"\npath = "rec.npy"\n', 'kind = "sine"\namplitude = 1.0\nfrequency = 1.0\n'))
+    with pytest.raises(ValueError, match="only a kind = \"file\" record"):
+        dd.load_scene(tmp_path / "bad.toml")

@@ -389,3 +389,24 @@ def test_nonlinear_scene_with_an_initial_state(tmp_path):
                                  quantities=("x",))
     np.testing.assert_array_equal(response.x, same.x)
     assert response.x[0, 0] == pytest.approx(0.01, rel=1e-12)   # the modal state, projected
+
+
+def test_nonlinear_scene_stores_element_forces_and_states(tmp_path):
+    import dtdyn as dd
+
+    path = tmp_path / "bw.toml"
+    path.write_text('[model]\nmass = [1.0]\nstiffness = [1e4]\ndamping = [2.0]\n'
+                    '[[load]]\ndof = 0\nkind = "sine"\namplitude = 30.0\nfrequency = 2.0\n'
+                    '[[element]]\nkind = "bouc_wen"\ni = 0\nstiffness = 2e3\nbeta = 300.0\n'
+                    'gamma = 300.0\n[time]\ndt = 1e-3\nduration = 1.0\n'
+                    '[output]\nquantities = ["x", "g", "z"]\n')
+    response, _ = dd.run_scene(dd.load_scene(path))
+    assert response.g.shape == (1001, 1) and response.z.shape == (1001, 1)
+    out = tmp_path / "r.npz"
+    response.save(out)
+    np.testing.assert_array_equal(dd.load_result(out).z, response.z)
+    linear = path.read_text().split("[[element]]")[0] + '[scheme]\nname = "newmark"\n' \
+        '[time]\ndt = 1e-3\nduration = 1.0\n[output]\nquantities = ["x", "g"]\n'
+    path.write_text(linear)
+    with pytest.raises(ValueError, match="output.quantities"):
+        dd.load_scene(path)

@@ -10,7 +10,7 @@ import numpy as np
 import scipy.sparse as sps
 
 from dtdyn._engine import validate
-from dtdyn.app.loads import finite_number, sample_load
+from dtdyn.app.loads import _read_file, finite_number, sample_load
 from dtdyn.app.scene.schema import (BACKENDS, DEFAULT_SCENE, FORMS, QUANTITIES,
                                     STANDARD_GRAVITY, SWEEPS, Scene, _OUTPUT_KEYS, _TIME_KEYS,
                                     _TOP_KEYS, _choice, _dof_index, _model_kind, _number_list,
@@ -50,8 +50,10 @@ def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None,
 
 
 
-def _parse_output(tbl, n_dof: int, names: tuple[str, ...] | None = None
+def _parse_output(tbl, n_dof: int, names: tuple[str, ...] | None = None, nonlinear: bool = False
                   ) -> tuple[np.ndarray, tuple[str, ...]]:
+    # nonlinear scenes may also store the element forces g and the internal states z
+    allowed = QUANTITIES + (("g", "z") if nonlinear else ())
     _table("output", tbl, _OUTPUT_KEYS)
     dofs = tbl.get("outputs")
     if names is not None and dofs is not None:  # indices or DOF names
@@ -71,9 +73,9 @@ def _parse_output(tbl, n_dof: int, names: tuple[str, ...] | None = None
     quantities = tbl.get("quantities", ["x"])
     if not isinstance(quantities, list) or not quantities:
         raise ValueError(f"output.quantities = {quantities!r}: must be a non-empty array, "
-                         f"allowed entries: {', '.join(map(repr, QUANTITIES))}")
+                         f"allowed entries: {', '.join(map(repr, allowed))}")
     for i, q in enumerate(quantities):
-        _choice(f"output.quantities[{i}]", q, QUANTITIES)
+        _choice(f"output.quantities[{i}]", q, allowed)
     if len(set(quantities)) != len(quantities):
         raise ValueError(f"output.quantities = {quantities!r}: repeats an entry")
     return outputs, tuple(quantities)
@@ -131,7 +133,16 @@ def _parse_ground(tbl, n_dof: int, t: np.ndarray, base_dir: Path, kind: str):
         if influence.size != n_dof:
             raise ValueError(f"ground.influence has {influence.size} entries, expected one per "
                              f"DOF ({n_dof})")
-    samples = sample_load(spec, t, base_dir, name="ground")
+    if "dt" in spec:  # a record at its own step: linear between its samples, 0 after its end
+        record_dt = validate.positive_scalar("ground.dt", spec.pop("dt"))
+        if spec.get("kind") != "file":
+            raise ValueError(f"ground.dt = {record_dt!r}: only a kind = \"file\" record has its "
+                             "own sample step")
+        _table("ground", spec, ("kind", "path", "column"))
+        record = _read_file("ground", spec, None, base_dir)
+        samples = np.interp(t, record_dt * np.arange(record.size), record, right=0.0)
+    else:
+        samples = sample_load(spec, t, base_dir, name="ground")
     return samples * scale * (STANDARD_GRAVITY if units == "g" else 1.0), influence
 
 
@@ -214,7 +225,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         scheme, params, form, sweep, backend = _parse_scheme(data["scheme"], kind)
         if kind == "matrices":
             backend = "scipy.sparse" if sps.issparse(M) else "numpy"
-    outputs, quantities = _parse_output(data.get("output", {}), n_dof, names)
+    outputs, quantities = _parse_output(data.get("output", {}), n_dof, names, nonlinear)
     # the time, the force of each loaded DOF and the outputs asked, before any is built
     validate.output_size(f"{source}: time.duration / time.dt = {n_steps} steps", n_steps + 1,
                          1 + n_dof + outputs.size * len(quantities))

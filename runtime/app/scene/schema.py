@@ -19,6 +19,8 @@ reference problem P3)::
     scale = 1.0                         #   the support and a_abs = a + r a_g is stored with a
     units = "g"                         #   "g" (x 9.80665) or "m/s^2" (default)
     influence = [1.0, 1.0]              #   matrices scenes: r, one entry per DOF (default ones)
+    dt = 0.005                          #   a file at its own step: interpolated linearly onto
+                                        #   the scene's times, 0 after the record's end
     [initial]                           # optional: the state at t_0
     x0 = [0.0, 0.01]                    #   displacement of every DOF (default zeros)
     v0 = [0.0, 0.0]                     #   velocity of every DOF (default zeros)
@@ -32,7 +34,8 @@ reference problem P3)::
     duration = 0.8                      # s, an integer multiple of dt: n_steps = duration / dt
     [output]                            # optional
     outputs = [0, 14]                   # optional, default all
-    quantities = ["x", "v", "a"]        # optional, default ["x"]
+    quantities = ["x", "v", "a"]        # optional, default ["x"]; with [[element]] also "g"
+                                        #   (element forces) and "z" (internal states)
 
 A model with general matrices (``kind = "matrices"``) replaces the chain keys of ``[model]``::
 
