@@ -45,6 +45,9 @@ class DiscreteModel:
         DOFs of the structure; the input f has one column per DOF.
     source : str
         Which function built the model and with which parameters.
+    mass : ndarray, optional
+        M of the structure when the model was built from M, C, K (support motion loads the
+        model with -M r a_g).
 
     Examples
     --------
@@ -67,6 +70,7 @@ class DiscreteModel:
     n_dof: int = 0
     source: str = ""
     _physical_state: Callable | None = field(default=None, repr=False)
+    mass: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self):
         A = _matrix("A", self.A)
@@ -152,7 +156,8 @@ def _matrix(name, value) -> np.ndarray:
     return arr
 
 
-def shifted(Phi, G0, G1, S, dt, *, state, quantities, n_dof, source, physical=None):
+def shifted(Phi, G0, G1, S, dt, *, state, quantities, n_dof, source, physical=None,
+            mass=None):
     """The model of z_{n+1} = Phi z_n + G0 f_n + G1 f_{n+1}, y_n = S z_n with the state
     x_n = z_n - G1 f_n: A = Phi, B = G0 + Phi G1, C = S, D = S G1. ``physical(q0, v0, f0)``
     gives z_0; the model's initial state is z_0 - G1 f_0."""
@@ -163,4 +168,4 @@ def shifted(Phi, G0, G1, S, dt, *, state, quantities, n_dof, source, physical=No
 
     return DiscreteModel(Phi, G0 + Phi @ G1, S, S @ G1, dt, state=state, quantities=quantities,
                          n_dof=n_dof, source=source,
-                         _physical_state=None if physical is None else initial)
+                         _physical_state=None if physical is None else initial, mass=mass)

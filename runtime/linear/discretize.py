@@ -208,7 +208,8 @@ def discretize(M, C, K, dt, hold="zoh") -> DiscreteModel:
     A, B = first_order_form(M, C, K)
     ns, ni = B.shape
     eye = np.eye(ns)
-    common = dict(quantities=("x", "v"), n_dof=ni, source=f"discretize(hold={hold!r})")
+    common = dict(quantities=("x", "v"), n_dof=ni, source=f"discretize(hold={hold!r})",
+                  mass=linalg.square_matrix("M", M))
 
     def z0(q0, v0, f0):
         return np.concatenate((q0, v0))

@@ -28,6 +28,7 @@ from dtdyn.generated import newmark_ss as _blocks
 
 from dtdyn._engine import cbuild
 from dtdyn._engine import linalg
+from dtdyn._engine import ground as support
 from dtdyn._engine import validate
 from dtdyn._engine.errors import DtdynStabilityWarning, DtdynUnstableError
 from dtdyn._engine.result import Response
@@ -115,7 +116,8 @@ def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False) -> DiscreteModel:
 
     return DiscreteModel(Ass, Bss, np.eye(2 * n), Dss, dt, state="[q; q'] - Dss f_n",
                          quantities=("x", "v"), n_dof=n,
-                         source=f"newmark_ss(num_damp={num_damp!r})", _physical_state=initial)
+                         source=f"newmark_ss(num_damp={num_damp!r})", _physical_state=initial,
+                         mass=M)
 
 
 def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False,
@@ -171,7 +173,7 @@ def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False,
                    state=f"history [{', '.join(names)}] per DOF - Gamma1 f_n",
                    quantities=("x", "v", "a") if acceleration else ("x", "v"), n_dof=n,
                    source=f"discrete_state_space(scheme={info.name!r}{params})",
-                   physical=physical)
+                   physical=physical, mass=M)
 
 
 def scheme_blocks(M, C, K, dt, scheme="newmark", acceleration=False, **scheme_params):
@@ -230,7 +232,7 @@ def _c_loop():
 
 def state_space_response(model: DiscreteModel, force, *, force_dofs=None, outputs=None,
                          quantities=None, x0=None, v0=None, unstable="raise",
-                         backend="c") -> Response:
+                         backend="c", ground_acceleration=None, influence=None) -> Response:
     """Response of a discrete model (`newmark_ss`, `discrete_state_space`, `discretize`) to a
     force record, starting from rest at t_0 (or from ``x0``, ``v0``) whatever the model's state
     convention.
@@ -257,6 +259,12 @@ def state_space_response(model: DiscreteModel, force, *, force_dofs=None, output
         before the run, or a DtdynStabilityWarning and the run.
     backend : {"c", "numpy"}
         The generated C recursion or a NumPy loop.
+    ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
+        Support acceleration at the force's times: the DOFs are then relative to the support,
+        loaded by f - M r a_g with the model's ``mass`` (models built from M, C, K carry it),
+        and the result adds ``a_abs`` (``force`` may be None).
+    influence : (N,) or (N, n_dir) array_like, optional
+        r, each DOF's motion per unit support motion (default: ones).
 
     Returns
     -------
@@ -286,6 +294,11 @@ def state_space_response(model: DiscreteModel, force, *, force_dofs=None, output
     if not model.quantities:
         raise ValueError("this model's outputs have no stated meaning: use model.simulate(force)")
     n = model.n_dof
+    if ground_acceleration is not None and model.mass is None:
+        raise ValueError("ground_acceleration needs the structure's mass matrix: build the model "
+                         "with newmark_ss, discrete_state_space or discretize (they keep M)")
+    force, force_dofs, ground = support.prepare(model.mass, force, force_dofs, n,
+                                                ground_acceleration, influence)
     f, dt, dofs = validate.time_history(force, model.dt, force_dofs, n, min_samples=1)
     outputs = validate.dof_indices("outputs", outputs, n)
     quantities = check_quantities(model.quantities if quantities is None else quantities)
@@ -308,11 +321,12 @@ def state_space_response(model: DiscreteModel, force, *, force_dofs=None, output
     run_time = time.perf_counter() - start
     k = outputs.size
     store = {q: np.ascontiguousarray(y[:, i * k:(i + 1) * k]) for i, q in enumerate(quantities)}
-    return Response(dt * np.arange(f.shape[0]), outputs, store.get("x"), store.get("v"),
-                    store.get("a"), info={"method": model.source, "dt": dt,
-                                          "n_steps": f.shape[0] - 1, "run_time": run_time,
-                                          "backend": "c" if backend == "c" and _c_loop() else
-                                          "numpy"})
+    response = Response(dt * np.arange(f.shape[0]), outputs, store.get("x"), store.get("v"),
+                        store.get("a"), info={"method": model.source, "dt": dt,
+                                              "n_steps": f.shape[0] - 1, "run_time": run_time,
+                                              "backend": "c" if backend == "c" and _c_loop()
+                                              else "numpy"})
+    return support.finish(response, ground)
 
 
 def _check_radius(model: DiscreteModel, unstable: str) -> None:

@@ -32,14 +32,20 @@ def _lsim(M, C, K, t, ag):
     return y[:, :n]
 
 
-def test_exact_and_modal_filters_equal_the_matrix_exponential(building):
+def test_exact_modal_filters_and_state_space_equal_the_matrix_exponential(building):
     M, C, K, t, ag = building
     ref = _lsim(M, C, K, t, ag)
     scale = np.abs(ref).max()
     ex = dd.exact_response(M, C, K, None, DT, ground_acceleration=ag)
     mf = dd.modal_filter_response(M, C, K, None, DT, ground_acceleration=ag)
-    assert np.abs(ex.x - ref).max() <= 1e-12 * scale
-    assert np.abs(mf.x - ref).max() <= 1e-12 * scale
+    ss = dd.state_space_response(dd.discretize(M, C, K, DT, hold="foh"), None,
+                                 ground_acceleration=ag)
+    for r in (ex, mf, ss):
+        assert np.abs(r.x - ref).max() <= 1e-12 * scale
+    with pytest.raises(ValueError, match="needs the structure's mass matrix"):
+        model = dd.discretize(M, C, K, DT, hold="foh")
+        dd.state_space_response(dd.DiscreteModel(*model, DT, quantities=("x", "v"), n_dof=5),
+                                None, ground_acceleration=ag)
     for r in (ex, mf):   # absolute acceleration = relative + ground
         np.testing.assert_allclose(r.a_abs, r.a + ag[:, None], rtol=0, atol=1e-12 * np.abs(
             r.a_abs).max())
