@@ -24,7 +24,7 @@ from dtdyn.linear.chain import chain_matrices, simulate_chain
 from dtdyn.linear.discrete_model import DiscreteModel
 from dtdyn.linear.discretize import discretize, first_order_form
 from dtdyn.linear.exact import exact_response
-from dtdyn.linear.frequencies import chain_frequencies
+from dtdyn.linear.frequencies import chain_frequencies, chain_poles
 from dtdyn.linear.mck import simulate_mck
 from dtdyn.linear.stability import Stability, critical_omega_dt, stability
 from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
@@ -48,7 +48,7 @@ __all__ = [
     "simulate_chain", "chain_matrices", "simulate_mck", "exact_response",
     "newmark_ss", "discrete_state_space", "state_space_response",
     "discretize", "first_order_form", "DiscreteModel",
-    "frequency_response", "undamped_poles", "chain_frequencies", "stability", "critical_omega_dt",
+    "frequency_response", "undamped_poles", "chain_frequencies", "chain_poles", "stability", "critical_omega_dt",
     "Stability",
     # modal
     "modes", "Modes", "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",

@@ -35,7 +35,7 @@ import numpy as np
 
 from dtdyn._engine import cbuild, validate
 
-__all__ = ["chain_frequencies", "sturm_counts"]
+__all__ = ["chain_frequencies", "chain_poles", "sturm_counts"]
 
 
 def _coefficients(mass, stiffness):
@@ -143,3 +143,77 @@ def chain_frequencies(mass, stiffness, count=None, below=None, backend="c") -> n
         hi[idx[above]] = mid[open_][above]
         lo[idx[~above]] = mid[open_][~above]
     return np.sqrt(hi)
+
+
+def chain_poles(mass, stiffness, damping, count=None, *, tol=1e-13, max_iter=100) -> np.ndarray:
+    r"""Complex poles s_r (Im s_r > 0, ascending |s|) of a damped chain, by Newton's method on
+    det D(s) (D = K + s C + s^2 M) through the same recursion in the Laplace domain: with
+    :math:`\kappa_i = k_i + s c_i`,
+
+    .. math::
+
+        s_0 = \kappa_0 + s^2 m_0, \qquad
+        s_i = \frac{\kappa_i s_{i-1}}{\kappa_i + s_{i-1}} + s^2 m_i, \qquad
+        d_i = s_i + \kappa_{i+1}\ (\kappa_N = 0),
+
+    the pivots of D(s), so :math:`\frac{d}{ds} \log \det D = \sum_i d_i' / d_i` in O(N)
+    (the derivatives run along the recursion). All wanted poles are iterated together, each
+    deflated by the others and by the conjugates (Aberth-Ehrlich: det D is a polynomial whose
+    roots are the s_r and their conjugates), from the undamped poles j omega_r
+    (`chain_frequencies`). For underdamped chains; a pole that does not converge or leaves the
+    upper half-plane raises ValueError (use `modal_model` then).
+
+    Parameters
+    ----------
+    mass, stiffness, damping : (N,) array_like
+        m > 0, k > 0, c >= 0 of each station.
+    count : int, optional
+        The lowest ``count`` poles (all N by default).
+    tol, max_iter : float, int
+        The iteration stops when every step is below tol |s|.
+
+    Returns
+    -------
+    (count,) complex ndarray
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> s = dd.chain_poles([1.0], [4.0], [0.4])           # m s^2 + c s + k = 0
+    >>> np.round(s, 6)
+    array([-0.2+1.989975j])
+    """
+    m, k, _ = _coefficients(mass, stiffness)
+    c = validate.vector("damping", damping, nonnegative=True, length=m.size)
+    s = 1j * chain_frequencies(m, k, count=count)
+    for _ in range(max_iter):
+        near = s[:, None] - s[None, :]
+        np.fill_diagonal(near, np.inf)
+        deflate = (1.0 / near).sum(axis=1) + (1.0 / (s[:, None] - s.conj()[None, :])).sum(axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = _log_det_derivative(m, k, c, s)
+            # a pivot exactly 0: s is a pole to the last bit (no step)
+            step = np.where(np.isfinite(ratio), 1.0 / (ratio - deflate), 0.0)
+        s = s - step
+        if np.all(np.abs(step) <= tol * np.abs(s)):
+            break
+    else:
+        raise ValueError(f"the pole iteration did not converge in {max_iter} steps (largest "
+                         f"relative step {np.max(np.abs(step) / np.abs(s)):.2g}): the chain may be "
+                         "heavily damped; use modal_model")
+    if np.any(s.imag <= 0):
+        raise ValueError("a pole left the upper half-plane (an overdamped mode): use modal_model")
+    return s[np.argsort(np.abs(s))]
+
+
+def _log_det_derivative(m, k, c, s):
+    """d/ds log det D(s) = sum_i d_i'(s) / d_i(s) over the pivots of D, for every s at once."""
+    s2, ds2 = s * s, 2.0 * s
+    p, dp = k[0] + s * c[0] + s2 * m[0], c[0] + ds2 * m[0]
+    total = 0.0
+    for i in range(1, m.size):
+        kap = k[i] + s * c[i]
+        d, dd = p + kap, dp + c[i]  # pivot of mass i - 1: s_{i-1} + kappa_i
+        total = total + dd / d
+        p, dp = kap * p / d + s2 * m[i], (c[i] * p * p + kap * kap * dp) / (d * d) + ds2 * m[i]
+    return total + dp / p

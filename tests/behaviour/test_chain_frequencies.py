@@ -81,3 +81,32 @@ def test_bad_input(p3, kw, match):
         dd.chain_frequencies(p3["mass"], p3["stiffness"], **kw)
     with pytest.raises(ValueError, match=r"stiffness\[1\] = 0.0"):
         dd.chain_frequencies([1.0, 1.0], [1.0, 0.0])
+
+
+def _first_order_poles(m, k, c):
+    M, C, K = dd.chain_matrices(m, k, c, sparse=False)
+    A, _ = dd.first_order_form(M, C, K)
+    ev = np.linalg.eigvals(A)
+    ev = ev[ev.imag > 0]
+    return ev[np.argsort(np.abs(ev))]
+
+
+@pytest.mark.parametrize("damping", ["stiffness", "uniform", "half"])
+def test_damped_poles_equal_the_first_order_eigenvalues(p3, damping):
+    """Proportional, uniform and non-proportional (dampers on the upper half only) damping on
+    P3: the poles equal the eigenvalues of the first-order form to 1e-12."""
+    c = {"stiffness": 1e-3 * p3["stiffness"], "uniform": np.full(15, 5.0),
+         "half": np.r_[np.zeros(7), np.full(8, 40.0)]}[damping]
+    s = dd.chain_poles(p3["mass"], p3["stiffness"], c)
+    np.testing.assert_allclose(s, _first_order_poles(p3["mass"], p3["stiffness"], c), rtol=1e-12)
+
+
+def test_damped_poles_of_a_long_chain_and_errors():
+    """The lowest 20 of a 1,000-mass chain with random dampers: equal to numpy's eigenvalues of
+    the 2,000-state first-order form within their own error, eps |A| / |s_1| ~ 1e-10."""
+    rng = np.random.default_rng(2)
+    m, k, c = rng.uniform(0.5, 2, 1000), rng.uniform(5e3, 2e4, 1000), rng.uniform(0, 1, 1000)
+    s = dd.chain_poles(m, k, c, count=20)
+    np.testing.assert_allclose(s, _first_order_poles(m, k, c)[:20], rtol=1e-9)
+    with pytest.raises(ValueError, match="upper half-plane|did not converge"):
+        dd.chain_poles([1.0, 1.0], [1.0, 1.0], [50.0, 50.0])       # overdamped
