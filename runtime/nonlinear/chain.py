@@ -45,15 +45,9 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
 
     Parameters as `simulate_chain` (chain data, ``force`` of shape (n_steps + 1,
     len(force_dofs)) at t_k = k dt, linear between samples, ``scheme``, ``form``, ``outputs``,
-    ``quantities``, ``backend``, ``x0``, ``v0``) and `nonlinear_response` (``elements``,
-    ``substeps``, ``tol``, ``max_iter``, the quantities "g" and "z"). One-step schemes only.
-
-    ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
-        Support acceleration at the force's times, linear between samples: the DOFs are then
-        relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
-        (``force`` may be None).
-    influence : (N,) or (N, n_dir) array_like, optional
-        r, each DOF's motion per unit support motion (default: ones).
+    ``quantities``, ``backend``, ``x0``, ``v0``, ``ground_acceleration``, ``influence``) and
+    `nonlinear_response` (``elements``, ``substeps``, ``tol``, ``max_iter``, the quantities "g"
+    and "z"). One-step schemes only.
 
     Returns
     -------
