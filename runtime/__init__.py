@@ -16,6 +16,7 @@ from dtdyn._engine.errors import (DtdynAccuracyWarning, DtdynFallbackWarning,
                                   DtdynStabilityWarning, DtdynStepStabilityError,
                                   DtdynUnstableError, NewtonError, SingularMassError,
                                   SRSSamplingWarning)
+from dtdyn._engine.ground import ground_acceleration_from
 from dtdyn._engine.result import Response
 from dtdyn._engine.result_io import load_result
 from dtdyn.app.problems import p1, p2, p3, p4
@@ -59,7 +60,7 @@ __all__ = [
     "nonlinear_response", "nonlinear_chain_response", "reference_response", "check_reference",
     "Cubic", "Polynomial", "Gap", "Law", "BoucWen",
     # scenes, results, reference problems
-    "Scene", "load_scene", "scene_from_dict", "run_scene", "Response", "load_result",
+    "ground_acceleration_from", "Scene", "load_scene", "scene_from_dict", "run_scene", "Response", "load_result",
     "p1", "p2", "p3", "p4",
     # errors and warnings
     "NewtonError", "DtdynStepStabilityError", "DtdynUnstableError", "SingularMassError",

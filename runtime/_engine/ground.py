@@ -99,3 +99,63 @@ def finish(response, ground):
         response.a_abs = ground.absolute(response.a, response.outputs)
         response.info["ground"] = ground.describe()
     return response
+
+
+def ground_acceleration_from(dt, *, displacement=None, velocity=None):
+    r"""The ground acceleration record, linear between samples (the library's assumption for
+    every load), whose motion passes through a prescribed displacement or velocity record.
+
+    - ``displacement`` u_k: a acceleration linear between samples is a displacement cubic
+      between them, twice continuously differentiable: the cubic spline through u_k, here with
+      zero slope at t_0 (the ground starts at rest) and zero curvature at the end. Its second
+      derivative at the samples, from :math:`a_{k-1} + 4 a_k + a_{k+1} = 6 (u_{k+1} - 2 u_k +
+      u_{k-1}) / dt^2`, is the record; integrated back it returns u_k at every sample.
+    - ``velocity`` v_k: then :math:`(a_k + a_{k+1}) dt / 2 = v_{k+1} - v_k` fixes a up to a
+      sample-to-sample alternation :math:`(-1)^k a_0`, chosen with the least energy
+      (:math:`\min \sum a_k^2`); integrated back it returns v_k at every sample.
+
+    Use it for ``ground_acceleration`` when a shaker or a record gives displacement or
+    velocity (an OpenSees user may know the silent zero of -disp/-vel inputs: here the motion
+    is the one asked for).
+
+    Parameters
+    ----------
+    dt : float
+        Sample step, s.
+    displacement, velocity : (n,) array_like
+        Exactly one of them, samples at t_k = k dt (m, m/s).
+
+    Returns
+    -------
+    (n,) ndarray
+        Acceleration samples, m/s^2 (for m and m/s).
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> t = np.arange(201) * 0.01
+    >>> a = dd.ground_acceleration_from(0.01, displacement=1 - np.cos(2 * np.pi * t))
+    >>> round(float(a[100] / (2 * np.pi) ** 2), 3)         # ~ cos(2 pi t) at t = 1 s
+    1.0
+    """
+    import scipy.interpolate
+
+    dt = validate.positive_scalar("dt", dt)
+    if (displacement is None) == (velocity is None):
+        raise ValueError("give exactly one of displacement and velocity")
+    if displacement is not None:
+        u = validate.vector("displacement", displacement)
+        if u.size < 3:
+            raise ValueError(f"displacement has {u.size} samples; the spline needs at least 3")
+        t = dt * np.arange(u.size)
+        spline = scipy.interpolate.CubicSpline(t, u, bc_type=((1, 0.0), (2, 0.0)))
+        return spline(t, 2)
+    v = validate.vector("velocity", velocity)
+    if v.size < 2:
+        raise ValueError(f"velocity has {v.size} samples, expected at least 2")
+    p = np.zeros(v.size)  # the particular solution with a_0 = 0
+    rhs = 2.0 * np.diff(v) / dt
+    for k in range(v.size - 1):
+        p[k + 1] = rhs[k] - p[k]
+    alt = (-1.0) ** np.arange(v.size)
+    return p - alt * (alt @ p) / v.size

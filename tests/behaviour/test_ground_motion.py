@@ -121,3 +121,28 @@ def test_bad_input(building, kw, match):
         return
     with pytest.raises(ValueError, match=match):
         dd.simulate_mck(M, C, K, args.pop("force"), DT, **args)
+
+
+def test_acceleration_from_displacement_and_velocity_records():
+    """The acceleration linear between samples whose motion passes through the given record:
+    integrated back exactly (piecewise-linear a) it returns the displacement (from rest) or the
+    velocity at every sample to round-off; against the exact second derivative of a smooth
+    record the error is the spline's O(dt^2) (1e-3 here, (omega dt)^2 / 12 = 1.4e-3)."""
+    dt, w = 0.01, 2 * np.pi * 1.3
+    t = np.arange(501) * dt
+    u = (1 - np.cos(w * t)) * np.exp(-0.2 * t)
+    a = dd.ground_acceleration_from(dt, displacement=u)
+    d, v = np.zeros_like(u), 0.0
+    for k in range(u.size - 1):
+        d[k + 1] = d[k] + dt * v + dt * dt * (2 * a[k] + a[k + 1]) / 6
+        v += dt * (a[k] + a[k + 1]) / 2
+    assert np.abs(d - u).max() <= 1e-12 * np.abs(u).max()
+    vel = w * np.sin(w * t)
+    a2 = dd.ground_acceleration_from(dt, velocity=vel)
+    back = np.r_[vel[0], vel[0] + np.cumsum(dt * (a2[:-1] + a2[1:]) / 2)]
+    assert np.abs(back - vel).max() <= 1e-12 * np.abs(vel).max()
+    assert np.abs(a2 - w * w * np.cos(w * t)).max() <= 1e-3 * w * w
+    with pytest.raises(ValueError, match="exactly one"):
+        dd.ground_acceleration_from(dt, displacement=u, velocity=vel)
+    with pytest.raises(ValueError, match="dt"):
+        dd.ground_acceleration_from(0.0, velocity=vel)
