@@ -34,11 +34,11 @@ def history_from_states(names, states) -> np.ndarray:
     return np.array([states[-1 - _lag(nm)]["xva".index(nm[0])] for nm in names])
 
 
-def check_quantities(quantities) -> tuple:
+def check_quantities(quantities, allowed: tuple = QUANTITIES) -> tuple:
     q = tuple(quantities)
-    bad = [x for x in q if x not in QUANTITIES]
+    bad = [x for x in q if x not in allowed]
     if bad or not q:
-        raise ValueError(f"quantities must be a non-empty subset of {QUANTITIES}, got {quantities!r}")
+        raise ValueError(f"quantities must be a non-empty subset of {allowed}, got {quantities!r}")
     return q
 
 

@@ -30,8 +30,9 @@ from dtdyn._engine import kernels
 from dtdyn._engine import validate
 from dtdyn.linear.chain import chain_matrices, chain_parameters
 from dtdyn.nonlinear.elements import check_elements
-from dtdyn.nonlinear.response import (NewtonError, _c_source, _check_quantities, _forces_at_rest,
-                                     _residual_function, _sizes)
+from dtdyn._engine.stepping import check_quantities
+from dtdyn.nonlinear.response import (QUANTITIES, NewtonError, _c_source, _forces_at_rest,
+                                      _residual_function, _sizes)
 from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
 
@@ -72,7 +73,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                                                 ground_acceleration, influence)
     force_dofs = validate.dof_indices("force_dofs", force_dofs, N)
     outputs = validate.dof_indices("outputs", outputs, N)
-    quantities = _check_quantities(quantities)
+    quantities = check_quantities(quantities, QUANTITIES)
     elements = check_elements(elements)
     if not elements:
         raise ValueError("elements is empty: use simulate_chain for a linear chain")

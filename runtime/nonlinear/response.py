@@ -41,6 +41,7 @@ from dtdyn._engine import cbuild
 from dtdyn._engine import linalg
 from dtdyn._engine import validate
 from dtdyn.nonlinear.elements import casadi_ops, check_elements, element_matrix
+from dtdyn._engine.stepping import check_quantities
 from dtdyn._engine.result import Response
 from dtdyn._engine.errors import DtdynStepStabilityError, NewtonError
 from dtdyn._engine.extras import require
@@ -339,14 +340,6 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, m
 QUANTITIES = ("x", "v", "a", "g", "z")
 
 
-def _check_quantities(quantities) -> tuple:
-    q = tuple(quantities) if not isinstance(quantities, str) else (quantities,)
-    if not q or any(x not in QUANTITIES for x in q) or len(set(q)) != len(q):
-        raise ValueError(f"quantities must be a non-empty subset of {QUANTITIES}, got "
-                         f"{quantities!r}")
-    return q
-
-
 
 def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme="modal_ramp",
                        substeps=1, outputs=None, quantities=("x", "v", "a"), modes=None,
@@ -440,7 +433,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                                                 influence)
     force_dofs = validate.dof_indices("force_dofs", force_dofs, n)
     outputs = validate.dof_indices("outputs", outputs, n)
-    quantities = _check_quantities(quantities)
+    quantities = check_quantities(quantities, QUANTITIES)
     elements = check_elements(elements)
     if not elements:
         raise ValueError("elements is empty: use simulate_mck or modal_filter_response for a "
