@@ -1,5 +1,5 @@
-r"""Support motion: a ground acceleration record as an effective load, and the absolute
-acceleration of the result.
+r"""Support motion: a ground acceleration, velocity or displacement record as an effective load,
+and the absolute motion of the result.
 
 With the DOFs measured relative to the moving support, :math:`u = x + r\,u_g` (r: the
 influence vector or matrix, one column per ground direction; ones when every DOF moves with the
@@ -12,8 +12,11 @@ ground), the equations become
 
 (C r = K r = 0 for a rigid support motion; Chopra, *Dynamics of Structures*, sec. 9.4). The
 ground acceleration is sampled at the force's times and, like the force, linear between
-samples, so every entry point keeps its own treatment of the load. The run gives x, v, a
-relative to the support and ``a_abs``.
+samples, so every entry point keeps its own treatment of the load. A velocity or displacement
+record is first turned, direction by direction, into the acceleration record linear between
+samples whose motion passes through it (`ground_acceleration_from`). The run gives x, v, a
+relative to the support, ``a_abs``, and for a displacement record also
+:math:`u^{\mathrm{abs}} = x + r\, u_g` (``x_abs``, u_g the record's own samples).
 """
 from __future__ import annotations
 
@@ -21,28 +24,36 @@ import numpy as np
 
 from dtdyn._engine import validate
 
+#: the keyword of each ground record, by the quantity it samples
+RECORDS = {"acceleration": "ground_acceleration", "velocity": "ground_velocity",
+           "displacement": "ground_displacement"}
+
 
 class Ground:
-    """The checked record a_g (n_samples, n_dir) and influence r (n_dof, n_dir)."""
+    """The checked record a_g (n_samples, n_dir), influence r (n_dof, n_dir) and, for a
+    displacement record, its samples u_g (n_samples, n_dir)."""
 
-    def __init__(self, ground_acceleration, influence, n_dof: int, n_samples: int | None):
-        a = np.asarray(ground_acceleration, dtype=float)
+    def __init__(self, record, influence, n_dof: int, n_samples: int | None,
+                 quantity: str = "acceleration", dt: float | None = None):
+        name = RECORDS[quantity]
+        a = np.asarray(record, dtype=float)
         if a.ndim == 1:
             a = a[:, None]
-        if a.ndim != 2 or a.shape[0] < 2 or a.shape[1] < 1:
-            raise ValueError(f"ground_acceleration has shape {np.shape(ground_acceleration)}, "
-                             "expected (n_samples,) or (n_samples, n_directions), n_samples >= 2")
+        least = 3 if quantity == "displacement" else 2
+        if a.ndim != 2 or a.shape[0] < least or a.shape[1] < 1:
+            raise ValueError(f"{name} has shape {np.shape(record)}, expected (n_samples,) or "
+                             f"(n_samples, n_directions), n_samples >= {least}")
         if n_samples is not None and a.shape[0] != n_samples:
-            raise ValueError(f"ground_acceleration has {a.shape[0]} samples and force "
-                             f"{n_samples}: both are sampled at t_k = k dt")
+            raise ValueError(f"{name} has {a.shape[0]} samples and force {n_samples}: both are "
+                             "sampled at t_k = k dt")
         bad = np.argwhere(~np.isfinite(a))
         if bad.size:
             i, j = bad[0]
-            raise ValueError(f"ground_acceleration[{i}, {j}] = {float(a[i, j])!r} is not finite")
+            raise ValueError(f"{name}[{i}, {j}] = {float(a[i, j])!r} is not finite")
         if influence is None:
             if a.shape[1] != 1:
-                raise ValueError(f"ground_acceleration has {a.shape[1]} directions: give the "
-                                 "influence matrix (n_dof, n_directions)")
+                raise ValueError(f"{name} has {a.shape[1]} directions: give the influence "
+                                 "matrix (n_dof, n_directions)")
             r = np.ones((n_dof, 1))
         else:
             r = np.asarray(influence, dtype=float)
@@ -51,7 +62,12 @@ class Ground:
             if r.shape != (n_dof, a.shape[1]) or not np.isfinite(r).all():
                 raise ValueError(f"influence has shape {np.shape(influence)}, expected "
                                  f"({n_dof},) or ({n_dof}, {a.shape[1]}) finite values: one "
-                                 "column per direction of ground_acceleration")
+                                 f"column per direction of {name}")
+        self.quantity, self.u = quantity, None
+        if quantity != "acceleration":
+            if quantity == "displacement":
+                self.u = np.ascontiguousarray(a)
+            a = np.column_stack([ground_acceleration_from(dt, **{quantity: col}) for col in a.T])
         self.a, self.r = np.ascontiguousarray(a), r
 
     def load(self, M, force, force_dofs):
@@ -68,35 +84,65 @@ class Ground:
         """a + r a_g at the outputs (None when a is not stored)."""
         return None if a is None else a + self.a @ self.r[outputs].T
 
+    def absolute_displacement(self, x, outputs):
+        """x + r u_g at the outputs (None when x is not stored or the record is not a
+        displacement)."""
+        return None if x is None or self.u is None else x + self.u @ self.r[outputs].T
+
     def describe(self) -> dict:
-        return {"directions": int(self.a.shape[1]), "peak": float(np.abs(self.a).max())}
+        return {"directions": int(self.a.shape[1]), "quantity": self.quantity,
+                "peak": float(np.abs(self.a).max())}
 
 
-def prepare(M, force, force_dofs, n_dof, ground_acceleration, influence):
+def given(ground_acceleration=None, ground_velocity=None, ground_displacement=None):
+    """The quantity of the one ground record given ("acceleration", "velocity",
+    "displacement"), or None; more than one is a ValueError naming them."""
+    records = {"acceleration": ground_acceleration, "velocity": ground_velocity,
+               "displacement": ground_displacement}
+    named = [q for q, rec in records.items() if rec is not None]
+    if len(named) > 1:
+        both = "both" if len(named) == 2 else "all"
+        raise ValueError(f"{' and '.join(RECORDS[q] for q in named)} are {both} given: give "
+                         "one ground record (ground_acceleration, ground_velocity or "
+                         "ground_displacement)")
+    return named[0] if named else None
+
+
+def prepare(M, force, force_dofs, n_dof, ground_acceleration, influence, *, dt=None,
+            ground_velocity=None, ground_displacement=None):
     """The load every entry point runs: (force, force_dofs, ground or None).
 
     Without ground motion the inputs come back as they are (``force`` required); with it,
-    ``force`` may be None (the support motion alone) and ``force_dofs`` is checked here."""
-    if ground_acceleration is None:
+    ``force`` may be None (the support motion alone) and ``force_dofs`` is checked here. At
+    most one of ``ground_acceleration``, ``ground_velocity``, ``ground_displacement`` is given;
+    a velocity or displacement record is converted with the sample step ``dt``."""
+    quantity = given(ground_acceleration, ground_velocity, ground_displacement)
+    if quantity is None:
         if influence is not None:
-            raise ValueError("influence is given without ground_acceleration")
+            raise ValueError("influence is given without a ground record (ground_acceleration, "
+                             "ground_velocity or ground_displacement)")
         if force is None:
-            raise ValueError("force is None: give a force record or a ground_acceleration")
+            raise ValueError("force is None: give a force record or a ground record "
+                             "(ground_acceleration, ground_velocity or ground_displacement)")
         return force, force_dofs, None
+    record = {"acceleration": ground_acceleration, "velocity": ground_velocity,
+              "displacement": ground_displacement}[quantity]
     n_samples = None
     if force is not None:
         force_dofs = validate.dof_indices("force_dofs", force_dofs, n_dof)
         force = validate.force_record(force, force_dofs.size)
         n_samples = force.shape[0]
-    ground = Ground(ground_acceleration, influence, n_dof, n_samples)
+    ground = Ground(record, influence, n_dof, n_samples, quantity, dt)
     force, dofs = ground.load(M, force, force_dofs)
     return force, dofs, ground
 
 
 def finish(response, ground):
-    """The response with ``a_abs`` and ``info["ground"]`` when the run had support motion."""
+    """The response with ``a_abs`` (and ``x_abs`` for a displacement record) and
+    ``info["ground"]`` when the run had support motion."""
     if ground is not None:
         response.a_abs = ground.absolute(response.a, response.outputs)
+        response.x_abs = ground.absolute_displacement(response.x, response.outputs)
         response.info["ground"] = ground.describe()
     return response
 
@@ -114,9 +160,10 @@ def ground_acceleration_from(dt, *, displacement=None, velocity=None):
       sample-to-sample alternation :math:`(-1)^k a_0`, chosen with the least energy
       (:math:`\min \sum a_k^2`); integrated back it returns v_k at every sample.
 
-    Use it for ``ground_acceleration`` when a shaker or a record gives displacement or
-    velocity (an OpenSees user may know the silent zero of -disp/-vel inputs: here the motion
-    is the one asked for).
+    Every time-history entry point calls it (direction by direction) when given
+    ``ground_displacement`` or ``ground_velocity`` instead of ``ground_acceleration``; call it
+    yourself to see or reuse the record (an OpenSees user may know the silent zero of
+    -disp/-vel inputs: here the motion is the one asked for).
 
     Parameters
     ----------

@@ -26,8 +26,11 @@ class Response:
     dof_names : tuple of str, optional
         Names of the stored DOFs (a scene's ``model.dofs``).
     a_abs : (n_steps + 1, n_out) ndarray or None
-        Absolute acceleration a + r a_g of a run under support motion (``ground_acceleration``;
+        Absolute acceleration a + r a_g of a run under support motion (a ground record;
         x, v, a are then relative to the support), when ``a`` is stored; None otherwise.
+    x_abs : (n_steps + 1, n_out) ndarray or None
+        Absolute displacement x + r u_g of a run under a ground displacement record
+        (``ground_displacement``; u_g its own samples), when ``x`` is stored; None otherwise.
     g, z : (n_steps + 1, n_elements) and (n_steps + 1, n_states) ndarray or None
         Nonlinear runs asked for them: the element forces and the internal states.
 
@@ -51,6 +54,7 @@ class Response:
     a_abs: np.ndarray | None = None
     g: np.ndarray | None = None
     z: np.ndarray | None = None
+    x_abs: np.ndarray | None = None
 
     def column(self, dof: int) -> int:
         """Column of ``x``, ``v``, ``a`` that holds 0-based DOF ``dof``."""

@@ -26,7 +26,7 @@ from dtdyn._engine.atomic import write_atomic
 from dtdyn._engine.extras import require
 
 FORMATS = (".npz", ".nc", ".csv")
-QUANTITIES = ("x", "v", "a", "a_abs")
+QUANTITIES = ("x", "v", "a", "a_abs", "x_abs")
 #: per element (g) or internal state (z), not per DOF: their columns are numbered 0, 1, ...
 ELEMENT_QUANTITIES = ("g", "z")
 _META_KEY = "dtdyn_metadata"

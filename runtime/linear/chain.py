@@ -80,7 +80,8 @@ def chain_matrices(mass, stiffness, damping, sparse: bool | None = None):
 def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, scheme="newmark",
                    form="displacement", sweep="stable", backend="c", outputs=None,
                    quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
-                   progress=False, ground_acceleration=None, influence=None,
+                   progress=False, ground_acceleration=None, ground_velocity=None,
+                   ground_displacement=None, influence=None,
                    **scheme_params) -> Response:
     """Time history of a chain by the discrete-time transfer matrix method (DT-TMM).
 
@@ -129,6 +130,11 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
         (``force`` may be None).
+    ground_velocity, ground_displacement : array_like, optional
+        Instead of ``ground_acceleration`` (one ground record at most): the support velocity
+        (m/s) or displacement (m), shaped like it, turned direction by direction into the
+        acceleration record linear between samples whose motion passes through it
+        (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
     influence : (N,) or (N, n_dir) array_like, optional
         r, each DOF's motion per unit support motion (default: ones; a chain on a moving base).
 
@@ -159,7 +165,9 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
     """
     m, k, c = chain_parameters(mass, stiffness, damping)
     force, force_dofs, ground = support.prepare(sps.diags(m), force, force_dofs, m.size,
-                                                ground_acceleration, influence)
+                                                ground_acceleration, influence, dt=dt,
+                                                ground_velocity=ground_velocity,
+                                                ground_displacement=ground_displacement)
     force, dt, loaded = validate.time_history(force, dt, force_dofs, m.size)
     x0, v0 = validate.initial_conditions(x0, v0, m.size)
     outputs = validate.dof_indices("outputs", outputs, m.size)

@@ -91,6 +91,7 @@ def _reduced_form(M, C, K, loaded):
 
 def exact_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
                    quantities=("x", "v", "a"), x0=None, v0=None, ground_acceleration=None,
+                   ground_velocity=None, ground_displacement=None,
                    influence=None) -> Response:
     r"""Exact response of ``M q'' + C q' + K q = L f(t)`` to a piecewise-linear force.
 
@@ -123,6 +124,11 @@ def exact_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
         (``force`` may be None).
+    ground_velocity, ground_displacement : array_like, optional
+        Instead of ``ground_acceleration`` (one ground record at most): the support velocity
+        (m/s) or displacement (m), shaped like it, turned direction by direction into the
+        acceleration record linear between samples whose motion passes through it
+        (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
     influence : (N,) or (N, n_dir) array_like, optional
         r, each DOF's motion per unit support motion (default: ones).
 
@@ -199,7 +205,9 @@ def exact_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     M, C, K = linalg.mck(M, C, K)
     N = M.shape[0]
     force, force_dofs, ground = support.prepare(M, force, force_dofs, N, ground_acceleration,
-                                                influence)
+                                                influence, dt=dt,
+                                                ground_velocity=ground_velocity,
+                                                ground_displacement=ground_displacement)
     f, dt, loaded = validate.time_history(force, dt, force_dofs, N)
     n_steps = f.shape[0] - 1
     outputs = validate.dof_indices("outputs", outputs, N)

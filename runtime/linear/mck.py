@@ -93,7 +93,8 @@ def _c_advance(lib, sch, K_, M, C, K, loaded, outputs):
 
 def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outputs=None,
                  quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
-                 progress=False, ground_acceleration=None, influence=None, backend="c",
+                 progress=False, ground_acceleration=None, ground_velocity=None,
+                 ground_displacement=None, influence=None, backend="c",
                  **scheme_params) -> Response:
     """Time history of M q'' + C q' + K q = L f(t) by one of the generated integrators.
 
@@ -130,6 +131,11 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
         (``force`` may be None).
+    ground_velocity, ground_displacement : array_like, optional
+        Instead of ``ground_acceleration`` (one ground record at most): the support velocity
+        (m/s) or displacement (m), shaped like it, turned direction by direction into the
+        acceleration record linear between samples whose motion passes through it
+        (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
     influence : (N,) or (N, n_dir) array_like, optional
         r, each DOF's motion per unit support motion (default: ones).
 
@@ -152,7 +158,9 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
         raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
     loop = _c_loop() if backend == "c" and not sps.issparse(M) else None
     force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
-                                                influence)
+                                                influence, dt=dt,
+                                                ground_velocity=ground_velocity,
+                                                ground_displacement=ground_displacement)
     force, dt, loaded = validate.time_history(force, dt, force_dofs, n)
     x0, v0 = validate.initial_conditions(x0, v0, n)
     outputs = validate.dof_indices("outputs", outputs, n)

@@ -232,7 +232,8 @@ def _c_loop():
 
 def state_space_response(model: DiscreteModel, force, *, force_dofs=None, outputs=None,
                          quantities=None, x0=None, v0=None, unstable="raise",
-                         backend="c", ground_acceleration=None, influence=None) -> Response:
+                         backend="c", ground_acceleration=None, ground_velocity=None,
+                         ground_displacement=None, influence=None) -> Response:
     """Response of a discrete model (`newmark_ss`, `discrete_state_space`, `discretize`) to a
     force record, starting from rest at t_0 (or from ``x0``, ``v0``) whatever the model's state
     convention.
@@ -263,6 +264,11 @@ def state_space_response(model: DiscreteModel, force, *, force_dofs=None, output
         Support acceleration at the force's times: the DOFs are then relative to the support,
         loaded by f - M r a_g with the model's ``mass`` (models built from M, C, K carry it),
         and the result adds ``a_abs`` (``force`` may be None).
+    ground_velocity, ground_displacement : array_like, optional
+        Instead of ``ground_acceleration`` (one ground record at most): the support velocity
+        (m/s) or displacement (m), shaped like it, turned direction by direction into the
+        acceleration record linear between samples whose motion passes through it
+        (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
     influence : (N,) or (N, n_dir) array_like, optional
         r, each DOF's motion per unit support motion (default: ones).
 
@@ -294,11 +300,15 @@ def state_space_response(model: DiscreteModel, force, *, force_dofs=None, output
     if not model.quantities:
         raise ValueError("this model's outputs have no stated meaning: use model.simulate(force)")
     n = model.n_dof
-    if ground_acceleration is not None and model.mass is None:
-        raise ValueError("ground_acceleration needs the structure's mass matrix: build the model "
-                         "with newmark_ss, discrete_state_space or discretize (they keep M)")
+    quantity = support.given(ground_acceleration, ground_velocity, ground_displacement)
+    if quantity is not None and model.mass is None:
+        raise ValueError(f"{support.RECORDS[quantity]} needs the structure's mass matrix: "
+                         "build the model with newmark_ss, discrete_state_space or discretize "
+                         "(they keep M)")
     force, force_dofs, ground = support.prepare(model.mass, force, force_dofs, n,
-                                                ground_acceleration, influence)
+                                                ground_acceleration, influence, dt=model.dt,
+                                                ground_velocity=ground_velocity,
+                                                ground_displacement=ground_displacement)
     f, dt, dofs = validate.time_history(force, model.dt, force_dofs, n, min_samples=1)
     outputs = validate.dof_indices("outputs", outputs, n)
     quantities = check_quantities(model.quantities if quantities is None else quantities)

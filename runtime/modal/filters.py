@@ -401,6 +401,7 @@ def _free_response(M, C, K, outputs, modes, x0, v0, t, quantities):
 def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
                           quantities=("x", "v", "a"), modes=None, invariant="ramp",
                           algorithm="auto", backend="c", ground_acceleration=None,
+                          ground_velocity=None, ground_displacement=None,
                           influence=None, x0=None, v0=None) -> Response:
     """Response of M q'' + C q' + K q = f by modal digital filters.
 
@@ -439,6 +440,11 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
         (``force`` may be None).
+    ground_velocity, ground_displacement : array_like, optional
+        Instead of ``ground_acceleration`` (one ground record at most): the support velocity
+        (m/s) or displacement (m), shaped like it, turned direction by direction into the
+        acceleration record linear between samples whose motion passes through it
+        (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
     influence : (N,) or (N, n_dir) array_like, optional
         r, each DOF's motion per unit support motion (default: ones).
 
@@ -466,9 +472,12 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     if algorithm not in METHODS:
         raise ValueError(f"algorithm must be one of {METHODS}, got {algorithm!r}")
     quantities = check_quantities(quantities)
-    M_ = None if ground_acceleration is None else linalg.mck(M, C, K)[0]
+    grounded = support.given(ground_acceleration, ground_velocity, ground_displacement)
+    M_ = None if grounded is None else linalg.mck(M, C, K)[0]
     force, force_dofs, ground = support.prepare(M_, force, force_dofs, np.shape(M)[0],
-                                                ground_acceleration, influence)
+                                                ground_acceleration, influence, dt=dt,
+                                                ground_velocity=ground_velocity,
+                                                ground_displacement=ground_displacement)
     if x0 is not None or v0 is not None:  # checked before the run, used after it
         validate.initial_conditions(x0, v0, np.shape(M)[0])
     model = modal_model(M, C, K, force_dofs, outputs)

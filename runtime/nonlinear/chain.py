@@ -40,13 +40,15 @@ from dtdyn._engine.schemes import get_scheme
 def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, force_dofs=None,
                              scheme="newmark", form="displacement", substeps=1, outputs=None,
                              quantities=("x", "v", "a"), backend="c", tol=1e-12, max_iter=30,
-                             ground_acceleration=None, influence=None, x0=None, v0=None,
+                             ground_acceleration=None, ground_velocity=None,
+                             ground_displacement=None, influence=None, x0=None, v0=None,
                              **scheme_params) -> Response:
     """Forced response of a chain with nonlinear elements by the DT-TMM (module docstring).
 
     Parameters as `simulate_chain` (chain data, ``force`` of shape (n_steps + 1,
     len(force_dofs)) at t_k = k dt, linear between samples, ``scheme``, ``form``, ``outputs``,
-    ``quantities``, ``backend``, ``x0``, ``v0``, ``ground_acceleration``, ``influence``) and
+    ``quantities``, ``backend``, ``x0``, ``v0``, ``ground_acceleration``, ``ground_velocity``,
+    ``ground_displacement``, ``influence``) and
     `nonlinear_response` (``elements``, ``substeps``, ``tol``, ``max_iter``, the quantities "g"
     and "z"). One-step schemes only.
 
@@ -70,7 +72,9 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
     N = m.size
     dt = validate.positive_scalar("dt", dt)
     force, force_dofs, ground = support.prepare(np.diag(m), force, force_dofs, N,
-                                                ground_acceleration, influence)
+                                                ground_acceleration, influence, dt=dt,
+                                                ground_velocity=ground_velocity,
+                                                ground_displacement=ground_displacement)
     force_dofs = validate.dof_indices("force_dofs", force_dofs, N)
     outputs = validate.dof_indices("outputs", outputs, N)
     quantities = check_quantities(quantities, QUANTITIES)

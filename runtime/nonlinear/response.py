@@ -344,7 +344,8 @@ QUANTITIES = ("x", "v", "a", "g", "z")
 def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme="modal_ramp",
                        substeps=1, outputs=None, quantities=("x", "v", "a"), modes=None,
                        backend="c", tol=1e-12, max_iter=30, solver="newton", compiled=False,
-                       ground_acceleration=None, influence=None, x0=None, v0=None,
+                       ground_acceleration=None, ground_velocity=None,
+                       ground_displacement=None, influence=None, x0=None, v0=None,
                        **scheme_params) -> Response:
     """Forced response of M q'' + C q' + K q + L^T g = f with localized nonlinear elements.
 
@@ -396,6 +397,11 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
         (``force`` may be None).
+    ground_velocity, ground_displacement : array_like, optional
+        Instead of ``ground_acceleration`` (one ground record at most): the support velocity
+        (m/s) or displacement (m), shaped like it, turned direction by direction into the
+        acceleration record linear between samples whose motion passes through it
+        (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
     influence : (N,) or (N, n_dir) array_like, optional
         r, each DOF's motion per unit support motion (default: ones).
 
@@ -430,7 +436,9 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     dt = validate.positive_scalar("dt", dt)
     fs = 1.0 / dt
     force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
-                                                influence)
+                                                influence, dt=dt,
+                                                ground_velocity=ground_velocity,
+                                                ground_displacement=ground_displacement)
     force_dofs = validate.dof_indices("force_dofs", force_dofs, n)
     outputs = validate.dof_indices("outputs", outputs, n)
     quantities = check_quantities(quantities, QUANTITIES)

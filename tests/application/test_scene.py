@@ -426,3 +426,69 @@ def test_ground_record_at_its_own_step(tmp_path):
         'kind = "file"\npath = "rec.npy"\n', 'kind = "sine"\namplitude = 1.0\nfrequency = 1.0\n'))
     with pytest.raises(ValueError, match="only a kind = \"file\" record"):
         dd.load_scene(tmp_path / "bad.toml")
+
+
+def test_ground_scene_displacement_and_velocity_records(tmp_path):
+    """[ground] quantity = "displacement" (m) or "velocity" (m/s): the scene runs the entry
+    point with ground_displacement / ground_velocity (the same numbers), the exact check runs
+    the same record, and a displacement scene saves x_abs = x + u_g. Units other than the SI
+    unit of the quantity, and "g" for anything but an acceleration, are errors naming the key."""
+    import dtdyn as dd
+    from dtdyn.app.cli import main
+
+    t = np.arange(301) * 0.01
+    u = 0.01 * (1 - np.cos(2 * np.pi * 1.5 * t))
+    np.savetxt(tmp_path / "disp.csv", u)
+    np.savetxt(tmp_path / "vel.csv", np.gradient(u, 0.01))
+    chain = '[model]\nmass = [2e5, 2e5, 2e5]\nstiffness = [3e8, 3e8, 2e8]\ndamping = [4e5, 4e5, 4e5]\n'
+    rest = ('[scheme]\nname = "average_acceleration"\n[time]\ndt = 0.01\nduration = 3.0\n'
+            '[output]\nquantities = ["x", "a"]\n')
+    for quantity, name in (("displacement", "disp.csv"), ("velocity", "vel.csv")):
+        path = tmp_path / f"{quantity}.toml"
+        path.write_text(chain + f'[ground]\nkind = "file"\npath = "{name}"\n'
+                        f'quantity = "{quantity}"\n' + rest)
+        scene = dd.load_scene(path)
+        assert scene.ground_quantity == quantity
+        response, report = dd.run_scene(scene)
+        same = dd.simulate_chain(scene.mass, scene.stiffness, scene.damping, None, 0.01,
+                                 scheme="average_acceleration",
+                                 **{f"ground_{quantity}": np.loadtxt(tmp_path / name)})
+        np.testing.assert_array_equal(response.x, same.x)
+        assert report["check"] == "done" and report["max_rel_error"] < 0.05
+        out = tmp_path / f"{quantity}.npz"
+        assert main(["simulate", str(path), "--out", str(out)]) == 0
+        back = dd.load_result(out)
+        assert back.meta["scene"]["ground_quantity"] == quantity
+        if quantity == "displacement":
+            np.testing.assert_array_equal(back.x_abs, response.x + u[:, None])
+            assert back.meta["scene"]["ground_peak_m"] == pytest.approx(np.abs(u).max())
+        else:
+            assert back.x_abs is None
+    for units, match in (('"g"', "a displacement record is in 'm' .*acceleration record"),
+                         ('"m/s"', "ground.units = 'm/s': a displacement record is in 'm'")):
+        path.write_text(chain + '[ground]\nkind = "file"\npath = "disp.csv"\n'
+                        f'quantity = "displacement"\nunits = {units}\n' + rest)
+        with pytest.raises(ValueError, match=match):
+            dd.load_scene(path)
+    path.write_text(chain + '[ground]\nkind = "file"\npath = "disp.csv"\nquantity = "strain"\n'
+                    + rest)
+    with pytest.raises(ValueError, match="ground.quantity = 'strain'"):
+        dd.load_scene(path)
+
+
+def test_ground_displacement_at_its_own_step_holds_its_last_sample(tmp_path):
+    """A displacement record shorter than the scene, at its own dt: linear between its samples,
+    then the ground stays where the record ends (an acceleration record is 0 there)."""
+    import dtdyn as dd
+
+    rec = 0.01 * np.sin(np.arange(201) * 0.005 * np.pi / 2)        # 1 s, ends at 0.01 m
+    np.save(tmp_path / "d.npy", rec)
+    (tmp_path / "q.toml").write_text(
+        '[model]\nmass = [2e5, 2e5]\nstiffness = [3e8, 2e8]\ndamping = [4e5, 4e5]\n'
+        '[ground]\nkind = "file"\npath = "d.npy"\ndt = 0.005\nquantity = "displacement"\n'
+        '[scheme]\nname = "average_acceleration"\n[time]\ndt = 0.002\nduration = 1.5\n')
+    scene = dd.load_scene(tmp_path / "q.toml")
+    t = np.arange(751) * 0.002
+    np.testing.assert_allclose(scene.ground, np.interp(t, np.arange(201) * 0.005, rec),
+                               rtol=0, atol=1e-15)
+    assert np.all(scene.ground[t > 1.0] == rec[-1])

@@ -36,7 +36,13 @@ def scene_summary(scene: Scene) -> dict:
             "loads": scene.loads, "elements": [el.describe() for el in scene.elements],
             "quantities": list(scene.quantities),
             **({} if scene.ground is None else
-               {"ground_peak_m_s2": float(np.abs(scene.ground).max())})}
+               {"ground_quantity": scene.ground_quantity,
+                f"ground_peak_{_GROUND_UNIT[scene.ground_quantity]}":
+                    float(np.abs(scene.ground).max())})}
+
+
+#: the SI unit of each [ground] quantity, as a metadata key suffix
+_GROUND_UNIT = {"acceleration": "m_s2", "velocity": "m_s", "displacement": "m"}
 
 
 #: more stored DOFs than this are drawn as a heat map (time x DOF) instead of one line each

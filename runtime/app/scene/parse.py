@@ -11,7 +11,7 @@ import scipy.sparse as sps
 
 from dtdyn._engine import validate
 from dtdyn.app.loads import _read_file, finite_number, sample_load
-from dtdyn.app.scene.schema import (BACKENDS, DEFAULT_SCENE, FORMS, QUANTITIES,
+from dtdyn.app.scene.schema import (BACKENDS, DEFAULT_SCENE, FORMS, GROUND_UNITS, QUANTITIES,
                                     STANDARD_GRAVITY, SWEEPS, Scene, _OUTPUT_KEYS, _TIME_KEYS,
                                     _TOP_KEYS, _choice, _dof_index, _model_kind, _number_list,
                                     _parse_model, _required, _scheme_name_params, _table)
@@ -117,13 +117,20 @@ def _parse_initial(tbl, n_dof: int):
 
 
 def _parse_ground(tbl, n_dof: int, t: np.ndarray, base_dir: Path, kind: str):
-    """(a_g samples in m/s^2, influence or None) of the [ground] table."""
+    """(samples, quantity, influence or None) of the [ground] table: the record at the scene's
+    times in SI units (m/s^2, m/s or m by ``quantity``: "acceleration", "velocity",
+    "displacement")."""
     if not isinstance(tbl, dict):
         raise ValueError(f"ground = {tbl!r}: must be a [ground] table")
     spec = dict(tbl)
+    quantity = spec.pop("quantity", "acceleration")
+    _choice("ground.quantity", quantity, tuple(GROUND_UNITS))
     scale = finite_number("ground.scale", spec.pop("scale", 1.0))
-    units = spec.pop("units", "m/s^2")
-    _choice("ground.units", units, ("m/s^2", "g"))
+    units = spec.pop("units", GROUND_UNITS[quantity][0])
+    if units not in GROUND_UNITS[quantity]:
+        raise ValueError(f"ground.units = {units!r}: a {quantity} record is in "
+                         f"{' or '.join(repr(u) for u in GROUND_UNITS[quantity])}"
+                         + (" (\"g\" is for an acceleration record)" if units == "g" else ""))
     influence = spec.pop("influence", None)
     if influence is not None:
         if kind != "matrices":
@@ -133,17 +140,18 @@ def _parse_ground(tbl, n_dof: int, t: np.ndarray, base_dir: Path, kind: str):
         if influence.size != n_dof:
             raise ValueError(f"ground.influence has {influence.size} entries, expected one per "
                              f"DOF ({n_dof})")
-    if "dt" in spec:  # a record at its own step: linear between its samples, 0 after its end
+    if "dt" in spec:  # a record at its own step: linear between its samples, then held or 0
         record_dt = validate.positive_scalar("ground.dt", spec.pop("dt"))
         if spec.get("kind") != "file":
             raise ValueError(f"ground.dt = {record_dt!r}: only a kind = \"file\" record has its "
                              "own sample step")
         _table("ground", spec, ("kind", "path", "column"))
         record = _read_file("ground", spec, None, base_dir)
-        samples = np.interp(t, record_dt * np.arange(record.size), record, right=0.0)
+        after = 0.0 if quantity == "acceleration" else record[-1]   # the ground stays put
+        samples = np.interp(t, record_dt * np.arange(record.size), record, right=after)
     else:
         samples = sample_load(spec, t, base_dir, name="ground")
-    return samples * scale * (STANDARD_GRAVITY if units == "g" else 1.0), influence
+    return samples * scale * (STANDARD_GRAVITY if units == "g" else 1.0), quantity, influence
 
 
 # ----------------------------------------------------------------------------------------------
@@ -233,8 +241,8 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
     loads, loaded, force = [], np.zeros(0, dtype=np.int64), None
     if "load" in data:
         loads, loaded, force = _parse_loads(data["load"], n_dof, t, base_dir, names)
-    ground, influence = (None, None) if "ground" not in data else _parse_ground(
-        data["ground"], n_dof, t, base_dir, kind)
+    ground, ground_quantity, influence = (None, "acceleration", None) if "ground" not in data \
+        else _parse_ground(data["ground"], n_dof, t, base_dir, kind)
     x0 = v0 = None
     if "initial" in data:
         x0, v0 = _parse_initial(data["initial"], n_dof)
@@ -243,7 +251,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
                  sweep=sweep, backend=backend, dt=dt, n_steps=n_steps, outputs=outputs,
                  quantities=quantities, source=source, base_dir=base_dir, kind=kind, M=M, C=C, K=K,
                  dof_names=names, elements=elements, nonlinear=options, ground=ground,
-                 influence=influence, x0=x0, v0=v0)
+                 ground_quantity=ground_quantity, influence=influence, x0=x0, v0=v0)
 
 
 def load_scene(path: str | os.PathLike | None = None) -> Scene:

@@ -64,7 +64,7 @@ def _support(scene: Scene) -> dict:
     """The [ground] and [initial] keywords of the entry points (those the scene has)."""
     kw = {}
     if scene.ground is not None:
-        kw.update(ground_acceleration=scene.ground, influence=scene.influence)
+        kw.update({f"ground_{scene.ground_quantity}": scene.ground, "influence": scene.influence})
     if scene.x0 is not None or scene.v0 is not None:
         kw.update(x0=scene.x0, v0=scene.v0)
     return kw

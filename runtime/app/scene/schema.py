@@ -14,13 +14,19 @@ reference problem P3)::
     kind = "step"                       # and that kind's fields, see dtdyn.app.loads
     amplitude = 1.0
     [ground]                            # optional support motion (then [[load]] is optional):
-    kind = "file"                       #   a ground acceleration record, any load kind, sampled
-    path = "record.csv"                 #   at the scene's times; the DOFs are then relative to
-    scale = 1.0                         #   the support and a_abs = a + r a_g is stored with a
-    units = "g"                         #   "g" (x 9.80665) or "m/s^2" (default)
+    kind = "file"                       #   a ground record, any load kind, sampled at the
+    path = "record.csv"                 #   scene's times; the DOFs are then relative to the
+    scale = 1.0                         #   support and a_abs = a + r a_g is stored with a
+    quantity = "acceleration"           #   or "velocity", "displacement" (then also
+                                        #   x_abs = x + r u_g is stored with x): turned into the
+                                        #   acceleration by ground_acceleration_from
+    units = "g"                         #   acceleration: "g" (x 9.80665) or "m/s^2" (default);
+                                        #   velocity "m/s", displacement "m" (the only ones)
     influence = [1.0, 1.0]              #   matrices scenes: r, one entry per DOF (default ones)
     dt = 0.005                          #   a file at its own step: interpolated linearly onto
-                                        #   the scene's times, 0 after the record's end
+                                        #   the scene's times; after the record's end an
+                                        #   acceleration is 0, a velocity or displacement holds
+                                        #   its last sample
     [initial]                           # optional: the state at t_0
     x0 = [0.0, 0.01]                    #   displacement of every DOF (default zeros)
     v0 = [0.0, 0.0]                     #   velocity of every DOF (default zeros)
@@ -132,6 +138,8 @@ EXACT_MAX_DOF = 2000
 
 _TOP_KEYS = ("title", "model", "load", "ground", "initial", "element", "nonlinear", "scheme",
              "time", "output")
+#: the units each [ground] quantity may be given in, the default first
+GROUND_UNITS = {"acceleration": ("m/s^2", "g"), "velocity": ("m/s",), "displacement": ("m",)}
 #: standard gravity, m/s^2 (a [ground] record in units of g)
 STANDARD_GRAVITY = 9.80665
 #: model kinds: a chain (mass, stiffness, damping vectors) or general M, C, K matrices
@@ -206,6 +214,9 @@ class Scene:
     outputs, quantities : ndarray, tuple of str
     elements, nonlinear : tuple, dict
         Nonlinear elements and the ``[nonlinear]`` options.
+    ground, ground_quantity, influence : ndarray or None, str, ndarray or None
+        The ``[ground]`` record at the scene's times in SI units, what it samples
+        ("acceleration", "velocity", "displacement"), and r (None: ones).
 
     Examples
     --------
@@ -241,6 +252,7 @@ class Scene:
     elements: tuple = ()
     nonlinear: dict = field(default_factory=dict)
     ground: np.ndarray | None = None
+    ground_quantity: str = "acceleration"
     influence: np.ndarray | None = None
     x0: np.ndarray | None = None
     v0: np.ndarray | None = None
