@@ -8,7 +8,7 @@ from __future__ import annotations
 KERNELS = {
     "dtdyn_chain": ("int", (
         "int form", "int sweep", "long N", "long n_steps", "const double *m", "const double *k",
-        "const double *c", "double dt", "const double *params", "long n_loaded",
+        "const double *c", "const double *kg", "const double *cg", "double dt", "const double *params", "long n_loaded",
         "const long *loaded", "const double *force", "double *hist", "long n_out",
         "const long *out_idx", "double *xo", "double *vo", "double *ao", "double *work",
         "double *ehist", "double *err")),
@@ -22,15 +22,19 @@ KERNELS = {
     "dtdyn_set_stop": ("int", ("int value",)),  # csrc/stop.c, in every library with a long loop
     "dtdyn_mck_loop": ("int", (
         "long n", "long n_hist", "long n_steps", "long n_loaded", "const long *restrict loaded",
-        "const double *restrict force", "const double *restrict K", "const double *restrict C",
-        "const double *restrict LU", "const long *restrict piv", "const double *restrict L",
-        "const double *restrict c_u", "double w0", "double w1", "long n_shift",
+        "const double *restrict force", "const long *const *idx", "const double *const *val",
+        "const double *restrict L", "const double *restrict c_u", "double w0", "double w1",
+        "long n_shift",
         "const long *restrict shift", "const long *restrict rows", "double *restrict H",
         "long n_out", "const long *restrict out_idx", "double *restrict xo",
         "double *restrict vo", "double *restrict ao", "double *restrict work")),
     "dtdyn_sturm_counts": ("int", (
         "long N", "const double *restrict k", "const double *restrict m", "double pivmin",
         "long n_lam", "const double *restrict lam", "long *restrict counts")),
+    "dtdyn_sturm_laguerre": ("int", (
+        "long N", "const double *restrict k", "const double *restrict m", "double pivmin",
+        "long n_lam", "const double *restrict lam", "long *restrict counts",
+        "double *restrict G", "double *restrict H")),
     "dtdyn_modal_filters_lanes": ("int", ("void",)),
     "dtdyn_modal_filters_work": ("long", ("long m", "long n_out")),
     "dtdyn_modal_filters": ("int", (
@@ -58,7 +62,7 @@ KERNELS = {
 SOURCES = {
     "ss_response.c": ("dtdyn_ss_states",),
     "filter_bank.c": ("dtdyn_set_stop", "dtdyn_filter_bank"),
-    "sturm.c": ("dtdyn_sturm_counts",),
+    "sturm.c": ("dtdyn_sturm_counts", "dtdyn_sturm_laguerre"),
     "mck_loop.c": ("dtdyn_set_stop", "dtdyn_mck_loop"),
     "modal_states.c": ("dtdyn_set_stop", "dtdyn_modal_filters_lanes", "dtdyn_modal_filters_work",
                        "dtdyn_modal_filters"),

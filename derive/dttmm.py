@@ -1,6 +1,6 @@
 """Discrete-time transfer matrix method: step transfer matrices and the two sweeps.
 
-Reference.md section 3. At each step an integrator makes every mass's displacement, velocity and
+At each step an integrator makes every mass's displacement, velocity and
 acceleration at the equilibrium point affine in one primary unknown u (u = xe - x_n, the
 increment, in displacement form; u = ae in acceleration form):
 
@@ -18,13 +18,17 @@ For the multistep schemes, b and s keep the lags of x in combinations whose coef
 to zero; dtdyn.derive.kernels writes those in increments (x_n - x_{n-1}, ...).
 
 State z = [u, f, 1]^T. Substituting into the element laws gives, for station n (spring-damper
-from node n-1, mass m_n, force F_n):
+from node n-1, mass m_n with a spring k_g and a damper c_g to the ground, force F_n):
 
     spring-damper: f = k (x_n - x_{n-1}) + c (v_n - v_{n-1})
                    => u_n = u_{n-1} + (f - Delta_n) / kappa,   kappa = k p + c r,
                       Delta_n = k (q_n - q_{n-1}) + c (s_n - s_{n-1})
-    mass:          f_R = f_L + m (alpha u_n + b_n)
+    mass:          f_R = f_L + m a_n + k_g x_n + c_g v_n = f_L + mu u_n + beta_n,
+                      mu = m alpha + k_g p + c_g r,   beta_n = m b_n + k_g q_n + c_g s_n
     force:         f_R = f_L - F_n
+
+mu, like kappa, is the same at every step (once per run); beta_n, like Delta_n, is computed from
+the history each step. With k_g = c_g = 0 (the plain chain) mu = m alpha and beta_n = m b_n.
 
 Ground: u_0 = q_0 = s_0 = 0.
 
@@ -41,8 +45,8 @@ right, f_R = S_R u_R + R_R, the relation on its left is
 
 S depends on the integrator, dt and the chain only, so it is computed once; each step only
 carries R back and u forward: an O(N) elimination whose factors are bounded (S_n <= 0). The
-forward step is u_n = [kappa u_{n-1} + R_R + F - m b - Delta] / (kappa + m alpha - S_R): its
-divisor is at least m alpha, so it keeps the accuracy of the mass equation at any dt.
+forward step is u_n = [kappa u_{n-1} + R_R + F - beta - Delta] / (kappa + mu - S_R): its
+divisor is at least mu >= m alpha, so it keeps the accuracy of the mass equation at any dt.
 
 Error estimate of the plain sweep. Let P_u,n be the u-entry of T_n ... T_1 [0, 1, 0]^T (the
 response of the step's equations to a unit base force) and P_f,N the f-entry of the whole
@@ -102,10 +106,12 @@ import sympy as sp
 from . import integrators as I
 
 k, c, m = sp.symbols("k c m", positive=True)
+kg, cg = sp.symbols("k_g c_g", nonnegative=True)  # spring and damper from the mass to the ground
 p, r = sp.symbols("p r")
 alpha = sp.Symbol("alpha_u")  # the alpha of the module docstring (HHT owns the name alpha)
 q_n, q_p, s_n, s_p, b_n, F_n = sp.symbols("q_n q_p s_n s_p b_n F_n")
 kappa, Delta = sp.symbols("kappa Delta")
+mu, beta = sp.symbols("mu beta_n")  # the grounded mass's u coefficient and history term
 S_R, R_R, S_L, R_L = sp.symbols("S_R R_R S_L R_L")
 u_p, f_n = sp.symbols("u_p f_n")
 
@@ -116,8 +122,8 @@ def spring_damper_step():
 
 
 def mass_step():
-    """Point matrix of the mass: f_R = f_L + m (alpha u + b)."""
-    return sp.Matrix([[1, 0, 0], [m * alpha, 1, m * b_n], [0, 0, 1]])
+    """Point matrix of the mass and its ground spring-damper: f_R = f_L + mu u + beta."""
+    return sp.Matrix([[1, 0, 0], [mu, 1, beta], [0, 0, 1]])
 
 
 def force_step():
@@ -133,6 +139,9 @@ def station_step():
 #: kappa and Delta in the station's own symbols.
 KAPPA = k * p + c * r
 DELTA = k * (q_n - q_p) + c * (s_n - s_p)
+#: mu and beta in the station's own symbols: m a + k_g x + c_g v = mu u + beta.
+MU = m * alpha + kg * p + cg * r
+BETA = m * b_n + kg * q_n + cg * s_n
 
 
 @dataclass(frozen=True)
@@ -156,9 +165,9 @@ class Sweeps:
     # division, not a product with 1/den, whose rounding bias accumulates in the displacement form)
     h_num: sp.Expr  # h = h_num / den
     b_num: sp.Expr  # b_fwd = b_num / den
-    # the step that carries the plain sweep's error (F = 0), linear in Delta, b and R_R with
-    # per-station coefficients computed once: R_L = g R_R + hD Delta + hb b,
-    # u_n = a_fwd u_{n-1} + fR R_R + fD Delta + fb b
+    # the step that carries the plain sweep's error (F = 0), linear in Delta, beta and R_R with
+    # per-station coefficients computed once: R_L = g R_R + hD Delta + hb beta,
+    # u_n = a_fwd u_{n-1} + fR R_R + fD Delta + fb beta
     error_step: dict
 
 
@@ -176,15 +185,17 @@ def derive_sweeps() -> Sweeps:
     a_fwd = sp.factor(sp.cancel(sp.diff(u_next, u_p)))
     b_fwd = sp.factor(sp.cancel(u_next - a_fwd * u_p))
     den_s = sp.denom(sp.together(h))
+    if sp.expand(den_s).coeff(S_R) > 0:  # written as kappa + mu - S_R, positive (S_R <= 0)
+        den_s = sp.expand(-den_s)
     h_num, b_num = (sp.simplify(sp.together(e) * den_s) for e in (h, b_fwd))
     assert sp.simplify(h_num / den_s - h) == 0 and sp.simplify(b_num / den_s - b_fwd) == 0
     h0, b0 = (e.subs(F_n, 0) / den_s for e in (h_num, b_num))
-    error_step = {"hD": sp.diff(h0, Delta), "hb": sp.diff(h0, b_n),
-                  "fR": sp.diff(b0, R_R), "fD": sp.diff(b0, Delta), "fb": sp.diff(b0, b_n)}
+    error_step = {"hD": sp.diff(h0, Delta), "hb": sp.diff(h0, beta),
+                  "fR": sp.diff(b0, R_R), "fD": sp.diff(b0, Delta), "fb": sp.diff(b0, beta)}
     error_step = {n: sp.factor(sp.cancel(e)) for n, e in error_step.items()}
     es = error_step
-    assert sp.simplify(h0 - es["hD"] * Delta - es["hb"] * b_n) == 0
-    assert sp.simplify(b0 - es["fR"] * R_R - es["fD"] * Delta - es["fb"] * b_n) == 0
+    assert sp.simplify(h0 - es["hD"] * Delta - es["hb"] * beta) == 0
+    assert sp.simplify(b0 - es["fR"] * R_R - es["fD"] * Delta - es["fb"] * beta) == 0
     return Sweeps(T, S_expr, g, h, a_fwd, b_fwd, den_s, h_num, b_num, error_step)
 
 

@@ -44,13 +44,13 @@ def _names(mapping):
 
 
 # scalar names inside station loops (C and the NumPy plain sweep)
-SCALAR = _names({"m": "mn", "kappa": "kp", "S_R": "S_R", "S_L": "S_L", "R_R": "R_R",
-                 "Delta": "Dn", "F_n": "Fn", "b_n": "bn", "R_L": "R_L"})
-C_ARRAY = _names({"m": "mn", "kappa": "kp", "S_R": "SR[n]", "R_R": "R_R", "Delta": "Dl[n]",
-                  "F_n": "Fe[n]", "b_n": "b[n]", "R_L": "R[n]", "S_L": "S_L"})
+SCALAR = _names({"mu": "mu", "kappa": "kp", "S_R": "S_R", "S_L": "S_L", "R_R": "R_R",
+                 "Delta": "Dn", "F_n": "Fn", "beta": "bn", "R_L": "R_L"})
+C_ARRAY = _names({"mu": "mu", "kappa": "kp", "S_R": "SR[n]", "R_R": "R_R", "Delta": "Dl[n]",
+                  "F_n": "Fe[n]", "beta": "b[n]", "R_L": "R[n]", "S_L": "S_L"})
 T_ENTRIES = ((0, 0), (0, 1), (0, 2), (1, 0), (1, 1), (1, 2))
-PY_ARRAY = _names({"m": "mn", "kappa": "kp", "S_R": "SR", "Delta": "Dl", "F_n": "Fe",
-                   "b_n": "b", "R_L": "R", "R_R": "R_R"})
+PY_ARRAY = _names({"mu": "mu", "kappa": "kp", "S_R": "SR", "Delta": "Dl", "F_n": "Fe",
+                   "beta": "b", "R_L": "R", "R_R": "R_R"})
 
 
 def _lin(prefix: str, coeffs: dict, array: str = "", zero: str = "0.0") -> str:
@@ -78,9 +78,10 @@ def _shift_lines(history, array: str = ""):
 
 def _plain_entries(T, printer, element: str) -> dict:
     """The station matrix's entries as the plain sweep uses them: numbers inline, entries in
-    m and kappa only computed once per run ("run"), entries with Delta, F_n or b_n once per step
-    in the first pass and reused in the second ("step"); ``element`` formats the array element."""
-    per_step = {dttmm.Delta, dttmm.F_n, dttmm.b_n}
+    mu and kappa only computed once per run ("run"), entries with Delta, F_n or beta once per
+    step in the first pass and reused in the second ("step"); ``element`` formats the array
+    element."""
+    per_step = {dttmm.Delta, dttmm.F_n, dttmm.beta}
     out = {"run": [], "step": [], "use": []}
     for i, j in T_ENTRIES:
         name, e = f"T{i + 1}{j + 1}", sp.sympify(T[i, j])
@@ -104,7 +105,8 @@ def _scheme_context(name: str) -> dict:
                          "temps": [(str(t), printing.py(e)) for t, e in temps],
                          "rows": [(n, printing.py(e)) for n, e in reduced]})
         # C: the sweep expressions exactly as the NumPy sweep evaluates them (alpha_u = 1 and
-        # b = 0 of the acceleration form are not folded in), so both backends round alike
+        # b = 0 of the acceleration form are not folded into mu and beta), so both backends
+        # round alike
 
         def cc(expr, names=C_ARRAY):
             return printing.c(sp.sympify(expr).xreplace(names))
@@ -197,6 +199,9 @@ def _tmm_context() -> dict:
                       tmm.spring_damper(*sp.symbols("k c")).tolist()],
         "mass_py": [[printing.py(e) for e in row] for row in tmm.mass(sp.Symbol("m")).tolist()],
         "force_py": [[printing.py(e) for e in row] for row in tmm.force(sp.Symbol("F")).tolist()],
+        "ground": sp.latex(tmm.ground_spring_damper(*sp.symbols("k_g c_g"))),
+        "ground_py": [[printing.py(e) for e in row] for row in
+                      tmm.ground_spring_damper(*sp.symbols("kg cg")).tolist()],
     }
 
 

@@ -28,14 +28,20 @@ def mass(m):
     return sp.Matrix([[1, 0, 0], [m * s**2, 1, 0], [0, 0, 1]])
 
 
+def ground_spring_damper(kg, cg):
+    """Point matrix of a spring kg and a damper cg from the mass to the ground:
+    f_R = f_L + (kg + cg s) x."""
+    return sp.Matrix([[1, 0, 0], [kg + cg * s, 1, 0], [0, 0, 1]])
+
+
 def force(F):
     """Point matrix of an external force on the station: f_R = f_L - F."""
     return sp.Matrix([[1, 0, 0], [0, 1, -F], [0, 0, 1]])
 
 
-def station(m, k, c, F=0):
-    """Station n: spring-damper, then mass, then force (left to right)."""
-    return force(F) * mass(m) * spring_damper(k, c)
+def station(m, k, c, F=0, kg=0, cg=0):
+    """Station n: spring-damper, then mass with its ground spring-damper, then force."""
+    return force(F) * ground_spring_damper(kg, cg) * mass(m) * spring_damper(k, c)
 
 
 def chain_symbols(n):

@@ -6,6 +6,9 @@
  * and acceleration forms, stable (Riccati) and plain sweeps. Newmark (1959), J. Eng. Mech. Div.
  * ASCE 85(3)
  *
+ * m, k, c, kg, cg: N doubles each, the masses, the stations' springs and dampers (station n joins
+ * mass n to mass n - 1, station 0 to the ground) and each mass's spring and damper to the ground.
+ *
  * hist: 3 rows of N doubles (x0, v0, a0), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..
  * written (NULL: not stored). work: 12 N doubles (stable sweep).
@@ -78,23 +81,23 @@
     (void)T22; \
     (void)T13; \
     (void)T23;
-#define CHAIN_G kp / (-SR[n] + alpha_u * mn + kp)
-#define CHAIN_S_L kp *(SR[n] - alpha_u * mn) / (-SR[n] + alpha_u * mn + kp)
-#define CHAIN_AF kp / (-SR[n] + alpha_u * mn + kp)
-#define CHAIN_DEN -SR[n] + alpha_u *mn + kp
+#define CHAIN_G kp / (-SR[n] + kp + mu)
+#define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
+#define CHAIN_AF -kp / (SR[n] - kp - mu)
+#define CHAIN_DEN -SR[n] + kp + mu
 #define CHAIN_ERROR_STEP \
-    hD[n] = (-SR[n] + alpha_u * mn) / (-SR[n] + alpha_u * mn + kp); \
-    hb[n] = -kp * mn / (-SR[n] + alpha_u * mn + kp); \
-    fR[n] = 1.0 / (-SR[n] + alpha_u * mn + kp); \
-    fD[n] = -1 / (-SR[n] + alpha_u * mn + kp); \
-    fb[n] = -mn / (-SR[n] + alpha_u * mn + kp);
+    hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
+    hb[n] = kp / (SR[n] - kp - mu); \
+    fR[n] = -1 / (SR[n] - kp - mu); \
+    fD[n] = 1.0 / (SR[n] - kp - mu); \
+    fb[n] = 1.0 / (SR[n] - kp - mu);
 #define CHAIN_PLAIN_RUN \
     T12[n] = (1.0 / kp); \
-    T21[n] = (alpha_u * mn); \
-    T22[n] = (alpha_u * mn / kp + 1);
+    T21[n] = (mu); \
+    T22[n] = (1 + mu / kp);
 #define CHAIN_PLAIN_STEP \
     T13[n] = (-Dl[n] / kp); \
-    T23[n] = (-Dl[n] * alpha_u * mn / kp - Fe[n] + b[n] * mn);
+    T23[n] = (-Dl[n] * mu / kp - Fe[n] + b[n]);
 #define CHAIN_USE0 (1)
 #define CHAIN_USE1 T12[n]
 #define CHAIN_USE2 T13[n]
@@ -104,8 +107,8 @@
 #define CHAIN_Q q_x0 *x0[i]
 #define CHAIN_SV s_v0 *v0[i] + s_a0 *a0[i]
 #define CHAIN_B b_v0 *v0[i] + b_a0 *a0[i]
-#define CHAIN_H_NUM -Dl[n] * SR[n] + Dl[n] * alpha_u *mn + Fe[n] * kp - b[n] * kp *mn
-#define CHAIN_B_NUM -Dl[n] + Fe[n] + R_R - b[n] * mn
+#define CHAIN_H_NUM -Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp
+#define CHAIN_B_NUM -Dl[n] + Fe[n] + R_R - b[n]
 #define CHAIN_EQ q_x0 *ex0[i]
 #define CHAIN_ES s_v0 *ev0[i] + s_a0 *ea0[i]
 #define CHAIN_EB b_v0 *ev0[i] + b_a0 *ea0[i]
@@ -180,23 +183,23 @@
     (void)T22; \
     (void)T13; \
     (void)T23;
-#define CHAIN_G kp / (-SR[n] + alpha_u * mn + kp)
-#define CHAIN_S_L kp *(SR[n] - alpha_u * mn) / (-SR[n] + alpha_u * mn + kp)
-#define CHAIN_AF kp / (-SR[n] + alpha_u * mn + kp)
-#define CHAIN_DEN -SR[n] + alpha_u *mn + kp
+#define CHAIN_G kp / (-SR[n] + kp + mu)
+#define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
+#define CHAIN_AF -kp / (SR[n] - kp - mu)
+#define CHAIN_DEN -SR[n] + kp + mu
 #define CHAIN_ERROR_STEP \
-    hD[n] = (-SR[n] + alpha_u * mn) / (-SR[n] + alpha_u * mn + kp); \
-    hb[n] = -kp * mn / (-SR[n] + alpha_u * mn + kp); \
-    fR[n] = 1.0 / (-SR[n] + alpha_u * mn + kp); \
-    fD[n] = -1 / (-SR[n] + alpha_u * mn + kp); \
-    fb[n] = -mn / (-SR[n] + alpha_u * mn + kp);
+    hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
+    hb[n] = kp / (SR[n] - kp - mu); \
+    fR[n] = -1 / (SR[n] - kp - mu); \
+    fD[n] = 1.0 / (SR[n] - kp - mu); \
+    fb[n] = 1.0 / (SR[n] - kp - mu);
 #define CHAIN_PLAIN_RUN \
     T12[n] = (1.0 / kp); \
-    T21[n] = (alpha_u * mn); \
-    T22[n] = (alpha_u * mn / kp + 1);
+    T21[n] = (mu); \
+    T22[n] = (1 + mu / kp);
 #define CHAIN_PLAIN_STEP \
     T13[n] = (-Dl[n] / kp); \
-    T23[n] = (-Dl[n] * alpha_u * mn / kp - Fe[n] + b[n] * mn);
+    T23[n] = (-Dl[n] * mu / kp - Fe[n] + b[n]);
 #define CHAIN_USE0 (1)
 #define CHAIN_USE1 T12[n]
 #define CHAIN_USE2 T13[n]
@@ -206,8 +209,8 @@
 #define CHAIN_Q q_x0 *x0[i] + q_v0 *v0[i] + q_a0 *a0[i]
 #define CHAIN_SV s_v0 *v0[i] + s_a0 *a0[i]
 #define CHAIN_B 0.0
-#define CHAIN_H_NUM -Dl[n] * SR[n] + Dl[n] * alpha_u *mn + Fe[n] * kp - b[n] * kp *mn
-#define CHAIN_B_NUM -Dl[n] + Fe[n] + R_R - b[n] * mn
+#define CHAIN_H_NUM -Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp
+#define CHAIN_B_NUM -Dl[n] + Fe[n] + R_R - b[n]
 #define CHAIN_EQ q_x0 *ex0[i] + q_v0 *ev0[i] + q_a0 *ea0[i]
 #define CHAIN_ES s_v0 *ev0[i] + s_a0 *ea0[i]
 #define CHAIN_EB zero2
@@ -232,20 +235,22 @@
    factors a previous call (same chain, dt, scheme and form) left in work. Returns 0, or -1 for
    an absent form. */
 int dtdyn_chain_fox_goodwin(int form, int sweep, long N, long n_steps, const double *m,
-                            const double *k, const double *c, double dt, const double *params,
-                            long n_loaded, const long *loaded, const double *force, double *hist,
-                            long n_out, const long *out_idx, double *xo, double *vo, double *ao,
-                            double *work, double *ehist, double *err);
+                            const double *k, const double *c, const double *kg, const double *cg,
+                            double dt, const double *params, long n_loaded, const long *loaded,
+                            const double *force, double *hist, long n_out, const long *out_idx,
+                            double *xo, double *vo, double *ao, double *work, double *ehist,
+                            double *err);
 int dtdyn_chain_fox_goodwin(int form, int sweep, long N, long n_steps, const double *m,
-                            const double *k, const double *c, double dt, const double *params,
-                            long n_loaded, const long *loaded, const double *force, double *hist,
-                            long n_out, const long *out_idx, double *xo, double *vo, double *ao,
-                            double *work, double *ehist, double *err) {
+                            const double *k, const double *c, const double *kg, const double *cg,
+                            double dt, const double *params, long n_loaded, const long *loaded,
+                            const double *force, double *hist, long n_out, const long *out_idx,
+                            double *xo, double *vo, double *ao, double *work, double *ehist,
+                            double *err) {
     if (form == 0)
-        return run_displacement(sweep, N, n_steps, m, k, c, dt, params, n_loaded, loaded, force,
-                                hist, n_out, out_idx, xo, vo, ao, work, ehist, err);
+        return run_displacement(sweep, N, n_steps, m, k, c, kg, cg, dt, params, n_loaded, loaded,
+                                force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err);
     if (form == 1)
-        return run_acceleration(sweep, N, n_steps, m, k, c, dt, params, n_loaded, loaded, force,
-                                hist, n_out, out_idx, xo, vo, ao, work, ehist, err);
+        return run_acceleration(sweep, N, n_steps, m, k, c, kg, cg, dt, params, n_loaded, loaded,
+                                force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err);
     return -1;
 }

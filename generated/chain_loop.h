@@ -57,7 +57,7 @@ static double step_sign(uint64_t j)
 #endif
 
 static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const double *k,
-                            const double *c, double dt, const double *params, long n_loaded,
+                            const double *c, const double *kg, const double *cg, double dt, const double *params, long n_loaded,
                             const long *loaded, const double *force, double *hist, long n_out,
                             const long *out_idx, double *xo, double *vo, double *ao, double *work,
                             double *ehist, double *err)
@@ -86,7 +86,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     if (!reuse) {   /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
         double S_R = 0.0;
         for (n = N - 1; n >= 0; --n) {
-            const double mn = m[n], kp = k[n] * p + c[n] * r;
+            const double mu = m[n] * alpha_u + kg[n] * p + cg[n] * r, kp = k[n] * p + c[n] * r;
             double S_L;
             SR[n] = S_R;
             g[n] = CHAIN_G;
@@ -102,9 +102,9 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     if (sweep) {
         double P_u = 0.0, P_f = 1.0;
         for (n = 0; n < N; ++n) {
-            const double mn = m[n], kp = k[n] * p + c[n] * r;
+            const double mu = m[n] * alpha_u + kg[n] * p + cg[n] * r, kp = k[n] * p + c[n] * r;
             CHAIN_PLAIN_RUN
-            (void)mn; (void)kp;
+            (void)mu; (void)kp;
             const double nu = CHAIN_USE0 * P_u + CHAIN_USE1 * P_f;
             P_f = CHAIN_USE3 * P_u + CHAIN_USE4 * P_f;
             P_u = nu;
@@ -134,7 +134,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
         for (i = 0; i < N; ++i) {
             q[i] = CHAIN_Q;
             s[i] = CHAIN_SV;
-            b[i] = CHAIN_B;
+            b[i] = m[i] * (CHAIN_B) + kg[i] * q[i] + cg[i] * s[i];  /* beta: m a + k_g x + c_g v */
         }
         for (n = 0; n < N; ++n) {
             const double qp = n ? q[n - 1] : 0.0, sp = n ? s[n - 1] : 0.0;
@@ -143,13 +143,11 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
         if (sweep == 0) {
             double up = 0.0;
             for (n = N - 1; n >= 0; --n) {
-                const double mn = m[n], kp = k[n] * p + c[n] * r;
+                const double mu = m[n] * alpha_u + kg[n] * p + cg[n] * r, kp = k[n] * p + c[n] * r;
                 R[n] = fma(g[n], n + 1 < N ? R[n + 1] : 0.0, (CHAIN_H_NUM) / den[n]);
             }
             for (n = 0; n < N; ++n) {
-                const double mn = m[n];
                 const double R_R = n + 1 < N ? R[n + 1] : 0.0;
-                (void)mn;
                 up = fma(af[n], up, (CHAIN_B_NUM) / den[n]);
                 u[n] = up;
             }
@@ -162,16 +160,16 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
             for (i = 0; i < N; ++i) {
                 const pair eq = CHAIN_EQ;
                 const pair es = CHAIN_ES;
-                eb[i] = CHAIN_EB;
+                eb[i] = m[i] * (CHAIN_EB) + kg[i] * eq + cg[i] * es;
                 eDl[i] = k[i] * (eq - eqp) + c[i] * (es - esp);
                 eqp = eq;
                 esp = es;
             }
             for (n = 0; n < N; ++n) {
                 const long nb = N - 1 - n;
-                const double mn = m[n], kp = k[n] * p + c[n] * r;
+                const double mu = m[n] * alpha_u + kg[n] * p + cg[n] * r, kp = k[n] * p + c[n] * r;
                 double nu;
-                (void)mn; (void)kp;
+                (void)mu; (void)kp;
                 CHAIN_PLAIN_STEP
                 nu = CHAIN_USE0 * Q_u + CHAIN_USE1 * Q_f + CHAIN_USE2;
                 Q_f = CHAIN_USE3 * Q_u + CHAIN_USE4 * Q_f + CHAIN_USE5;

@@ -4,21 +4,23 @@
 
 Station matrix T_n (maps [u_{n-1}, f_n, 1] to [u_n, f_{n+1}, 1]):
     [1, 1/kappa, -Delta/kappa]
-    [alpha_u*m, alpha_u*m/kappa + 1, -Delta*alpha_u*m/kappa - F_n + b_n*m]
+    [mu, 1 + mu/kappa, -Delta*mu/kappa - F_n + beta_n]
     [0, 0, 1]
-Stable sweep (Riccati): S_L = kappa*(S_R - alpha_u*m)/(-S_R + alpha_u*m + kappa);  R_L = g R_R + h,  g = kappa/(-S_R + alpha_u*m + kappa),
-h = (-Delta*S_R + Delta*alpha_u*m + F_n*kappa - b_n*kappa*m)/(-S_R + alpha_u*m + kappa);  forward u_n = a u_{n-1} + b,  a = kappa/(-S_R + alpha_u*m + kappa),  b = -(Delta - F_n - R_R + b_n*m)/(-S_R + alpha_u*m + kappa).
+with mu = m alpha_u + k_g p + c_g r and beta_n = m b + k_g q + c_g s (the mass and its spring and
+damper to the ground: m a + k_g x + c_g v = mu u + beta_n).
+Stable sweep (Riccati): S_L = kappa*(S_R - mu)/(-S_R + kappa + mu);  R_L = g R_R + h,  g = kappa/(-S_R + kappa + mu),
+h = (Delta*S_R - Delta*mu - F_n*kappa + beta_n*kappa)/(S_R - kappa - mu);  forward u_n = a u_{n-1} + b,  a = -kappa/(S_R - kappa - mu),  b = (Delta - F_n - R_R + beta_n)/(S_R - kappa - mu).
 The time loop runs in Python but every station loop is a vector operation or one LAPACK
 triangular banded solve (dtbtrs), so a step costs O(N).
 
 Plain sweep: z_n = T_n z_{n-1} from z_0 = [0, f_1, 1], f_1 = -Q_f / P_f,N (scalar loops). Its error
 estimate (dtdyn.derive.dttmm) carries an error history E, rows as H, through the exact step with
-zero force, R_L = g R_R + hD Delta + hb b, u_n = a u_{n-1} + fR R_R + fD Delta + fb b with
-hD = (-S_R + alpha_u*m)/(-S_R + alpha_u*m + kappa),
-hb = -kappa*m/(-S_R + alpha_u*m + kappa),
-fR = 1/(-S_R + alpha_u*m + kappa),
-fD = -1/(-S_R + alpha_u*m + kappa),
-fb = -m/(-S_R + alpha_u*m + kappa);
+zero force, R_L = g R_R + hD Delta + hb beta, u_n = a u_{n-1} + fR R_R + fD Delta + fb beta with
+hD = (S_R - mu)/(S_R - kappa - mu),
+hb = kappa/(S_R - kappa - mu),
+fR = -1/(S_R - kappa - mu),
+fD = 1/(S_R - kappa - mu),
+fb = 1/(S_R - kappa - mu);
 for two error histories, E_s and E_r, and adds this step's rounding error to their unknowns:
 -eps_P f_1 P_u to E_s (eps_P: the rounding error of P_f,N, from the product in double-double) and
 1.5 s_j eps f_1 P_u to E_r (s_j: a pseudo-random sign of the step index j). With
@@ -137,9 +139,13 @@ def error_history_maps(K, names):
     return L[:3].copy(), L[3:].copy(), c_u, shifts, rows
 
 
-def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E=None, err=None):
+def run_chain(
+    K, names, sweep, m, k, c, kg, cg, loaded, force, H, out_idx, xo, vo, ao, E=None, err=None
+):
     """Advance the chain over len(force) - 1 steps.
 
+    m, k, c, kg, cg: the masses, the stations' springs and dampers (station n joins mass n to
+    mass n - 1, station 0 to the ground) and each mass's spring and damper to the ground;
     K: coefficients of one scheme and form; H: history rows (modified in place);
     xo/vo/ao: arrays of shape (len(force), len(out_idx)) whose rows 1.. are written, or None.
     Plain sweep: E (the two error histories E_s, E_r: shape H.shape + (2,), the C kernels'
@@ -149,6 +155,7 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E
     N = m.size
     p, r, alpha_u = K["p"], K["r"], K["alpha_u"]
     kappa = k * p + c * r
+    mu_all = m * alpha_u + kg * p + cg * r  # the grounded mass's coefficient of u
     Fe = np.zeros(N)
     # Riccati factors: the stable sweep, and the plain sweep's error estimate
     SR = np.empty(N)
@@ -158,19 +165,19 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E
     es = np.empty((5, N))  # the error step's hD, hb, fR, fD, fb (plain sweep)
     S_R = 0.0
     for n in range(N - 1, -1, -1):
-        mn, kp = m[n], kappa[n]
+        mu, kp = mu_all[n], kappa[n]
         SR[n] = S_R
-        g[n] = kp / (-S_R + alpha_u * mn + kp)
-        S_L = kp * (S_R - alpha_u * mn) / (-S_R + alpha_u * mn + kp)
-        af[n] = kp / (-S_R + alpha_u * mn + kp)
-        den[n] = -S_R + alpha_u * mn + kp
+        g[n] = kp / (-S_R + kp + mu)
+        S_L = kp * (S_R - mu) / (-S_R + kp + mu)
+        af[n] = -kp / (S_R - kp - mu)
+        den[n] = -S_R + kp + mu
         if sweep == "plain":
             es[:, n] = (
-                (-S_R + alpha_u * mn) / (-S_R + alpha_u * mn + kp),
-                -kp * mn / (-S_R + alpha_u * mn + kp),
-                1.0 / (-S_R + alpha_u * mn + kp),
-                -1.0 / (-S_R + alpha_u * mn + kp),
-                -mn / (-S_R + alpha_u * mn + kp),
+                (S_R - mu) / (S_R - kp - mu),
+                kp / (S_R - kp - mu),
+                -1.0 / (S_R - kp - mu),
+                1.0 / (S_R - kp - mu),
+                1.0 / (S_R - kp - mu),
             )
         S_R = S_L
     upper = np.ones((2, N))
@@ -192,14 +199,14 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E
         E2 = np.moveaxis(E, 2, 0)  # (2, rows, N): E_s, E_r (a view)
         L_qsb, L_upd, c_u, shifts, rows = error_history_maps(K, names)
         # the station matrices' entries (Python floats: the scalar loops round as with NumPy
-        # scalars, faster); those in m and kappa once per run, the others once per step
-        ml, kl = m.tolist(), kappa.tolist()
+        # scalars, faster); those in mu and kappa once per run, the others once per step
+        ml, kl = mu_all.tolist(), kappa.tolist()
         T12, T21, T22, T13, T23 = [0.0] * N, [0.0] * N, [0.0] * N, [0.0] * N, [0.0] * N
         Pu = np.empty(N)
         P_u, P_f = 0.0, 1.0
         for n in range(N):
-            mn, kp = ml[n], kl[n]
-            T12[n], T21[n], T22[n] = (1.0 / kp), (alpha_u * mn), (alpha_u * mn / kp + 1.0)
+            mu, kp = ml[n], kl[n]
+            T12[n], T21[n], T22[n] = (1.0 / kp), (mu), (1.0 + mu / kp)
             P_u, P_f = (1.0) * P_u + T12[n] * P_f, T21[n] * P_u + T22[n] * P_f
             Pu[n] = P_u
         PfN = P_f
@@ -218,23 +225,23 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E
         Fe[loaded] = K["w0"] * force[step] + K["w1"] * force[step + 1]
         q = combine(K, "q", H, names)
         s = combine(K, "s", H, names)
-        b = combine(K, "b", H, names)
+        b = m * combine(K, "b", H, names) + kg * q + cg * s  # beta: m a + k_g x + c_g v
         Dl = k * np.diff(q, prepend=0.0) + c * np.diff(s, prepend=0.0)
         if sweep == "stable":
-            mn, kp = m, kappa
-            h = (-Dl * SR + Dl * alpha_u * mn + Fe * kp - b * kp * mn) / den
+            mu, kp = mu_all, kappa
+            h = (-Dl * SR + Dl * mu + Fe * kp - b * kp) / den
             R, info = dtbtrs(upper, h[:, None], uplo="U", diag="U")
             R = R[:, 0]
             R_R = np.append(R[1:], 0.0)
-            u, info = dtbtrs(lower, ((-Dl + Fe + R_R - b * mn) / den)[:, None], uplo="L", diag="U")
+            u, info = dtbtrs(lower, ((-Dl + Fe + R_R - b) / den)[:, None], uplo="L", diag="U")
             u = u[:, 0]
         else:
             u = np.empty(N)
             Dll, Fel, bl = Dl.tolist(), Fe.tolist(), b.tolist()
             Q_u, Q_f = 0.0, 0.0
             for n in range(N):
-                mn, kp, Dn, Fn, bn = ml[n], kl[n], Dll[n], Fel[n], bl[n]
-                T13[n], T23[n] = (-Dn / kp), (-Dn * alpha_u * mn / kp - Fn + bn * mn)
+                mu, kp, Dn, Fn, bn = ml[n], kl[n], Dll[n], Fel[n], bl[n]
+                T13[n], T23[n] = (-Dn / kp), (-Dn * mu / kp - Fn + bn)
                 Q_u, Q_f = (
                     (1.0) * Q_u + T12[n] * Q_f + T13[n],
                     T21[n] * Q_u + T22[n] * Q_f + T23[n],
@@ -254,7 +261,8 @@ def run_chain(K, names, sweep, m, k, c, loaded, force, H, out_idx, xo, vo, ao, E
             qsb = L_qsb @ E2  # (2, 3, N)
             d = qsb[:, :2].copy()
             d[:, :, 1:] -= qsb[:, :2, :-1]
-            ue = zero_force_step((k * d[:, 0] + c * d[:, 1]).T, qsb[:, 2].T).T + kicks * Pu
+            eb = m * qsb[:, 2] + kg * qsb[:, 0] + cg * qsb[:, 1]
+            ue = zero_force_step((k * d[:, 0] + c * d[:, 1]).T, eb.T).T + kicks * Pu
             enew = L_upd @ E2
             enew += c_u * ue[:, None, :]
             for dst, src in shifts:

@@ -25,10 +25,11 @@
 
 typedef long long int nl_int;
 typedef int (*chain_fn)(int form, int sweep, long N, long n_steps, const double *m, const double *k,
-                        const double *c, double dt, const double *params, long n_loaded,
-                        const long *loaded, const double *force, double *hist, long n_out,
-                        const long *out_idx, double *xo, double *vo, double *ao, double *work,
-                        double *ehist, double *err);
+                        const double *c, const double *kg, const double *cg, double dt,
+                        const double *params, long n_loaded, const long *loaded,
+                        const double *force, double *hist, long n_out, const long *out_idx,
+                        double *xo, double *vo, double *ao, double *work, double *ehist,
+                        double *err);
 /* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
    the definitions below against the ctypes bindings in generated/c_api.py */
 int dtdyn_set_stop(int value);
@@ -177,14 +178,12 @@ static long newton_solve(long nu, long ne, double *restrict u, double *restrict 
  *       ix, iv, ia (the rows of x0, v0, a0 in H).
  * idx:  loaded (n_loaded), pf (nf), pi (ne), pj (ne; -1: ground) as positions in loaded;
  *       ei, ej (ne; -1: ground) as masses; outputs (no).
- * mats: m, k, c, params (the scheme's), U (ne x nh x N), par ([Dwg; h], Dwg nw x ne
- *       column-major), force (n_samples x nf, linear between samples).
- * state: H, u (nw + nz: the last solution), g (ne), rate (nz); updated in place.
- * out:  x, v, a (n_samples x no each), then g (n_samples x ne) and z (n_samples x nz), NULL
- *       when not stored.
- * stats: [max iterations, total iterations, max final residual, failing residual].
- * work: 12 N (chain kernel) + 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz, then
- *       the CasADi work.
+ * mats: m, k, c, kg, cg (the chain kernel's), params (the scheme's), U (ne x nh x N), par ([Dwg;
+ * h], Dwg nw x ne column-major), force (n_samples x nf, linear between samples). state: H, u (nw +
+ * nz: the last solution), g (ne), rate (nz); updated in place. out:  x, v, a (n_samples x no each),
+ * then g (n_samples x ne) and z (n_samples x nz), NULL when not stored. stats: [max iterations,
+ * total iterations, max final residual, failing residual]. work: 12 N (chain kernel) + 2 n_loaded +
+ * nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz, then the CasADi work.
  */
 int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                    const double *const *mats, double *restrict H, double *restrict u,
@@ -198,8 +197,8 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
     const int form = (int)dims[11];
     const long *loaded = idx[0], *pf = idx[1], *pi = idx[2], *pj = idx[3], *ei = idx[4];
     const long *ej = idx[5], *outs = idx[6];
-    const double *m = mats[0], *k = mats[1], *c = mats[2], *params = mats[3], *U = mats[4];
-    const double *par = mats[5], *Dwg = par, *force = mats[6];
+    const double *m = mats[0], *k = mats[1], *c = mats[2], *kg = mats[3], *cg = mats[4];
+    const double *params = mats[5], *U = mats[6], *par = mats[7], *Dwg = par, *force = mats[8];
     double *cwork = work, *frc = cwork + 12 * N, *Q = frc + 2 * nl, *zold = Q + nw;
     double *rold = zold + nz, *r = rold + nz, *J = r + nu, *gn = J + nu * nu, *rn_ = gn + ne;
     double *cw = rn_ + nz;
@@ -245,8 +244,8 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                 if (pj[e] >= 0)
                     frc[pj[e]] += g[e];
             }
-            if (sweep(form, (n == 0 && j == 0) ? 0 : 2, N, 1, m, k, c, h, params, nl, loaded, frc,
-                      H, 0, NULL, NULL, NULL, NULL, cwork, NULL, NULL))
+            if (sweep(form, (n == 0 && j == 0) ? 0 : 2, N, 1, m, k, c, kg, cg, h, params, nl,
+                      loaded, frc, H, 0, NULL, NULL, NULL, NULL, cwork, NULL, NULL))
                 return 4;
             for (e = 0; e < ne; ++e) {
                 Q[e] = H[ix * N + ei[e]] - (ej[e] >= 0 ? H[ix * N + ej[e]] : 0.0);

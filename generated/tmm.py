@@ -15,5 +15,9 @@ def mass(m, s):
     return np.array([[1.0, 0.0, 0.0], [m * (s * s), 1.0, 0.0], [0.0, 0.0, 1.0]], dtype=complex)
 
 
+def ground_spring_damper(kg, cg, s):
+    return np.array([[1.0, 0.0, 0.0], [cg * s + kg, 1.0, 0.0], [0.0, 0.0, 1.0]], dtype=complex)
+
+
 def force(F):
     return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, -F], [0.0, 0.0, 1.0]], dtype=complex)

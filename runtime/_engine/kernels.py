@@ -82,18 +82,20 @@ def params_array(scheme) -> np.ndarray:
     return np.array([scheme.params[p] for p in scheme.module.PARAMS] or [0.0])
 
 
-def chain_advance(backend, scheme, coeffs, form, sweep, m, k, c, dt, loaded, out_idx,
+def chain_advance(backend, scheme, coeffs, form, sweep, chain, dt, loaded, out_idx,
                   tracker: PlainSweepError | None = None):
     """An ``advance(force_rows, H, xo, vo, ao) -> error estimate of the run so far`` for
-    stepping.integrate. The plain sweep needs the run's ``tracker`` (0.0 for the stable one)."""
+    stepping.integrate. ``chain``: the checked (m, k, c, kg, cg) arrays (linear.chain.Chain).
+    The plain sweep needs the run's ``tracker`` (0.0 for the stable one)."""
     if sweep == "plain" and tracker is None:
         raise ValueError("the plain sweep needs a PlainSweepError tracker")
     plain = sweep == "plain"
+    m, k, c, kg, cg = chain
     fn = c_chain_function(scheme.name) if backend == "c" else None
     if fn is None:
         def advance(force, H, xo, vo, ao):
             E = tracker.history(scheme.history) if plain else None
-            dttmm_sweep.run_chain(coeffs, scheme.history, sweep, m, k, c, loaded, force, H,
+            dttmm_sweep.run_chain(coeffs, scheme.history, sweep, m, k, c, kg, cg, loaded, force, H,
                                   out_idx, xo, vo, ao, E, tracker.err if plain else None)
             if plain:
                 tracker.record(force.shape[0] - 1)
@@ -112,7 +114,7 @@ def chain_advance(backend, scheme, coeffs, form, sweep, m, k, c, dt, loaded, out
             assert arr is None or arr.flags.c_contiguous
         E = tracker.history(scheme.history) if plain else None
         rc = fn(FORM_CODE[form], SWEEP_CODE[sweep], N, force.shape[0] - 1, m.ctypes.data,
-                k.ctypes.data, c.ctypes.data, dt, params.ctypes.data, loaded64.size,
+                k.ctypes.data, c.ctypes.data, kg.ctypes.data, cg.ctypes.data, dt, params.ctypes.data, loaded64.size,
                 loaded64.ctypes.data, force.ctypes.data, H.ctypes.data, out64.size,
                 out64.ctypes.data, _p(xo), _p(vo), _p(ao), work.ctypes.data, _p(E),
                 _p(tracker.err) if plain else None)

@@ -87,13 +87,14 @@ def _show(args) -> int:
         maps = dttmm.form_maps(form, der)
         subs = {dttmm.p: maps["p"], dttmm.r: maps["r"], dttmm.alpha: maps["alpha_u"],
                 dttmm.b_n: maps["b"]}
-        T = dttmm.station_step().subs(subs)
+        T = dttmm.station_step().subs({dttmm.mu: dttmm.MU, dttmm.beta: dttmm.BETA}).subs(subs)
         unknown = "u = xe - x0, the increment" if form == "displacement" else "u = ae"
         print(f"\nDT-TMM station matrix, {form} form ({unknown}), "
               "[u_n-1, f_n, 1] -> [u_n, f_n+1, 1]:")
         print(_matrix_text(T, args.latex))
         print(f"  kappa = {sp.sstr(sp.simplify(dttmm.KAPPA.subs(subs)))}, "
-              "Delta = k (q_n - q_n-1) + c (s_n - s_n-1) with, at each mass,\n"
+              "Delta = k (q_n - q_n-1) + c (s_n - s_n-1) with, at each mass (k_g, c_g: its\n"
+              "  spring and damper to the ground),\n"
               f"  q = {sp.sstr(maps['q'])}, s = {sp.sstr(maps['s'])}, b = {sp.sstr(maps['b'])}")
     return 0
 

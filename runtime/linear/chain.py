@@ -3,14 +3,18 @@
 ::
 
     ground |--[k1,c1]--(m1)--[k2,c2]--(m2)-- ... --[kN,cN]--(mN)  free
-                        F1                F2                 FN
+                        F1  |             F2  |              FN
+                        [kg1,cg1]         [kg2,cg2]          (optional, to the ground)
 
 Station n (1-based in the papers, 0-based here): a spring k_n parallel to a damper c_n from node
-n-1 to mass m_n; node 0 is ground. Reference.md sections 1 and 3.
+n-1 to mass m_n; node 0 is ground. Each mass may also have a spring kg_n and a damper cg_n to
+the ground (``ground_stiffness``, ``ground_damping``): mass-proportional and Rayleigh damping,
+elastic supports. docs/dttmm.md has the station matrices and the sweep.
 """
 from __future__ import annotations
 
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sps
@@ -28,28 +32,84 @@ from dtdyn.linear.stability import chain_highest_frequency, check_dt
 PLAIN_SWEEP_TOLERANCE = 1e-6
 
 
-def chain_parameters(mass, stiffness, damping):
-    """Checked (m, k, c) arrays: m > 0, k >= 0, c >= 0, same length, each station connected."""
+class Chain(NamedTuple):
+    """A checked chain: masses m, station springs k and dampers c (station n joins mass n to
+    mass n - 1, station 0 to the ground), each mass's spring kg and damper cg to the ground."""
+
+    m: np.ndarray
+    k: np.ndarray
+    c: np.ndarray
+    kg: np.ndarray
+    cg: np.ndarray
+
+
+def chain_parameters(mass, stiffness, damping, ground_stiffness=None,
+                     ground_damping=None) -> Chain:
+    """The checked `Chain`: m > 0, k, c, kg, cg >= 0 (kg, cg zeros when None), same length,
+    each station connected (k_n + c_n > 0)."""
     m = validate.vector("mass", mass, positive=True)
     k = validate.vector("stiffness", stiffness, nonnegative=True, length=m.size)
     c = validate.vector("damping", damping, nonnegative=True, length=m.size)
+    kg, cg = (np.zeros(m.size) if v is None else
+              validate.vector(name, v, nonnegative=True, length=m.size)
+              for name, v in (("ground_stiffness", ground_stiffness),
+                              ("ground_damping", ground_damping)))
     loose = np.flatnonzero((k == 0.0) & (c == 0.0))
     if loose.size:
         raise ValueError(f"station {int(loose[0])} has stiffness = damping = 0: the chain is "
                          "disconnected there")
-    return m, k, c
+    return Chain(m, k, c, kg, cg)
 
 
-def chain_matrices(mass, stiffness, damping, sparse: bool | None = None):
+def rayleigh_chain_damping(mass, stiffness, rayleigh, ground_stiffness=None):
+    r"""The chain form of Rayleigh damping :math:`C = \alpha M + \beta K`.
+
+    Each station's damper is beta k_n and each mass's damper to the ground
+    alpha m_n + beta kg_n, so that `chain_matrices` assembles exactly alpha M + beta K
+    (the spring of station n is between two masses, m_n alone touches the ground).
+
+    Parameters
+    ----------
+    mass, stiffness : (N,) array_like
+        The chain (as `simulate_chain`).
+    rayleigh : (alpha, beta)
+        The mass- and stiffness-proportional coefficients, 1/s and s, >= 0. Modal damping
+        ratios follow :math:`\zeta_r = \alpha / (2 \omega_r) + \beta \omega_r / 2`.
+    ground_stiffness : (N,) array_like, optional
+        Springs from the masses to the ground (part of K).
+
+    Returns
+    -------
+    damping, ground_damping : (N,) ndarray
+        For ``damping`` and ``ground_damping`` of the chain functions.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> c, cg = dd.rayleigh_chain_damping([2.0, 3.0], [20.0, 15.0], (0.5, 0.01))
+    >>> c.tolist(), cg.tolist()
+    ([0.2, 0.15], [1.0, 1.5])
+    """
+    m, k, _, kg, _ = chain_parameters(mass, stiffness, np.zeros(np.size(mass)), ground_stiffness)
+    coef = validate.vector("rayleigh", rayleigh, nonnegative=True, length=2)
+    alpha, beta = (float(v) for v in coef)
+    return beta * k, alpha * m + beta * kg
+
+
+def chain_matrices(mass, stiffness, damping, sparse: bool | None = None, *,
+                   ground_stiffness=None, ground_damping=None):
     """Assembled (M, C, K) of a chain; scipy.sparse CSR when ``sparse`` (default: N > 200).
 
-    K[n, n] += k_n and, for n > 0, K[n-1, n-1] += k_n, K[n-1, n] = K[n, n-1] = -k_n; C alike.
+    K[n, n] += k_n + kg_n and, for n > 0, K[n-1, n-1] += k_n, K[n-1, n] = K[n, n-1] = -k_n;
+    C alike with c_n and cg_n.
 
     Parameters
     ----------
     mass, stiffness, damping : (N,) array_like
         m_n > 0, k_n >= 0, c_n >= 0 of station n (0-based); station n joins mass n to mass n - 1
         (to the ground for n = 0).
+    ground_stiffness, ground_damping : (N,) array_like, optional
+        kg_n >= 0, cg_n >= 0: a spring and a damper from mass n to the ground (zeros).
     sparse : bool, optional
         scipy.sparse CSR matrices when True, dense arrays when False (default: N > 200).
 
@@ -65,20 +125,21 @@ def chain_matrices(mass, stiffness, damping, sparse: bool | None = None):
     array([[ 35., -15.],
            [-15.,  15.]])
     """
-    m, k, c = chain_parameters(mass, stiffness, damping)
+    m, k, c, kg, cg = chain_parameters(mass, stiffness, damping, ground_stiffness,
+                                       ground_damping)
     sparse = m.size > 200 if sparse is None else sparse
 
-    def band(e):
-        diag = e.copy()
+    def band(e, ground):
+        diag = e + ground
         diag[:-1] += e[1:]
         return sps.diags([diag, -e[1:], -e[1:]], [0, 1, -1], format="csr")
 
-    M, C, K = sps.diags(m, format="csr"), band(c), band(k)
+    M, C, K = sps.diags(m, format="csr"), band(c, cg), band(k, kg)
     return (M, C, K) if sparse else (M.toarray(), C.toarray(), K.toarray())
 
 
-def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, scheme="newmark",
-                   form="displacement", sweep="stable", backend="c", outputs=None,
+def simulate_chain(mass, stiffness, damping, force, dt, *, ground_stiffness=None,
+                   ground_damping=None, force_dofs=None, scheme="newmark", form="displacement", sweep="stable", backend="c", outputs=None,
                    quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
                    progress=False, ground_acceleration=None, ground_velocity=None,
                    ground_displacement=None, influence=None,
@@ -95,6 +156,10 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
         array is one column.
     dt : float
         Time step, > 0.
+    ground_stiffness, ground_damping : (N,) array_like, optional
+        kg_n >= 0, cg_n >= 0: a spring and a damper from mass n to the ground (zeros); e.g.
+        mass-proportional or Rayleigh damping (`rayleigh_chain_damping`). Under support motion
+        they move with the support like station 0.
     force_dofs : sequence of int, optional
         0-based masses the force columns act on (all masses when None).
     scheme : str
@@ -163,7 +228,8 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
     Rui, Wang, Rong, He & Lu (2008), Discrete time transfer matrix method for multibody system
     dynamics. Horner & Pilkey (1978), The Riccati transfer matrix method.
     """
-    m, k, c = chain_parameters(mass, stiffness, damping)
+    chain = chain_parameters(mass, stiffness, damping, ground_stiffness, ground_damping)
+    m, k, c, kg, cg = chain
     force, force_dofs, ground = support.prepare(sps.diags(m), force, force_dofs, m.size,
                                                 ground_acceleration, influence, dt=dt,
                                                 ground_velocity=ground_velocity,
@@ -177,10 +243,10 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
     if backend not in ("c", "numpy"):
         raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
     info = get_scheme(scheme, **scheme_params)
-    check_dt(info, dt, lambda limit: chain_highest_frequency(m, k, limit), unstable)
+    check_dt(info, dt, lambda limit: chain_highest_frequency(m, k, limit, kg), unstable)
     K0 = info.coefficients(form, dt)
     kappa = k * K0["p"] + c * K0["r"]
-    if np.any(kappa == 0.0):
+    if np.any(kappa == 0.0):  # (a ground damper does not help: the station's row divides)
         n = int(np.flatnonzero(kappa == 0.0)[0])
         raise ValueError(f"damping[{n}] = 0 with the explicit scheme {info.name!r}: the acceleration-"
                          "form spring row divides by k Dx + c Dv = 0; give every station a damper "
@@ -189,13 +255,13 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, force_dofs=None, sche
     tracker = kernels.PlainSweepError(m.size) if sweep == "plain" else None
 
     def make_advance(sch, coeffs):
-        return kernels.chain_advance(backend, sch, coeffs, form, sweep, m, k, c, dt, loaded,
+        return kernels.chain_advance(backend, sch, coeffs, form, sweep, chain, dt, loaded,
                                      outputs, tracker)
 
     f0 = np.zeros(m.size)
     f0[loaded] = force[0]
     if x0.any() or v0.any():  # a_0 = M^-1 (f_0 - C v_0 - K x_0), consistent with the start
-        _, C, K = chain_matrices(m, k, c, sparse=True)
+        _, C, K = chain_matrices(m, k, c, sparse=True, ground_stiffness=kg, ground_damping=cg)
         f0 = f0 - C @ v0 - K @ x0
     a0 = f0 / m
     res = stepping.integrate(info, form, dt, force, (x0, v0, a0), make_advance, outputs,

@@ -209,16 +209,18 @@ def highest_frequency(M, K, limit=None):
     return float(np.sqrt(max(lam, 0.0)))
 
 
-def chain_highest_frequency(mass, stiffness, limit=None) -> float:
+def chain_highest_frequency(mass, stiffness, limit=None, ground_stiffness=None) -> float:
     """The largest undamped natural frequency (rad/s) of a chain: the top eigenvalue of the
-    tridiagonal M^-1/2 K M^-1/2, O(N). With ``limit``, the Gershgorin bound
-    max_i (d_i + |e_i-1| + |e_i|) is returned instead when its square root is <= ``limit``
-    (a well-resolved run then costs a few vector operations, not an eigenvalue)."""
+    tridiagonal M^-1/2 K M^-1/2, O(N) (K with the springs to the ground, when given). With
+    ``limit``, the Gershgorin bound max_i (d_i + |e_i-1| + |e_i|) is returned instead when its
+    square root is <= ``limit`` (a well-resolved run then costs a few vector operations, not an
+    eigenvalue)."""
     import scipy.linalg as sla
 
     m, k = np.asarray(mass, float), np.asarray(stiffness, float)
+    kg = 0.0 if ground_stiffness is None else np.asarray(ground_stiffness, float)
     s = 1.0 / np.sqrt(m)
-    d, e = (k + np.append(k[1:], 0.0)) * s * s, -k[1:] * s[:-1] * s[1:]
+    d, e = (k + np.append(k[1:], 0.0) + kg) * s * s, -k[1:] * s[:-1] * s[1:]
     if limit is not None:
         off = np.abs(e)
         bound = float(np.sqrt(np.max(d + np.append(off, 0.0) + np.append(0.0, off))))

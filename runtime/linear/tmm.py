@@ -1,7 +1,7 @@
 """Transfer matrix method in the Laplace domain, numerically: frequency responses and poles.
 
-Uses the generated element matrices (dtdyn.generated.tmm); U = prod_{n=N..1} M_n S_n, the poles
-are the roots of U22(s).
+Uses the generated element matrices (dtdyn.generated.tmm); U = prod_{n=N..1} P_n G_n M_n S_n
+(force, ground spring-damper, mass, station spring-damper), the poles are the roots of U22(s).
 """
 from __future__ import annotations
 
@@ -13,15 +13,23 @@ from dtdyn._engine import validate
 from dtdyn.linear.chain import chain_parameters
 
 
-def system_matrix(m, k, c, s: complex) -> np.ndarray:
+def station(chain, n: int, s: complex) -> np.ndarray:
+    """G_n M_n S_n(s) of station n of a checked chain (linear.chain.Chain), 3 x 3 complex."""
+    m, k, c, kg, cg = (a[n] for a in chain)
+    return (elements.ground_spring_damper(kg, cg, s) @ elements.mass(m, s)
+            @ elements.spring_damper(k, c, s))
+
+
+def system_matrix(chain, s: complex) -> np.ndarray:
     """U(s) of the unloaded chain, 3 x 3 complex."""
     U = np.eye(3, dtype=complex)
-    for mn, kn, cn in zip(m, k, c):
-        U = elements.mass(mn, s) @ elements.spring_damper(kn, cn, s) @ U
+    for n in range(chain.m.size):
+        U = station(chain, n, s) @ U
     return U
 
 
-def frequency_response(mass, stiffness, damping, omega, force_dof: int, output: int) -> np.ndarray:
+def frequency_response(mass, stiffness, damping, omega, force_dof: int, output: int, *,
+                       ground_stiffness=None, ground_damping=None) -> np.ndarray:
     """x_output / F at s = j omega for a unit force on mass ``force_dof`` (0-based masses), by
     the Laplace-domain transfer matrices with the boundary conditions x_base = 0, f_end = 0.
 
@@ -37,6 +45,8 @@ def frequency_response(mass, stiffness, damping, omega, force_dof: int, output: 
     ----------
     mass, stiffness, damping : (N,) array_like
         The chain (as `simulate_chain`).
+    ground_stiffness, ground_damping : (N,) array_like, optional
+        Springs and dampers from the masses to the ground (as `simulate_chain`).
     omega : array_like
         Circular frequencies, rad/s.
     force_dof, output : int
@@ -47,16 +57,16 @@ def frequency_response(mass, stiffness, damping, omega, force_dof: int, output: 
     (len(omega),) complex ndarray
         The receptance x_output / F, m/N.
     """
-    m, k, c = chain_parameters(mass, stiffness, damping)
+    chain = chain_parameters(mass, stiffness, damping, ground_stiffness, ground_damping)
     for name, value in (("force_dof", force_dof), ("output", output)):
-        validate.dof_indices(name, [value], m.size)
+        validate.dof_indices(name, [value], chain.m.size)
     out = np.empty(np.size(omega), dtype=complex)
     for i, w in enumerate(np.atleast_1d(omega)):
         s = 1j * w
         U = np.eye(3, dtype=complex)
         partial = []
-        for n, (mn, kn, cn) in enumerate(zip(m, k, c)):
-            U = elements.mass(mn, s) @ elements.spring_damper(kn, cn, s) @ U
+        for n in range(chain.m.size):
+            U = station(chain, n, s) @ U
             if n == force_dof:
                 U = elements.force(1.0) @ U
             partial.append(U)

@@ -37,7 +37,8 @@ from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
 
 
-def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, force_dofs=None,
+def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
+                             ground_stiffness=None, ground_damping=None, force_dofs=None,
                              scheme="newmark", form="displacement", substeps=1, outputs=None,
                              quantities=("x", "v", "a"), backend="c", tol=1e-12, max_iter=30,
                              ground_acceleration=None, ground_velocity=None,
@@ -45,7 +46,8 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                              **scheme_params) -> Response:
     """Forced response of a chain with nonlinear elements by the DT-TMM (module docstring).
 
-    Parameters as `simulate_chain` (chain data, ``force`` of shape (n_steps + 1,
+    Parameters as `simulate_chain` (chain data with ``ground_stiffness``, ``ground_damping``,
+    ``force`` of shape (n_steps + 1,
     len(force_dofs)) at t_k = k dt, linear between samples, ``scheme``, ``form``, ``outputs``,
     ``quantities``, ``backend``, ``x0``, ``v0``, ``ground_acceleration``, ``ground_velocity``,
     ``ground_displacement``, ``influence``) and
@@ -68,7 +70,8 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
     (1001, 50)
     """
     t0 = time.perf_counter()
-    m, k, c = chain_parameters(mass, stiffness, damping)
+    chain = chain_parameters(mass, stiffness, damping, ground_stiffness, ground_damping)
+    m, k, c, kg, cg = chain
     N = m.size
     dt = validate.positive_scalar("dt", dt)
     force, force_dofs, ground = support.prepare(np.diag(m), force, force_dofs, N,
@@ -124,7 +127,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
         return np.concatenate([y, v[ei] - np.where(ej >= 0, v[np.maximum(ej, 0)], 0.0)])
 
     advance = kernels.chain_advance(backend, info, info.coefficients(form, h), form, "stable",
-                                    m, k, c, h, loaded, np.zeros(0, dtype=np.int64))
+                                    chain, h, loaded, np.zeros(0, dtype=np.int64))
     zero_row = np.zeros(loaded.size)
     U = []
     for e in range(sz.ne):
@@ -144,7 +147,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
     g, rate = _forces_at_rest(elements, sz, w0[:sz.ne], w0[sz.ne:] if sz.need_v else None)
     f0 = np.bincount(loaded, loads(f[0], g), minlength=N)
     if x0.any() or v0.any():  # a_0 = M^-1 (f_0 - L^T g_0 - C v_0 - K x_0)
-        _, Cc, Kc = chain_matrices(m, k, c, sparse=True)
+        _, Cc, Kc = chain_matrices(m, k, c, sparse=True, ground_stiffness=kg, ground_damping=cg)
         f0 = f0 - Cc @ v0 - Kc @ x0
     H[ia] = f0 / m
     u = np.concatenate([w0, np.zeros(sz.nz)])
@@ -157,13 +160,13 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                          "has z)")
     t1 = time.perf_counter()
     driver = _c_driver(elements, sz) if backend == "c" else None
-    chain = kernels.c_chain_function(info.name) if driver else None
-    if chain is not None:
+    sweep_fn = kernels.c_chain_function(info.name) if driver else None
+    if sweep_fn is not None:
         idx = [loaded, pf, pi, pj, ei, ej, outputs]
-        mats = [m, k, c, kernels.params_array(info), U, par, f]
+        mats = [m, k, c, kg, cg, kernels.params_array(info), U, par, f]
         dims = [N, len(names), loaded.size, force_dofs.size, sz.ne, sz.nw, sz.nz, outputs.size,
                 n_samples, S, max_iter, kernels.FORM_CODE[form], ix, iv, ia]
-        iters, total, worst = _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h,
+        iters, total, worst = _run_c(driver, sweep_fn, dims, idx, mats, H, u, g, rate, store, h,
                                      tol, S)
     else:
         fn = _residual_evaluator(elements, sz, backend)
@@ -204,7 +207,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements, f
                     info={"method": f"DT-TMM {info.name} ({form} form, stable sweep)",
                           "scheme": info.name, "params": dict(info.params), "dt": dt,
                           "n_steps": n_samples - 1, "substeps": S, "backend": backend,
-                          "loop": "c" if chain is not None else "python",
+                          "loop": "c" if sweep_fn is not None else "python",
                           "elements": [el.describe() for el in elements],
                           "setup_time": t1 - t0, "run_time": t2 - t1,
                           "newton_iterations": {"max": iters,

@@ -359,10 +359,12 @@ k, c, m = dttmm.k, dttmm.c, dttmm.m
 A_, B_n, D_, E_n, E_p, x_p, f_ = sp.symbols("A B_n D E_n E_p x_p f")
 
 
-def displacement_station():
-    """The station matrix with the displacement-form maps p = 1, q = 0, r = D, s = E, alpha = A."""
+def displacement_station(kg=0, cg=0):
+    """The station matrix with the displacement-form maps p = 1, q = 0, r = D, s = E, alpha = A
+    (a plain chain unless the mass has a ground spring kg and damper cg)."""
     T = dttmm.station_step()
-    return T.subs({dttmm.kappa: dttmm.KAPPA, dttmm.Delta: dttmm.DELTA}).subs(
+    return T.subs({dttmm.kappa: dttmm.KAPPA, dttmm.Delta: dttmm.DELTA, dttmm.mu: dttmm.MU,
+                   dttmm.beta: dttmm.BETA}).subs({dttmm.kg: kg, dttmm.cg: cg}).subs(
         {dttmm.p: 1, dttmm.r: D_, dttmm.alpha: A_, dttmm.q_n: 0, dttmm.q_p: 0,
          dttmm.s_n: E_n, dttmm.s_p: E_p, dttmm.b_n: B_n})
 
@@ -389,8 +391,20 @@ def test_dttmm_mass_and_force_rows():
     # mass row f_R = f_L + m (A x_n + B_n), then the force: f <- f - F_n
     assert same(out[1], f_ + m * (A_ * x_n + B_n) - dttmm.F_n)
     assert out[2] == 1
-    assert dttmm.mass_step() == sp.Matrix([[1, 0, 0], [m * dttmm.alpha, 1, m * dttmm.b_n],
-                                           [0, 0, 1]])
+    assert dttmm.mass_step() == sp.Matrix([[1, 0, 0], [dttmm.mu, 1, dttmm.beta], [0, 0, 1]])
+    plain = {dttmm.kg: 0, dttmm.cg: 0}
+    assert same(dttmm.MU.subs(plain), m * dttmm.alpha)
+    assert same(dttmm.BETA.subs(plain), m * dttmm.b_n)
+
+
+def test_dttmm_mass_row_with_ground_spring_damper():
+    """f_R = f_L + m a + kg x + cg v, with a = A x + B, v = D x + E (x the displacement)."""
+    kg, cg = sp.symbols("kg_t cg_t", nonnegative=True)
+    T = displacement_station(kg, cg)
+    out = T * sp.Matrix([x_p, f_, 1])
+    x_n = out[0]
+    hand = f_ + m * (A_ * x_n + B_n) + kg * x_n + cg * (D_ * x_n + E_n) - dttmm.F_n
+    assert same(out[1], hand)
     assert dttmm.force_step() == sp.Matrix([[1, 0, 0], [0, 1, -dttmm.F_n], [0, 0, 1]])
 
 
@@ -427,19 +441,20 @@ def test_dttmm_riccati_relations_by_hand():
     fwd = T[0, 0] * dttmm.u_p + T[0, 1] * (dttmm.S_L * dttmm.u_p + dttmm.R_L) + T[0, 2]
     assert same((sw.a_fwd * dttmm.u_p + sw.b_fwd).subs(left), fwd.subs(left))
     # closed forms (the generated sweep's docstring)
-    kap, am = dttmm.kappa, dttmm.alpha * m
+    kap, am = dttmm.kappa, dttmm.mu
     assert same(sw.S_expr, kap * (dttmm.S_R - am) / (-dttmm.S_R + am + kap))
     assert same(sw.g, kap / (-dttmm.S_R + am + kap))
     assert same(sw.a_fwd.subs(left), kap / (-dttmm.S_R + am + kap))
 
 
 def test_dttmm_riccati_bounded_symbolically():
-    """S_R = -sigma <= 0, kappa > 0, alpha m > 0  =>  S_L < 0, 0 < g < 1, 0 < a_fwd < 1."""
+    """S_R = -sigma <= 0, kappa > 0, mu = m alpha + kg p + cg r > 0  =>  S_L < 0, 0 < g < 1,
+    0 < a_fwd < 1."""
     sw = dttmm.derive_sweeps()
     sigma = sp.Symbol("sigma", nonnegative=True)
     kap = sp.Symbol("kappa_pos", positive=True)
-    au = sp.Symbol("alpha_pos", positive=True)
-    sub = {dttmm.S_R: -sigma, dttmm.kappa: kap, dttmm.alpha: au}
+    mu = sp.Symbol("mu_pos", positive=True)
+    sub = {dttmm.S_R: -sigma, dttmm.kappa: kap, dttmm.mu: mu}
     S_L = sp.factor(sw.S_expr.subs(sub))
     g = sp.factor(sw.g.subs(sub))
     assert S_L.is_negative is True
@@ -457,8 +472,8 @@ def test_dttmm_riccati_bounded_at_random_points(name):
     sw = dttmm.derive_sweeps()
     der = I.derive_scheme(name)
     rng = random.Random(sum(map(ord, name)))
-    S_f = sp.lambdify((dttmm.S_R, dttmm.kappa, dttmm.alpha, m), sw.S_expr)
-    g_f = sp.lambdify((dttmm.S_R, dttmm.kappa, dttmm.alpha, m), sw.g)
+    S_f = sp.lambdify((dttmm.S_R, dttmm.kappa, dttmm.mu), sw.S_expr)
+    g_f = sp.lambdify((dttmm.S_R, dttmm.kappa, dttmm.mu), sw.g)
     defaults = {I.beta: 0.3, I.gamma: 0.6, I.theta: 1.4, I.alpha: -0.1, I.rho_inf: 0.7}
     for form in dttmm.FORMS:
         if form == "displacement" and der.explicit:
@@ -473,8 +488,11 @@ def test_dttmm_riccati_bounded_at_random_points(name):
                 mk = 10 ** rng.uniform(-2, 2)
                 kk = 10 ** rng.uniform(0, 6)
                 cc = 10 ** rng.uniform(-3, 2)
+                kgr = rng.choice([0.0, 10 ** rng.uniform(0, 6)])  # a ground spring-damper
+                cgr = rng.choice([0.0, 10 ** rng.uniform(-3, 2)])  # at some masses
                 kap = kk * pv + cc * rv
-                g = g_f(S_R, kap, av, mk)
-                S_R = S_f(S_R, kap, av, mk)
+                mu = mk * av + kgr * pv + cgr * rv
+                g = g_f(S_R, kap, mu)
+                S_R = S_f(S_R, kap, mu)
                 assert S_R <= 0.0
                 assert 0.0 <= g <= 1.0
