@@ -5,12 +5,12 @@
    the definitions below against the ctypes bindings in generated/c_api.py */
 int dtdyn_set_stop(int value);
 int dtdyn_mck_loop(long n, long n_hist, long n_steps, long n_loaded, const long *restrict loaded,
-                   const double *restrict force, const double *restrict K, const double *restrict C,
-                   const double *restrict LU, const long *restrict piv, const double *restrict L,
-                   const double *restrict c_u, double w0, double w1, long n_shift,
-                   const long *restrict shift, const long *restrict rows, double *restrict H,
-                   long n_out, const long *restrict out_idx, double *restrict xo,
-                   double *restrict vo, double *restrict ao, double *restrict work);
+                   const double *restrict force, const long *const *idx, const double *const *val,
+                   const double *restrict L, const double *restrict c_u, double w0, double w1,
+                   long n_shift, const long *restrict shift, const long *restrict rows,
+                   double *restrict H, long n_out, const long *restrict out_idx,
+                   double *restrict xo, double *restrict vo, double *restrict ao,
+                   double *restrict work);
 /*
  * Cooperative stop (Ctrl-C). The runtime runs a long call of this library in a worker thread;
  * on KeyboardInterrupt the main thread calls dtdyn_set_stop(1), and the loop returns
@@ -24,25 +24,57 @@ int dtdyn_set_stop(int value) {
     return 0;
 }
 /*
- * The time loop of simulate_mck for dense M, C, K (acceleration form of any one-step or
- * multistep scheme of the generated table). Per step, with the history H (n_hist rows of n:
- * x0, v0, a0 and lags) and the scheme's coefficient rows L (5 x n_hist: q, s, x1, v1, a1
- * expanded over the history rows, from dttmm_sweep.expanded) and c_u (x1_u, v1_u, a1_u):
+ * The time loop of simulate_mck (acceleration form of any one-step or multistep scheme of the
+ * generated table), for dense and sparse M, C, K alike. Per step, with the history H (n_hist
+ * rows of n: x0, v0, a0 and lags) and the scheme's coefficient rows L (5 x n_hist: q, s, x1,
+ * v1, a1 expanded over the history rows, from dttmm_sweep.expanded) and c_u (x1_u, v1_u, a1_u):
  *
  *     F   = w0 f_k + w1 f_{k+1}                 (on the loaded DOFs)
- *     a_e = (M + r C + p K)^-1 (F - K q - C s),  q = L_q H, s = L_s H   (prefactored LU)
+ *     a_e = (M + r C + p K)^-1 (F - K q - C s),  q = L_q H, s = L_s H   (factorized once)
  *     x1, v1, a1 = L_{x1,v1,a1} H + c_u a_e
  *
  * then the lags shift (H[dst] = H[src] for the pairs in order) and x0, v0, a0 take x1, v1, a1.
- * K, C and LU are row-major n x n; LU and piv as LAPACK's getrf (0-based pivots). Outputs
- * (NULL: not stored) get row k + 1 of the stored DOFs. Returns 0, DTDYN_STOPPED when stopped.
+ *
+ * Only the two products and the solve depend on the storage; they read
+ *   idx = {K_ptr, K_idx, C_ptr, C_idx, L_ptr, L_idx, U_ptr, U_idx, perm_r, perm_c},
+ *   val = {K, C, L, U, U_diag}:
+ * K and C each dense row-major n x n (its ptr NULL) or CSR (ptr n + 1, idx, val); the factors
+ * either dense (L_ptr NULL: val[2] the LU of LAPACK's getrf, row-major, idx[8] its 0-based
+ * pivots) or sparse as SuperLU's  Pr A Pc = L U  (L_ptr not NULL: L strictly lower, U strictly
+ * upper, both CSC; U_diag the diagonal of U; the unit diagonal of L implied; perm_r, perm_c as
+ * scipy's splu: (Pr b)[perm_r[i]] = b[i], x[i] = z[perm_c[i]]). Indices are long (64-bit).
+ * Outputs (NULL: not stored) get row k + 1 of the stored DOFs; work holds 7 n doubles; nothing
+ * is allocated. Returns 0, DTDYN_STOPPED when stopped.
  */
 #include <stddef.h>
 
-static void lu_apply(long n, const double *restrict LU, const long *restrict piv,
-                     double *restrict b) {
+/* y -= A x, A dense row-major (ptr NULL: val) or CSR (ptr, idx, val) */
+static void sub_product(long n, const long *restrict ptr, const long *restrict idx,
+                        const double *restrict val, const double *restrict x, double *restrict y) {
     long i, j;
-    for (i = 0; i < n; ++i) { /* the row interchanges of getrf, in order */
+    if (ptr == NULL) {
+        for (i = 0; i < n; ++i) {
+            const double *Ai = val + i * n;
+            double acc = 0.0;
+            for (j = 0; j < n; ++j)
+                acc += Ai[j] * x[j];
+            y[i] -= acc;
+        }
+        return;
+    }
+    for (i = 0; i < n; ++i) {
+        double acc = 0.0;
+        for (j = ptr[i]; j < ptr[i + 1]; ++j)
+            acc += val[j] * x[idx[j]];
+        y[i] -= acc;
+    }
+}
+
+/* b = A^-1 b by the dense LU of getrf (rows interchanged in order, L y = b, U x = y) */
+static void dense_solve(long n, const double *restrict LU, const long *restrict piv,
+                        double *restrict b) {
+    long i, j;
+    for (i = 0; i < n; ++i) {
         const long p = piv[i];
         if (p != i) {
             const double t = b[i];
@@ -50,13 +82,13 @@ static void lu_apply(long n, const double *restrict LU, const long *restrict piv
             b[p] = t;
         }
     }
-    for (i = 1; i < n; ++i) { /* L y = b, unit diagonal */
+    for (i = 1; i < n; ++i) { /* unit diagonal */
         double s = b[i];
         for (j = 0; j < i; ++j)
             s -= LU[i * n + j] * b[j];
         b[i] = s;
     }
-    for (i = n - 1; i >= 0; --i) { /* U x = y */
+    for (i = n - 1; i >= 0; --i) {
         double s = b[i];
         for (j = i + 1; j < n; ++j)
             s -= LU[i * n + j] * b[j];
@@ -64,14 +96,39 @@ static void lu_apply(long n, const double *restrict LU, const long *restrict piv
     }
 }
 
+/* b = A^-1 b by the sparse factors Pr A Pc = L U (column-oriented substitutions; z: n) */
+static void sparse_solve(long n, const long *const *idx, const double *const *val,
+                         double *restrict b, double *restrict z) {
+    const long *Lp = idx[4], *Li = idx[5], *Up = idx[6], *Ui = idx[7];
+    const long *perm_r = idx[8], *perm_c = idx[9];
+    const double *Lx = val[2], *Ux = val[3], *Ud = val[4];
+    long i, j, p;
+    for (i = 0; i < n; ++i)
+        z[perm_r[i]] = b[i];
+    for (j = 0; j < n; ++j) { /* L y = Pr b */
+        const double zj = z[j];
+        for (p = Lp[j]; p < Lp[j + 1]; ++p)
+            z[Li[p]] -= Lx[p] * zj;
+    }
+    for (j = n - 1; j >= 0; --j) { /* U z = y */
+        const double zj = z[j] / Ud[j];
+        z[j] = zj;
+        for (p = Up[j]; p < Up[j + 1]; ++p)
+            z[Ui[p]] -= Ux[p] * zj;
+    }
+    for (i = 0; i < n; ++i)
+        b[i] = z[perm_c[i]];
+}
+
 int dtdyn_mck_loop(long n, long n_hist, long n_steps, long n_loaded, const long *restrict loaded,
-                   const double *restrict force, const double *restrict K, const double *restrict C,
-                   const double *restrict LU, const long *restrict piv, const double *restrict L,
-                   const double *restrict c_u, double w0, double w1, long n_shift,
-                   const long *restrict shift, const long *restrict rows, double *restrict H,
-                   long n_out, const long *restrict out_idx, double *restrict xo,
-                   double *restrict vo, double *restrict ao, double *restrict work) {
+                   const double *restrict force, const long *const *idx, const double *const *val,
+                   const double *restrict L, const double *restrict c_u, double w0, double w1,
+                   long n_shift, const long *restrict shift, const long *restrict rows,
+                   double *restrict H, long n_out, const long *restrict out_idx,
+                   double *restrict xo, double *restrict vo, double *restrict ao,
+                   double *restrict work) {
     double *q = work, *s = work + n, *rhs = work + 2 * n, *upd = work + 3 * n;
+    double *z = work + 6 * n;
     long k, i, j, h, o;
     for (k = 0; k < n_steps; ++k) {
         const double *f0 = force + k * n_loaded, *f1 = f0 + n_loaded;
@@ -89,15 +146,14 @@ int dtdyn_mck_loop(long n, long n_hist, long n_steps, long n_loaded, const long 
         }
         for (j = 0; j < n_loaded; ++j)
             rhs[loaded[j]] = w0 * f0[j] + w1 * f1[j];
-        for (i = 0; i < n; ++i) {
-            double acc = rhs[i];
-            const double *Ki = K + i * n, *Ci = C + i * n;
-            for (j = 0; j < n; ++j)
-                acc -= Ki[j] * q[j] + Ci[j] * s[j];
-            rhs[i] = acc;
-        }
-        lu_apply(n, LU, piv, rhs); /* rhs is now a_e */
-        for (o = 0; o < 3; ++o) {  /* x1, v1, a1 */
+        sub_product(n, idx[0], idx[1], val[0], q, rhs); /* F - K q */
+        sub_product(n, idx[2], idx[3], val[1], s, rhs); /* - C s */
+        if (idx[4] == NULL)
+            dense_solve(n, val[2], idx[8], rhs);
+        else
+            sparse_solve(n, idx, val, rhs, z);
+        /* rhs is now a_e */
+        for (o = 0; o < 3; ++o) { /* x1, v1, a1 */
             const double *Lr = L + (2 + o) * n_hist;
             double *u = upd + o * n;
             for (i = 0; i < n; ++i) {

@@ -404,6 +404,7 @@ def interruptible(lib, call, work: float):
                 done.wait(0.05)
             except KeyboardInterrupt:
                 pass
+        stop(0)  # a flag left set would stop the next call of this library at its first check
         raise
     if "exc" in box:
         raise box["exc"]

@@ -85,13 +85,36 @@ def solver(A, what: str, why: str = ""):
     when A is singular or numerically singular (condition number * n * eps >= 1)."""
     tail = f": {why}" if why else ""
     if sps.issparse(A):
-        try:
-            lu = spla.splu(sps.csc_matrix(A))
-        except RuntimeError as exc:
-            raise ValueError(f"{what} is singular ({exc}){tail}") from None
-        return lu.solve
+        return sparse_lu(A, what, why).solve
     lu_piv = dense_lu(A, what, why)
     return lambda B: sla.lu_solve(lu_piv, B, check_finite=False)
+
+
+#: the column orderings `sparse_lu` tries when asked for the least fill: minimum degree on
+#: A^T + A (structural models: symmetric patterns) and COLAMD (SuperLU's default)
+FILL_ORDERINGS = ("MMD_AT_PLUS_A", "COLAMD")
+
+
+def sparse_lu(A, what: str, why: str = "", orderings=("COLAMD",)):
+    """SuperLU (scipy.sparse.linalg.splu) of a sparse A, Pr A Pc = L U: of the column orderings
+    in ``orderings``, the one whose L and U have the fewest entries (a factorization per
+    ordering: worth it when the factors are applied many times). ValueError naming ``what``
+    when A is singular or a pivot is below eps of the largest (no digit of the solve left)."""
+    tail = f": {why}" if why else ""
+    A = sps.csc_matrix(A)
+    best = None
+    for spec in orderings:
+        try:
+            lu = spla.splu(A, permc_spec=spec)
+        except RuntimeError as exc:
+            raise ValueError(f"{what} is singular ({exc}){tail}") from None
+        if best is None or lu.L.nnz + lu.U.nnz < best.L.nnz + best.U.nnz:
+            best = lu
+    pivots = np.abs(best.U.diagonal())
+    if not np.isfinite(pivots).all() or pivots.min() <= np.finfo(float).eps * pivots.max():
+        raise ValueError(f"{what} is singular or numerically singular (LU pivots from "
+                         f"{pivots.min():.3g} to {pivots.max():.3g}){tail}")
+    return best
 
 
 def dense_lu(A, what: str, why: str = ""):

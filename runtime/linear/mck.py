@@ -10,6 +10,7 @@ equal, and the general-matrix path.
 """
 from __future__ import annotations
 
+import ctypes
 from functools import lru_cache
 from importlib import resources
 
@@ -55,12 +56,40 @@ def _c_loop():
     return lib
 
 
-def _c_advance(lib, sch, K_, M, C, K, loaded, outputs):
-    """advance() of the dense C loop (mck_loop.c): the same step as the NumPy one."""
+def _c_operands(A, C, K):
+    """The idx and val pointer lists of dtdyn_mck_loop (mck_loop.c) for the effective matrix A
+    and C, K: dense (row-major, A by its LU and pivots) or sparse (CSR, A by its SuperLU factors
+    of the least-fill ordering); the arrays they point to come last (kept alive by the caller),
+    then the work of one step (multiply-adds)."""
+    what = "the effective matrix M + Dv C + Dx K"
+    i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
+    f64 = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
+    if sps.issparse(A):
+        lu = linalg.sparse_lu(A, what, orderings=linalg.FILL_ORDERINGS)
+        Lf, Uf = sps.tril(lu.L, -1, format="csc"), sps.triu(lu.U, 1, format="csc")
+        mats = [sps.csr_matrix(K), sps.csr_matrix(C)]
+        idx = [i64(a) for B in mats for a in (B.indptr, B.indices)]
+        idx += [i64(a) for B in (Lf, Uf) for a in (B.indptr, B.indices)]
+        idx += [i64(lu.perm_r), i64(lu.perm_c)]
+        val = [f64(B.data) for B in (*mats, Lf, Uf)] + [f64(lu.U.diagonal())]
+        work = sum(B.nnz for B in (*mats, Lf, Uf)) + 4 * A.shape[0]
+    else:
+        LU, piv = linalg.dense_lu(A, what)
+        idx = [None] * 8 + [i64(piv), None]
+        val = [f64(K), f64(C), f64(LU), None, None]
+        work = 3 * A.shape[0] ** 2
+    keep = [a for a in idx + val if a is not None]
+
+    def pointers(arrays):
+        return (ctypes.c_void_p * len(arrays))(*[None if a is None else a.ctypes.data
+                                                 for a in arrays])
+    return pointers(idx), pointers(val), keep, work
+
+
+def _c_advance(lib, sch, K_, A, C, K, loaded, outputs):
+    """advance() of the C loop (mck_loop.c), dense or sparse: the same step as the NumPy one."""
     names = list(sch.history)
-    LU, piv = linalg.dense_lu(M + K_["r"] * C + K_["p"] * K,
-                              "the effective matrix M + Dv C + Dx K")
-    LU, piv = np.ascontiguousarray(LU), np.ascontiguousarray(piv, dtype=np.int64)
+    idx, val, keep, step_work = _c_operands(A, C, K)
     # the step as matrices on the history rows (the generated maps of the plain sweep's error
     # history: the same step); rows q, s (b unused here), then x1, v1, a1
     L_qsb, L_upd, c_u, shifts, rows = error_history_maps(K_, names)
@@ -68,11 +97,10 @@ def _c_advance(lib, sch, K_, M, C, K, loaded, outputs):
     c_u = np.ascontiguousarray(c_u.ravel())
     shift = np.array(shifts, dtype=np.int64).reshape(-1, 2)
     rows = np.arange(len(names), dtype=np.int64)[rows]
-    Kd, Cd = np.ascontiguousarray(K, dtype=float), np.ascontiguousarray(C, dtype=float)
     loaded = np.ascontiguousarray(loaded, dtype=np.int64)
     out_idx = np.ascontiguousarray(outputs, dtype=np.int64)
-    n = M.shape[0]
-    work = np.empty(6 * n)
+    n = A.shape[0]
+    work = np.empty(7 * n)
     run = lib.dtdyn_mck_loop
 
     def advance(frc, H, xo, vo, ao):
@@ -80,14 +108,16 @@ def _c_advance(lib, sch, K_, M, C, K, loaded, outputs):
         Hc = np.ascontiguousarray(H)
         ptr = [0 if a is None else a.ctypes.data for a in (xo, vo, ao)]
         args = (n, len(names), frc.shape[0] - 1, loaded.size, loaded.ctypes.data, frc.ctypes.data,
-                Kd.ctypes.data, Cd.ctypes.data, LU.ctypes.data, piv.ctypes.data, L.ctypes.data,
-                c_u.ctypes.data, K_["w0"], K_["w1"], shift.shape[0], shift.ctypes.data,
-                rows.ctypes.data, Hc.ctypes.data, out_idx.size, out_idx.ctypes.data, *ptr,
-                work.ctypes.data)
-        cbuild.interruptible(lib, lambda: run(*args), work=(frc.shape[0] - 1) * n * n)
+                ctypes.addressof(idx), ctypes.addressof(val), L.ctypes.data, c_u.ctypes.data,
+                K_["w0"], K_["w1"], shift.shape[0], shift.ctypes.data, rows.ctypes.data,
+                Hc.ctypes.data, out_idx.size, out_idx.ctypes.data, *ptr, work.ctypes.data)
+        rc = cbuild.interruptible(lib, lambda: run(*args), work=(frc.shape[0] - 1) * step_work)
+        if rc != 0:
+            raise RuntimeError(f"dtdyn_mck_loop returned {rc} (stopped by its stop flag)")
         if Hc is not H:
             H[...] = Hc
         return 0.0
+    advance.arrays = keep  # what idx and val point to lives as long as advance
     return advance
 
 
@@ -124,9 +154,10 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     progress : bool
         Show a progress bar on long runs.
     backend : {"c", "numpy"}
-        Dense matrices: the generated C loop (the effective matrix factorized once, the whole
-        block of steps in one call; NumPy with one warning where no compiler exists) or the
-        NumPy loop. Sparse matrices always step with scipy.sparse.
+        The generated C loop (the effective matrix factorized once: dense LU, or for sparse
+        matrices SuperLU's sparse LU of the least-fill ordering, applied by sparse substitution
+        with sparse products for the load; the whole block of steps in one call; NumPy with one
+        warning where no compiler exists) or the NumPy loop (scipy.sparse for sparse matrices).
     ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
@@ -156,7 +187,7 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     n = M.shape[0]
     if backend not in ("c", "numpy"):
         raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
-    loop = _c_loop() if backend == "c" and not sps.issparse(M) else None
+    loop = _c_loop() if backend == "c" else None
     force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
                                                 influence, dt=dt,
                                                 ground_velocity=ground_velocity,
@@ -172,9 +203,11 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     a0 = _initial_acceleration(M, f0 - C @ v0 - K @ x0)
 
     def make_advance(sch, K_):
+        A, what = M + K_["r"] * C + K_["p"] * K, "the effective matrix M + Dv C + Dx K"
         if loop is not None:
-            return _c_advance(loop, sch, K_, M, C, K, loaded, outputs)
-        solve = linalg.solver(M + K_["r"] * C + K_["p"] * K, "the effective matrix M + Dv C + Dx K")
+            return _c_advance(loop, sch, K_, A, C, K, loaded, outputs)
+        solve = (linalg.sparse_lu(A, what, orderings=linalg.FILL_ORDERINGS).solve
+                 if sps.issparse(A) else linalg.solver(A, what))
         names = sch.history
 
         def advance(frc, H, xo, vo, ao):
@@ -194,6 +227,6 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     res = stepping.integrate(info, "acceleration", dt, force, (x0, v0, a0), make_advance,
                              outputs, quantities, progress)
     res.info.update(method="assembled matrices", sparse=sps.issparse(M),
-                    backend="scipy.sparse" if sps.issparse(M) else
-                    ("c" if loop is not None else "numpy"))
+                    backend="c" if loop is not None else
+                    ("scipy.sparse" if sps.issparse(M) else "numpy"))
     return support.finish(res, ground)
