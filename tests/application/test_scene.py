@@ -205,6 +205,12 @@ BAD_SCENES = {
     "bad output quantity": (dict(extra='[output]\nquantities = ["x", "f"]\n'),
                             r"output\.quantities\[1\] = 'f'"),
     "bad output dof": (dict(extra='[output]\noutputs = [0, 7]\n'), r"output\.outputs = \[0, 7\]"),
+    "negative ground spring": (dict(model=MODEL + "ground_stiffness = [0.0, -5.0, 0.0]\n"),
+                               r"model\.ground_stiffness\[1\] = -5\.0"),
+    "ground damper length": (dict(model=MODEL + "ground_damping = [1.0]\n"),
+                             r"model\.ground_damping has length 1"),
+    "rayleigh of three": (dict(model=MODEL + "rayleigh = [0.1, 0.2, 0.3]\n"),
+                          r"model\.rayleigh = \[0\.1, 0\.2, 0\.3\]: must be \[alpha, beta\]"),
 }
 
 
@@ -492,3 +498,28 @@ def test_ground_displacement_at_its_own_step_holds_its_last_sample(tmp_path):
     np.testing.assert_allclose(scene.ground, np.interp(t, np.arange(201) * 0.005, rec),
                                rtol=0, atol=1e-15)
     assert np.all(scene.ground[t > 1.0] == rec[-1])
+
+
+def test_chain_scene_with_ground_elements_and_rayleigh(tmp_path):
+    """[model] ground_stiffness, ground_damping and rayleigh (chain form of alpha M + beta K):
+    the scene's matrices are the hand assembly, its run equals simulate_chain with the same
+    keywords, and the exact check passes at the scheme's error."""
+    import dtdyn as dd
+
+    model = MODEL + "ground_stiffness = [0.0, 12.0, 4.0]\nground_damping = [0.3, 0.0, 0.0]\n" \
+                    "rayleigh = [0.2, 1e-3]\n"
+    scene = load_scene(write_scene(tmp_path, model=model))
+    M, C, K = scene.matrices(sparse=False)
+    k, c = np.array([20.0, 15.0, 10.0]), np.array([0.5, 0.6, 0.1])
+    K_hand = np.diag(k + np.append(k[1:], 0.0) + [0.0, 12.0, 4.0]) \
+        - np.diag(k[1:], 1) - np.diag(k[1:], -1)
+    C_plain = np.diag(c + np.append(c[1:], 0.0) + [0.3, 0.0, 0.0]) \
+        - np.diag(c[1:], 1) - np.diag(c[1:], -1)
+    assert_allclose(K, K_hand, rtol=1e-15)
+    assert_allclose(C, C_plain + 0.2 * M + 1e-3 * K_hand, rtol=1e-14)
+    response, report = run_scene(scene)
+    same = dd.simulate_chain(**scene.chain, force=scene.force, dt=scene.dt,
+                             force_dofs=scene.loaded, scheme="newmark")
+    assert_array_equal(response.x, same.x)
+    # average acceleration at dt = 0.01 on this model: error ~ (omega dt)^2 / 12 of the response
+    assert report["max_rel_error"] < 1e-3

@@ -208,7 +208,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
     base_dir = Path(base_dir)
     kind = _model_kind(data["model"])
     M = C = K = names = None
-    mass = stiffness = damping = None
+    chain = dict.fromkeys(("mass", "stiffness", "damping", "ground_stiffness", "ground_damping"))
     if kind == "matrices":
         if nonlinear and data["model"].get("sparse") is True:
             raise ValueError("model.sparse = True: a scene with [[element]] runs on dense "
@@ -218,8 +218,8 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         if nonlinear:
             M, C, K = (A.toarray() if sps.issparse(A) else A for A in (M, C, K))
     else:
-        mass, stiffness, damping = _parse_model(data["model"])
-        n_dof = mass.size
+        chain = _parse_model(data["model"])
+        n_dof = chain["mass"].size
     dt, n_steps = _parse_time(data["time"])
     elements, options = (), {}
     if nonlinear:
@@ -246,7 +246,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
     x0 = v0 = None
     if "initial" in data:
         x0, v0 = _parse_initial(data["initial"], n_dof)
-    return Scene(title=title, mass=mass, stiffness=stiffness, damping=damping, loads=loads,
+    return Scene(title=title, **chain, loads=loads,
                  loaded=loaded, force=force, scheme=scheme, scheme_params=params, form=form,
                  sweep=sweep, backend=backend, dt=dt, n_steps=n_steps, outputs=outputs,
                  quantities=quantities, source=source, base_dir=base_dir, kind=kind, M=M, C=C, K=K,

@@ -27,6 +27,8 @@ def natural_frequencies(scene: Scene) -> np.ndarray:
     m, k = scene.mass, scene.stiffness
     s = 1.0 / np.sqrt(m)
     kk = k + np.append(k[1:], 0.0)
+    if scene.ground_stiffness is not None:
+        kk = kk + scene.ground_stiffness
     d, e = kk * s * s, -k[1:] * s[:-1] * s[1:]  # M^-1/2 K M^-1/2, tridiagonal
     n = m.size
     sel = {} if n <= EXACT_MAX_DOF else {"select": "i", "select_range": (n - 1, n - 1)}
@@ -74,7 +76,7 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
     """``nonlinear_response`` on the scene; errors get the scene file's name."""
     from dtdyn.nonlinear import response as nonlinear
 
-    M, C, K = scene_matrices(scene)
+    M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m) for m in scene_matrices(scene))
     start = time.perf_counter()
     try:
         response = nonlinear.nonlinear_response(
@@ -172,8 +174,7 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
         from dtdyn.linear import chain  # imported here: chain may compile kernels on first use
 
         response = chain.simulate_chain(
-            scene.mass, scene.stiffness, scene.damping, scene.force, scene.dt,
-            force_dofs=scene.loaded, **_support(scene), scheme=scene.scheme, form=scene.form,
+            **scene.chain, force=scene.force, dt=scene.dt, force_dofs=scene.loaded, **_support(scene), scheme=scene.scheme, form=scene.form,
             sweep=scene.sweep,
             backend=scene.backend, outputs=scene.outputs, quantities=scene.quantities,
             progress=progress, **scene.scheme_params)
@@ -197,13 +198,9 @@ def _exact_check(scene: Scene, response: Response, report: dict) -> str:
     if scene.n_dof > EXACT_MAX_DOF:
         return (f"skipped: {scene.n_dof} DOFs > {EXACT_MAX_DOF} (the matrix exponential is "
                 "dense, O(N^3))")
-    from dtdyn.linear import chain, exact
+    from dtdyn.linear import exact
 
-    if scene.kind == "matrices":
-        matrices = (scene.M, scene.C, scene.K)
-    else:
-        matrices = chain.chain_matrices(scene.mass, scene.stiffness, scene.damping)
-    M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m) for m in matrices)
+    M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m) for m in scene_matrices(scene))
     start = time.perf_counter()
     try:
         ref = exact.exact_response(M, C, K, scene.force, scene.dt, force_dofs=scene.loaded,

@@ -9,6 +9,11 @@ reference problem P3)::
     mass = [...]                        # kg, every entry > 0
     stiffness = [...]                   # N/m, every entry > 0, same length
     damping = [...]                     # N s/m, >= 0, optional (zeros)
+    ground_stiffness = [...]            # optional: N/m, >= 0, a spring from each mass to the
+    ground_damping = [...]              #   ground; N s/m, >= 0, a damper (zeros)
+    rayleigh = [0.5, 1e-3]              # optional: C += alpha M + beta K in chain form (station
+                                        #   dampers += beta k, ground dampers += alpha m +
+                                        #   beta kg; alpha, beta >= 0)
     [[load]]                            # one or more; loads on the same dof add up
     dof = 14                            # 0-based mass index
     kind = "step"                       # and that kind's fields, see dtdyn.app.loads
@@ -144,7 +149,8 @@ GROUND_UNITS = {"acceleration": ("m/s^2", "g"), "velocity": ("m/s",), "displacem
 STANDARD_GRAVITY = 9.80665
 #: model kinds: a chain (mass, stiffness, damping vectors) or general M, C, K matrices
 MODEL_KINDS = ("chain", "matrices")
-_MODEL_KEYS = ("kind", "mass", "stiffness", "damping")
+_MODEL_KEYS = ("kind", "mass", "stiffness", "damping", "ground_stiffness", "ground_damping",
+               "rayleigh")
 _MATRIX_MODEL_KEYS = ("kind", "M", "K", "C", "file", "dofs", "sparse", "damping")
 _MATRIX_DAMPING_KEYS = ("rayleigh", "modal")
 _MATRIX_NAMES = ("M", "K", "C")
@@ -205,6 +211,9 @@ class Scene:
     kind : {"chain", "matrices"}
     mass, stiffness, damping : ndarray or None
         A chain's stations.
+    ground_stiffness, ground_damping : ndarray or None
+        A chain's springs and dampers from the masses to the ground (None: none; a
+        ``model.rayleigh`` is already in them and in ``damping``).
     M, C, K : ndarray, scipy.sparse matrix or None
         A matrices model (damping options already in C).
     loads, loaded, force : list of dict, ndarray, ndarray
@@ -256,6 +265,15 @@ class Scene:
     influence: np.ndarray | None = None
     x0: np.ndarray | None = None
     v0: np.ndarray | None = None
+    ground_stiffness: np.ndarray | None = None
+    ground_damping: np.ndarray | None = None
+
+    @property
+    def chain(self) -> dict:
+        """A chain's data as the keywords of the chain functions (mass, stiffness, damping,
+        ground_stiffness, ground_damping)."""
+        return {"mass": self.mass, "stiffness": self.stiffness, "damping": self.damping,
+                "ground_stiffness": self.ground_stiffness, "ground_damping": self.ground_damping}
 
     @property
     def n_dof(self) -> int:
@@ -269,7 +287,7 @@ class Scene:
         if self.kind == "matrices":
             return self.M, self.C, self.K
         from dtdyn.linear.chain import chain_matrices
-        return chain_matrices(self.mass, self.stiffness, self.damping, sparse=sparse)
+        return chain_matrices(**self.chain, sparse=sparse)
 
     @property
     def sparse(self) -> bool:
@@ -334,17 +352,29 @@ def _choice(name: str, value, allowed: tuple[str, ...]) -> str:
     return value
 
 
-def _parse_model(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _parse_model(model) -> dict:
+    """A chain [model] as the keywords of the chain functions (`Scene.chain`)."""
     _table("model", model, _MODEL_KEYS)
     mass = _number_list("model.mass", _required("model", model, "mass"), positive=True)
     n = mass.size
     stiffness = _number_list("model.stiffness", _required("model", model, "stiffness"),
                              positive=True, length=n)
-    if "damping" in model:
-        damping = _number_list("model.damping", model["damping"], nonnegative=True, length=n)
-    else:
-        damping = np.zeros(n)
-    return mass, stiffness, damping
+    damping, kg, cg = (
+        _number_list(f"model.{key}", model[key], nonnegative=True, length=n) if key in model
+        else (np.zeros(n) if key == "damping" else None)
+        for key in ("damping", "ground_stiffness", "ground_damping"))
+    if "rayleigh" in model:
+        from dtdyn.linear.chain import rayleigh_chain_damping
+
+        coef = _number_list("model.rayleigh", model["rayleigh"], nonnegative=True)
+        if coef.size != 2:
+            raise ValueError(f"model.rayleigh = {model['rayleigh']!r}: must be [alpha, beta] "
+                             "(C += alpha M + beta K)")
+        c_r, cg_r = rayleigh_chain_damping(mass, stiffness, coef, ground_stiffness=kg)
+        damping = damping + c_r
+        cg = cg_r if cg is None else cg + cg_r
+    return {"mass": mass, "stiffness": stiffness, "damping": damping,
+            "ground_stiffness": kg, "ground_damping": cg}
 
 
 def _model_kind(model) -> str:
