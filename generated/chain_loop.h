@@ -56,6 +56,10 @@ static double step_sign(uint64_t j)
 }
 #endif
 
+/* mu of mass n: m alpha + k_g p + c_g r; kg and cg are NULL for a chain without ground elements
+   (then mu = m alpha and beta = m b, as many operations as a plain chain needs) */
+#define GROUNDED_MU(n) (kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u)
+
 static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const double *k,
                             const double *c, const double *kg, const double *cg, double dt, const double *params, long n_loaded,
                             const long *loaded, const double *force, double *hist, long n_out,
@@ -86,7 +90,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     if (!reuse) {   /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
         double S_R = 0.0;
         for (n = N - 1; n >= 0; --n) {
-            const double mu = m[n] * alpha_u + kg[n] * p + cg[n] * r, kp = k[n] * p + c[n] * r;
+            const double mu = GROUNDED_MU(n), kp = k[n] * p + c[n] * r;
             double S_L;
             SR[n] = S_R;
             g[n] = CHAIN_G;
@@ -102,7 +106,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     if (sweep) {
         double P_u = 0.0, P_f = 1.0;
         for (n = 0; n < N; ++n) {
-            const double mu = m[n] * alpha_u + kg[n] * p + cg[n] * r, kp = k[n] * p + c[n] * r;
+            const double mu = GROUNDED_MU(n), kp = k[n] * p + c[n] * r;
             CHAIN_PLAIN_RUN
             (void)mu; (void)kp;
             const double nu = CHAIN_USE0 * P_u + CHAIN_USE1 * P_f;
@@ -134,8 +138,11 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
         for (i = 0; i < N; ++i) {
             q[i] = CHAIN_Q;
             s[i] = CHAIN_SV;
-            b[i] = m[i] * (CHAIN_B) + kg[i] * q[i] + cg[i] * s[i];  /* beta: m a + k_g x + c_g v */
+            b[i] = m[i] * (CHAIN_B);  /* beta = m a + k_g x + c_g v */
         }
+        if (kg)
+            for (i = 0; i < N; ++i)
+                b[i] += kg[i] * q[i] + cg[i] * s[i];
         for (n = 0; n < N; ++n) {
             const double qp = n ? q[n - 1] : 0.0, sp = n ? s[n - 1] : 0.0;
             Dl[n] = k[n] * (q[n] - qp) + c[n] * (s[n] - sp);
@@ -143,7 +150,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
         if (sweep == 0) {
             double up = 0.0;
             for (n = N - 1; n >= 0; --n) {
-                const double mu = m[n] * alpha_u + kg[n] * p + cg[n] * r, kp = k[n] * p + c[n] * r;
+                const double mu = GROUNDED_MU(n), kp = k[n] * p + c[n] * r;
                 R[n] = fma(g[n], n + 1 < N ? R[n + 1] : 0.0, (CHAIN_H_NUM) / den[n]);
             }
             for (n = 0; n < N; ++n) {
@@ -160,14 +167,16 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
             for (i = 0; i < N; ++i) {
                 const pair eq = CHAIN_EQ;
                 const pair es = CHAIN_ES;
-                eb[i] = m[i] * (CHAIN_EB) + kg[i] * eq + cg[i] * es;
+                eb[i] = m[i] * (CHAIN_EB);
+                if (kg)
+                    eb[i] += kg[i] * eq + cg[i] * es;
                 eDl[i] = k[i] * (eq - eqp) + c[i] * (es - esp);
                 eqp = eq;
                 esp = es;
             }
             for (n = 0; n < N; ++n) {
                 const long nb = N - 1 - n;
-                const double mu = m[n] * alpha_u + kg[n] * p + cg[n] * r, kp = k[n] * p + c[n] * r;
+                const double mu = GROUNDED_MU(n), kp = k[n] * p + c[n] * r;
                 double nu;
                 (void)mu; (void)kp;
                 CHAIN_PLAIN_STEP
@@ -222,6 +231,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
 }
 
 /* the next form defines its own */
+#undef GROUNDED_MU
 #undef CHAIN_RUN
 #undef CHAIN_CONSTANTS
 #undef CHAIN_HISTORY

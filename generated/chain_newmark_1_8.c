@@ -7,7 +7,8 @@
  * ASCE 85(3)
  *
  * m, k, c, kg, cg: N doubles each, the masses, the stations' springs and dampers (station n joins
- * mass n to mass n - 1, station 0 to the ground) and each mass's spring and damper to the ground.
+ * mass n to mass n - 1, station 0 to the ground) and each mass's spring and damper to the ground
+ * (kg = cg = NULL: none).
  *
  * hist: 3 rows of N doubles (x0, v0, a0), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..

@@ -145,7 +145,8 @@ def run_chain(
     """Advance the chain over len(force) - 1 steps.
 
     m, k, c, kg, cg: the masses, the stations' springs and dampers (station n joins mass n to
-    mass n - 1, station 0 to the ground) and each mass's spring and damper to the ground;
+    mass n - 1, station 0 to the ground) and each mass's spring and damper to the ground (kg =
+    cg = None: none);
     K: coefficients of one scheme and form; H: history rows (modified in place);
     xo/vo/ao: arrays of shape (len(force), len(out_idx)) whose rows 1.. are written, or None.
     Plain sweep: E (the two error histories E_s, E_r: shape H.shape + (2,), the C kernels'
@@ -155,7 +156,8 @@ def run_chain(
     N = m.size
     p, r, alpha_u = K["p"], K["r"], K["alpha_u"]
     kappa = k * p + c * r
-    mu_all = m * alpha_u + kg * p + cg * r  # the grounded mass's coefficient of u
+    grounded = kg is not None
+    mu_all = m * alpha_u + kg * p + cg * r if grounded else m * alpha_u  # coefficient of u
     Fe = np.zeros(N)
     # Riccati factors: the stable sweep, and the plain sweep's error estimate
     SR = np.empty(N)
@@ -225,7 +227,9 @@ def run_chain(
         Fe[loaded] = K["w0"] * force[step] + K["w1"] * force[step + 1]
         q = combine(K, "q", H, names)
         s = combine(K, "s", H, names)
-        b = m * combine(K, "b", H, names) + kg * q + cg * s  # beta: m a + k_g x + c_g v
+        b = m * combine(K, "b", H, names)  # beta = m a + k_g x + c_g v (the C kernel's order)
+        if grounded:
+            b += kg * q + cg * s
         Dl = k * np.diff(q, prepend=0.0) + c * np.diff(s, prepend=0.0)
         if sweep == "stable":
             mu, kp = mu_all, kappa
@@ -261,7 +265,9 @@ def run_chain(
             qsb = L_qsb @ E2  # (2, 3, N)
             d = qsb[:, :2].copy()
             d[:, :, 1:] -= qsb[:, :2, :-1]
-            eb = m * qsb[:, 2] + kg * qsb[:, 0] + cg * qsb[:, 1]
+            eb = m * qsb[:, 2]
+            if grounded:
+                eb += kg * qsb[:, 0] + cg * qsb[:, 1]
             ue = zero_force_step((k * d[:, 0] + c * d[:, 1]).T, eb.T).T + kicks * Pu
             enew = L_upd @ E2
             enew += c_u * ue[:, None, :]

@@ -77,6 +77,13 @@ def _p(a):
     return None if a is None else a.ctypes.data
 
 
+def ground_elements(chain):
+    """(kg, cg) of a chain for the kernels: (None, None) when it has no spring or damper to the
+    ground, so that they skip those terms (NULL pointers in C)."""
+    kg, cg = chain[3], chain[4]
+    return (kg, cg) if kg.any() or cg.any() else (None, None)
+
+
 def params_array(scheme) -> np.ndarray:
     """The scheme's parameters in the order its C kernel reads them (one 0.0 when none)."""
     return np.array([scheme.params[p] for p in scheme.module.PARAMS] or [0.0])
@@ -90,7 +97,8 @@ def chain_advance(backend, scheme, coeffs, form, sweep, chain, dt, loaded, out_i
     if sweep == "plain" and tracker is None:
         raise ValueError("the plain sweep needs a PlainSweepError tracker")
     plain = sweep == "plain"
-    m, k, c, kg, cg = chain
+    m, k, c = chain[:3]
+    kg, cg = ground_elements(chain)
     fn = c_chain_function(scheme.name) if backend == "c" else None
     if fn is None:
         def advance(force, H, xo, vo, ao):
@@ -114,7 +122,7 @@ def chain_advance(backend, scheme, coeffs, form, sweep, chain, dt, loaded, out_i
             assert arr is None or arr.flags.c_contiguous
         E = tracker.history(scheme.history) if plain else None
         rc = fn(FORM_CODE[form], SWEEP_CODE[sweep], N, force.shape[0] - 1, m.ctypes.data,
-                k.ctypes.data, c.ctypes.data, kg.ctypes.data, cg.ctypes.data, dt, params.ctypes.data, loaded64.size,
+                k.ctypes.data, c.ctypes.data, _p(kg), _p(cg), dt, params.ctypes.data, loaded64.size,
                 loaded64.ctypes.data, force.ctypes.data, H.ctypes.data, out64.size,
                 out64.ctypes.data, _p(xo), _p(vo), _p(ao), work.ctypes.data, _p(E),
                 _p(tracker.err) if plain else None)

@@ -163,7 +163,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
     sweep_fn = kernels.c_chain_function(info.name) if driver else None
     if sweep_fn is not None:
         idx = [loaded, pf, pi, pj, ei, ej, outputs]
-        mats = [m, k, c, kg, cg, kernels.params_array(info), U, par, f]
+        mats = [m, k, c, *kernels.ground_elements(chain), kernels.params_array(info), U, par, f]
         dims = [N, len(names), loaded.size, force_dofs.size, sz.ne, sz.nw, sz.nz, outputs.size,
                 n_samples, S, max_iter, kernels.FORM_CODE[form], ix, iv, ia]
         iters, total, worst = _run_c(driver, sweep_fn, dims, idx, mats, H, u, g, rate, store, h,
@@ -276,10 +276,12 @@ def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
     N, nl, ne, nw, nz = dims[0], dims[2], dims[4], dims[5], dims[6]
     nu = nw + nz
     arrays = lambda xs, dtype: [np.ascontiguousarray(a, dtype=dtype) for a in xs]  # noqa: E731
-    idx, mats = arrays(idx, np.int64), arrays(mats, float)
+    idx = arrays(idx, np.int64)
+    mats = [None if a is None else np.ascontiguousarray(a, dtype=float) for a in mats]
     state = arrays([H, u, g, rate], float)
     dims = np.array(dims, dtype=np.int64)
-    pointers = lambda xs: (ctypes.c_void_p * len(xs))(*[a.ctypes.data for a in xs])  # noqa: E731
+    pointers = lambda xs: (ctypes.c_void_p * len(xs))(  # noqa: E731
+        *[0 if a is None else a.ctypes.data for a in xs])
     stats = np.zeros(4)
     fail = np.zeros(1, dtype=np.int64)
     work = np.zeros(12 * N + 2 * nl + nw + 2 * nz + nu * (nu + 1) + ne + nz + n_w + 1)
