@@ -10,7 +10,7 @@ averages; for Wilson theta they live at t + theta dt.
 primary unknown, and returns
 
     displacement form:  ae = A xe + B,  ve = D xe + E          (A, D constants; B, E history)
-    acceleration form:  xe = Dx ae + Ex, ve = Dv ae + Ev        (reference sec. 3 writes D, E, A, B)
+    acceleration form:  xe = Dx ae + Ex, ve = Dv ae + Ev        (the source writes D, E, A, B)
     update:             x1, v1, a1 affine in the primary unknown and the history.
 
 Sources: (Newmark 1959; Wilson, Farhoomand & Bathe 1973; Houbolt 1950;
@@ -54,7 +54,7 @@ WILSON = (
     sp.Eq(x1, x0 + dt * v0 + dt**2 / 6 * (a1 + 2 * a0)),
 )
 
-#: Houbolt: third-order backward differences (reference sec. 4; the source's printed B has a sign
+#: Houbolt: third-order backward differences (the source's printed B has a sign
 #: misprint on x_{n-2}, its code is right, and so is this).
 HOUBOLT = (
     sp.Eq(v1, (11 * x1 - 18 * x0 + 9 * xm1 - 2 * xm2) / (6 * dt)),

@@ -1,6 +1,6 @@
 """Modal digital filters (Ahlin, Josefsson & Magnevall): step, impulse and ramp invariant.
 
-Reference.md section 6. One first-order modal term y' = s y + R x has the exact solution
+One first-order modal term y' = s y + R x has the exact solution
 
     y((n+1)T) = e^{sT} y(nT) + R * integral_0^T e^{s(T-u)} x(nT + u) du,
 

@@ -1,6 +1,6 @@
 """Modal models (poles and residues) of M q'' + C q' + K q = f, for the modal digital filters.
 
-Reference.md section 6 (Ahlin, Josefsson & Magnevall). The displacement receptance from the
+Ahlin, Josefsson & Magnevall, modal digital filters. The displacement receptance from the
 input DOFs to the output DOFs is the partial-fraction sum
 
     H(s) = sum over oscillatory modes r of  R_r/(s - s_r) + conj(R_r)/(s - conj(s_r))
