@@ -16,8 +16,9 @@
  * K and C each dense row-major n x n (its ptr NULL) or CSR (ptr n + 1, idx, val); the factors
  * either dense (L_ptr NULL: val[2] the LU of LAPACK's getrf, row-major, idx[8] its 0-based
  * pivots) or sparse as SuperLU's  Pr A Pc = L U  (L_ptr not NULL: L strictly lower, U strictly
- * upper, both CSC; U_diag the diagonal of U; the unit diagonal of L implied; perm_r, perm_c as
- * scipy's splu: (Pr b)[perm_r[i]] = b[i], x[i] = z[perm_c[i]]). Indices are long (64-bit).
+ * upper, both CSR; U_diag the reciprocals of U's diagonal; the unit diagonal of L implied;
+ * perm_r, perm_c as scipy's splu: (Pr b)[perm_r[i]] = b[i], x[i] = z[perm_c[i]]). Indices are
+ * long (64-bit).
  * Outputs (NULL: not stored) get row k + 1 of the stored DOFs; work holds 7 n doubles; nothing
  * is allocated. Returns 0, DTDYN_STOPPED when stopped.
  */
@@ -74,26 +75,27 @@ static void dense_solve(long n, const double *restrict LU, const long *restrict 
     }
 }
 
-/* b = A^-1 b by the sparse factors Pr A Pc = L U (column-oriented substitutions; z: n) */
+/* b = A^-1 b by the sparse factors Pr A Pc = L U (row-oriented substitutions; z: n) */
 static void sparse_solve(long n, const long *const *idx, const double *const *val,
                          double *restrict b, double *restrict z)
 {
-    const long *Lp = idx[4], *Li = idx[5], *Up = idx[6], *Ui = idx[7];
+    const long *Lp = idx[4], *Lj = idx[5], *Up = idx[6], *Uj = idx[7];
     const long *perm_r = idx[8], *perm_c = idx[9];
     const double *Lx = val[2], *Ux = val[3], *Ud = val[4];
-    long i, j, p;
+    long i, p;
     for (i = 0; i < n; ++i)
         z[perm_r[i]] = b[i];
-    for (j = 0; j < n; ++j) { /* L y = Pr b */
-        const double zj = z[j];
-        for (p = Lp[j]; p < Lp[j + 1]; ++p)
-            z[Li[p]] -= Lx[p] * zj;
+    for (i = 0; i < n; ++i) { /* L y = Pr b */
+        double acc = z[i];
+        for (p = Lp[i]; p < Lp[i + 1]; ++p)
+            acc -= Lx[p] * z[Lj[p]];
+        z[i] = acc;
     }
-    for (j = n - 1; j >= 0; --j) { /* U z = y */
-        const double zj = z[j] / Ud[j];
-        z[j] = zj;
-        for (p = Up[j]; p < Up[j + 1]; ++p)
-            z[Ui[p]] -= Ux[p] * zj;
+    for (i = n - 1; i >= 0; --i) { /* U z = y; Ud holds 1 / diag(U) */
+        double acc = z[i];
+        for (p = Up[i]; p < Up[i + 1]; ++p)
+            acc -= Ux[p] * z[Uj[p]];
+        z[i] = acc * Ud[i];
     }
     for (i = 0; i < n; ++i)
         b[i] = z[perm_c[i]];
@@ -114,15 +116,17 @@ int dtdyn_mck_loop(long n, long n_hist, long n_steps, long n_loaded, const long 
         const double *f0 = force + k * n_loaded, *f1 = f0 + n_loaded;
         if ((k & 1023) == 0 && dtdyn_stop_flag)
             return DTDYN_STOPPED;
-        for (i = 0; i < n; ++i) {
-            double qi = 0.0, si = 0.0;
-            for (h = 0; h < n_hist; ++h) {
-                qi += L[0 * n_hist + h] * H[h * n + i];
-                si += L[1 * n_hist + h] * H[h * n + i];
-            }
-            q[i] = qi;
-            s[i] = si;
+        for (i = 0; i < n; ++i) { /* row by row over the history: each sum in the order of h */
+            q[i] = 0.0;
+            s[i] = 0.0;
             rhs[i] = 0.0;
+        }
+        for (h = 0; h < n_hist; ++h) {
+            const double lq = L[0 * n_hist + h], ls = L[1 * n_hist + h], *Hh = H + h * n;
+            for (i = 0; i < n; ++i) {
+                q[i] += lq * Hh[i];
+                s[i] += ls * Hh[i];
+            }
         }
         for (j = 0; j < n_loaded; ++j)
             rhs[loaded[j]] = w0 * f0[j] + w1 * f1[j];
@@ -136,12 +140,15 @@ int dtdyn_mck_loop(long n, long n_hist, long n_steps, long n_loaded, const long 
         for (o = 0; o < 3; ++o) { /* x1, v1, a1 */
             const double *Lr = L + (2 + o) * n_hist;
             double *u = upd + o * n;
-            for (i = 0; i < n; ++i) {
-                double acc = 0.0;
-                for (h = 0; h < n_hist; ++h)
-                    acc += Lr[h] * H[h * n + i];
-                u[i] = acc + c_u[o] * rhs[i];
+            for (i = 0; i < n; ++i)
+                u[i] = 0.0;
+            for (h = 0; h < n_hist; ++h) {
+                const double lh = Lr[h], *Hh = H + h * n;
+                for (i = 0; i < n; ++i)
+                    u[i] += lh * Hh[i];
             }
+            for (i = 0; i < n; ++i)
+                u[i] += c_u[o] * rhs[i];
         }
         for (j = 0; j < n_shift; ++j) { /* lags, oldest first */
             double *dst = H + shift[2 * j] * n;

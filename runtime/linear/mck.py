@@ -66,12 +66,12 @@ def _c_operands(A, C, K):
     f64 = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
     if sps.issparse(A):
         lu = linalg.sparse_lu(A, what, orderings=linalg.FILL_ORDERINGS)
-        Lf, Uf = sps.tril(lu.L, -1, format="csc"), sps.triu(lu.U, 1, format="csc")
+        Lf, Uf = sps.tril(lu.L, -1, format="csr"), sps.triu(lu.U, 1, format="csr")
         mats = [sps.csr_matrix(K), sps.csr_matrix(C)]
         idx = [i64(a) for B in mats for a in (B.indptr, B.indices)]
         idx += [i64(a) for B in (Lf, Uf) for a in (B.indptr, B.indices)]
         idx += [i64(lu.perm_r), i64(lu.perm_c)]
-        val = [f64(B.data) for B in (*mats, Lf, Uf)] + [f64(lu.U.diagonal())]
+        val = [f64(B.data) for B in (*mats, Lf, Uf)] + [f64(1.0 / lu.U.diagonal())]
         work = sum(B.nnz for B in (*mats, Lf, Uf)) + 4 * A.shape[0]
     else:
         LU, piv = linalg.dense_lu(A, what)
