@@ -57,10 +57,10 @@ def _c_loop():
 
 
 def _c_operands(A, C, K):
-    """The idx and val pointer lists of dtdyn_mck_loop (mck_loop.c) for the effective matrix A
-    and C, K: dense (row-major, A by its LU and pivots) or sparse (CSR, A by its SuperLU factors
-    of the least-fill ordering); the arrays they point to come last (kept alive by the caller),
-    then the work of one step (multiply-adds)."""
+    """(idx, val, arrays, work): the pointer arrays idx and val of dtdyn_mck_loop (mck_loop.c)
+    for the effective matrix A and C, K, dense (row-major, A by its LU and pivots) or sparse
+    (CSR, A by its SuperLU factors of the least-fill ordering); the arrays they point to (the
+    caller keeps them alive); the multiply-adds of one step."""
     what = "the effective matrix M + Dv C + Dx K"
     i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
     f64 = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731

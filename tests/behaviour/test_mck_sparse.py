@@ -104,6 +104,11 @@ def test_singular_sparse_effective_matrix_is_named(backend):
     with pytest.raises(ValueError, match=r"the effective matrix M \+ Dv C \+ Dx K is singular"):
         dd.simulate_mck(M, C, K, np.ones(11), 1e-2, force_dofs=[0], backend=backend,
                         scheme="average_acceleration", unstable="warn")
+    # a pivot below eps of the largest: nothing of the solve would be left
+    M = sps.diags([1.0, 1e-20]).tocsr()
+    with pytest.raises(ValueError, match=r"effective matrix .* numerically singular"):
+        dd.simulate_mck(M, sps.csr_matrix((2, 2)), sps.csr_matrix((2, 2)), np.zeros(11), 1e-2,
+                        force_dofs=[0], backend=backend, scheme="average_acceleration")
 
 
 def test_sparse_c_loop_stops_at_the_first_non_finite_step(chain):
