@@ -19,6 +19,7 @@ from dtdyn._engine.errors import (DtdynAccuracyWarning, DtdynFallbackWarning,
 from dtdyn._engine.ground import ground_acceleration_from
 from dtdyn._engine.result import Response
 from dtdyn._engine.result_io import load_result
+from dtdyn.app.batch import run_batch
 from dtdyn.app.problems import p1, p2, p3, p4
 from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
 from dtdyn.linear.chain import chain_matrices, rayleigh_chain_damping, simulate_chain
@@ -61,6 +62,7 @@ __all__ = [
     "Cubic", "Polynomial", "Gap", "Law", "BoucWen",
     # scenes, results, reference problems
     "ground_acceleration_from", "Scene", "load_scene", "scene_from_dict", "run_scene", "Response", "load_result",
+    "run_batch",
     "p1", "p2", "p3", "p4",
     # errors and warnings
     "NewtonError", "DtdynStepStabilityError", "DtdynUnstableError", "SingularMassError",

@@ -1,0 +1,289 @@
+"""`run_batch`: many scenes and load cases on Dask distributed, on this machine or a cluster."""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+from dtdyn._engine.extras import require
+from dtdyn.app.batch import store, worker
+from dtdyn.app.batch.cases import build_cases
+from dtdyn.app.batch.reducers import reducer_coords, reducer_name, reducers_from
+
+__all__ = ["run_batch", "auto_chunk", "TASK_BYTES", "TASKS_PER_WORKER", "PROBE_CASES"]
+
+#: chunk="auto": about this many tasks per worker (load balance against per-task overhead) ...
+TASKS_PER_WORKER = 4
+#: ... and at most this many bytes of stored values per task (the memory a task holds)
+TASK_BYTES = 64 * 2**20
+#: the warm-up tries the first cases in order until one succeeds, at most this many
+PROBE_CASES = 10
+#: failed cases listed by the printed summary (all are in the result's status and message)
+LISTED_FAILURES = 10
+
+
+def auto_chunk(n_cases: int, n_workers: int, case_bytes: int) -> int:
+    """Cases per task for ``chunk="auto"``: about `TASKS_PER_WORKER` tasks per worker, each
+    holding at most `TASK_BYTES` of results (at least one case)."""
+    by_count = math.ceil(n_cases / (TASKS_PER_WORKER * max(n_workers, 1)))
+    by_memory = max(1, TASK_BYTES // max(case_bytes, 1))
+    return max(1, min(by_count, by_memory, n_cases))
+
+
+def _case_coords(params: list[dict]) -> dict:
+    """Each varied key as a per-case coordinate: numbers (NaN where a case leaves it), integers
+    (when every case sets one), or text ("" where a case leaves it)."""
+    keys = list(dict.fromkeys(k for p in params for k in p))
+    out = {}
+    for key in keys:
+        values = [p.get(key) for p in params]
+        given = [v for v in values if v is not None]
+        if all(isinstance(v, int) and not isinstance(v, bool) for v in given) and \
+                len(given) == len(values) and all(-2**63 <= v < 2**63 for v in given):
+            out[key] = np.array(values, dtype=np.int64)
+        elif all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in given):
+            out[key] = np.array([np.nan if v is None else float(v) for v in values])
+        else:
+            out[key] = np.array(["" if v is None else str(v) for v in values], dtype=str)
+    return out
+
+
+def _meta_vars(metas: list[dict], params: list[dict]) -> dict:
+    return {
+        "status": np.array([m["status"] for m in metas], dtype=str),
+        "message": np.array([m["message"] for m in metas], dtype=str),
+        "backend": np.array([m["backend"] for m in metas], dtype=str),
+        "worker": np.array([m["worker"] for m in metas], dtype=str),
+        "run_time": np.array([m["run_time"] for m in metas], dtype=float),
+        "max_rel_error": np.array([m["max_rel_error"] for m in metas], dtype=float),
+        "max_residual": np.array([m["max_residual"] for m in metas], dtype=float),
+        "seed": np.array([m["seed"] for m in metas], dtype=np.int64),
+        "params": np.array([json.dumps(p) for p in params], dtype=str),
+    }
+
+
+def _in_memory(layout, n, blocks_by_start, meta_vars, case_coords, attrs):
+    import xarray as xr
+
+    coords = {"case": ("case", np.arange(n))}
+    for name, values in layout["coords"].items():
+        coords[name] = ("output" if name == "output_name" else name, np.asarray(values))
+    coords.update({k: ("case", v) for k, v in case_coords.items()})
+    data = {}
+    for name, (dims, shape) in layout["vars"].items():
+        values = np.full((n, *shape), np.nan)
+        for start, blocks in blocks_by_start.items():
+            values[start:start + blocks[name].shape[0]] = blocks[name]
+        data[name] = (("case", *dims), values)
+    data.update({k: ("case", v) for k, v in meta_vars.items()})
+    return xr.Dataset(data, coords=coords, attrs={"dtdyn_batch": json.dumps(attrs)})
+
+
+def _summary_lines(summary: dict, metas: list[dict]) -> list[str]:
+    lines = [f"{summary['cases']} cases: {summary['done']} done, {summary['failed']} failed; "
+             f"wall time {summary['wall_time_s']:.2f} s, {summary['cases_per_s']:.1f} cases/s "
+             f"on {summary['workers']} worker(s), {summary['tasks']} tasks of up to "
+             f"{summary['chunk']} cases"]
+    failed = [m for m in metas if m["status"] != "done"]
+    for m in failed[:LISTED_FAILURES]:
+        lines.append(f"  case {m['index']} failed: {m['message']}")
+    if len(failed) > LISTED_FAILURES:
+        lines.append(f"  ... and {len(failed) - LISTED_FAILURES} more (the result's status and "
+                     "message variables list every case)")
+    return lines
+
+
+def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=None, out=None,
+              chunk="auto", progress=True, check=True, overwrite=False):
+    """Run many scenes and load cases on Dask distributed: this machine or a cluster.
+
+    Each case is a scene, run by `run_scene` on a Dask worker exactly as it runs alone (the
+    same results, bitwise, on the same backend). Cases are grouped into tasks of ``chunk``
+    cases; the base scenes and the files they name are scattered to the workers once; each
+    worker compiles or loads its C kernels once (a warm-up before the tasks) and a worker
+    without a C compiler stops the batch with an error instead of falling back to NumPy. A case
+    that fails (`NewtonError`, `DtdynUnstableError`, `DtdynStepStabilityError`, a ValueError of
+    the scene parser, ...) is recorded with its message and the batch goes on.
+
+    Parameters
+    ----------
+    cases : path, dict, Scene or a sequence of them
+        Scene files, scene tables (the dict of a parsed TOML file, relative files from the
+        current folder) or `Scene` objects (run as given, without ``vary`` or ``seed``).
+    vary : path, list of dict, dict of lists or pandas.DataFrame, optional
+        A table of variations, one row per case, applied to every scene of ``cases``: columns
+        are dotted keys of the scene's tables (``"model.stiffness[2]"``, ``"load[0].seed"``,
+        ``"ground.path"``, ``"ground.scale"``, ``"element[1].k3"``); a CSV file has them in its
+        first row (an empty cell keeps the scene's value). Each case is validated by
+        `scene_from_dict` on its worker, with the same named errors as a scene file.
+    seed : int, optional
+        Root seed: case ``i``'s random loads (``white_noise`` in ``[[load]]`` and ``[ground]``)
+        take seeds from ``numpy.random.SeedSequence(seed).spawn(n_cases)[i]`` (a seed the case
+        sets in ``vary`` is kept), independent of the split over tasks and workers.
+    client : distributed.Client, optional
+        Where to run. None starts a LocalCluster on this machine (processes, one thread each;
+        ``workers`` of them, default one per CPU) and closes it at the end; any Client, e.g.
+        ``Client("tcp://scheduler:8786")``, runs the same code on a cluster (every worker needs
+        dtdyn installed and, with ``out``, the store's folder shared).
+    workers : int, optional
+        Worker processes of the LocalCluster (only with ``client=None``).
+    reduce : str, sequence or callable, optional
+        What to keep per case: None, the time histories of the stored quantities (dims case,
+        time, output); or reducers computed on the workers: ``"peak"``, ``"rms"``, ``"drift"``
+        (peak inter-storey drift), ``"srs"`` (the pseudo-acceleration response spectrum of each
+        output's absolute acceleration; `dtdyn.app.batch.Spectrum` sets periods and damping),
+        ``"history"``, or callables ``f(response, scene) -> {name: value or (dims, value)}``;
+        a comma-separated string or a list.
+    out : path, optional
+        A Zarr store (``*.zarr``) written by the workers as their tasks finish, so memory stays
+        bounded by a task; under a temporary name until the batch ends (renamed then, removed
+        on an error). None: the results come back in memory.
+    chunk : int or "auto"
+        Cases per task; "auto" gives about 4 tasks per worker, each holding at most 64 MB of
+        results.
+    progress : bool
+        A progress bar and a summary printed at the end.
+    check : bool
+        Linear cases: compare with `exact_response` (the ``max_rel_error`` of each case).
+    overwrite : bool
+        Replace an existing ``out`` (only once the new store is complete).
+
+    Returns
+    -------
+    xarray.Dataset
+        Dims ``case``, ``time`` / ``period``, ``output``: the kept variables, NaN for failed
+        cases, and per case ``status`` ("done", "failed"), ``message``, ``backend``, ``worker``,
+        ``run_time``, ``max_rel_error``, ``max_residual``, ``seed`` (of the first random load,
+        -1: none), ``params`` (JSON) and each varied key as a coordinate; ``attrs["dtdyn_batch"]``
+        (JSON) holds the summary. Opened lazily from ``out`` when given.
+
+    Raises
+    ------
+    ValueError
+        Bad cases, keys, reducers or ``out`` (before anything runs), or no case of the first
+        ten succeeded (the warm-up: nothing to take the layout from).
+    dtdyn.app.batch.CBackendError
+        A worker cannot run the C backend the scenes ask for.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> ds = dd.run_batch(dd.load_scene(), workers=1, reduce="peak", progress=False)
+    >>> ds.sizes["case"], ds["peak_x"].shape, str(ds["status"].values[0])
+    (1, (1, 15), 'done')
+    """
+    for module in ("distributed", "xarray", "zarr"):
+        require(module, "batch", "run_batch")
+    from distributed import as_completed
+    from tqdm.auto import tqdm
+
+    reducers = reducers_from(reduce)
+    if not (chunk == "auto" or (isinstance(chunk, (int, np.integer)) and not
+                                isinstance(chunk, bool) and chunk >= 1)):
+        raise ValueError(f"chunk = {chunk!r}: must be 'auto' or an integer >= 1 (cases per task)")
+    if workers is not None:
+        if client is not None:
+            raise ValueError(f"workers = {workers!r}: only for client=None (a LocalCluster); a "
+                             "given client has its own workers")
+        if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+            raise ValueError(f"workers = {workers!r}: must be an integer >= 1")
+    shared, specs, params = build_cases(cases, vary, seed)
+    n = len(specs)
+    out_path = store.check_out(out, overwrite) if out is not None else None
+
+    own = client is None
+    cluster = tmp = None
+    futures = []
+    started = time.perf_counter()
+    try:
+        if own:
+            from distributed import Client, LocalCluster
+
+            cluster = LocalCluster(n_workers=int(workers or os.cpu_count() or 1),
+                                   threads_per_worker=1, processes=True,
+                                   dashboard_address=None, silence_logs=logging.ERROR)
+            client = Client(cluster)
+        cluster_time = time.perf_counter() - started
+        start = time.perf_counter()
+        if not client.scheduler_info()["workers"]:
+            client.wait_for_workers(1, timeout=120)
+        addresses = list(client.scheduler_info()["workers"])
+        shared_f = client.scatter(shared, broadcast=True, hash=False)
+        probes = client.gather([
+            client.submit(worker.probe, shared_f, specs[:PROBE_CASES], reducers, check,
+                          workers=[a], allow_other_workers=False, pure=False)
+            for a in addresses])
+        layout = probes[0]
+        if layout["vars"] is None:
+            raise ValueError(f"the first {min(n, PROBE_CASES)} case(s) all failed, so the batch "
+                             "has no layout to store:\n  " + "\n  ".join(layout["failed"]))
+        layout["coords"].update(reducer_coords(reducers))
+        case_bytes = 8 * sum(int(np.prod(shape)) for _, shape in layout["vars"].values())
+        size = auto_chunk(n, len(addresses), case_bytes) if chunk == "auto" else int(chunk)
+        case_coords = _case_coords(params)
+        if out_path is not None:
+            tmp = store.temporary_path(out_path)
+            store.create(tmp, layout, n, size, case_coords)
+        starts = list(range(0, n, size))
+        futures = [client.submit(worker.run_chunk, shared_f, specs[a:a + size], reducers, check,
+                                 layout, None if tmp is None else str(tmp), a, pure=False)
+                   for a in starts]
+        metas: list[dict | None] = [None] * n
+        blocks_by_start = {}
+        failed = 0
+        with tqdm(total=n, unit="case", disable=not progress, file=sys.stderr,
+                  desc="batch") as bar:
+            for fut in as_completed(futures):
+                got, blocks = fut.result()
+                for m in got:
+                    metas[m["index"]] = m
+                    failed += m["status"] != "done"
+                if blocks is not None:
+                    blocks_by_start[got[0]["index"]] = blocks
+                bar.update(len(got))
+                bar.set_postfix(failed=failed)
+        wall = time.perf_counter() - start
+        summary = {"cases": n, "done": n - failed, "failed": failed, "wall_time_s": wall,
+                   "cases_per_s": n / wall if wall > 0 else float("inf"),
+                   "cluster_start_s": cluster_time if own else None,
+                   "workers": len(addresses), "tasks": len(starts), "chunk": size}
+        attrs = {"summary": summary, "scenes": shared.sources, "root_seed": seed,
+                 "reducers": [reducer_name(r) for r in reducers], "check": check,
+                 "versions": _versions()}
+        meta_vars = _meta_vars(metas, params)
+        if out_path is not None:
+            store.finish(tmp, out_path, meta_vars, attrs)
+            tmp = None
+        if progress:
+            print("\n".join(_summary_lines(summary, metas)))
+        if out_path is None:
+            return _in_memory(layout, n, blocks_by_start, meta_vars, case_coords, attrs)
+    except BaseException:
+        for fut in futures:
+            fut.cancel()
+        raise
+    finally:
+        store.discard(tmp)
+        if own and client is not None:
+            client.close()
+            cluster.close()
+    import xarray as xr
+    return xr.open_zarr(out_path, zarr_format=store.ZARR_FORMAT, consolidated=True)
+
+
+def _versions() -> dict:
+    import dask
+    import distributed
+    import scipy
+    import xarray
+    import zarr
+
+    from dtdyn import __version__
+    return {"dtdyn": __version__, "numpy": np.__version__, "scipy": scipy.__version__,
+            "dask": dask.__version__, "distributed": distributed.__version__,
+            "xarray": xarray.__version__, "zarr": zarr.__version__}

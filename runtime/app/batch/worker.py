@@ -1,0 +1,225 @@
+"""What runs on a Dask worker: the shared files materialized once, the C warm-up, the cases of
+one task, their reductions and the write of the task's block of the Zarr store.
+
+Nothing here holds a ctypes object across tasks or ships one: every worker process compiles
+(or loads from its on-disk cache) the kernels it needs on its first case, through
+`dtdyn._engine.cbuild`, and keeps them in its own memory.
+"""
+from __future__ import annotations
+
+import atexit
+import os
+import shutil
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from dtdyn._engine.errors import (DtdynFallbackWarning, DtdynStepStabilityError,
+                                  DtdynUnstableError, NewtonError, SingularMassError)
+from dtdyn.app.batch.cases import CaseSpec, Shared, apply_overrides
+
+__all__ = ["CBackendError", "RUN_ERRORS", "probe", "run_chunk", "run_case"]
+
+#: the errors that fail one case (recorded with their message); any other error stops the batch
+RUN_ERRORS = (NewtonError, DtdynStepStabilityError, DtdynUnstableError, SingularMassError,
+              FloatingPointError, ValueError, MemoryError)
+
+_FOLDERS: dict[str, Path] = {}
+
+
+class CBackendError(RuntimeError):
+    """A worker cannot run the C backend a case asks for (no compiler, a failed build, or
+    ``DTDYN_NO_C``): a batch stops instead of falling back to NumPy or CasADi silently."""
+
+
+def _address() -> str:
+    try:
+        from distributed import get_worker
+        return get_worker().address
+    except (ImportError, ValueError):
+        return f"pid {os.getpid()}"
+
+
+def _write_file(path: Path, data: bytes) -> None:
+    if path.is_file() and path.stat().st_size == len(data):
+        return  # named by its content hash: already there
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(data)
+    os.replace(tmp, path)
+
+
+def folder(shared: Shared) -> Path:
+    """This worker's folder holding the batch's shipped files (written once per batch and
+    process, removed at exit)."""
+    got = _FOLDERS.get(shared.token)
+    if got is None:
+        got = Path(tempfile.mkdtemp(prefix=f"dtdyn-batch-{shared.token[:8]}-"))
+        atexit.register(shutil.rmtree, got, True)
+        for name, data in shared.files.items():
+            _write_file(got / name, data)
+        _FOLDERS[shared.token] = got
+    return got
+
+
+def _require_compiler() -> None:
+    from dtdyn._engine import cbuild
+
+    if not cbuild.c_available():
+        why = ("DTDYN_NO_C is set" if cbuild._disabled()
+               else "no C compiler found (cc, gcc, clang or $CC)")
+        raise CBackendError(f"worker {_address()}: the C backend is unavailable: {why}. A batch "
+                            "does not fall back to NumPy silently: install a C compiler on every "
+                            "worker (or unset DTDYN_NO_C), or give the scene backend = \"numpy\"")
+
+
+def _wants_c(scene) -> bool:
+    return scene.backend == "c" or (scene.kind == "matrices" and scene.linear)
+
+
+def scene_of(shared: Shared, spec: CaseSpec, where: Path):
+    """The case's Scene: its base tables with its overrides, validated by scene_from_dict."""
+    from dtdyn.app.scene.parse import scene_from_dict
+
+    base = shared.bases[spec.scene]
+    if not isinstance(base, dict):
+        return base  # a Scene object, run as given
+    for name, data in spec.files.items():
+        _write_file(where / name, data)
+    data = apply_overrides(base, spec.overrides)
+    source = shared.sources[spec.scene]
+    try:
+        return scene_from_dict(data, where, source)
+    except ValueError as exc:
+        raise ValueError(f"{source}: {exc}") from None
+
+
+def _coords(response, scene) -> dict:
+    """The coordinates a case's response gives the batch: time, output (and output_name)."""
+    coords = {"time": np.asarray(response.t), "output": np.asarray(response.outputs)}
+    names = response.dof_names
+    if names is None and scene.kind == "matrices" and scene.dof_names is not None:
+        names = tuple(scene.dof_label(d) for d in response.outputs)
+    if names is not None and list(names) != [str(int(d)) for d in response.outputs]:
+        coords["output_name"] = np.array(names, dtype=str)
+    return coords
+
+
+def run_case(shared: Shared, spec: CaseSpec, reducers, check: bool, layout=None,
+             coords: bool = False):
+    """(metadata, {name: (dims, values)} or None) of one case; a RUN_ERRORS error or a failing
+    reducer fails the case (status "failed", its message), a missing C backend raises
+    CBackendError."""
+    from dtdyn.app.batch.reducers import reducer_name
+    from dtdyn.app.scene.run import run_scene
+
+    start = time.perf_counter()
+    meta = {"index": spec.index, "status": "failed", "message": "", "backend": "",
+            "run_time": np.nan, "max_rel_error": np.nan, "max_residual": np.nan,
+            "seed": spec.seed, "worker": _address()}
+    where = folder(shared)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            scene = scene_of(shared, spec, where)
+            if _wants_c(scene):
+                _require_compiler()
+            response, report = run_scene(scene, check=check)
+        except RUN_ERRORS as exc:
+            meta["message"] = f"{type(exc).__name__}: {exc}"
+            meta["run_time"] = time.perf_counter() - start
+            return meta, None
+    used = str(response.info.get("backend", scene.backend))
+    if _wants_c(scene) and used != "c":
+        why = "; ".join(str(w.message) for w in caught if issubclass(w.category,
+                                                                     DtdynFallbackWarning))
+        raise CBackendError(f"worker {_address()}: case {spec.index} asked for the C backend and "
+                            f"ran on {used!r}" + (f" ({why})" if why else "") + ". A batch does "
+                            "not fall back silently: install a C compiler on every worker, or "
+                            "give the scene backend = \"numpy\"")
+    meta["backend"] = used
+    for key in ("max_rel_error", "max_residual"):
+        if report.get(key) is not None:
+            meta[key] = float(report[key])
+    arrays, failing = {}, None
+    try:
+        for r in reducers:
+            failing = reducer_name(r)
+            arrays.update(r(response, scene))
+        failing = None
+        if layout is not None:
+            _check_layout(arrays, response, layout)
+    except Exception as exc:  # a reducer (possibly the user's) or a layout mismatch: this case
+        meta["message"] = (f"reduce {failing!r}: " if failing else "") + \
+            f"{type(exc).__name__}: {exc}"
+        meta["run_time"] = time.perf_counter() - start
+        return meta, None
+    others = [str(w.message) for w in caught
+              if not issubclass(w.category, (DtdynFallbackWarning, DeprecationWarning))]
+    meta["message"] = "; ".join(dict.fromkeys(f"warning: {m}" for m in others))
+    meta["status"] = "done"
+    meta["run_time"] = time.perf_counter() - start
+    if coords:
+        meta["coords"] = _coords(response, scene)
+    return meta, arrays
+
+
+def _check_layout(arrays: dict, response, layout: dict) -> None:
+    want, coords = layout["vars"], layout["coords"]
+    if set(arrays) != set(want):
+        raise ValueError(f"the case gives the variables {sorted(arrays)}, the batch "
+                           f"{sorted(want)} (from its first case): every case of a batch stores "
+                           "the same quantities")
+    outputs = np.asarray(response.outputs)
+    if not np.array_equal(outputs, coords["output"]):
+        raise ValueError(f"the case stores the outputs {outputs.tolist()}, the batch "
+                           f"{np.asarray(coords['output']).tolist()}: every case of a batch "
+                           "stores the same DOFs")
+    for name, (dims, values) in arrays.items():
+        wdims, wshape = want[name]
+        if tuple(dims) != tuple(wdims) or tuple(np.shape(values)) != tuple(wshape):
+            raise ValueError(f"{name} has dims {tuple(dims)} and shape {np.shape(values)}, "
+                               f"the batch {tuple(wdims)} and {tuple(wshape)} (from its first "
+                               "case): every case of a batch has the same samples and outputs")
+
+
+def probe(shared: Shared, specs: list[CaseSpec], reducers, check: bool) -> dict:
+    """The warm-up of one worker: the C compiler required, then the given cases in order until
+    one succeeds (its kernels compiled or loaded into this process). Returns the batch layout
+    (its variables' dims and shapes, the coordinates), the case's run time, and the messages
+    of the cases that failed before it."""
+    failed = []
+    for spec in specs:
+        meta, arrays = run_case(shared, spec, reducers, check, coords=True)
+        if arrays is None:
+            failed.append(f"case {spec.index}: {meta['message']}")
+            continue
+        coords = meta["coords"]
+        return {"vars": {k: (tuple(d), tuple(np.shape(v))) for k, (d, v) in arrays.items()},
+                "coords": coords, "case": spec.index, "run_time": meta["run_time"],
+                "failed": failed, "worker": _address()}
+    return {"vars": None, "failed": failed, "worker": _address()}
+
+
+def run_chunk(shared: Shared, specs: list[CaseSpec], reducers, check: bool, layout: dict,
+              store: str | None, start: int):
+    """Run the cases ``specs`` (indices ``start ..``) and write their block of every variable to
+    the Zarr store (or return the blocks when ``store`` is None). Returns (metadata per case,
+    blocks or None)."""
+    metas, blocks = [], {name: np.full((len(specs), *shape), np.nan)
+                         for name, (dims, shape) in layout["vars"].items()}
+    for row, spec in enumerate(specs):
+        meta, arrays = run_case(shared, spec, reducers, check, layout)
+        metas.append(meta)
+        if arrays is not None:
+            for name, (dims, values) in arrays.items():
+                blocks[name][row] = values
+    if store is None:
+        return metas, blocks
+    from dtdyn.app.batch.store import write_block
+    write_block(store, start, blocks)
+    return metas, None
