@@ -29,12 +29,13 @@ KERNELS = {
         "long n_out", "const long *restrict out_idx", "double *restrict xo",
         "double *restrict vo", "double *restrict ao", "double *restrict work")),
     "dtdyn_sturm_counts": ("int", (
-        "long N", "const double *restrict k", "const double *restrict m", "double pivmin",
-        "long n_lam", "const double *restrict lam", "long *restrict counts")),
+        "long N", "const double *restrict k", "const double *restrict kg",
+        "const double *restrict m", "double pivmin", "long n_lam", "const double *restrict lam",
+        "long *restrict counts")),
     "dtdyn_sturm_laguerre": ("int", (
-        "long N", "const double *restrict k", "const double *restrict m", "double pivmin",
-        "long n_lam", "const double *restrict lam", "long *restrict counts",
-        "double *restrict G", "double *restrict H")),
+        "long N", "const double *restrict k", "const double *restrict kg",
+        "const double *restrict m", "double pivmin", "long n_lam", "const double *restrict lam",
+        "long *restrict counts", "double *restrict G", "double *restrict H")),
     "dtdyn_modal_filters_lanes": ("int", ("void",)),
     "dtdyn_modal_filters_work": ("long", ("long m", "long n_out")),
     "dtdyn_modal_filters": ("int", (

@@ -79,12 +79,22 @@ SIGNATURES = {
     ),
     "dtdyn_sturm_counts": (
         "c_int",
-        ("c_long", "c_void_p", "c_void_p", "c_double", "c_long", "c_void_p", "c_void_p"),
+        (
+            "c_long",
+            "c_void_p",
+            "c_void_p",
+            "c_void_p",
+            "c_double",
+            "c_long",
+            "c_void_p",
+            "c_void_p",
+        ),
     ),
     "dtdyn_sturm_laguerre": (
         "c_int",
         (
             "c_long",
+            "c_void_p",
             "c_void_p",
             "c_void_p",
             "c_double",

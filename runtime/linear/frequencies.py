@@ -9,11 +9,15 @@ mass i sees through station i the stiffness
 
 .. math::
 
-    s_0 = k_0 - \lambda m_0, \qquad
-    s_i = \frac{k_i\, s_{i-1}}{k_i + s_{i-1}} - \lambda m_i, \qquad d_i = s_i + k_{i+1}
-    \ (k_N = 0),
+    s_0 = k_0 + k_{g,0} - \lambda m_0, \qquad
+    s_i = \frac{k_i\, s_{i-1}}{k_i + s_{i-1}} + k_{g,i} - \lambda m_i, \qquad
+    d_i = s_i + k_{i+1} \ (k_N = 0),
 
-(station i in series with what is below it, less the inertia of mass i). This equals the
+(station i in series with what is below it, plus the spring :math:`k_{g,i} \ge 0` from mass i
+to the ground, less the inertia of mass i). A station with :math:`k_i = 0` (allowed with
+ground springs, if every part of the chain keeps one) gives :math:`s_i = k_{g,i} - \lambda
+m_i`: the chain splits there, :math:`d_{i-1} = s_{i-1}` is the last pivot of the part below,
+and the count of the whole is the sum of the parts' counts. This equals the
 textbook pivot :math:`d_i = k_i + k_{i+1} - \lambda m_i - k_i^2 / d_{i-1}`, but adds positive
 terms where that one cancels, so the lowest frequencies of a long chain keep a few ulps of
 relative accuracy (the textbook count, like LAPACK's dstebz, is accurate only to a few ulps of
@@ -22,10 +26,10 @@ the largest eigenvalue: 1e-8 relative on the lowest of a 100,000-mass chain).
 Each root :math:`\lambda_j` is isolated by bisection on the count, all wanted roots at once,
 until its bracket :math:`(l_j, h_j]` holds it alone (count :math:`j` at :math:`l_j`,
 :math:`j + 1` at :math:`h_j`). The brackets start from :math:`[\lambda_{\rm low}/2,
-\lambda_{\max}]`: Gershgorin above (:math:`\max_i 2 (k_i + k_{i+1})/m_i` for
+\lambda_{\max}]`: Gershgorin above (:math:`\max_i (2 (k_i + k_{i+1}) + k_{g,i})/m_i` for
 :math:`M^{-1} K`), and below :math:`\lambda_1 \ge 1/\operatorname{tr}(K^{-1} M) =
 1 / \sum_i m_i \sum_{n \le i} 1/k_n = \lambda_{\rm low}` (the flexibility of the fixed-free
-chain), halving at the geometric mean while :math:`h > 4 l` (the lowest roots of a long chain
+chain; ground springs only stiffen it; 0 for a chain in parts), halving at the geometric mean while :math:`h > 4 l` (the lowest roots of a long chain
 lie many decades below :math:`\lambda_{\max}`) and at the arithmetic mean after. Brackets that
 coincide share their evaluation.
 
@@ -74,11 +78,30 @@ from dtdyn._engine import cbuild, validate
 __all__ = ["chain_frequencies", "chain_poles", "sturm_counts"]
 
 
-def _coefficients(mass, stiffness):
+def _coefficients(mass, stiffness, ground_stiffness=None):
+    """m > 0; k >= 0 and kg >= 0 (zeros without ground springs) such that every part of the
+    chain is held to the ground, K + diag(kg) positive definite; pivmin (module docstring)."""
     m = validate.vector("mass", mass, positive=True)
-    k = validate.vector("stiffness", stiffness, positive=True, length=m.size)
+    if ground_stiffness is None:
+        k = validate.vector("stiffness", stiffness, positive=True, length=m.size)
+        kg = np.zeros(m.size)
+    else:
+        k = validate.vector("stiffness", stiffness, nonnegative=True, length=m.size)
+        kg = validate.vector("ground_stiffness", ground_stiffness, nonnegative=True,
+                             length=m.size)
+        # a station k_i = 0 starts a part of the chain that only its ground springs hold
+        starts = np.flatnonzero(k == 0.0)
+        if starts.size:
+            held = np.add.reduceat((kg > 0).astype(np.int64), starts) > 0
+            if not held.all():
+                i = int(starts[np.flatnonzero(~held)[0]])
+                ends = np.r_[starts[1:], m.size]
+                last = int(ends[np.flatnonzero(~held)[0]]) - 1
+                raise ValueError(
+                    f"stiffness[{i}] = 0.0 leaves masses {i}..{last} with no spring to the "
+                    f"ground (ground_stiffness is 0 there): K is singular")
     pivmin = np.finfo(float).tiny * max(1.0, float(k.max()) ** 2)
-    return m, k, pivmin
+    return m, k, kg, pivmin
 
 
 @lru_cache(maxsize=None)
@@ -90,16 +113,16 @@ def _c_kernels():
     return cbuild.bind(lib, "dtdyn_sturm_counts"), cbuild.bind(lib, "dtdyn_sturm_laguerre")
 
 
-def _counts(m, k, pivmin, lam, backend="c"):
+def _counts(m, k, kg, pivmin, lam, backend="c"):
     """Eigenvalues below each lam: negative pivots d_i = s_i + k_{i+1} (module docstring)."""
     lam = np.ascontiguousarray(lam, dtype=float)
     fns = _c_kernels() if backend == "c" else None
     if fns is not None:
         out = np.empty(lam.size, dtype=np.int64)
-        fns[0](m.size, k.ctypes.data, m.ctypes.data, pivmin, lam.size, lam.ctypes.data,
-               out.ctypes.data)
+        fns[0](m.size, k.ctypes.data, kg.ctypes.data, m.ctypes.data, pivmin, lam.size,
+               lam.ctypes.data, out.ctypes.data)
         return out
-    s = k[0] - lam * m[0]
+    s = k[0] + kg[0] - lam * m[0]
     c = np.zeros(lam.size, dtype=np.int64)
     for i in range(1, m.size + 1):
         kn = k[i] if i < m.size else 0.0
@@ -107,11 +130,11 @@ def _counts(m, k, pivmin, lam, backend="c"):
         d = np.where(np.abs(d) < pivmin, -pivmin, d)
         c += d < 0
         if i < m.size:
-            s = kn * s / d - lam * m[i]
+            s = kn * s / d + kg[i] - lam * m[i]
     return c
 
 
-def _laguerre_terms(m, k, pivmin, lam, backend="c"):
+def _laguerre_terms(m, k, kg, pivmin, lam, backend="c"):
     """The count and G = p'/p, H = -G' of p = det(K - lam M) at each lam (module docstring);
     G = NaN where a pivot before the last vanished, G = inf and H = 0 where the last did. The
     same operations in the same order as the C kernel, so both give the same bits."""
@@ -119,11 +142,11 @@ def _laguerre_terms(m, k, pivmin, lam, backend="c"):
     fns = _c_kernels() if backend == "c" else None
     if fns is not None:
         c, G, H = np.empty(lam.size, dtype=np.int64), np.empty(lam.size), np.empty(lam.size)
-        fns[1](m.size, k.ctypes.data, m.ctypes.data, pivmin, lam.size, lam.ctypes.data,
-               c.ctypes.data, G.ctypes.data, H.ctypes.data)
+        fns[1](m.size, k.ctypes.data, kg.ctypes.data, m.ctypes.data, pivmin, lam.size,
+               lam.ctypes.data, c.ctypes.data, G.ctypes.data, H.ctypes.data)
         return c, G, H
     n = m.size
-    s, s1, s2 = k[0] - lam * m[0], np.full(lam.size, -m[0]), np.zeros(lam.size)
+    s, s1, s2 = k[0] + kg[0] - lam * m[0], np.full(lam.size, -m[0]), np.zeros(lam.size)
     g1, h1 = np.zeros(lam.size), np.zeros(lam.size)
     c, hit = np.zeros(lam.size, dtype=np.int64), np.zeros(lam.size, dtype=bool)
     with np.errstate(all="ignore"):  # after a vanished pivot the derivatives are discarded
@@ -138,7 +161,7 @@ def _laguerre_terms(m, k, pivmin, lam, backend="c"):
             u, v, g = s1 * rd, s2 * rd, kn * rd
             g1 = g1 + u
             h1 = h1 + (u * u - v)
-            s = kn * s / d - lam * mn
+            s = kn * s / d + kg[i] - lam * mn
             s2 = g * g * (s2 - 2.0 * s1 * u)
             s1 = g * (kn * u) - mn
         tiny = np.abs(s) < pivmin
@@ -150,15 +173,17 @@ def _laguerre_terms(m, k, pivmin, lam, backend="c"):
     return c, G, H
 
 
-def _bounds(m, k):
+def _bounds(m, k, kg):
     """[lambda_low / 2, lambda_max] holds every eigenvalue (module docstring)."""
-    lam_max = float(np.max(2.0 * (k + np.r_[k[1:], 0.0]) / m)) * (1 + 1e-12)
+    lam_max = float(np.max((2.0 * (k + np.r_[k[1:], 0.0]) + kg) / m)) * (1 + 1e-12)
+    if np.any(k == 0.0):  # a chain in parts: no flexibility bound, bisection from 0
+        return 0.0, lam_max
     trace = float(np.dot(m, np.cumsum(1.0 / k)))  # tr(K^-1 M) of the fixed-free chain
     lam_low = 0.5 / trace if np.isfinite(trace) and trace > 0 else 0.0
     return lam_low, lam_max
 
 
-def _isolate(m, k, pivmin, lo, hi, clo, chi, backend, alone=True):
+def _isolate(m, k, kg, pivmin, lo, hi, clo, chi, backend, alone=True):
     """Bisect (in place) each bracket (lo_j, hi_j] until it holds root j alone (count j at lo_j,
     j + 1 at hi_j; with ``alone`` False, on) or is two adjacent floats (returned: ``stuck``)."""
     j = np.arange(lo.size)
@@ -170,7 +195,7 @@ def _isolate(m, k, pivmin, lo, hi, clo, chi, backend, alone=True):
         if idx.size == 0:
             return ~splittable
         points, where = np.unique(mid[idx], return_inverse=True)  # coinciding brackets
-        c = _counts(m, k, pivmin, points, backend)[where]
+        c = _counts(m, k, kg, pivmin, points, backend)[where]
         above = c > j[idx]
         hi[idx[above]], chi[idx[above]] = mid[idx[above]], c[above]
         lo[idx[~above]], clo[idx[~above]] = mid[idx[~above]], c[~above]
@@ -180,7 +205,7 @@ def _isolate(m, k, pivmin, lo, hi, clo, chi, backend, alone=True):
 _MAX_LAGUERRE = 60
 
 
-def _polish(m, k, pivmin, lo, hi, backend):
+def _polish(m, k, kg, pivmin, lo, hi, backend):
     """Laguerre's iteration on det(K - lambda M) for root j inside its isolating bracket
     (lo_j, hi_j], safeguarded by bisection (module docstring)."""
     n, eps = m.size, np.finfo(float).eps
@@ -193,7 +218,7 @@ def _polish(m, k, pivmin, lo, hi, backend):
     while not done.all():
         idx = np.flatnonzero(~done)
         xi = x[idx]
-        c, G, H = _laguerre_terms(m, k, pivmin, xi, backend)
+        c, G, H = _laguerre_terms(m, k, kg, pivmin, xi, backend)
         steps[idx] += 1
         right = c > j[idx]  # root j is below xi: step down
         hi[idx[right]], lo[idx[~right]] = xi[right], xi[~right]
@@ -222,15 +247,16 @@ def _polish(m, k, pivmin, lo, hi, backend):
     return out
 
 
-def sturm_counts(mass, stiffness, omega, backend="c") -> np.ndarray:
-    """The number of natural frequencies of the chain below each ``omega`` (rad/s)."""
-    m, k, pivmin = _coefficients(mass, stiffness)
+def sturm_counts(mass, stiffness, omega, backend="c", *, ground_stiffness=None) -> np.ndarray:
+    """The number of natural frequencies of the chain (springs ``ground_stiffness`` from each
+    mass to the ground, if given) below each ``omega`` (rad/s)."""
+    m, k, kg, pivmin = _coefficients(mass, stiffness, ground_stiffness)
     w = validate.vector("omega", np.atleast_1d(omega), nonnegative=True)
-    return _counts(m, k, pivmin, w**2, backend)
+    return _counts(m, k, kg, pivmin, w**2, backend)
 
 
 def chain_frequencies(mass, stiffness, count=None, below=None, backend="c", *,
-                      polish=True) -> np.ndarray:
+                      polish=True, ground_stiffness=None) -> np.ndarray:
     """Natural frequencies omega_n (rad/s, ascending) of a chain fixed to the ground at station
     0: each isolated by bisection on the Wittrick-Williams count, then polished by Laguerre's
     iteration on det(K - omega^2 M) (module docstring).
@@ -248,6 +274,9 @@ def chain_frequencies(mass, stiffness, count=None, below=None, backend="c", *,
     polish : bool
         False: bisection on the count alone, to adjacent floating-point numbers (about 85
         counts per root instead of about seven evaluations; the same roots to a few ulps).
+    ground_stiffness : (N,) array_like, optional
+        kg_n >= 0, a spring from mass n to the ground (K[n, n] += kg_n). With it a station may
+        have k_n = 0 (the chain in parts), as long as every part is held to the ground.
 
     Returns
     -------
@@ -265,18 +294,18 @@ def chain_frequencies(mass, stiffness, count=None, below=None, backend="c", *,
     """
     if backend not in ("c", "numpy"):
         raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
-    m, k, _ = _coefficients(mass, stiffness)
+    m, k, kg, _ = _coefficients(mass, stiffness, ground_stiffness)
     # scaled by powers of two to max k = max m ~ 1 (exact: the same counts, to the bit), so
     # lambda ~ k/m and the derivatives stay within range whatever the units
-    ek, em = int(np.frexp(k.max())[1]), int(np.frexp(m.max())[1])
-    k, m = np.ldexp(k, -ek), np.ldexp(m, -em)
+    ek, em = int(np.frexp(max(k.max(), kg.max()))[1]), int(np.frexp(m.max())[1])
+    k, kg, m = np.ldexp(k, -ek), np.ldexp(kg, -ek), np.ldexp(m, -em)
     pivmin = np.finfo(float).tiny * max(1.0, float(k.max()) ** 2)
     n = m.size
     if count is not None and below is not None:
         raise ValueError("give count or below, not both")
     if below is not None:
         below = validate.positive_scalar("below", below)
-        count = int(_counts(m, k, pivmin, [np.ldexp(below**2, em - ek)], backend)[0])
+        count = int(_counts(m, k, kg, pivmin, [np.ldexp(below**2, em - ek)], backend)[0])
     elif count is None:
         count = n
     else:
@@ -287,27 +316,29 @@ def chain_frequencies(mass, stiffness, count=None, below=None, backend="c", *,
         return np.zeros(0)
     # every root from the same bracket, whatever count or below: root j's path (and so its
     # bits) depends on the chain and j alone
-    lam_low, lam_max = _bounds(m, k)
+    lam_low, lam_max = _bounds(m, k, kg)
     lo, hi = np.full(count, lam_low), np.full(count, lam_max)
     clo, chi = np.zeros(count, dtype=np.int64), np.full(count, n, dtype=np.int64)
-    stuck = _isolate(m, k, pivmin, lo, hi, clo, chi, backend, alone=polish)
+    stuck = _isolate(m, k, kg, pivmin, lo, hi, clo, chi, backend, alone=polish)
     if polish:
-        lam = _polish(m, k, pivmin, lo, hi, backend)
+        lam = _polish(m, k, kg, pivmin, lo, hi, backend)
         lam[stuck] = hi[stuck]
     else:
         lam = hi
     return np.sqrt(np.ldexp(lam, ek - em))
 
 
-def chain_poles(mass, stiffness, damping, count=None, *, tol=1e-13, max_iter=100) -> np.ndarray:
+def chain_poles(mass, stiffness, damping, count=None, *, tol=1e-13, max_iter=100,
+                ground_stiffness=None, ground_damping=None) -> np.ndarray:
     r"""Complex poles s_r (Im s_r > 0, ascending |s|) of a damped chain, by Newton's method on
     det D(s) (D = K + s C + s^2 M) through the same recursion in the Laplace domain: with
-    :math:`\kappa_i = k_i + s c_i`,
+    :math:`\kappa_i = k_i + s c_i` and :math:`\gamma_i = k_{g,i} + s c_{g,i}` (the spring and
+    damper from mass i to the ground),
 
     .. math::
 
-        s_0 = \kappa_0 + s^2 m_0, \qquad
-        s_i = \frac{\kappa_i s_{i-1}}{\kappa_i + s_{i-1}} + s^2 m_i, \qquad
+        s_0 = \kappa_0 + \gamma_0 + s^2 m_0, \qquad
+        s_i = \frac{\kappa_i s_{i-1}}{\kappa_i + s_{i-1}} + \gamma_i + s^2 m_i, \qquad
         d_i = s_i + \kappa_{i+1}\ (\kappa_N = 0),
 
     the pivots of D(s), so :math:`\frac{d}{ds} \log \det D = \sum_i d_i' / d_i` in O(N)
@@ -325,6 +356,9 @@ def chain_poles(mass, stiffness, damping, count=None, *, tol=1e-13, max_iter=100
         The lowest ``count`` poles (all N by default).
     tol, max_iter : float, int
         The iteration stops when every step is below tol |s|.
+    ground_stiffness, ground_damping : (N,) array_like, optional
+        kg_n >= 0 and cg_n >= 0 from mass n to the ground (K[n, n] += kg_n, C[n, n] += cg_n);
+        with ground springs a station may have k_n = 0 (`chain_frequencies`).
 
     Returns
     -------
@@ -337,15 +371,22 @@ def chain_poles(mass, stiffness, damping, count=None, *, tol=1e-13, max_iter=100
     >>> np.round(s, 6)
     array([-0.2+1.989975j])
     """
-    m, k, _ = _coefficients(mass, stiffness)
+    m, k, kg, _ = _coefficients(mass, stiffness, ground_stiffness)
     c = validate.vector("damping", damping, nonnegative=True, length=m.size)
-    s = 1j * chain_frequencies(m, k, count=count)
+    cg = (np.zeros(m.size) if ground_damping is None else
+          validate.vector("ground_damping", ground_damping, nonnegative=True, length=m.size))
+    s = 1j * chain_frequencies(m, k, count=count, ground_stiffness=kg)
+    if s.size > 1 and np.any(np.diff(s.imag) <= 1e-12 * s.imag[1:]):
+        r = int(np.flatnonzero(np.diff(s.imag) <= 1e-12 * s.imag[1:])[0])
+        raise ValueError(f"the undamped frequencies {r} and {r + 1} coincide "
+                         f"({s.imag[r]!r} rad/s: a chain in equal parts), where the pole "
+                         "iteration cannot start; use modal_model")
     for _ in range(max_iter):
         near = s[:, None] - s[None, :]
         np.fill_diagonal(near, np.inf)
         deflate = (1.0 / near).sum(axis=1) + (1.0 / (s[:, None] - s.conj()[None, :])).sum(axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
-            ratio = _log_det_derivative(m, k, c, s)
+            ratio = _log_det_derivative(m, k, c, kg, cg, s)
             # a pivot exactly 0: s is a pole to the last bit (no step)
             step = np.where(np.isfinite(ratio), 1.0 / (ratio - deflate), 0.0)
         s = s - step
@@ -360,14 +401,15 @@ def chain_poles(mass, stiffness, damping, count=None, *, tol=1e-13, max_iter=100
     return s[np.argsort(np.abs(s))]
 
 
-def _log_det_derivative(m, k, c, s):
+def _log_det_derivative(m, k, c, kg, cg, s):
     """d/ds log det D(s) = sum_i d_i'(s) / d_i(s) over the pivots of D, for every s at once."""
     s2, ds2 = s * s, 2.0 * s
-    p, dp = k[0] + s * c[0] + s2 * m[0], c[0] + ds2 * m[0]
+    p, dp = k[0] + s * c[0] + (kg[0] + s * cg[0]) + s2 * m[0], c[0] + cg[0] + ds2 * m[0]
     total = 0.0
     for i in range(1, m.size):
         kap = k[i] + s * c[i]
         d, dd = p + kap, dp + c[i]  # pivot of mass i - 1: s_{i-1} + kappa_i
         total = total + dd / d
-        p, dp = kap * p / d + s2 * m[i], (c[i] * p * p + kap * kap * dp) / (d * d) + ds2 * m[i]
+        p, dp = (kap * p / d + (kg[i] + s * cg[i]) + s2 * m[i],
+                 (c[i] * p * p + kap * kap * dp) / (d * d) + cg[i] + ds2 * m[i])
     return total + dp / p

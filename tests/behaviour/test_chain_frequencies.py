@@ -148,3 +148,101 @@ def test_damped_poles_of_a_long_chain_and_errors():
     np.testing.assert_allclose(s, _first_order_poles(m, k, c)[:20], rtol=1e-9)
     with pytest.raises(ValueError, match="upper half-plane|did not converge"):
         dd.chain_poles([1.0, 1.0], [1.0, 1.0], [50.0, 50.0])       # overdamped
+
+
+def _grounded(m, k, c, kg, cg):
+    """M, C, K of the chain with springs kg and dampers cg from each mass to the ground,
+    assembled here entry by entry (K[n, n] += kg_n, C[n, n] += cg_n)."""
+    def tri(v, g):
+        A = np.diag(v + np.r_[v[1:], 0.0] + g)
+        A -= np.diag(v[1:], 1) + np.diag(v[1:], -1)
+        return A
+    return np.diag(m), tri(c, cg), tri(k, kg)
+
+
+def _grounded_chain(seed, n=40):
+    """Random masses, springs, dampers and ground elements; seed 2 also cuts stations 0 and
+    n // 2 (k = 0: mass 0 and the upper half held by their ground springs only)."""
+    rng = np.random.default_rng(seed)
+    m, k, c = rng.uniform(0.5, 2.0, n), rng.uniform(5e3, 2e4, n), rng.uniform(0.0, 2.0, n)
+    kg, cg = rng.uniform(1.0, 3e3, n), rng.uniform(0.0, 1.0, n)
+    if seed == 2:
+        k[[0, n // 2]] = 0.0
+    return m, k, c, kg, cg
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_ground_springs_equal_eigh_of_the_assembled_matrices(seed):
+    """K + diag(kg), M: scipy's eigh to 1e-12 (lambda_max / lambda_1 < 100 here, so eigh's own
+    error is ~1e-14 relative; 8e-15 measured); the count between its roots."""
+    m, k, c, kg, cg = _grounded_chain(seed)
+    M, _, K = _grounded(m, k, c, kg, cg)
+    lam = sla.eigh(K, M, eigvals_only=True)
+    w = dd.chain_frequencies(m, k, ground_stiffness=kg)
+    np.testing.assert_allclose(w, np.sqrt(lam), rtol=1e-12)
+    np.testing.assert_array_equal(dd.chain_frequencies(m, k, ground_stiffness=kg,
+                                                       backend="numpy"), w)
+    np.testing.assert_allclose(dd.chain_frequencies(m, k, ground_stiffness=kg, polish=False),
+                               w, rtol=4 * EPS)
+    mids = np.sqrt(np.r_[0.5 * lam[0], 0.5 * (lam[1:] + lam[:-1]), 2 * lam[-1]])
+    np.testing.assert_array_equal(sturm_counts(m, k, mids, ground_stiffness=kg),
+                                  np.arange(41))
+    if seed != 2:  # kg = 0 is the chain without ground springs, to the bit
+        np.testing.assert_array_equal(dd.chain_frequencies(m, k, ground_stiffness=0 * kg),
+                                      dd.chain_frequencies(m, k))
+
+
+def test_a_chain_in_parts_held_by_ground_springs():
+    """k_0 = 0 and an interior k_i = 0: the chain splits into parts that only ground springs
+    hold; each eigenvalue of two equal parts is double, and both copies are found."""
+    m = np.array([1.0, 2.0, 1.5, 1.0, 2.0, 1.5])
+    k = np.array([0.0, 3e3, 2e3, 0.0, 3e3, 2e3])
+    kg = np.array([5e2, 0.0, 0.0, 5e2, 0.0, 0.0])
+    M, _, K = _grounded(m, k, np.zeros(6), kg, np.zeros(6))
+    lam = sla.eigh(K, M, eigvals_only=True)
+    w = dd.chain_frequencies(m, k, ground_stiffness=kg)
+    np.testing.assert_allclose(w, np.sqrt(lam), rtol=1e-12)
+    np.testing.assert_array_equal(dd.chain_frequencies(m, k, ground_stiffness=kg,
+                                                       backend="numpy"), w)
+    m2, k2 = m[:3], np.array([0.0, 3e3, 2e3])       # one part alone: each root twice above
+    w2 = dd.chain_frequencies(m2, k2, ground_stiffness=kg[:3])
+    assert np.sum(np.abs(w[:, None] / w2[None, :] - 1) <= 1e-14) == 6
+    with pytest.raises(ValueError, match="coincide"):  # Aberth cannot start on a double root
+        dd.chain_poles(m, k, np.full(6, 0.1), ground_stiffness=kg)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_ground_dampers_poles_equal_the_first_order_eigenvalues(seed):
+    """C + diag(cg), K + diag(kg) (seed 2 in parts): numpy's eigenvalues of the first-order
+    form to 1e-12, as for P3 above."""
+    m, k, c, kg, cg = _grounded_chain(seed, n=15)
+    M, C, K = _grounded(m, k, c, kg, cg)
+    A, _ = dd.first_order_form(M, C, K)
+    ev = np.linalg.eigvals(A)
+    ev = ev[ev.imag > 0]
+    s = dd.chain_poles(m, k, c, ground_stiffness=kg, ground_damping=cg)
+    np.testing.assert_allclose(s, ev[np.argsort(np.abs(ev))], rtol=1e-12)
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"ground_stiffness": [1.0, -1.0, 0.0]}, r"ground_stiffness\[1\] = -1.0"),
+    ({"ground_stiffness": [1.0, np.nan, 0.0]}, r"ground_stiffness\[1\] = nan"),
+    ({"ground_stiffness": [1.0, 1.0]}, "ground_stiffness has length 2, expected 3"),
+    ({"ground_damping": [0.0, 0.0, -2.0]}, r"ground_damping\[2\] = -2.0"),
+    ({"ground_damping": [0.0, np.inf, 0.0]}, r"ground_damping\[1\] = inf"),
+])
+def test_bad_ground_elements(kw, match):
+    with pytest.raises(ValueError, match=match):
+        dd.chain_poles([1.0, 1.0, 1.0], [1.0, 1.0, 1.0], [0.1, 0.1, 0.1], **kw)
+
+
+def test_a_part_without_ground_is_refused():
+    with pytest.raises(ValueError, match=r"stiffness\[2\] = 0.0 leaves masses 2..3 with no "
+                                         "spring to the ground"):
+        dd.chain_frequencies([1.0] * 5, [1.0, 1.0, 0.0, 1.0, 0.0],
+                             ground_stiffness=[0.0, 0.0, 0.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match=r"stiffness\[0\] = 0.0 leaves masses 0..1"):
+        sturm_counts([1.0, 1.0], [0.0, 1.0], [1.0], ground_stiffness=[0.0, 0.0])
+    with pytest.raises(ValueError, match=r"stiffness\[0\] = 0.0: every entry must be finite "
+                                         "and > 0"):
+        dd.chain_frequencies([1.0, 1.0], [0.0, 1.0])    # without ground springs: k > 0
