@@ -61,8 +61,13 @@ evaluation also gives the count, which shrinks the bracket; a step that leaves t
 a non-finite G, H: a vanished pivot) is replaced by bisection, and the iteration stops when the
 step is below an ulp or stops shrinking (the rounding floor of the recursion), after which the
 result is kept inside its bracket. So no root is missed or found twice (the count decides the
-brackets), the roots agree with bisection to adjacent floating-point numbers (``polish=False``)
-to a few ulps, and nothing overflows (a pivot smaller than pivmin is replaced by -pivmin). The
+brackets; a multiple root, of a chain in equal parts, never isolates and is bisected to
+adjacent floats, once per multiplicity), the roots agree with bisection to adjacent
+floating-point numbers (``polish=False``) to within the rounding floor of the recursion (a few
+ulps for hundreds of masses, ~1e-13 relative at 100,000), and nothing overflows (a pivot
+smaller than pivmin is replaced by -pivmin; k and m are scaled by powers of two to order one,
+exactly). Every root starts from the same bracket, so its bits depend on the chain and its
+index alone, not on ``count`` or ``below``. The
 evaluations run in the generated C kernel (generated/sturm.c, four trial values interleaved per
 pass over the chain), with a NumPy fallback.
 """
