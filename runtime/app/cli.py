@@ -345,6 +345,38 @@ def _spectrum(args) -> int:
     return 0
 
 
+def _batch(args) -> int:
+    """`dtdyn batch`: many cases on Dask (run_batch), a progress bar and a summary; exit 1 when
+    a case failed (the store is written all the same)."""
+    import json
+
+    from dtdyn._engine.extras import require
+    from dtdyn.app.batch import CBackendError, run_batch
+
+    client = None
+    if args.scheduler:  # argparse refuses --workers with it
+        distributed = require("distributed", "batch", "dtdyn batch")
+        client = distributed.Client(args.scheduler, timeout="30s")
+    try:
+        ds = run_batch(args.scenes, vary=args.vary, seed=args.seed, client=client,
+                       workers=args.workers, reduce=args.reduce, out=args.out,
+                       chunk=args.chunk if args.chunk is not None else "auto",
+                       progress=not args.quiet, check=not args.no_check,
+                       overwrite=args.overwrite)
+    except CBackendError as exc:
+        print(f"dtdyn batch: error: {exc}", file=sys.stderr)
+        return 2
+    finally:
+        if client is not None:
+            client.close()
+    summary = json.loads(ds.attrs["dtdyn_batch"])["summary"]
+    if args.quiet:
+        print(f"{summary['cases']} cases: {summary['done']} done, {summary['failed']} failed; "
+              f"wall time {summary['wall_time_s']:.2f} s, {summary['cases_per_s']:.1f} cases/s")
+    print(f"results: {args.out}")
+    return 1 if summary["failed"] else 0
+
+
 def _bench(args) -> int:
     from dtdyn.app import bench
     command = "dtdyn bench " + " ".join(args.problems) + (" --quick" if args.quick else "")
@@ -467,6 +499,30 @@ def _parser() -> argparse.ArgumentParser:
     st.add_argument("schemes", nargs="*", metavar="SCHEME",
                     help=f"scheme names (default: all): {', '.join(SCHEMES)}")
     st.add_argument("--plot", help="draw the curves to this image file")
+    ba = sub.add_parser("batch", help="run many scenes or variations of one on Dask (this machine "
+                                      "or a cluster) into a Zarr store (needs the [batch] extra)")
+    ba.add_argument("scenes", nargs="+", metavar="SCENE", help="scene TOML files")
+    ba.add_argument("--vary", metavar="TABLE.csv",
+                    help="a CSV table of variations: a header of dotted keys (model.stiffness[2], "
+                         "load[0].seed, ground.path, ground.scale, ...), one row per case, "
+                         "applied to every SCENE")
+    ba.add_argument("--seed", type=int, default=None,
+                    help="root seed: per-case seeds of the white-noise loads from "
+                         "SeedSequence(seed).spawn")
+    where = ba.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, default=None,
+                       help="worker processes of a local cluster (default: one per CPU)")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    ba.add_argument("--reduce", default=None,
+                    help="keep reductions instead of time histories: a comma-separated list of "
+                         "peak, rms, drift, srs, history")
+    ba.add_argument("--out", required=True, help="the Zarr store to write (results.zarr)")
+    ba.add_argument("--chunk", type=int, default=None, help="cases per task (default: auto)")
+    ba.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    ba.add_argument("--no-check", action="store_true",
+                    help="skip the comparison of linear cases with the exact response")
+    ba.add_argument("--quiet", action="store_true", help="no progress bar")
     be = sub.add_parser("bench", help="work-precision report: error against run time per method")
     be.add_argument("problems", nargs="*", default=["P3", "P4"], choices=["P3", "P4"],
                     help="P3, P4 (default: both)")
@@ -498,7 +554,7 @@ def main(argv=None) -> int:
         return int(exc.code or 0)
     handler = {"generate": _generate, "show": _show, "simulate": _simulate,
                "stability": _stability, "srs": _srs, "bench": _bench,
-               "modes": _modes, "spectrum": _spectrum}[args.command]
+               "modes": _modes, "spectrum": _spectrum, "batch": _batch}[args.command]
     try:
         return handler(args)
     except BrokenPipeError:  # `dtdyn ... | head`: stop quietly, no traceback at exit either

@@ -206,7 +206,7 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
 
             cluster = LocalCluster(n_workers=int(workers or os.cpu_count() or 1),
                                    threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+                                   dashboard_address=":0", silence_logs=logging.ERROR)
             client = Client(cluster)
         cluster_time = time.perf_counter() - started
         start = time.perf_counter()

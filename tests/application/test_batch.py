@@ -1,0 +1,228 @@
+"""run_batch and `dtdyn batch` on a LocalCluster (2 worker processes, one thread each),
+against the same cases run one by one in this process (scene files written by hand, not
+through the batch's overrides), simulate_chain directly and numpy's SeedSequence."""
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dtdyn as dd
+
+distributed = pytest.importorskip("distributed")
+xr = pytest.importorskip("xarray")
+pytest.importorskip("zarr")
+
+from dtdyn.app.batch import CBackendError, Spectrum  # noqa: E402
+from dtdyn.app.batch.cases import apply_overrides, parse_key, read_table  # noqa: E402
+from dtdyn.app.cli import main  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+P4 = (ROOT / "runtime/app/scenes/p4.toml").read_text()
+EXAMPLE = ROOT / "examples/batch"
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0", silence_logs=40) as c:
+        yield c
+
+
+@pytest.fixture()
+def client(cluster):
+    with distributed.Client(cluster.scheduler_address) as c:  # addressed by its tcp address
+        yield c
+
+
+def p4_file(folder: Path, name: str, *, seed=0, k3="2e7", duration="1.999", max_iter=None):
+    """P4 with a short record (2,000 samples), written as its own scene file."""
+    text = P4.replace("seed = 0", f"seed = {seed}").replace("duration = 99.999",
+                                                             f"duration = {duration}")
+    text = text.replace("k3 = 2e7                 # N/m^3", f"k3 = {k3}")
+    if max_iter is not None:
+        text = text.replace("substeps = 3             # h = dt / 3",
+                            f"substeps = 1\nmax_iter = {max_iter}")
+    path = folder / name
+    path.write_text(text)
+    return path
+
+
+def test_keys_and_overrides():
+    assert parse_key("model.stiffness[2]") == ["model", "stiffness", 2]
+    assert parse_key("load[0].seed") == ["load", 0, "seed"]
+    base = {"model": {"stiffness": [1.0, 2.0, 3.0]}, "load": [{"kind": "step"}]}
+    got = apply_overrides(base, {"model.stiffness[2]": 9.0, "ground.scale": 0.5,
+                                 "load[0].amplitude": 2.0})
+    assert got == {"model": {"stiffness": [1.0, 2.0, 9.0]}, "load": [{"kind": "step",
+                                                                      "amplitude": 2.0}],
+                   "ground": {"scale": 0.5}}
+    assert base == {"model": {"stiffness": [1.0, 2.0, 3.0]}, "load": [{"kind": "step"}]}
+    with pytest.raises(ValueError, match=r"'load\[3\].seed': load\[3\] is past the end .*1 "):
+        apply_overrides(base, {"load[3].seed": 1})
+    with pytest.raises(ValueError, match=r"vary key 'model..k': '' is not a name"):
+        parse_key("model..k")
+
+
+def test_csv_table(tmp_path):
+    path = tmp_path / "t.csv"
+    path.write_text("# a comment\nmodel.stiffness[0],ground.path,load[0].seed\n"
+                    "1e4,a.csv,3\n2.5e4,,4\n")
+    assert read_table(path) == [{"model.stiffness[0]": 1e4, "ground.path": "a.csv",
+                                 "load[0].seed": 3},
+                                {"model.stiffness[0]": 2.5e4, "load[0].seed": 4}]
+    path.write_text("a.b,c\n1\n")
+    with pytest.raises(ValueError, match="row 2 has 1 cells, the header 2"):
+        read_table(path)
+
+
+def test_bad_input_is_refused_before_anything_runs(tmp_path):
+    scene = p4_file(tmp_path, "p4.toml")
+    with pytest.raises(ValueError, match=r"case 1 \(.*p4.toml\): vary key 'element\[5\].k3'"):
+        dd.run_batch(scene, vary=[{}, {"element[5].k3": 1.0}])
+    with pytest.raises(ValueError, match="reduce = 'peaks': unknown reducer"):
+        dd.run_batch(scene, reduce="peaks")
+    with pytest.raises(ValueError, match="a batch writes a Zarr store"):
+        dd.run_batch(scene, out=tmp_path / "r.nc")
+    with pytest.raises(ValueError, match="seed = -1: the root seed"):
+        dd.run_batch(scene, seed=-1)
+    with pytest.raises(ValueError, match="chunk = 0"):
+        dd.run_batch(scene, chunk=0)
+
+
+def test_batch_equals_cases_one_by_one_bitwise(client, tmp_path):
+    """Three seeds x two cubic stiffnesses of P4 (2,000 samples): the time histories the
+    workers store equal, bit for bit, the same scenes written as files and run here."""
+    base = p4_file(tmp_path, "p4.toml")
+    rows = [{"load[0].seed": s, "element[1].k3": k} for s in (1, 2, 3) for k in (2e7, 5e7)]
+    ds = dd.run_batch(base, vary=rows, client=client, chunk=2, progress=False)
+    assert list(ds["status"].values) == ["done"] * 6
+    assert set(ds["backend"].values) == {"c"}
+    for i, row in enumerate(rows):
+        text = p4_file(tmp_path, f"case{i}.toml", seed=row["load[0].seed"]).read_text()
+        text = text.replace("j = 2\nk3 = 2e7", f"j = 2\nk3 = {row['element[1].k3']!r}")
+        (tmp_path / f"case{i}.toml").write_text(text)
+        response, _ = dd.run_scene(dd.load_scene(tmp_path / f"case{i}.toml"))
+        for q in ("x", "v", "a"):
+            assert np.array_equal(ds[q].values[i], getattr(response, q)), (i, q)
+        assert ds["load[0].seed"].values[i] == row["load[0].seed"]
+        assert json.loads(str(ds["params"].values[i])) == row
+    assert np.array_equal(ds["time"].values, response.t)
+    assert ds["x"].dims == ("case", "time", "output")
+
+
+def test_failures_are_per_case(client, tmp_path):
+    """A value the parser refuses, a Newton failure and an unstable scheme fail their own
+    cases, with the messages they have alone; the other cases are done."""
+    base = p4_file(tmp_path, "p4.toml")
+    rows = [{}, {"model.K[0][0]": float("nan")}, {"nonlinear.max_iter": 1,
+                                                  "nonlinear.substeps": 1}, {"load[0].seed": 5}]
+    ds = dd.run_batch(base, vary=rows, client=client, reduce="peak", progress=False)
+    assert list(ds["status"].values) == ["done", "failed", "failed", "done"]
+    msg = [str(m) for m in ds["message"].values]
+    assert re.match(r"ValueError: .*p4.toml: model.K\[0\]\[0\] = nan", msg[1]), msg[1]
+    assert msg[2].startswith("NewtonError: ") and "Newton did not converge at step" in msg[2]
+    assert np.isnan(ds["peak_x"].values[1:3]).all() and np.isfinite(ds["peak_x"].values[[0, 3]]).all()
+    chain = tmp_path / "chain.toml"
+    chain.write_text('[model]\nmass = [1.0, 1.0]\nstiffness = [1e4, 1e4]\ndamping = [1.0, 1.0]\n'
+                     '[[load]]\ndof = 1\nkind = "step"\n[scheme]\nname = "central_difference"\n'
+                     'form = "acceleration"\n'
+                     '[time]\ndt = 0.001\nduration = 1.0\n')
+    ds = dd.run_batch(chain, vary=[{}, {"time.dt": 0.05}], client=client, reduce="peak",
+                      progress=False)
+    assert list(ds["status"].values) == ["done", "failed"]
+    assert str(ds["message"].values[1]).startswith(
+        "DtdynUnstableError: scheme 'central_difference' is unstable at dt = 0.05 s")
+    assert float(ds["max_rel_error"].values[0]) < 0.05   # the exact check of the linear case
+
+
+def test_seeds_from_the_root_independent_of_chunking(client, tmp_path):
+    base = p4_file(tmp_path, "p4.toml")
+    rows = [{"element[0].k3": float(k)} for k in np.linspace(1e7, 3e7, 7)]
+    one = dd.run_batch(base, vary=rows, seed=2024, client=client, chunk=1, progress=False,
+                       reduce="peak,rms")
+    three = dd.run_batch(base, vary=rows, seed=2024, client=client, chunk=3, progress=False,
+                         reduce="peak,rms")
+    children = np.random.SeedSequence(2024).spawn(7)
+    want = [int(c.generate_state(1, np.uint64)[0] >> np.uint64(1)) for c in children]
+    assert one["seed"].values.tolist() == want == three["seed"].values.tolist()
+    assert len(set(want)) == 7
+    for name in ("peak_x", "rms_a"):
+        assert np.array_equal(one[name].values, three[name].values)
+    # case 4 alone, with its seed written into its file: the same peaks
+    text = p4_file(tmp_path, "c4.toml", seed=want[4]).read_text().replace(
+        "i = 0                    # j omitted: to ground\nk3 = 2e7", f"i = 0\nk3 = {rows[4]['element[0].k3']!r}")
+    (tmp_path / "c4.toml").write_text(text)
+    response, _ = dd.run_scene(dd.load_scene(tmp_path / "c4.toml"))
+    assert np.array_equal(one["peak_x"].values[4], np.abs(response.x).max(axis=0))
+
+
+def test_zarr_store_opens_and_nothing_partial(client, tmp_path):
+    base = p4_file(tmp_path, "p4.toml")
+    rows = [{"load[0].seed": s} for s in range(5)]
+
+    def energy(response, scene):   # a user reducer: runs on the workers
+        return {"energy": float(np.sum(response.v ** 2)), "pair": (("side",), [1.0, 2.0])}
+
+    out = tmp_path / "r.zarr"
+    ds = dd.run_batch(base, vary=rows, client=client, out=out, chunk=2, progress=False,
+                      reduce=["history", "peak", energy])
+    mem = dd.run_batch(base, vary=rows, client=client, chunk=5, progress=False,
+                       reduce=["history", "peak", energy])
+    back = xr.open_zarr(out)
+    for name in ("x", "v", "a", "peak_v", "energy", "pair", "seed"):
+        assert np.array_equal(back[name].values, mem[name].values), name
+    assert back["energy"].dims == ("case",) and back["pair"].dims == ("case", "side")
+    assert np.array_equal(back["energy"].values, np.sum(back["v"].values ** 2, axis=(1, 2)))
+    assert json.loads(back.attrs["dtdyn_batch"])["summary"]["done"] == 5
+    assert sorted(p.name for p in tmp_path.iterdir() if "zarr" in p.name) == ["r.zarr"]
+    with pytest.raises(ValueError, match="exists; remove it or pass overwrite=True"):
+        dd.run_batch(base, vary=rows, client=client, out=out, progress=False)
+    del ds
+
+
+def test_missing_compiler_is_an_error_and_leaves_nothing(tmp_path):
+    base = p4_file(tmp_path, "p4.toml")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=":0", silence_logs=40,
+                                  env={"DTDYN_NO_C": "1"}) as cluster, \
+            distributed.Client(cluster) as c:
+        with pytest.raises(CBackendError, match="the C backend is unavailable: DTDYN_NO_C"):
+            dd.run_batch(base, client=c, out=tmp_path / "r.zarr", progress=False)
+    assert not [p for p in tmp_path.iterdir() if "zarr" in p.name]
+
+
+def test_cli_on_a_scheduler_address_and_50_ground_motions(cluster, tmp_path, capsys):
+    """`dtdyn batch` on 50 generated ground records (2,001 samples) against the building of
+    examples/batch, on the LocalCluster by its tcp address: a Zarr store with the peak storey
+    drifts, equal to simulate_chain run here on each record."""
+    shutil.copy(EXAMPLE / "building.toml", tmp_path)
+    subprocess.run([sys.executable, str(EXAMPLE / "make_records.py"), str(tmp_path)],
+                   check=True, capture_output=True)
+    out = tmp_path / "drifts.zarr"
+    rc = main(["batch", str(tmp_path / "building.toml"), "--vary", str(tmp_path / "records.csv"),
+               "--scheduler", cluster.scheduler_address, "--reduce", "drift,peak,srs",
+               "--out", str(out), "--quiet"])
+    text = capsys.readouterr().out
+    assert rc == 0, text
+    assert re.search(r"50 cases: 50 done, 0 failed; wall time [\d.]+ s, [\d.]+ cases/s", text)
+    ds = xr.open_zarr(out)
+    assert ds["peak_drift"].shape == (50, 5) and ds["psa"].dims == ("case", "period", "output")
+    chain = dd.load_scene(tmp_path / "building.toml")
+    for i in (0, 17, 49):
+        ag = np.loadtxt(tmp_path / f"records/gm_{i:03d}.csv") * 9.80665
+        r = dd.simulate_chain(**chain.chain, force=None, dt=0.01, ground_acceleration=ag,
+                              scheme="average_acceleration", quantities=("x", "a"))
+        drift = np.abs(np.diff(np.c_[np.zeros(ag.size), r.x], axis=1)).max(axis=0)
+        np.testing.assert_array_equal(ds["peak_drift"].values[i], drift)
+        assert str(ds["ground.path"].values[i]) == f"records/gm_{i:03d}.csv"
+        psa = dd.response_spectrum(r.a_abs[:, 4], 0.01, Spectrum().periods).psa[0]
+        np.testing.assert_array_equal(ds["psa"].values[i, :, 4], psa)
+    # --workers starts its own cluster; a second run refuses the existing store
+    rc = main(["batch", str(tmp_path / "building.toml"), "--workers", "1", "--out", str(out)])
+    assert rc == 2 and "exists; remove it" in capsys.readouterr().err
