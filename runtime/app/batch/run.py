@@ -214,11 +214,13 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
             client.wait_for_workers(1, timeout=120)
         addresses = list(client.scheduler_info()["workers"])
         shared_f = client.scatter(shared, broadcast=True, hash=False)
+        warm = time.perf_counter()
         probes = client.gather([
             client.submit(worker.probe, shared_f, specs[:PROBE_CASES], reducers, check,
                           workers=[a], allow_other_workers=False, pure=False)
             for a in addresses])
         layout = probes[0]
+        warm = time.perf_counter() - warm
         if layout["vars"] is None:
             raise ValueError(f"the first {min(n, PROBE_CASES)} case(s) all failed, so the batch "
                              "has no layout to store:\n  " + "\n  ".join(layout["failed"]))
@@ -250,7 +252,7 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         wall = time.perf_counter() - start
         summary = {"cases": n, "done": n - failed, "failed": failed, "wall_time_s": wall,
                    "cases_per_s": n / wall if wall > 0 else float("inf"),
-                   "cluster_start_s": cluster_time if own else None,
+                   "cluster_start_s": cluster_time if own else None, "warm_up_s": warm,
                    "workers": len(addresses), "tasks": len(starts), "chunk": size}
         attrs = {"summary": summary, "scenes": shared.sources, "root_seed": seed,
                  "reducers": [reducer_name(r) for r in reducers], "check": check,

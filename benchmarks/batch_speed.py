@@ -1,0 +1,115 @@
+"""run_batch throughput on 1 and 2 workers against a plain loop in one process (#15).
+
+200 nonlinear P4 cases (runtime/app/scenes/p4.toml: 4 DOFs, two cubic springs, modal_ramp
+with 3 sub-steps, the full 100,000-sample white-noise record), each with its own seed from
+the root seed 0 (SeedSequence.spawn), reduced on the workers to the peak and RMS of x, v, a
+per DOF and written to a Zarr store. In the same run:
+
+- plain loop: the same 200 scenes (seeds set in their tables) through scene_from_dict and
+  run_scene one after the other in this process, the same reductions computed here;
+- run_batch on a LocalCluster of 1, then 2 worker processes (one thread each; the cluster is
+  started before the clock runs; the clock covers scatter, the warm-up, the tasks, the Zarr
+  writes and the metadata);
+- throughput ratio (2 workers / 1 worker; target >= 1.7), overhead per case (1-worker wall
+  time minus the plain loop, per case, as a share of one P4 run; target < 5 %; also without
+  the one-time warm-up, since the plain loop builds its kernels before its clock starts), peak
+  resident memory of each worker process (ru_maxrss), and whether the three agree bitwise.
+
+    python benchmarks/batch_speed.py [N_CASES]        (default 200)
+"""
+import resource
+import sys
+import tempfile
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+import dtdyn as dd
+
+SCENE = Path(dd.__file__).parent / "app" / "scenes" / "p4.toml"
+ROOT_SEED = 0
+
+
+def peak_memory_mb():
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def plain_loop(n):
+    """The cases one by one in this process: (wall time, peak x per case)."""
+    data = tomllib.loads(SCENE.read_text())
+    seeds = [int(c.generate_state(1, np.uint64)[0] >> np.uint64(1))
+             for c in np.random.SeedSequence(ROOT_SEED).spawn(n)]
+    dd.run_scene(dd.scene_from_dict(data, SCENE.parent))    # compile / load the kernels
+    peaks, start = [], time.perf_counter()
+    for seed in seeds:
+        data["load"][0]["seed"] = seed
+        response, _ = dd.run_scene(dd.scene_from_dict(data, SCENE.parent, str(SCENE)))
+        peaks.append([np.abs(getattr(response, q)).max(axis=0) for q in "xva"]
+                     + [np.sqrt(np.mean(getattr(response, q) ** 2, axis=0)) for q in "xva"])
+    return time.perf_counter() - start, np.array(peaks)
+
+
+def batch(n, workers, folder):
+    from distributed import Client, LocalCluster
+
+    t0 = time.perf_counter()
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                      dashboard_address=":0", silence_logs=40) as cluster, \
+            Client(cluster) as client:
+        started = time.perf_counter() - t0
+        base = client.run(peak_memory_mb)
+        out = Path(folder) / f"p4_{workers}.zarr"
+        ds = dd.run_batch(SCENE, vary=[{}] * n, seed=ROOT_SEED, client=client,
+                          reduce="peak,rms", out=out, progress=False)
+        memory = client.run(peak_memory_mb)
+        import json
+        summary = json.loads(ds.attrs["dtdyn_batch"])["summary"]
+        values = np.stack([ds[f"{r}_{q}"].values for r in ("peak", "rms") for q in "xva"], 1)
+        return summary, started, base, memory, values, ds
+
+
+def main():
+    n = int(sys.argv[1]) if len(sys.argv) > 1 else 200
+    print(f"{n} P4 cases (100,000 samples, modal_ramp, 3 sub-steps, seeds from "
+          f"SeedSequence({ROOT_SEED}).spawn), peak and RMS of x, v, a per DOF\n")
+    loop_time, loop_values = plain_loop(n)
+    per_case = loop_time / n
+    with tempfile.TemporaryDirectory() as folder:
+        one, start1, base1, mem1, values1, ds1 = batch(n, 1, folder)
+        two, start2, base2, mem2, values2, ds2 = batch(n, 2, folder)
+        done = int((ds1["status"] == "done").sum()), int((ds2["status"] == "done").sum())
+        worker_run = float(ds1["run_time"].mean())
+    rows = [("plain loop, 1 process", loop_time, n / loop_time, "", ""),
+            ("run_batch, 1 worker", one["wall_time_s"], one["cases_per_s"],
+             f"{start1:.1f}", " ".join(f"{v:.0f}" for v in mem1.values())),
+            ("run_batch, 2 workers", two["wall_time_s"], two["cases_per_s"],
+             f"{start2:.1f}", " ".join(f"{v:.0f}" for v in mem2.values()))]
+    print(f"| {'run':<22} | wall time [s] | cases/s | cluster start [s] | peak RSS per worker "
+          "[MB] |")
+    print(f"|{'-' * 24}|---------------|---------|-------------------|--------------------------|")
+    for name, wall, rate, started, mem in rows:
+        print(f"| {name:<22} | {wall:13.2f} | {rate:7.2f} | {started:>17} | {mem:>24} |")
+    overhead = (one["wall_time_s"] - loop_time) / n
+    steady = (one["wall_time_s"] - one["warm_up_s"] - loop_time) / n
+    print(f"\nthroughput, 2 workers / 1 worker: {two['cases_per_s'] / one['cases_per_s']:.2f}x "
+          "(target >= 1.7)")
+    print(f"one P4 run in the plain loop: {per_case * 1e3:.1f} ms (parse, run, reduce); on a "
+          f"worker: {worker_run * 1e3:.1f} ms")
+    print(f"overhead per case, 1 worker against the plain loop: {overhead * 1e3:.2f} ms = "
+          f"{100 * overhead / per_case:.1f} % of a P4 run (target < 5 %)")
+    print(f"  of which the warm-up ({one['warm_up_s']:.2f} s once per worker: kernels built or "
+          f"loaded, one case run; the plain loop's clock starts after its own): "
+          f"{(overhead - steady) * 1e3:.2f} ms per case; without it {steady * 1e3:.2f} ms = "
+          f"{100 * steady / per_case:.1f} %")
+    print(f"tasks: {one['tasks']} of up to {one['chunk']} cases (1 worker), {two['tasks']} of "
+          f"up to {two['chunk']} (2 workers); cases done: {done[0]}, {done[1]} of {n}")
+    print(f"worker memory at start (MB): {' '.join(f'{v:.0f}' for v in base1.values())} (1 "
+          f"worker), {' '.join(f'{v:.0f}' for v in base2.values())} (2 workers)")
+    same = np.array_equal(values1, values2) and np.array_equal(values1, loop_values)
+    print(f"peaks and RMS equal bitwise (plain loop, 1 worker, 2 workers): {same}")
+
+
+if __name__ == "__main__":
+    main()
