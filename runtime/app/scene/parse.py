@@ -232,7 +232,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
             _parse_elements(data["element"], n_dof, names)
         scheme, params, form, sweep, backend = _parse_scheme(data["scheme"], kind)
         if kind == "matrices":
-            backend = "scipy.sparse" if sps.issparse(M) else "numpy"
+            backend = "c"  # simulate_mck's C loop, dense or sparse (NumPy without a compiler)
     outputs, quantities = _parse_output(data.get("output", {}), n_dof, names, nonlinear)
     # the time, the force of each loaded DOF and the outputs asked, before any is built
     validate.output_size(f"{source}: time.duration / time.dt = {n_steps} steps", n_steps + 1,

@@ -130,7 +130,8 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
         ``title, scheme, scheme_params, form, sweep, backend, dt, n_steps, n_dof, n_outputs,
         run_time_s, exact_time_s, max_rel_error, check`` (``check``: "done", or why the
         exact comparison was skipped; ``check=False`` skips it). For matrices ``form`` is ``"acceleration"``,
-        ``sweep`` None and ``backend`` ``"numpy"`` (dense) or ``"scipy.sparse"``.
+        ``sweep`` None and ``backend`` the loop that ran (``"c"``, or ``"numpy"`` /
+        ``"scipy.sparse"`` where no C compiler exists).
         A nonlinear scene (``form``, ``sweep``, ``max_rel_error`` None; ``backend`` the one used)
         adds ``substeps, elements`` (descriptions), ``setup_time_s,
         construct_time_s, compile_time_s`` (``run_time_s`` is the stepping loop alone,
@@ -168,8 +169,8 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
         response = mck.simulate_mck(
             scene.M, scene.C, scene.K, scene.force, scene.dt, force_dofs=scene.loaded,
             **_support(scene), scheme=scene.scheme, outputs=scene.outputs,
-            quantities=scene.quantities, progress=progress, **scene.scheme_params)
-        response.info.setdefault("backend", scene.backend)
+            quantities=scene.quantities, backend=scene.backend, progress=progress,
+            **scene.scheme_params)
     else:
         from dtdyn.linear import chain  # imported here: chain may compile kernels on first use
 
@@ -182,7 +183,8 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
 
     report = {
         "title": scene.title, "scheme": scene.scheme, "scheme_params": dict(scene.scheme_params),
-        "form": scene.form, "sweep": scene.sweep, "backend": scene.backend, "dt": scene.dt,
+        "form": scene.form, "sweep": scene.sweep,
+        "backend": response.info.get("backend", scene.backend), "dt": scene.dt,
         "n_steps": scene.n_steps, "n_dof": scene.n_dof, "n_outputs": int(scene.outputs.size),
         "run_time_s": run_time, "exact_time_s": None, "max_rel_error": None, "check": None,
     }

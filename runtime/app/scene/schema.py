@@ -194,8 +194,8 @@ class Scene:
     ``kind`` is ``"chain"`` (``mass``, ``stiffness``, ``damping`` set; ``M``, ``C``, ``K`` None)
     or ``"matrices"`` (``M``, ``C``, ``K`` set, all dense ndarrays or all scipy.sparse CSR, damping
     options already added to ``C``; ``mass``, ``stiffness``, ``damping`` None; ``dof_names`` one
-    name per DOF; ``form = "acceleration"``, ``sweep = None``, ``backend`` ``"numpy"`` or
-    ``"scipy.sparse"``).
+    name per DOF; ``form = "acceleration"``, ``sweep = None``, ``backend = "c"``: the C loop of
+    ``simulate_mck``, dense or sparse).
 
     A nonlinear scene has ``elements`` (dtdyn.nonlinear.elements objects, DOFs checked),
     ``scheme`` the method (``"modal_ramp"``, ``"modal_parabolic"`` or a one-step scheme),
