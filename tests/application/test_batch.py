@@ -226,3 +226,37 @@ def test_cli_on_a_scheduler_address_and_50_ground_motions(cluster, tmp_path, cap
     # --workers starts its own cluster; a second run refuses the existing store
     rc = main(["batch", str(tmp_path / "building.toml"), "--workers", "1", "--out", str(out)])
     assert rc == 2 and "exists; remove it" in capsys.readouterr().err
+
+
+def test_cluster_of_dask_scheduler_and_dask_worker(tmp_path):
+    """The cluster instructions of docs/batch.md: `dask scheduler` and `dask worker` processes,
+    `dtdyn batch --scheduler ADDRESS` run as a command."""
+    dask = Path(sys.executable).with_name("dask")
+    if not dask.exists():
+        pytest.skip("no dask command next to this Python")
+    info = tmp_path / "scheduler.json"
+    env = dict(os.environ, PYTHONWARNINGS="ignore")
+    procs = [subprocess.Popen([str(dask), "scheduler", "--host", "127.0.0.1", "--port", "0",
+                               "--no-dashboard", "--scheduler-file", str(info)], env=env,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        procs.append(subprocess.Popen([str(dask), "worker", "--scheduler-file", str(info),
+                                       "--nworkers", "1", "--nthreads", "1", "--no-dashboard"],
+                                      env=env, stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.DEVNULL))
+        with distributed.Client(scheduler_file=str(info), timeout="60s") as c:
+            c.wait_for_workers(1, timeout=60)
+            address = c.scheduler.address
+        scene = p4_file(tmp_path, "p4.toml")
+        out = tmp_path / "r.zarr"
+        proc = subprocess.run([sys.executable, "-m", "dtdyn.app.cli", "batch", str(scene),
+                               "--seed", "3", "--scheduler", address, "--reduce", "peak",
+                               "--out", str(out), "--quiet"], capture_output=True, text=True,
+                              timeout=300)
+        assert proc.returncode == 0, proc.stderr
+        assert "1 cases: 1 done, 0 failed" in proc.stdout
+        assert xr.open_zarr(out)["peak_x"].shape == (1, 4)
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+            p.wait(timeout=30)
