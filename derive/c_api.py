@@ -12,6 +12,14 @@ KERNELS = {
         "const long *loaded", "const double *force", "double *hist", "long n_out",
         "const long *out_idx", "double *xo", "double *vo", "double *ao", "double *work",
         "double *ehist", "double *err")),
+    # every dtdyn_shaft_<scheme> (derive/shaft.py): the DT-TMM loop of a torsional tree
+    "dtdyn_shaft": ("int", (
+        "int form", "long N", "long n_steps", "const long *parent", "const double *gu",
+        "const double *gS", "const double *gR", "const double *m", "const double *k",
+        "const double *c", "const double *kg", "const double *cg", "double dt",
+        "const double *params", "long n_loaded", "const long *loaded", "const double *force",
+        "double *hist", "long n_out", "const long *out_idx", "double *xo", "double *vo",
+        "double *ao", "double *work")),
     "dtdyn_ss_states": ("int", (
         "long ns", "long n_steps", "const double *restrict At", "const double *restrict w",
         "double *restrict X")),

@@ -332,6 +332,8 @@ def render_all() -> dict[str, str]:
                substitutions=[(sp.latex(k), sp.latex(v)) for k, v in
                               ctx["derived"].scheme.substitutions.items()])
     render("c/chain_loop.h.jinja", "chain_loop.h", "the DT-TMM chain loop (every scheme)")
+    from . import shaft  # torsional shafts and trees: shaft.py, shaft.md, shaft_<scheme>.c
+    shaft.render(render, _scheme_context, _chain_macros, names)
     render("numpy/init.py.jinja", "__init__.py", "dtdyn.derive.integrators.scheme_table")
     render("numpy/c_api.py.jinja", "c_api.py", "dtdyn.derive.c_api",
            bindings=c_api.bindings())

@@ -1,0 +1,638 @@
+"""Torsional shafts with disks, gears and branches: the model, assembly, DT-TMM time histories
+and natural frequencies by the Wittrick-Williams count.
+
+::
+
+    wall |==k0==(J0)==k1==(J1)==k2==(J2)   main line (left = "clamped": k0 to the wall)
+                         |
+                       gear n            a branch at disk 1 of "main", through a gear
+                         |
+                         +==k0'==(J0')==k1'==(J1')
+
+State [phi, T] per station; docs/shaft.md has the equations and generated/shaft.md the derived
+station matrices (dtdyn.derive.shaft). The time loop and the count come from generated/.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse as sps
+
+from dtdyn._engine import cbuild, stepping, validate
+from dtdyn._engine.kernels import params_array
+from dtdyn._engine.schemes import get_scheme
+from dtdyn.generated import shaft as gen
+from dtdyn.linear.stability import check_dt, highest_frequency
+
+#: the ends a line of disks may have
+ENDS = ("free", "clamped", "elastic")
+
+
+@dataclass(frozen=True)
+class ContinuousShaft:
+    """A uniform continuous shaft: shear modulus G (Pa), polar moment J_p (m^4), density rho
+    (kg/m^3), length (m). Its exact field matrix serves `shaft_frequencies`; in time and in
+    `shaft_matrices` it is ``elements`` lumped segments (stiffness G J_p elements / length,
+    half a segment's inertia rho J_p length / elements at each of its ends). ``damping``: the
+    segment's torsional damping c_t as a whole (each lumped segment gets c_t * elements)."""
+
+    length: float
+    G: float
+    Jp: float
+    rho: float
+    elements: int = 16
+    damping: float = 0.0
+
+    def __post_init__(self):
+        for name in ("length", "G", "Jp", "rho"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"ContinuousShaft {name} = {v!r}: must be a finite number > 0")
+        if not (isinstance(self.damping, (int, float)) and math.isfinite(self.damping)
+                and self.damping >= 0):
+            raise ValueError(f"ContinuousShaft damping = {self.damping!r}: must be finite, >= 0")
+        if isinstance(self.elements, bool) or not isinstance(self.elements, (int, np.integer)) \
+                or self.elements < 1:
+            raise ValueError(f"ContinuousShaft elements = {self.elements!r}: must be an integer "
+                             ">= 1")
+
+    @property
+    def wave_speed(self) -> float:
+        """c = sqrt(G / rho), m/s."""
+        return math.sqrt(self.G / self.rho)
+
+
+class Branch:
+    """A line of disks attached at disk ``at`` (0-based) of its parent line, through a gear
+    mesh of ratio ``ratio`` (phi_branch_side = -phi_at / ratio, T_branch_side = -ratio T_at)
+    or directly (``ratio=None``).
+
+    ``stiffness[i]``, ``damping[i]``: the shaft from the previous disk (for i = 0: from the
+    attachment point, i.e. the gear's driven side) to disk i: a number (k_t, N m/rad; c_t,
+    N m s/rad) or a `ContinuousShaft`. ``ground_stiffness``, ``ground_damping``: springs and
+    dampers from each disk to the ground. ``right``: "free", or "clamped" / "elastic" (a shaft or
+    support of ``right_stiffness``, ``right_damping`` from the last disk to a wall).
+    ``branches``: Branch objects attached to this line's disks (any depth). Names: "branch1",
+    "branch2", ... in the order met (depth first) unless given."""
+
+    def __init__(self, at, inertia, stiffness, damping=None, *, ratio=None,
+                 ground_stiffness=None, ground_damping=None, right="free", right_stiffness=0.0,
+                 right_damping=0.0, branches=(), name=None):
+        if isinstance(at, bool) or not isinstance(at, (int, np.integer)):
+            raise ValueError(f"branch {name or ''!s} at = {at!r}: must be a 0-based disk index".replace("  ", " "))
+        self.at = int(at)
+        if ratio is not None:
+            if not (isinstance(ratio, (int, float, np.floating, np.integer))
+                    and math.isfinite(ratio) and ratio != 0):
+                raise ValueError(f"branch {name or ''} ratio = {ratio!r}: a gear ratio must be "
+                                 "finite and != 0".replace("  ", " "))
+            ratio = float(ratio)
+        self.ratio = ratio
+        self.name = name
+        self._args = (inertia, stiffness, damping, ground_stiffness, ground_damping, right,
+                      right_stiffness, right_damping, branches)
+
+
+class _Line:
+    """A checked line of disks (the main line or a branch)."""
+
+    def __init__(self, label, inertia, stiffness, damping, ground_stiffness, ground_damping, right,
+                 right_stiffness, right_damping, branches, first_connected: bool | None):
+        self.label = label
+        J = validate.vector(f"{label}inertia", inertia, nonnegative=True)
+        N = J.size
+        stiffness = list(np.atleast_1d(np.asarray(stiffness, dtype=object)))
+        if len(stiffness) != N:
+            raise ValueError(f"{label}stiffness has length {len(stiffness)}, expected {N} (one "
+                             "shaft before each disk)")
+        damping = [0.0] * N if damping is None else list(np.atleast_1d(np.asarray(damping, dtype=object)))
+        if len(damping) != N:
+            raise ValueError(f"{label}damping has length {len(damping)}, expected {N}")
+        self.k, self.c, self.cont = [], [], []
+        for i, (kv, cv) in enumerate(zip(stiffness, damping)):
+            if isinstance(kv, ContinuousShaft):
+                if _number(f"{label}damping[{i}]", cv) != 0.0:
+                    raise ValueError(f"{label}damping[{i}] = {cv!r}: a ContinuousShaft carries its "
+                                     "own damping; give 0 here")
+                self.k.append(0.0)
+                self.c.append(0.0)
+                self.cont.append(kv)
+            else:
+                self.k.append(_number(f"{label}stiffness[{i}]", kv))
+                self.c.append(_number(f"{label}damping[{i}]", cv))
+                self.cont.append(None)
+        for i in range(N):
+            linked = self.cont[i] is not None or self.k[i] + self.c[i] > 0
+            if i == 0 and first_connected is False:
+                if linked:
+                    raise ValueError(f"{label}stiffness[0] = {stiffness[0]!r}, damping[0] = "
+                                     f"{damping[0]!r} with left = 'free': the first disk has no "
+                                     "shaft to its left; give 0, 0 or left = 'clamped'")
+            elif not linked:
+                where = ("the wall" if i == 0 and first_connected else
+                         "its attachment" if i == 0 else f"disk {i - 1}")
+                raise ValueError(f"{label}stiffness[{i}] = damping[{i}] = 0: disk {i} is not "
+                                 f"connected to {where}")
+        self.J = J
+        self.kg, self.cg = (np.zeros(N) if v is None else
+                            validate.vector(f"{label}{nm}", v, nonnegative=True, length=N)
+                            for nm, v in (("ground_stiffness", ground_stiffness),
+                                          ("ground_damping", ground_damping)))
+        self.kg, self.cg = self.kg.copy(), self.cg.copy()
+        if right not in ENDS:
+            raise ValueError(f"{label}right = {right!r}: must be one of {ENDS}")
+        rk, rc = _number(f"{label}right_stiffness", right_stiffness), \
+            _number(f"{label}right_damping", right_damping)
+        if right == "free" and rk + rc > 0:
+            raise ValueError(f"{label}right_stiffness = {rk!r}, right_damping = {rc!r} with right "
+                             "= 'free': give right = 'clamped' or 'elastic', or zeros")
+        if right != "free" and rk + rc == 0:
+            raise ValueError(f"{label}right = {right!r} needs right_stiffness > 0 (the shaft or "
+                             "support from the last disk to the wall), got 0")
+        self.kg[-1] += rk
+        self.cg[-1] += rc
+        self.right = right
+        if isinstance(branches, Branch):
+            branches = (branches,)
+        for j, br in enumerate(branches):
+            if not isinstance(br, Branch):
+                raise ValueError(f"{label}branches[{j}] = {br!r}: must be a Branch")
+        self.branches = list(branches)
+
+
+def _number(name, v) -> float:
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} = {v!r}: must be a number (or a ContinuousShaft for a "
+                         "stiffness)") from None
+    if not math.isfinite(x) or x < 0:
+        raise ValueError(f"{name} = {v!r}: must be finite and >= 0")
+    return x
+
+
+class Tree(NamedTuple):
+    """Nodes numbered parent first: parent (-1: the wall or nothing), the gear ratio of the
+    connection (NaN: none), inertia, shaft k and c to the parent, ground kg and cg, names."""
+
+    parent: np.ndarray
+    ratio: np.ndarray
+    J: np.ndarray
+    k: np.ndarray
+    c: np.ndarray
+    kg: np.ndarray
+    cg: np.ndarray
+    names: tuple
+    segments: tuple  # exact trees: per node its ContinuousShaft connection or None
+
+
+class Shaft:
+    """A torsional system: a main line of disks, optional branches (trees) and gears.
+
+    Parameters
+    ----------
+    inertia : (N,) array_like
+        Disk inertias J >= 0, kg m^2 (0 only where a continuous shaft ends: its segments'
+        inertia is lumped there).
+    stiffness, damping : (N,) sequences
+        The shaft before each disk: stiffness[0], damping[0] join disk 0 to the wall (left =
+        "clamped" or "elastic") and must be 0 for left = "free"; stiffness[i] joins disk i - 1 to
+        disk i. A number (k_t >= 0, c_t >= 0) or a `ContinuousShaft`.
+    left, right : {"free", "clamped", "elastic"}
+        The ends. Left: the wall behind stiffness[0]. Right: "clamped"/"elastic" put
+        ``right_stiffness``, ``right_damping`` (a shaft or a support) from the last disk to a wall.
+    ground_stiffness, ground_damping : (N,) array_like, optional
+        Springs and dampers from each disk to the ground (bearings, supports).
+    branches : sequence of Branch
+        Lines attached to disks of this line (through gears or directly), any depth.
+    name : str
+        The main line's name in the DOF names ("main").
+
+    DOF names: "<line>.<i>" for disk i of a line, "<line>.<i>.e<j>" for the j-th lumped point
+    inside a continuous shaft before disk i. Order (`dofs`): the main line station by station
+    (a continuous shaft's points just before its disk), then each branch the same way, depth
+    first in the order given.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> s = dd.Shaft([1.0, 2.0], [1e4, 2e4], left="clamped",
+    ...              branches=[dd.Branch(1, [0.5], [5e3], ratio=2.0, name="out")])
+    >>> s.dofs
+    ('main.0', 'main.1', 'out.0')
+    """
+
+    def __init__(self, inertia, stiffness, damping=None, *, left="clamped", right="free",
+                 right_stiffness=0.0, right_damping=0.0, ground_stiffness=None,
+                 ground_damping=None, branches=(), name="main"):
+        if left not in ENDS:
+            raise ValueError(f"left = {left!r}: must be one of {ENDS}")
+        if not isinstance(name, str) or not name:
+            raise ValueError(f"name = {name!r}: must be a non-empty string")
+        self.left = left
+        self.name = name
+        self.lines = []  # (line, parent line index, at, ratio)
+        main = _Line("", inertia, stiffness, damping, ground_stiffness, ground_damping, right,
+                     right_stiffness, right_damping, branches, left != "free")
+        main.name = name
+        self.lines.append((main, -1, None, None))
+        used = {name}
+        stack = [(0, br) for br in reversed(main.branches)]
+        count = 0
+        while stack:
+            pi, br = stack.pop()
+            count += 1
+            bname = br.name if br.name is not None else f"branch{count}"
+            if not isinstance(bname, str) or not bname or bname in used:
+                raise ValueError(f"branch name = {bname!r}: names must be unique non-empty strings")
+            used.add(bname)
+            parent = self.lines[pi][0]
+            if not 0 <= br.at < parent.J.size:
+                raise ValueError(f"branch {bname!r} at = {br.at}: outside 0..{parent.J.size - 1} "
+                                 f"(the disks of {parent.name!r})")
+            line = _Line(f"branch {bname!r} ", *br._args[:8], br._args[8], True)
+            line.name = bname
+            self.lines.append((line, pi, br.at, br.ratio))
+            li = len(self.lines) - 1
+            stack.extend((li, b) for b in reversed(line.branches))
+        self._lumped = self._build(exact=False)
+        bad = np.flatnonzero(self._lumped.J <= 0)
+        if bad.size:
+            raise ValueError(f"disk {self._lumped.names[bad[0]]!r} has inertia 0: a disk needs "
+                             "inertia > 0 unless a continuous shaft ends at it")
+
+    # -- the trees ---------------------------------------------------------------------------
+    def _build(self, exact: bool) -> Tree:
+        parent, ratio, J, k, c, kg, cg, names, segs = [], [], [], [], [], [], [], [], []
+        disk_node = {}  # (line index, disk) -> node
+        for li, (line, pli, at, gear) in enumerate(self.lines):
+            for i in range(line.J.size):
+                if i == 0:
+                    att = -1 if pli < 0 else disk_node[(pli, at)]
+                    rat = np.nan if (pli < 0 or gear is None) else gear
+                else:
+                    att, rat = disk_node[(li, i - 1)], np.nan
+                seg = line.cont[i]
+                if seg is not None and not exact:
+                    E = int(seg.elements)
+                    ke = seg.G * seg.Jp * E / seg.length
+                    ce = seg.damping * E
+                    half = 0.5 * seg.rho * seg.Jp * seg.length / E
+                    if att >= 0:  # half a segment at the attachment (through the gear)
+                        gu = 1.0 if np.isnan(rat) else float(gen.gear_factors([rat])[0][0])
+                        J[att] += gu * gu * half
+                    for j in range(1, E):
+                        parent.append(att)
+                        ratio.append(rat if j == 1 else np.nan)
+                        J.append(2 * half)
+                        k.append(ke)
+                        c.append(ce)
+                        kg.append(0.0)
+                        cg.append(0.0)
+                        names.append(f"{line.name}.{i}.e{j}")
+                        segs.append(None)
+                        att, rat = len(names) - 1, np.nan
+                    kcon, ccon, extra = ke, ce, half
+                elif seg is not None:
+                    kcon, ccon, extra = 0.0, 0.0, 0.0
+                else:
+                    kcon, ccon, extra = line.k[i], line.c[i], 0.0
+                parent.append(att)
+                ratio.append(rat)
+                J.append(line.J[i] + extra)
+                k.append(kcon)
+                c.append(ccon)
+                kg.append(line.kg[i])
+                cg.append(line.cg[i])
+                names.append(f"{line.name}.{i}")
+                segs.append(seg if exact else None)
+                disk_node[(li, i)] = len(names) - 1
+        return Tree(np.array(parent, dtype=np.int64), np.array(ratio, float), np.array(J, float),
+                    np.array(k, float), np.array(c, float), np.array(kg, float),
+                    np.array(cg, float), tuple(names), tuple(segs))
+
+    @property
+    def dofs(self) -> tuple:
+        """DOF names of the lumped model, in the order of `shaft_matrices` and the results."""
+        return self._lumped.names
+
+    @property
+    def tree(self) -> Tree:
+        """The lumped tree the time loop runs on."""
+        return self._lumped
+
+    @property
+    def has_continuous(self) -> bool:
+        return any(s is not None for line, *_ in self.lines for s in line.cont)
+
+    def __repr__(self) -> str:
+        return (f"Shaft({len(self.lines)} line(s), {len(self.dofs)} DOFs, left={self.left!r}, "
+                f"gears={sum(1 for *_, r in self.lines if r is not None)})")
+
+
+def _check_shaft(shaft):
+    if not isinstance(shaft, Shaft):
+        raise TypeError(f"shaft must be a dtdyn.Shaft, got {type(shaft).__name__}")
+
+
+def _indices(name, values, dofs, default_all=True):
+    """DOF indices from ints or DOF names."""
+    if values is not None:
+        vals = [values] if isinstance(values, (str, int, np.integer)) else list(values)
+        if any(isinstance(v, str) for v in vals):
+            out = []
+            for v in vals:
+                if isinstance(v, str):
+                    if v not in dofs:
+                        raise ValueError(f"{name}: no DOF named {v!r} (the DOFs are "
+                                         f"{', '.join(dofs[:8])}{' ...' if len(dofs) > 8 else ''})")
+                    out.append(dofs.index(v))
+                else:
+                    out.append(v)
+            values = out
+        else:
+            values = vals
+    return validate.dof_indices(name, values, len(dofs), default_all)
+
+
+class ShaftMatrices(NamedTuple):
+    """Assembled M, C, K (scipy.sparse CSR) and the DOF names of their rows."""
+
+    M: sps.csr_matrix
+    C: sps.csr_matrix
+    K: sps.csr_matrix
+    dofs: tuple
+
+
+def shaft_matrices(shaft: Shaft) -> ShaftMatrices:
+    """Assembled sparse (M, C, K, dofs) of the lumped model.
+
+    A shaft k_t from node p (through a gear of factor g_u = -1/n, or g_u = 1) to node i stores
+    1/2 k_t (phi_i - g_u phi_p)^2: K[i, i] += k_t, K[p, p] += g_u^2 k_t, K[i, p] = K[p, i] -=
+    g_u k_t; C alike with c_t; ground springs and dampers on the diagonal; M = diag(J).
+    Continuous shafts appear as their lumped segments.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> M, C, K, dofs = dd.shaft_matrices(dd.Shaft([1.0, 1.0], [2.0, 3.0]))
+    >>> K.toarray().tolist(), dofs
+    ([[5.0, -3.0], [-3.0, 3.0]], ('main.0', 'main.1'))
+    """
+    _check_shaft(shaft)
+    t = shaft.tree
+    gu, gS, _ = gen.gear_factors(t.ratio)
+    N = t.J.size
+    i = np.arange(N)
+    ch = t.parent >= 0
+    p = t.parent[ch]
+
+    def assemble(e, ground):
+        rows = np.concatenate([i, p, i[ch], p])
+        cols = np.concatenate([i, p, p, i[ch]])
+        vals = np.concatenate([e + ground, gS[ch] * e[ch], -gu[ch] * e[ch], -gu[ch] * e[ch]])
+        return sps.csr_matrix((vals, (rows, cols)), shape=(N, N))
+
+    return ShaftMatrices(sps.diags(t.J, format="csr"), assemble(t.c, t.cg), assemble(t.k, t.kg),
+                         t.names)
+
+
+# -- time histories ------------------------------------------------------------------------------
+
+@lru_cache(maxsize=None)
+def _c_function(scheme: str):
+    source = cbuild.generated_source(f"shaft_{scheme}.c")
+    lib = cbuild.load_library(source, f"shaft_{scheme}")
+    if lib is None:
+        return None
+    return cbuild.bind(lib, "dtdyn_shaft", f"dtdyn_shaft_{scheme}")
+
+
+def _advance_factory(backend, tree, dt, loaded, outputs, form):
+    parent = np.ascontiguousarray(tree.parent, dtype=np.int64)
+    gu, gS, gR = (np.ascontiguousarray(a) for a in gen.gear_factors(tree.ratio))
+    m, k, c = tree.J, tree.k, tree.c
+    grounded = tree.kg.any() or tree.cg.any()
+    kg, cg = (tree.kg, tree.cg) if grounded else (None, None)
+    loaded64 = np.ascontiguousarray(loaded, dtype=np.int64)
+    out64 = np.ascontiguousarray(outputs, dtype=np.int64)
+    N = m.size
+    work = np.empty(12 * N)
+
+    def make_advance(sch, coeffs):
+        fn = _c_function(sch.name) if backend == "c" else None
+        if fn is None:
+            def advance(force, H, xo, vo, ao):
+                gen.run_tree(coeffs, sch.history, parent, gu, gS, gR, m, k, c, kg, cg, loaded,
+                             force, H, outputs, xo, vo, ao)
+                return 0.0
+            return advance
+        params = params_array(sch)
+
+        def advance(force, H, xo, vo, ao):
+            force = np.ascontiguousarray(force)
+            assert H.flags.c_contiguous and H.dtype == np.float64
+            p_ = lambda a: None if a is None else a.ctypes.data  # noqa: E731
+            rc = fn(0 if form == "displacement" else 1, N, force.shape[0] - 1, parent.ctypes.data,
+                    gu.ctypes.data, gS.ctypes.data, gR.ctypes.data, m.ctypes.data, k.ctypes.data,
+                    c.ctypes.data, p_(kg), p_(cg), dt, params.ctypes.data, loaded64.size,
+                    loaded64.ctypes.data, force.ctypes.data, H.ctypes.data, out64.size,
+                    out64.ctypes.data, p_(xo), p_(vo), p_(ao), work.ctypes.data)
+            if rc != 0:
+                raise ValueError(f"scheme {sch.name!r} has no {form} form")
+            return 0.0
+        return advance
+    return make_advance
+
+
+def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark",
+                   form="displacement", backend="c", outputs=None, quantities=("x", "v", "a"),
+                   x0=None, v0=None, unstable="raise", progress=False, **scheme_params):
+    """Time history of a torsional shaft or tree by the DT-TMM (Riccati sweep on the tree).
+
+    Parameters
+    ----------
+    shaft : Shaft
+        The model (its lumped form: continuous shafts as segments).
+    force : array_like, shape (n_steps + 1, len(force_dofs))
+        Torque samples (N m) at t_k = k dt on the DOFs in ``force_dofs``; 1-D is one column.
+    dt : float
+        Time step, s.
+    force_dofs, outputs : sequence of int or DOF names, optional
+        0-based DOF indices or names (`Shaft.dofs`); all DOFs when None.
+    scheme, form, backend, quantities, x0, v0, unstable, progress, **scheme_params
+        As `simulate_chain`: the integrator and its parameters, "displacement" or
+        "acceleration" form, "c" (generated C loop) or "numpy", what to store, the initial
+        rotations and rates (a_0 consistent), the stability check.
+
+    Returns
+    -------
+    Response
+        ``x``, ``v``, ``a``: rotation (rad), rate, angular acceleration of the outputs;
+        ``info["dofs"]`` their names.
+
+    Each step carries T = S phi + R from the leaves to the root (S once per call, R every step;
+    a junction sums its branches, a gear scales S by 1/n^2 and R by -1/n) and the unknowns back
+    out to the leaves: O(N) per step. It equals `simulate_mck` on `shaft_matrices` (same scheme
+    and dt) to rounding.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> s = dd.Shaft([1.0, 2.0, 1.5], [1e4, 2e4, 2e4], [1.0, 1.0, 1.0])
+    >>> r = dd.simulate_shaft(s, np.ones(201), 1e-3, force_dofs=["main.2"])
+    >>> r.x.shape
+    (201, 3)
+    """
+    _check_shaft(shaft)
+    tree = shaft.tree
+    N = tree.J.size
+    loaded = _indices("force_dofs", force_dofs, tree.names)
+    force, dt, loaded = validate.time_history(force, dt, loaded, N)
+    x0, v0 = validate.initial_conditions(x0, v0, N)
+    out = _indices("outputs", outputs, tree.names)
+    quantities = stepping.check_quantities(quantities)
+    if backend not in ("c", "numpy"):
+        raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
+    if form not in ("displacement", "acceleration"):
+        raise ValueError(f"form must be 'displacement' or 'acceleration', got {form!r}")
+    info = get_scheme(scheme, **scheme_params)
+    M, C, K, _ = shaft_matrices(shaft)
+    check_dt(info, dt, lambda limit: highest_frequency(M, K, limit), unstable)
+    K0 = info.coefficients(form, dt)
+    kappa = tree.k * K0["p"] + tree.c * K0["r"]
+    loose = np.flatnonzero((kappa == 0.0) & ((tree.k + tree.c) > 0))
+    if loose.size:
+        raise ValueError(f"shaft before {tree.names[loose[0]]!r} has damping 0 with the explicit "
+                         f"scheme {info.name!r}: its row divides by k Dx + c Dv = 0; give every "
+                         "shaft a damper or use an implicit scheme")
+    f0 = np.zeros(N)
+    f0[loaded] = force[0]
+    f0 = f0 - C @ v0 - K @ x0
+    a0 = f0 / tree.J
+    make = _advance_factory(backend, tree, dt, loaded, out, form)
+    res = stepping.integrate(info, form, dt, force, (x0, v0, a0), make, out, quantities,
+                             progress)
+    used = "c" if backend == "c" and _c_function(info.name) is not None else "numpy"
+    res.info.update(method="DT-TMM (tree)", sweep="stable", backend=used,
+                    dofs=[tree.names[i] for i in out])
+    return res
+
+
+# -- frequencies ---------------------------------------------------------------------------------
+
+def _connection_stiffness(tree: Tree, lam: np.ndarray):
+    """a, b (N, len(lam)) of every node's connection and the continuous segments' J_0."""
+    N = tree.J.size
+    a = np.repeat(tree.k[:, None], lam.size, axis=1)
+    b = -a.copy()
+    j0 = np.zeros(lam.size, dtype=np.int64)
+    omega = np.sqrt(np.maximum(lam, 0.0))
+    for n in range(N):
+        seg = tree.segments[n]
+        if seg is None:
+            continue
+        beta = gen.continuous_beta(omega, seg.length, seg.G, seg.rho)
+        a[n], b[n] = gen.continuous_stiffness(seg.G * seg.Jp / seg.length, beta)
+        j0 += gen.clamped_clamped_count(beta).astype(np.int64)
+    return a, b, j0
+
+
+def _count(tree: Tree, gS, lam, pivmin):
+    a, b, j0 = _connection_stiffness(tree, lam)
+    return gen.wittrick_williams(lam, tree.parent, gS, tree.J, tree.kg, a, b, j0, pivmin)
+
+
+def shaft_frequencies(shaft: Shaft, count=None, below=None, *, exact=True) -> np.ndarray:
+    """Undamped natural frequencies (rad/s, ascending) by the Wittrick-Williams count.
+
+    The count of frequencies below omega is the number of negative pivots of the tree's
+    elimination from the leaves (the frequency-domain Riccati recursion, generated from
+    dtdyn.derive.shaft) plus, with continuous shafts, J_0: the clamped-clamped frequencies of
+    each continuous segment below omega. Each root is bisected on the count to the last bits:
+    none missed, none doubled.
+
+    Parameters
+    ----------
+    count : int, optional
+        The lowest ``count`` frequencies (default: all of a lumped model; required or ``below``
+        with continuous shafts, which have infinitely many).
+    below : float, optional
+        Every frequency below this (rad/s).
+    exact : bool
+        Continuous shafts by their exact field matrix (True) or as their lumped segments
+        (False: the frequencies of `shaft_matrices`).
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> seg = dd.ContinuousShaft(length=2.0, G=8e10, Jp=1e-6, rho=7800.0)
+    >>> w = dd.shaft_frequencies(dd.Shaft([0.0], [seg]), count=2)     # clamped-free
+    >>> (w / (3.141592653589793 * seg.wave_speed / (2 * 2.0))).round(9).tolist()
+    [1.0, 3.0]
+    """
+    _check_shaft(shaft)
+    tree = shaft._build(exact=True) if exact and shaft.has_continuous else shaft.tree
+    infinite = exact and shaft.has_continuous
+    if count is not None and (isinstance(count, bool) or not isinstance(count, (int, np.integer))
+                              or count < 1):
+        raise ValueError(f"count = {count!r}: must be an integer >= 1")
+    if below is not None and not (np.isfinite(below) and below > 0):
+        raise ValueError(f"below = {below!r}: must be a finite frequency > 0 (rad/s)")
+    if infinite and count is None and below is None:
+        raise ValueError("count or below is required: a continuous shaft has infinitely many "
+                         "frequencies")
+    _, gS, _ = gen.gear_factors(tree.ratio)
+    scale = max(float(np.max(np.abs(tree.k))), float(np.max(tree.kg)), 1.0)
+    for seg in tree.segments:
+        if seg is not None:
+            scale = max(scale, seg.G * seg.Jp / seg.length)
+    pivmin = np.finfo(float).tiny / np.finfo(float).eps * scale
+
+    def cnt(lam):
+        return _count(tree, gS, np.atleast_1d(np.asarray(lam, float)), pivmin)
+
+    # the bracket [0, hi]: hi a power of two above an upper bound (Gershgorin of M^-1 K for
+    # the lumped part; doubled until it holds), the same whatever count or below, so each
+    # root's bisection path and bits do not depend on them
+    Jpos = np.where(tree.J > 0, tree.J, np.inf)
+    bound = float(np.max(2.0 * (np.abs(tree.k) + tree.kg) / Jpos))
+    if not infinite:
+        M, _, K, _ = shaft_matrices(shaft)
+        bound = float(np.max(np.asarray(abs(K).sum(axis=1)).ravel() / tree.J))
+    for seg in tree.segments:
+        if seg is not None:
+            bound = max(bound, (math.pi * seg.wave_speed / seg.length) ** 2)
+    hi = 2.0 ** math.ceil(math.log2(max(bound, 1e-300) * 1.01))
+    if below is not None:
+        n_roots = int(cnt(float(below) ** 2)[0])
+        if count is not None:
+            n_roots = min(n_roots, count)
+    else:
+        n_total = None if infinite else tree.J.size
+        n_roots = n_total if count is None else (count if n_total is None else min(count, n_total))
+    for _ in range(2000):
+        if n_roots == 0 or cnt(hi)[0] >= n_roots:
+            break
+        hi *= 2.0
+    else:
+        raise RuntimeError("no upper bound for the frequencies found")
+    if n_roots == 0:
+        return np.zeros(0)
+    idx = np.arange(1, n_roots + 1)
+    lo = np.zeros(n_roots)
+    up = np.full(n_roots, hi)
+    for _ in range(2100):
+        mid = 0.5 * (lo + up)
+        done = (up - lo) <= 2.0 * np.finfo(float).eps * up + np.finfo(float).tiny
+        if done.all():
+            break
+        c_mid = cnt(mid)
+        above = c_mid >= idx
+        up = np.where(above & ~done, mid, up)
+        lo = np.where(~above & ~done, mid, lo)
+    return np.sqrt(0.5 * (lo + up))
