@@ -272,6 +272,21 @@ def _modes(args) -> int:
     from dtdyn.modal.modes import modes
 
     sc = scenes.load_scene(args.scene)
+    if sc.model is not None:  # a kind in MODEL_MODULES: its own frequencies (Wittrick-Williams)
+        from dtdyn.app.scene.schema import model_module
+
+        omega = model_module(sc.kind).frequencies(sc.model, args.count)
+        if args.json:
+            print(json.dumps({"scene": sc.title, "n_dof": sc.n_dof, "kind": sc.kind,
+                              "method": "Wittrick-Williams", "omega": omega.tolist(),
+                              "frequency_hz": (omega / (2 * np.pi)).tolist()}))
+            return 0
+        print(f"{sc.title}: {sc.kind}, {sc.n_dof} DOF, {omega.size} frequencies "
+              "(Wittrick-Williams count)")
+        print(f"{'mode':>4s} {'f [Hz]':>12s} {'omega [rad/s]':>14s}")
+        for r, w in enumerate(omega):
+            print(f"{r + 1:4d} {w / (2 * np.pi):12.6g} {w:14.6g}")
+        return 0
     M, C, K = sc.matrices()
     n = sc.n_dof
     if args.count is not None and not 1 <= args.count <= n:

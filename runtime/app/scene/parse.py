@@ -16,6 +16,7 @@ from dtdyn.app.scene.schema import (BACKENDS, DEFAULT_SCENE, FORMS, GROUND_UNITS
                                     _TOP_KEYS, _choice, _dof_index, _model_kind, _number_list,
                                     _parse_model, _required, _scheme_name_params, _table)
 from dtdyn.app.scene.matrices import _parse_matrix_model
+from dtdyn.app.scene.schema import MODEL_MODULES, model_module
 from dtdyn.app.scene.elements import _parse_elements, _parse_nonlinear
 
 def _parse_time(tbl) -> tuple[float, int]:
@@ -207,7 +208,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
 
     base_dir = Path(base_dir)
     kind = _model_kind(data["model"])
-    M = C = K = names = None
+    M = C = K = names = model = None
     chain = dict.fromkeys(("mass", "stiffness", "damping", "ground_stiffness", "ground_damping"))
     if kind == "matrices":
         if nonlinear and data["model"].get("sparse") is True:
@@ -217,9 +218,18 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         n_dof = M.shape[0]
         if nonlinear:
             M, C, K = (A.toarray() if sps.issparse(A) else A for A in (M, C, K))
+    elif kind in MODEL_MODULES:
+        if nonlinear or "ground" in data:
+            raise ValueError(f"model.kind = {kind!r}: [[element]] and [ground] are not supported "
+                             "for this kind yet; remove them")
+        model = model_module(kind).parse_model(data["model"], data.get("branch"), base_dir)
+        names = tuple(model.dofs)
+        n_dof = len(names)
     else:
         chain = _parse_model(data["model"])
         n_dof = chain["mass"].size
+    if "branch" in data and kind not in MODEL_MODULES:
+        raise ValueError(f"branch: [[branch]] tables are for model.kind = 'shaft', not {kind!r}")
     dt, n_steps = _parse_time(data["time"])
     elements, options = (), {}
     if nonlinear:
@@ -231,6 +241,8 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         if "element" in data:  # an empty array: still a linear scene
             _parse_elements(data["element"], n_dof, names)
         scheme, params, form, sweep, backend = _parse_scheme(data["scheme"], kind)
+        if kind in MODEL_MODULES and sweep != "stable":
+            raise ValueError(f"scheme.sweep = {sweep!r}: a {kind} runs the stable sweep only")
         if kind == "matrices":
             backend = "c"  # simulate_mck's C loop, dense or sparse (NumPy without a compiler)
     outputs, quantities = _parse_output(data.get("output", {}), n_dof, names, nonlinear)
@@ -251,7 +263,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
                  sweep=sweep, backend=backend, dt=dt, n_steps=n_steps, outputs=outputs,
                  quantities=quantities, source=source, base_dir=base_dir, kind=kind, M=M, C=C, K=K,
                  dof_names=names, elements=elements, nonlinear=options, ground=ground,
-                 ground_quantity=ground_quantity, influence=influence, x0=x0, v0=v0)
+                 ground_quantity=ground_quantity, influence=influence, x0=x0, v0=v0, model=model)
 
 
 def load_scene(path: str | os.PathLike | None = None) -> Scene:

@@ -15,10 +15,11 @@ def natural_frequencies(scene: Scene) -> np.ndarray:
     import scipy.linalg as sla
     import scipy.sparse as sps
 
-    if scene.kind == "matrices":
+    if scene.kind == "matrices" or scene.model is not None:
         if scene.n_dof > EXACT_MAX_DOF:
             return np.array([])
-        M, K = (A.toarray() if sps.issparse(A) else np.asarray(A) for A in (scene.M, scene.K))
+        M, _, K = scene.matrices()
+        M, K = (A.toarray() if sps.issparse(A) else np.asarray(A) for A in (M, K))
         try:
             lam = sla.eigh(K, M, eigvals_only=True)
         except (np.linalg.LinAlgError, ValueError):  # singular or indefinite M: skip the check
@@ -171,6 +172,10 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
             **_support(scene), scheme=scene.scheme, outputs=scene.outputs,
             quantities=scene.quantities, backend=scene.backend, progress=progress,
             **scene.scheme_params)
+    elif scene.model is not None:  # a kind in MODEL_MODULES (a shaft)
+        from dtdyn.app.scene.schema import model_module
+
+        response = model_module(scene.kind).simulate(scene, progress, _support(scene))
     else:
         from dtdyn.linear import chain  # imported here: chain may compile kernels on first use
 

@@ -142,13 +142,23 @@ QUANTITIES = ("x", "v", "a")
 EXACT_MAX_DOF = 2000
 
 _TOP_KEYS = ("title", "model", "load", "ground", "initial", "element", "nonlinear", "scheme",
-             "time", "output")
+             "time", "output", "branch")
 #: the units each [ground] quantity may be given in, the default first
 GROUND_UNITS = {"acceleration": ("m/s^2", "g"), "velocity": ("m/s",), "displacement": ("m",)}
 #: standard gravity, m/s^2 (a [ground] record in units of g)
 STANDARD_GRAVITY = 9.80665
 #: model kinds: a chain (mass, stiffness, damping vectors) or general M, C, K matrices
-MODEL_KINDS = ("chain", "matrices")
+MODEL_KINDS = ("chain", "matrices", "shaft")
+#: kinds whose [model] table a module parses and runs: parse_model(model, branches, base_dir)
+#: -> model object with ``dofs``; matrices(model, sparse); simulate(scene, progress, support);
+#: frequencies(model, count)
+MODEL_MODULES = {"shaft": "dtdyn.app.scene.shaft"}
+
+
+def model_module(kind: str):
+    """The module of a kind in MODEL_MODULES."""
+    import importlib
+    return importlib.import_module(MODEL_MODULES[kind])
 _MODEL_KEYS = ("kind", "mass", "stiffness", "damping", "ground_stiffness", "ground_damping",
                "rayleigh")
 _MATRIX_MODEL_KEYS = ("kind", "M", "K", "C", "file", "dofs", "sparse", "damping")
@@ -267,6 +277,7 @@ class Scene:
     v0: np.ndarray | None = None
     ground_stiffness: np.ndarray | None = None
     ground_damping: np.ndarray | None = None
+    model: object | None = None  # the model object of a kind in MODEL_MODULES (e.g. a Shaft)
 
     @property
     def chain(self) -> dict:
@@ -277,6 +288,8 @@ class Scene:
 
     @property
     def n_dof(self) -> int:
+        if self.model is not None:
+            return len(self.dof_names)
         if self.kind == "matrices":
             return int(self.M.shape[0])
         return int(self.mass.size)
@@ -286,6 +299,8 @@ class Scene:
         beyond 200 masses unless ``sparse`` says), or the matrices scene's own."""
         if self.kind == "matrices":
             return self.M, self.C, self.K
+        if self.model is not None:  # a kind in MODEL_MODULES: sparse unless sparse=False
+            return model_module(self.kind).matrices(self.model, sparse)
         from dtdyn.linear.chain import chain_matrices
         return chain_matrices(**self.chain, sparse=sparse)
 
