@@ -29,7 +29,8 @@ KERNELS = {
         "const double *restrict xt", "double *restrict yt", "double *restrict state")),
     "dtdyn_set_stop": ("int", ("int value",)),  # csrc/stop.c, in every library with a long loop
     "dtdyn_mck_loop": ("int", (
-        "long n", "long n_hist", "long n_steps", "long n_loaded", "const long *restrict loaded",
+        "int solver", "long n", "long n_hist", "long n_steps", "long n_loaded",
+        "const long *restrict loaded",
         "const double *restrict force", "const long *const *idx", "const double *const *val",
         "const double *restrict L", "const double *restrict c_u", "double w0", "double w1",
         "long n_shift",

@@ -17,8 +17,8 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from . import (c_api, dttmm, integrators as I, kernels, modal_filters, nonlinear, printing, stability,
-               state_space, tmm)
+from . import (beam, c_api, dttmm, integrators as I, kernels, modal_filters, nonlinear, printing,
+               stability, state_space, tmm)
 
 TEMPLATES = Path(__file__).parent / "templates"
 #: hand-written C that generated sources include verbatim (not templates)
@@ -205,6 +205,23 @@ def _tmm_context() -> dict:
     }
 
 
+def _beam_context() -> dict:
+    spec = beam.derive_beam()
+    closed, series = beam.krylov_functions()
+    rows = lambda A: [[printing.py(e) for e in row] for row in A.tolist()]  # noqa: E731
+    A = beam.field_generator().subs(beam.s**2, -beam.b**4 * beam.EI / beam.rho_A)
+    return {
+        "K": rows(spec.K), "M": rows(spec.M), "ML": rows(spec.M_lumped),
+        "T": rows(beam.field_matrix_scaled()), "series": [printing.py(e) for e in series],
+        "closed": [printing.py(e) for e in closed], "series_limit": "1.0",
+        "latex": {"N": sp.latex(beam.shape_functions()), "K": sp.latex(spec.K),
+                  "M": sp.latex(spec.M), "ML": sp.latex(spec.M_lumped), "A": sp.latex(A),
+                  "T": sp.latex(beam.field_matrix_scaled()),
+                  "closed": [sp.latex(e) for e in closed],
+                  "series": [sp.latex(e) for e in series], "series_limit": "1.0"},
+    }
+
+
 def _newmark_ss_context() -> dict:
     def block(d):
         code = " + ".join(f"({printing.py(v)}) * {k}" for k, v in d.items()) or "Z"
@@ -289,6 +306,9 @@ def render_all() -> dict[str, str]:
 
     render("numpy/dttmm.py.jinja", "dttmm_sweep.py", "dtdyn.derive.dttmm", **_dttmm_context())
     render("numpy/tmm.py.jinja", "tmm.py", "dtdyn.derive.tmm", **_tmm_context())
+    beam_ctx = _beam_context()
+    render("numpy/beam.py.jinja", "beam.py", "dtdyn.derive.beam", **beam_ctx)
+    render("markdown/beam.md.jinja", "beam.md", "dtdyn.derive.beam", **beam_ctx["latex"])
     render("markdown/tmm.md.jinja", "tmm.md", "dtdyn.derive.tmm", **_tmm_context())
     render("numpy/newmark_ss.py.jinja", "newmark_ss.py", "dtdyn.derive.state_space",
            **_newmark_ss_context())

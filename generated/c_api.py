@@ -82,6 +82,7 @@ SIGNATURES = {
     "dtdyn_mck_loop": (
         "c_int",
         (
+            "c_int",
             "c_long",
             "c_long",
             "c_long",

@@ -23,6 +23,8 @@ from dtdyn.app.batch import run_batch
 from dtdyn.app.problems import p1, p2, p3, p4
 from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
 from dtdyn.linear.chain import chain_matrices, rayleigh_chain_damping, simulate_chain
+from dtdyn.linear.beam import (Beam, PointMass, Support, beam_frequencies, beam_matrices,
+                               simulate_beam)
 from dtdyn.linear.discrete_model import DiscreteModel
 from dtdyn.linear.discretize import discretize, first_order_form
 from dtdyn.linear.exact import exact_response
@@ -49,7 +51,8 @@ __version__ = "0.1.0"
 
 __all__ = [
     # linear time histories and discrete models
-    "simulate_chain", "chain_matrices", "rayleigh_chain_damping", "simulate_mck", "exact_response",
+    "simulate_chain", "chain_matrices", "rayleigh_chain_damping", "Beam", "PointMass", "Support",
+    "beam_matrices", "beam_frequencies", "simulate_beam", "simulate_mck", "exact_response",
     "newmark_ss", "discrete_state_space", "state_space_response",
     "discretize", "first_order_form", "DiscreteModel",
     "frequency_response", "undamped_poles", "chain_frequencies", "chain_poles", "stability", "critical_omega_dt",

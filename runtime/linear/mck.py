@@ -6,7 +6,9 @@ x_e = Dx a_e + Ex, v_e = Dv a_e + Ev from the generated coefficients,
     (M + Dv C + Dx K) a_e = w0 F_n + w1 F_{n+1} - C Ev - K Ex,
 
 then x, v, a at t_{n+1} from the scheme's update. This is the reference the DT-TMM sweeps must
-equal, and the general-matrix path.
+equal, and the general-matrix path. `make_advance` also steps the displacement form
+(u = x_e - x_n; simulate_beam), and factors a 2 x 2 node-block matrix by the matrix Riccati
+sweep (`block_factors`).
 """
 from __future__ import annotations
 
@@ -56,61 +58,142 @@ def _c_loop():
     return lib
 
 
-def _c_operands(A, C, K):
-    """(idx, val, arrays, work): the pointer arrays idx and val of dtdyn_mck_loop (mck_loop.c)
-    for the effective matrix A and C, K, dense (row-major, A by its LU and pivots) or sparse
-    (CSR, A by its SuperLU factors of the least-fill ordering); the arrays they point to (the
-    caller keeps them alive); the multiply-adds of one step."""
-    what = "the effective matrix M + Dv C + Dx K"
+#: the effective matrix of each form, as errors name it
+EFFECTIVE = {"acceleration": "the effective matrix M + Dv C + Dx K",
+             "displacement": "the effective matrix A M + D C + K"}
+
+
+def _c_operands(A, C, K, M=None, blocks=None, what=EFFECTIVE["acceleration"]):
+    """(solver, idx, val, arrays, work): the solver code and the pointer arrays idx and val of
+    dtdyn_mck_loop (mck_loop.c) for the effective matrix A and C, K (and M when the form needs
+    M b), dense (row-major, A by its LU and pivots), sparse (CSR, A by its SuperLU factors of the
+    least-fill ordering) or, with ``blocks`` = (P^-1, G, F) from `block_factors`, the 2 x 2
+    node-block sweep; the arrays they point to (the caller keeps them alive); the multiply-adds
+    of one step."""
     i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)  # noqa: E731
     f64 = lambda a: np.ascontiguousarray(a, dtype=float)  # noqa: E731
     if sps.issparse(A):
-        lu = linalg.sparse_lu(A, what, orderings=linalg.FILL_ORDERINGS)
-        Lf, Uf = sps.tril(lu.L, -1, format="csr"), sps.triu(lu.U, 1, format="csr")
-        mats = [sps.csr_matrix(K), sps.csr_matrix(C)]
-        idx = [i64(a) for B in mats for a in (B.indptr, B.indices)]
-        idx += [i64(a) for B in (Lf, Uf) for a in (B.indptr, B.indices)]
-        idx += [i64(lu.perm_r), i64(lu.perm_c)]
-        val = [f64(B.data) for B in (*mats, Lf, Uf)] + [f64(1.0 / lu.U.diagonal())]
-        work = sum(B.nnz for B in (*mats, Lf, Uf)) + 4 * A.shape[0]
+        mats = [sps.csr_matrix(B) for B in (K, C) + ((M,) if M is not None else ())]
+        idx = [i64(a) for B in mats for a in (B.indptr, B.indices)] + [None] * (6 - 2 * len(mats))
+        val = [f64(B.data) for B in mats] + [None] * (3 - len(mats))
+        work = sum(B.nnz for B in mats) + 4 * A.shape[0]
+        if blocks is not None:
+            solver = 2
+            idx += [None] * 6
+            val += [f64(b) for b in blocks]
+        else:
+            solver = 1
+            lu = linalg.sparse_lu(A, what, orderings=linalg.FILL_ORDERINGS)
+            Lf, Uf = sps.tril(lu.L, -1, format="csr"), sps.triu(lu.U, 1, format="csr")
+            idx += [i64(a) for B in (Lf, Uf) for a in (B.indptr, B.indices)]
+            idx += [i64(lu.perm_r), i64(lu.perm_c)]
+            val += [f64(B.data) for B in (Lf, Uf)] + [f64(1.0 / lu.U.diagonal())]
+            work += Lf.nnz + Uf.nnz
     else:
+        solver = 0
         LU, piv = linalg.dense_lu(A, what)
-        idx = [None] * 8 + [i64(piv), None]
-        val = [f64(K), f64(C), f64(LU), None, None]
+        idx = [None] * 10 + [i64(piv), None]
+        val = [f64(K), f64(C), None if M is None else f64(M), f64(LU), None, None]
         work = 3 * A.shape[0] ** 2
     keep = [a for a in idx + val if a is not None]
 
     def pointers(arrays):
         return (ctypes.c_void_p * len(arrays))(*[None if a is None else a.ctypes.data
                                                  for a in arrays])
-    return pointers(idx), pointers(val), keep, work
+    return solver, pointers(idx), pointers(val), keep, work
 
 
-def _c_advance(lib, sch, K_, A, C, K, loaded, outputs):
+def block_factors(A, what="the effective matrix") -> tuple:
+    """(P^-1, G, F) of a matrix block tridiagonal in 2 x 2 node blocks (mck_loop.c block_solve):
+    condensed from the last node, P_i = D_i - G_i F_i, G_i = E_i P_{i+1}^-1; a singular P_i is
+    a ValueError naming the node."""
+    A = sps.csr_matrix(A)
+    n = A.shape[0]
+    nodes = n // 2
+    i = 2 * np.arange(nodes)
+    D, E, F = (np.empty((k, 2, 2)) for k in (nodes, nodes - 1, nodes - 1))
+    for a in range(2):
+        for b in range(2):
+            D[:, a, b] = A[i + a, i + b].A1
+            E[:, a, b] = A[i[:-1] + a, i[1:] + b].A1
+            F[:, a, b] = A[i[1:] + a, i[:-1] + b].A1
+    Pinv, G = np.empty((nodes, 2, 2)), np.empty((nodes - 1, 2, 2))
+    P = D[-1]
+    for k in range(nodes - 1, -1, -1):
+        if k < nodes - 1:
+            G[k] = E[k] @ Pinv[k + 1]
+            P = D[k] - G[k] @ F[k]
+        det = P[0, 0] * P[1, 1] - P[0, 1] * P[1, 0]
+        if not np.isfinite(det) or abs(det) <= 1e-14 * max(np.abs(P).max() ** 2, 1e-300):
+            raise ValueError(f"{what} is singular at node {k} (condensed pivot determinant "
+                             f"{det:.3e})")
+        Pinv[k] = np.array([[P[1, 1], -P[0, 1]], [-P[1, 0], P[0, 0]]]) / det
+    return Pinv.ravel(), G.ravel(), F.ravel()
+
+
+def make_advance(form, sch, K_, M, C, K, loaded, outputs, loop, blocks=None):
+    """The ``advance(force_rows, H, xo, vo, ao)`` of stepping.integrate for assembled M, C, K in
+    either form: u = (alpha M + r C + p K)^-1 (F - K q - C s - M b) each step (module
+    docstring), in the C loop ``loop`` (mck_loop.c) or NumPy. ``blocks``: factor the effective
+    matrix by `block_factors` (2 x 2 node blocks, the beam's matrix Riccati sweep) instead of
+    LU."""
+    A = K_["alpha_u"] * M + K_["r"] * C + K_["p"] * K
+    with_m = form != "acceleration"  # the acceleration form has b = 0
+    what = EFFECTIVE[form]
+    if blocks:
+        blocks = block_factors(A, what)
+    if loop is not None:
+        return _c_advance(loop, sch, K_, A, C, K, M if with_m else None, blocks, loaded,
+                          outputs, what)
+    solve = (linalg.sparse_lu(A, what, orderings=linalg.FILL_ORDERINGS).solve
+             if sps.issparse(A) else linalg.solver(A, what))
+    names = sch.history
+    n = M.shape[0]
+
+    def advance(frc, H, xo, vo, ao):
+        Fe = np.zeros(n)
+        for step in range(frc.shape[0] - 1):
+            Fe[loaded] = K_["w0"] * frc[step] + K_["w1"] * frc[step + 1]
+            rhs = Fe - K @ combine(K_, "q", H, names) - C @ combine(K_, "s", H, names)
+            if with_m:
+                rhs -= M @ combine(K_, "b", H, names)
+            u = solve(rhs)
+            new = {q: combine(K_, q + "1", H, names, K_.get(q + "1_u", 0.0) * u)
+                   for q in "xva"}
+            shift_history(H, names, new)
+            for arr, q in ((xo, "x"), (vo, "v"), (ao, "a")):
+                if arr is not None:
+                    arr[step + 1] = new[q][outputs]
+        return 0.0
+    return advance
+
+
+def _c_advance(lib, sch, K_, A, C, K, M, blocks, loaded, outputs, what):
     """advance() of the C loop (mck_loop.c), dense or sparse: the same step as the NumPy one."""
     names = list(sch.history)
-    idx, val, keep, step_work = _c_operands(A, C, K)
+    solver, idx, val, keep, step_work = _c_operands(A, C, K, M, blocks, what)
     # the step as matrices on the history rows (the generated maps of the plain sweep's error
-    # history: the same step); rows q, s (b unused here), then x1, v1, a1
+    # history: the same step); rows q, s, b, then x1, v1, a1
     L_qsb, L_upd, c_u, shifts, rows = error_history_maps(K_, names)
-    L = np.ascontiguousarray(np.vstack([L_qsb[:2], L_upd]), dtype=float)
+    L = np.ascontiguousarray(np.vstack([L_qsb, L_upd]), dtype=float)
     c_u = np.ascontiguousarray(c_u.ravel())
     shift = np.array(shifts, dtype=np.int64).reshape(-1, 2)
     rows = np.arange(len(names), dtype=np.int64)[rows]
     loaded = np.ascontiguousarray(loaded, dtype=np.int64)
     out_idx = np.ascontiguousarray(outputs, dtype=np.int64)
     n = A.shape[0]
-    work = np.empty(7 * n)
+    work = np.empty(8 * n)
     run = lib.dtdyn_mck_loop
 
     def advance(frc, H, xo, vo, ao):
         frc = np.ascontiguousarray(frc, dtype=float)
         Hc = np.ascontiguousarray(H)
         ptr = [0 if a is None else a.ctypes.data for a in (xo, vo, ao)]
-        args = (n, len(names), frc.shape[0] - 1, loaded.size, loaded.ctypes.data, frc.ctypes.data,
-                ctypes.addressof(idx), ctypes.addressof(val), L.ctypes.data, c_u.ctypes.data,
-                K_["w0"], K_["w1"], shift.shape[0], shift.ctypes.data, rows.ctypes.data,
-                Hc.ctypes.data, out_idx.size, out_idx.ctypes.data, *ptr, work.ctypes.data)
+        args = (solver, n, len(names), frc.shape[0] - 1, loaded.size, loaded.ctypes.data,
+                frc.ctypes.data, ctypes.addressof(idx), ctypes.addressof(val), L.ctypes.data,
+                c_u.ctypes.data, K_["w0"], K_["w1"], shift.shape[0], shift.ctypes.data,
+                rows.ctypes.data, Hc.ctypes.data, out_idx.size, out_idx.ctypes.data, *ptr,
+                work.ctypes.data)
         rc = cbuild.interruptible(lib, lambda: run(*args), work=(frc.shape[0] - 1) * step_work)
         if rc != 0:
             raise RuntimeError(f"dtdyn_mck_loop returned {rc} (stopped by its stop flag)")
@@ -202,29 +285,10 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     f0[loaded] = force[0]
     a0 = _initial_acceleration(M, f0 - C @ v0 - K @ x0)
 
-    def make_advance(sch, K_):
-        A, what = M + K_["r"] * C + K_["p"] * K, "the effective matrix M + Dv C + Dx K"
-        if loop is not None:
-            return _c_advance(loop, sch, K_, A, C, K, loaded, outputs)
-        solve = (linalg.sparse_lu(A, what, orderings=linalg.FILL_ORDERINGS).solve
-                 if sps.issparse(A) else linalg.solver(A, what))
-        names = sch.history
+    def advance_for(sch, K_):
+        return make_advance("acceleration", sch, K_, M, C, K, loaded, outputs, loop)
 
-        def advance(frc, H, xo, vo, ao):
-            Fe = np.zeros(n)
-            for step in range(frc.shape[0] - 1):
-                Fe[loaded] = K_["w0"] * frc[step] + K_["w1"] * frc[step + 1]
-                ae = solve(Fe - K @ combine(K_, "q", H, names) - C @ combine(K_, "s", H, names))
-                new = {q: combine(K_, q + "1", H, names, K_.get(q + "1_u", 0.0) * ae)
-                       for q in "xva"}
-                shift_history(H, names, new)
-                for arr, q in ((xo, "x"), (vo, "v"), (ao, "a")):
-                    if arr is not None:
-                        arr[step + 1] = new[q][outputs]
-            return 0.0
-        return advance
-
-    res = stepping.integrate(info, "acceleration", dt, force, (x0, v0, a0), make_advance,
+    res = stepping.integrate(info, "acceleration", dt, force, (x0, v0, a0), advance_for,
                              outputs, quantities, progress)
     res.info.update(method="assembled matrices", sparse=sps.issparse(M),
                     backend="c" if loop is not None else

@@ -1,0 +1,407 @@
+r"""Euler-Bernoulli beams in planar bending: the model, its matrices, its natural frequencies.
+
+::
+
+    left |==e0==o==e1==o== ... ==e(N-1)==| right        nodes 0 .. N, DOFs [w_i, psi_i]
+
+A uniform beam (E, I, rho_A, length) of N Hermite cubic elements (generated/beam.py: stiffness,
+consistent or HRZ-lumped mass, derived in dtdyn.derive.beam), with point masses (mass and
+rotary inertia) and springs and dampers to the ground at any node, Rayleigh damping, and the
+ends clamped (w = psi = 0), pinned (w = 0), sliding (psi = 0), free, or elastic (a spring pair
+(k_w, k_psi) to the ground). Constrained DOFs are removed; the others keep the node order,
+[w_i, psi_i] per node (`Beam.dof_names`).
+
+The natural frequencies come from the Wittrick-Williams count: the number of eigenvalues of
+(K, M) below lambda is the number of negative eigenvalues of the block pivots of
+K - lambda M eliminated node by node from the free end (its dynamic stiffness condensed onto
+each node, the frequency-domain form of the Riccati sweep), bisected to adjacent floats.
+docs/beam.md has the equations.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sps
+
+from dtdyn.generated import beam as derived
+
+from dtdyn._engine import linalg, validate
+
+__all__ = ["Beam", "PointMass", "Support", "beam_matrices", "beam_frequencies", "simulate_beam"]
+
+#: end conditions: which of (w, psi) is held
+BOUNDARIES = {"clamped": (True, True), "pinned": (True, False), "sliding": (False, True),
+              "free": (False, False)}
+
+
+@dataclass(frozen=True)
+class PointMass:
+    """A mass (kg) and a rotary inertia (kg m^2) at a node."""
+
+    node: int
+    mass: float = 0.0
+    inertia: float = 0.0
+
+
+@dataclass(frozen=True)
+class Support:
+    """An elastic support: springs (N/m, N m/rad) and dampers (N s/m, N m s/rad) from a node to
+    the ground."""
+
+    node: int
+    k_w: float = 0.0
+    k_psi: float = 0.0
+    c_w: float = 0.0
+    c_psi: float = 0.0
+
+
+def _number(name, value, positive=False):
+    v = validate.vector(name, [value], positive=positive, nonnegative=not positive)
+    return float(v[0])
+
+
+class Beam:
+    """A uniform Euler-Bernoulli beam of Hermite cubic elements (module docstring).
+
+    Parameters
+    ----------
+    E, I, rho_A, length : float
+        Young's modulus (Pa), second moment of area (m^4), mass per length (kg/m), length (m).
+    elements : int
+        Number of elements N (nodes 0 .. N).
+    left, right : str or (k_w, k_psi)
+        "clamped", "pinned", "sliding", "free", or an elastic end: springs to the ground.
+    mass : {"consistent", "lumped"}
+        Element mass matrix: consistent, or HRZ-lumped (diagonal).
+    rayleigh : (alpha, beta), optional
+        C = alpha M + beta K (before the dampers of ``supports``).
+    point_masses, supports : sequence of PointMass, Support
+        At any node.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> beam = dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=200)
+    >>> beam.n_dof, beam.dof_names[:2]
+    (400, ('w1', 'psi1'))
+    """
+
+    def __init__(self, *, E, I, rho_A, length, elements, left="clamped", right="free",  # noqa: E741
+                 mass="consistent", rayleigh=None, point_masses=(), supports=()):
+        self.E, self.I = _number("E", E, True), _number("I", I, True)
+        self.rho_A = _number("rho_A", rho_A, True)
+        self.length = _number("length", length, True)
+        if isinstance(elements, bool) or not isinstance(elements, (int, np.integer)) \
+                or elements < 1:
+            raise ValueError(f"elements = {elements!r}: must be an integer >= 1")
+        self.elements = int(elements)
+        if mass not in ("consistent", "lumped"):
+            raise ValueError(f"mass = {mass!r}: must be 'consistent' or 'lumped'")
+        self.mass = mass
+        self.rayleigh = None if rayleigh is None else tuple(
+            float(v) for v in validate.vector("rayleigh", rayleigh, nonnegative=True, length=2))
+        supports = list(supports)
+        self.ends = {}
+        for side, node, bc in (("left", 0, left), ("right", self.elements, right)):
+            if isinstance(bc, str):
+                if bc not in BOUNDARIES:
+                    raise ValueError(f"{side} = {bc!r}: must be one of {', '.join(BOUNDARIES)} "
+                                     "or an elastic end (k_w, k_psi)")
+                self.ends[side] = bc
+            else:
+                k = validate.vector(side, bc, nonnegative=True, length=2)
+                supports.append(Support(node, k_w=float(k[0]), k_psi=float(k[1])))
+                self.ends[side] = "elastic"
+        self.point_masses = tuple(self._checked(p, PointMass, "point_masses") for p in point_masses)
+        self.supports = tuple(self._checked(s, Support, "supports") for s in supports)
+        held = np.zeros((self.elements + 1, 2), dtype=bool)
+        held[0] = BOUNDARIES.get(self.ends["left"], (False, False))
+        held[-1] |= BOUNDARIES.get(self.ends["right"], (False, False))
+        #: the kept DOFs as global indices 2 node + (0: w, 1: psi)
+        self.free = np.flatnonzero(~held.ravel())
+        self.dof_names = tuple(f"{'w' if d % 2 == 0 else 'psi'}{d // 2}" for d in self.free)
+
+    def _checked(self, item, cls, name):
+        if not isinstance(item, cls):
+            raise ValueError(f"{name} entries must be {cls.__name__} objects, got {item!r}")
+        if not (isinstance(item.node, (int, np.integer)) and 0 <= item.node <= self.elements):
+            raise ValueError(f"{name}: node = {item.node!r} is outside 0..{self.elements}")
+        for f in item.__dataclass_fields__:
+            if f != "node":
+                _number(f"{name}[node {item.node}].{f}", getattr(item, f))
+        return item
+
+    @property
+    def n_dof(self) -> int:
+        return int(self.free.size)
+
+    def dof(self, name: str) -> int:
+        """The index of a DOF by name ("w12", "psi3")."""
+        if name not in self.dof_names:
+            raise ValueError(f"{name!r} is not a DOF of this beam (constrained or out of range)")
+        return self.dof_names.index(name)
+
+    def __repr__(self):
+        return (f"Beam(E={self.E:g}, I={self.I:g}, rho_A={self.rho_A:g}, length={self.length:g}, "
+                f"elements={self.elements}, left={self.ends['left']!r}, "
+                f"right={self.ends['right']!r}, mass={self.mass!r})")
+
+    def global_matrices(self):
+        """(M, C, K) over all 2 (N + 1) DOFs (constrained ones included), scipy.sparse CSR."""
+        n = 2 * (self.elements + 1)
+        h = self.length / self.elements
+        Ke = derived.element_stiffness(self.E * self.I, h)
+        Me = (derived.element_mass if self.mass == "consistent"
+              else derived.element_mass_lumped)(self.rho_A, h)
+        first = 2 * np.arange(self.elements)
+        rows = (first[:, None, None] + np.arange(4)[None, :, None]).repeat(4, axis=2)
+        cols = rows.transpose(0, 2, 1)
+
+        def assemble(Ae):
+            data = np.broadcast_to(Ae, (self.elements, 4, 4))
+            return sps.csr_matrix((data.ravel(), (rows.ravel(), cols.ravel())), shape=(n, n))
+
+        K, M = assemble(Ke), assemble(Me)
+        C = sps.csr_matrix((n, n))
+        if self.rayleigh is not None:
+            C = self.rayleigh[0] * M + self.rayleigh[1] * K
+        diag = {name: np.zeros(n) for name in ("m", "k", "c")}
+        for p in self.point_masses:
+            diag["m"][2 * p.node] += p.mass
+            diag["m"][2 * p.node + 1] += p.inertia
+        for s in self.supports:
+            diag["k"][2 * s.node] += s.k_w
+            diag["k"][2 * s.node + 1] += s.k_psi
+            diag["c"][2 * s.node] += s.c_w
+            diag["c"][2 * s.node + 1] += s.c_psi
+        M, C, K = (A + sps.diags(diag[d]) for A, d in ((M, "m"), (C, "c"), (K, "k")))
+        return M.tocsr(), C.tocsr(), K.tocsr()
+
+
+def beam_matrices(beam: Beam):
+    """The assembled (M, C, K) of a `Beam`, constrained DOFs removed, scipy.sparse CSR, in the
+    order of ``beam.dof_names`` ([w_i, psi_i] node by node).
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> M, C, K = dd.beam_matrices(dd.Beam(E=1.0, I=1.0, rho_A=1.0, length=1.0, elements=2))
+    >>> K.shape
+    (4, 4)
+    """
+    if not isinstance(beam, Beam):
+        raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
+    f = beam.free
+    return tuple(A[f][:, f].tocsr() for A in beam.global_matrices())
+
+
+def _node_blocks(beam: Beam, A):
+    """Diagonal blocks D (n_nodes, 2, 2) and couplings E[i] = A[node i, node i + 1] of a
+    global matrix, with the constrained DOFs' rows and columns replaced by the identity's."""
+    n_nodes = beam.elements + 1
+    A = A.tocsr()
+    D = np.empty((n_nodes, 2, 2))
+    E = np.empty((n_nodes - 1, 2, 2))
+    for a in range(2):
+        for b in range(2):
+            D[:, a, b] = A[2 * np.arange(n_nodes) + a, 2 * np.arange(n_nodes) + b].A1
+            E[:, a, b] = A[2 * np.arange(n_nodes - 1) + a, 2 * np.arange(1, n_nodes) + b].A1
+    held = np.ones(2 * n_nodes, dtype=bool)
+    held[beam.free] = False
+    held = held.reshape(n_nodes, 2)
+    return D, E, held
+
+
+def wittrick_williams_counts(beam: Beam, lam) -> np.ndarray:
+    """The number of eigenvalues of (K, M) below each lam (rad^2/s^2): negative eigenvalues of
+    the 2 x 2 block pivots P_i = D_i(lam) - E_i P_{i+1}^-1 E_i^T, from the free (right) end."""
+    lam = np.atleast_1d(np.asarray(lam, dtype=float))
+    M, _, K = beam.global_matrices()
+    DK, EK, held = _node_blocks(beam, K)
+    DM, EM, _ = _node_blocks(beam, M)
+    scale = max(np.abs(DK).max(), 1.0)
+    pivmin = np.finfo(float).tiny * scale * scale * 1e16
+    count = np.zeros(lam.size, dtype=np.int64)
+    L = lam[:, None, None]
+    P_next = det_next = None
+    for i in range(beam.elements, -1, -1):
+        P = DK[i] - L * DM[i]
+        if P_next is not None:
+            Ec = (EK[i] - L * EM[i]) * ~held[i][:, None] * ~held[i + 1][None, :]
+            adj = np.stack([np.stack([P_next[:, 1, 1], -P_next[:, 0, 1]], -1),
+                            np.stack([-P_next[:, 1, 0], P_next[:, 0, 0]], -1)], -2)
+            P = P - Ec @ (adj / det_next[:, None, None]) @ np.swapaxes(Ec, 1, 2)
+        for a in range(2):  # a held DOF: its row and column are the identity's
+            if held[i, a]:
+                P[:, a, :] = 0.0
+                P[:, :, a] = 0.0
+                P[:, a, a] = 1.0
+        det = P[:, 0, 0] * P[:, 1, 1] - P[:, 0, 1] * P[:, 1, 0]
+        # an exact eigenvalue of the part beyond: its pivot counted as negative and kept finite
+        det = np.where(np.abs(det) < pivmin, -pivmin, det)
+        count += np.where(det < 0.0, 1, np.where(P[:, 0, 0] + P[:, 1, 1] < 0.0, 2, 0))
+        P_next, det_next = P, det
+    return count
+
+
+def beam_frequencies(beam: Beam, count=None, below=None) -> np.ndarray:
+    """Natural frequencies (rad/s, ascending) of a `Beam` by the Wittrick-Williams count.
+
+    Each root is bracketed by the count (no root missed or found twice) and bisected to two
+    adjacent floating-point numbers of lambda = omega^2.
+
+    Parameters
+    ----------
+    beam : Beam
+    count : int, optional
+        The lowest ``count`` frequencies.
+    below : float, optional
+        All frequencies below this (rad/s). Default (neither): all ``beam.n_dof``.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> beam = dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=50)
+    >>> w = dd.beam_frequencies(beam, count=2)
+    >>> round(float(w[0] / (1.875104**2 * (2.1e11 * 8e-6 / (20.0 * 3.0**4)) ** 0.5)), 6)
+    1.0
+    """
+    if count is not None and below is not None:
+        raise ValueError("give count or below, not both")
+    if below is not None:
+        wanted = int(wittrick_williams_counts(beam, [_number("below", below, True) ** 2])[0])
+    else:
+        wanted = beam.n_dof if count is None else int(validate.step_count("count", count))
+        if wanted > beam.n_dof:
+            raise ValueError(f"count = {count!r}: the beam has {beam.n_dof} DOFs")
+    # every root is bisected from the same bracket [0, above the highest], so it comes out
+    # the same to the bit whichever roots are asked for
+    top = 1.01 * _highest_frequency_bound(beam) ** 2
+    if wanted == 0:
+        return np.zeros(0)
+    lo = np.zeros(wanted)
+    hi = np.full(wanted, top)
+    target = np.arange(wanted)
+    while True:
+        mid = np.where(lo > 0.0, np.sqrt(lo * hi), 0.5 * hi)
+        mid = np.where(hi > 4.0 * lo, mid, 0.5 * (lo + hi))
+        open_ = (mid > lo) & (mid < hi)
+        if not open_.any():
+            break
+        c = wittrick_williams_counts(beam, mid[open_])
+        idx = np.flatnonzero(open_)
+        above = c > target[idx]
+        hi[idx[above]] = mid[open_][above]
+        lo[idx[~above]] = mid[open_][~above]
+    return np.sqrt(0.5 * (lo + hi))
+
+
+def _highest_frequency_bound(beam: Beam) -> float:
+    """An upper bound of the highest natural frequency (rad/s): the largest eigenvalue of the
+    element pencils (K_e + the springs assigned to the element, M_e) bounds the assembled one's
+    (Irons & Treharne; point masses only lower it)."""
+    import scipy.linalg as sla
+
+    h = beam.length / beam.elements
+    Ke = derived.element_stiffness(beam.E * beam.I, h)
+    Me = (derived.element_mass if beam.mass == "consistent"
+          else derived.element_mass_lumped)(beam.rho_A, h)
+    extra = {}
+    for s in beam.supports:  # each node's springs go to one element containing it
+        e = min(s.node, beam.elements - 1)
+        j = 2 * (s.node - e)
+        extra.setdefault(e, np.zeros((4, 4)))[[j, j + 1], [j, j + 1]] += [s.k_w, s.k_psi]
+    lam = [sla.eigh(Ke + S, Me, eigvals_only=True)[-1] for S in [np.zeros((4, 4)),
+                                                                 *extra.values()]]
+    return float(np.sqrt(max(lam)))
+
+
+def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
+                  form="displacement", outputs=None, quantities=("x", "v", "a"), x0=None,
+                  v0=None, unstable="raise", backend="c", progress=False, **scheme_params):
+    """Time history of a `Beam` by the DT-TMM with the matrix Riccati sweep.
+
+    Each step the scheme makes every DOF's x, v, a affine in its unknown u (the increment
+    x_e - x_n in the displacement form, a_e in the acceleration form); the elements' equations
+    are then block tridiagonal in 2 x 2 node blocks, and the sweep condenses the beam from the
+    free (right) end onto each node, P_i = D_i - E_i P_{i+1}^-1 F_i once per run, the load
+    y_i = b_i - E_i P_{i+1}^-1 y_{i+1} every step, then the unknowns forward from the left:
+    O(N) per step, equal to `simulate_mck` on `beam_matrices` (same scheme) to rounding.
+
+    Parameters
+    ----------
+    beam : Beam
+    force : array_like, shape (n_steps + 1, len(force_dofs))
+        Force (N) or moment (N m) samples at t_k = k dt on the DOFs ``force_dofs``.
+    dt : float
+    force_dofs, outputs : sequence of int, optional
+        Indices into ``beam.dof_names`` (``beam.dof("w200")``); default every DOF.
+    scheme, form, quantities, x0, v0, unstable, progress
+        As `simulate_chain` (x0, v0 over ``beam.dof_names``; explicit schemes have only the
+        acceleration form).
+    backend : {"c", "numpy"}
+        The generated C loop with the Riccati sweep, or NumPy with a sparse LU of the same
+        effective matrix.
+
+    Returns
+    -------
+    Response
+        ``x``, ``v``, ``a`` of shape (n_steps + 1, len(outputs)), ``dof_names`` of the outputs.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> beam = dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=100)
+    >>> r = dd.simulate_beam(beam, np.ones(201), 1e-4, force_dofs=[beam.dof("w100")],
+    ...                      outputs=[beam.dof("w100")])
+    >>> r.x.shape
+    (201, 1)
+    """
+    from dtdyn._engine import stepping
+    from dtdyn._engine.schemes import get_scheme
+    from dtdyn.linear import mck
+    from dtdyn.linear.stability import check_dt
+
+    if not isinstance(beam, Beam):
+        raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
+    M, C, K = beam_matrices(beam)
+    n = beam.n_dof
+    force, dt, loaded = validate.time_history(force, dt, force_dofs, n)
+    x0, v0 = validate.initial_conditions(x0, v0, n)
+    outputs = validate.dof_indices("outputs", outputs, n)
+    quantities = stepping.check_quantities(quantities)
+    if form not in ("displacement", "acceleration"):
+        raise ValueError(f"form must be 'displacement' or 'acceleration', got {form!r}")
+    if backend not in ("c", "numpy"):
+        raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
+    info = get_scheme(scheme, **scheme_params)
+    check_dt(info, dt, lambda limit: _highest_frequency_bound(beam), unstable)
+    f0 = np.zeros(n)
+    f0[loaded] = force[0]
+    a0 = linalg.solver(M, "M")(f0 - C @ v0 - K @ x0)
+    # the whole node-by-node system, a held DOF decoupled with a unit mass and stiffness: its
+    # history and load are zero, so it stays at rest
+    Mg, Cg, Kg = beam.global_matrices()
+    held = np.ones(Mg.shape[0])
+    held[beam.free] = 0.0
+    keep = sps.diags(1.0 - held)
+    Mg, Cg, Kg = ((keep @ A @ keep + sps.diags(held * unit)).tocsr()
+                  for A, unit in ((Mg, 1.0), (Cg, 0.0), (Kg, 1.0)))
+    full = [np.zeros(Mg.shape[0]) for _ in range(3)]
+    for z, part in zip(full, (x0, v0, a0)):
+        z[beam.free] = part
+    loop = mck._c_loop() if backend == "c" else None
+
+    def advance_for(sch, coeffs):
+        return mck.make_advance(form, sch, coeffs, Mg, Cg, Kg, beam.free[loaded],
+                                beam.free[outputs], loop, blocks=loop is not None)
+
+    res = stepping.integrate(info, form, dt, force, full, advance_for, beam.free[outputs],
+                             quantities, progress)
+    res.outputs = outputs
+    res.dof_names = tuple(beam.dof_names[i] for i in outputs)
+    res.info.update(method="DT-TMM (matrix Riccati sweep)" if loop is not None else
+                    "assembled matrices (sparse LU)", form=form,
+                    backend="c" if loop is not None else "numpy")
+    return res
