@@ -42,8 +42,8 @@ def tree(n):
 
 
 def compare(name, shaft, n_steps=2000, dt=1e-4):
-    n = len(shaft.dofs)
-    M, C, K, _ = dd.shaft_matrices(shaft)
+    n = len(shaft.dof_names)
+    M, C, K = dd.shaft_matrices(shaft)
     f = np.ones(n_steps + 1)
     kw = dict(force_dofs=[n - 1], outputs=[0, n - 1], scheme="average_acceleration")
     t_tmm, r = best_of(lambda: dd.simulate_shaft(shaft, f, dt, **kw))

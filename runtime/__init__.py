@@ -30,8 +30,8 @@ from dtdyn.linear.discretize import discretize, first_order_form
 from dtdyn.linear.exact import exact_response
 from dtdyn.linear.frequencies import chain_frequencies, chain_poles
 from dtdyn.linear.mck import simulate_mck
-from dtdyn.linear.shaft import (Branch, ContinuousShaft, Shaft, ShaftMatrices, shaft_frequencies,
-                                shaft_matrices, simulate_shaft)
+from dtdyn.linear.shaft import (Branch, ContinuousShaft, Shaft, shaft_frequencies, shaft_matrices,
+                                simulate_shaft)
 from dtdyn.linear.stability import Stability, critical_omega_dt, stability
 from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
 from dtdyn.linear.tmm import frequency_response, undamped_poles
@@ -58,7 +58,7 @@ __all__ = [
     "frequency_response", "undamped_poles", "chain_frequencies", "chain_poles", "stability", "critical_omega_dt",
     "Stability",
     # torsional shafts and trees
-    "Shaft", "Branch", "ContinuousShaft", "ShaftMatrices", "simulate_shaft", "shaft_matrices",
+    "Shaft", "Branch", "ContinuousShaft", "simulate_shaft", "shaft_matrices",
     "shaft_frequencies",
     # modal
     "modes", "Modes", "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",

@@ -37,7 +37,23 @@ BOUNDARIES = {"clamped": (True, True), "pinned": (True, False), "sliding": (Fals
 
 @dataclass(frozen=True)
 class PointMass:
-    """A mass (kg) and a rotary inertia (kg m^2) at a node."""
+    """A point mass at a node of a `Beam`.
+
+    Attributes
+    ----------
+    node : int
+        0-based node (0 .. elements).
+    mass, inertia : float
+        Mass (kg, on w) and rotary inertia (kg m^2, on psi), >= 0.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> beam = dd.Beam(E=1.0, I=1.0, rho_A=1.0, length=1.0, elements=4,
+    ...                point_masses=[dd.PointMass(4, mass=0.5)])
+    >>> round(float(dd.beam_matrices(beam)[0].diagonal()[-2]), 4)  # 13/35 h + 0.5 at w4
+    0.5929
+    """
 
     node: int
     mass: float = 0.0
@@ -46,8 +62,25 @@ class PointMass:
 
 @dataclass(frozen=True)
 class Support:
-    """An elastic support: springs (N/m, N m/rad) and dampers (N s/m, N m s/rad) from a node to
-    the ground."""
+    """An elastic support of a `Beam`: springs and dampers from a node to the ground.
+
+    Attributes
+    ----------
+    node : int
+        0-based node (0 .. elements).
+    k_w, k_psi : float
+        Translational (N/m) and rotational (N m/rad) springs, >= 0.
+    c_w, c_psi : float
+        Translational (N s/m) and rotational (N m s/rad) dampers, >= 0.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> beam = dd.Beam(E=1.0, I=1.0, rho_A=1.0, length=1.0, elements=4,
+    ...                supports=[dd.Support(2, k_w=10.0, c_w=0.1)])
+    >>> float(dd.beam_matrices(beam)[1].diagonal()[2])                  # C at w2
+    0.1
+    """
 
     node: int
     k_w: float = 0.0
@@ -182,6 +215,14 @@ class Beam:
 def beam_matrices(beam: Beam):
     """The assembled (M, C, K) of a `Beam`, constrained DOFs removed, scipy.sparse CSR, in the
     order of ``beam.dof_names`` ([w_i, psi_i] node by node).
+
+    Parameters
+    ----------
+    beam : Beam
+
+    Returns
+    -------
+    M, C, K : scipy.sparse.csr_matrix
 
     Examples
     --------

@@ -34,11 +34,29 @@ ENDS = ("free", "clamped", "elastic")
 
 @dataclass(frozen=True)
 class ContinuousShaft:
-    """A uniform continuous shaft: shear modulus G (Pa), polar moment J_p (m^4), density rho
-    (kg/m^3), length (m). Its exact field matrix serves `shaft_frequencies`; in time and in
-    `shaft_matrices` it is ``elements`` lumped segments (stiffness G J_p elements / length,
-    half a segment's inertia rho J_p length / elements at each of its ends). ``damping``: the
-    segment's torsional damping c_t as a whole (each lumped segment gets c_t * elements)."""
+    """A uniform continuous shaft, for an entry of a line's ``stiffness``.
+
+    Its exact field matrix serves `shaft_frequencies`; in time and in `shaft_matrices` it is
+    ``elements`` lumped segments (stiffness G J_p elements / length, half a segment's inertia
+    rho J_p length / elements at each of its ends).
+
+    Attributes
+    ----------
+    length, G, Jp, rho : float
+        Length (m), shear modulus (Pa), polar moment of area (m^4), density (kg/m^3), > 0.
+    elements : int
+        Lumped segments in time and in the matrices (16).
+    damping : float
+        The segment's torsional damping c_t as a whole, N m s/rad (each lumped segment gets
+        c_t * elements).
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> seg = dd.ContinuousShaft(length=1.0, G=8e10, Jp=1e-7, rho=7800.0)
+    >>> round(seg.wave_speed, 1)                                   # sqrt(G / rho), m/s
+    3202.6
+    """
 
     length: float
     G: float
@@ -77,7 +95,27 @@ class Branch:
     dampers from each disk to the ground. ``right``: "free", or "clamped" / "elastic" (a shaft or
     support of ``right_stiffness``, ``right_damping`` from the last disk to a wall).
     ``branches``: Branch objects attached to this line's disks (any depth). Names: "branch1",
-    "branch2", ... in the order met (depth first) unless given."""
+    "branch2", ... in the order met (depth first) unless given.
+
+    Parameters
+    ----------
+    at : int
+        The parent line's 0-based disk it is attached to.
+    inertia, stiffness, damping : sequence
+        Its disks (kg m^2) and the shafts before them (above).
+    ratio : float, optional
+        A gear mesh between the parent and this line (None: a direct connection).
+    ground_stiffness, ground_damping, right, right_stiffness, right_damping, branches, name
+        As above.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> gear = dd.Branch(1, inertia=[0.5, 0.4], stiffness=[6e3, 5e3], ratio=2.0, name="out")
+    >>> shaft = dd.Shaft([1.0, 0.3, 0.9], [1e4, 1.2e4, 9e3], branches=[gear])
+    >>> shaft.dof_names
+    ('main.0', 'main.1', 'main.2', 'out.0', 'out.1')
+    """
 
     def __init__(self, at, inertia, stiffness, damping=None, *, ratio=None,
                  ground_stiffness=None, ground_damping=None, right="free", right_stiffness=0.0,
@@ -222,7 +260,7 @@ class Shaft:
     >>> import dtdyn as dd
     >>> s = dd.Shaft([1.0, 2.0], [1e4, 2e4], left="clamped",
     ...              branches=[dd.Branch(1, [0.5], [5e3], ratio=2.0, name="out")])
-    >>> s.dofs
+    >>> s.dof_names
     ('main.0', 'main.1', 'out.0')
     """
 
@@ -316,7 +354,7 @@ class Shaft:
                     np.array(cg, float), tuple(names), tuple(segs))
 
     @property
-    def dofs(self) -> tuple:
+    def dof_names(self) -> tuple:
         """DOF names of the lumped model, in the order of `shaft_matrices` and the results."""
         return self._lumped.names
 
@@ -330,7 +368,7 @@ class Shaft:
         return any(s is not None for line, *_ in self.lines for s in line.cont)
 
     def __repr__(self) -> str:
-        return (f"Shaft({len(self.lines)} line(s), {len(self.dofs)} DOFs, left={self.left!r}, "
+        return (f"Shaft({len(self.lines)} line(s), {len(self.dof_names)} DOFs, left={self.left!r}, "
                 f"gears={sum(1 for *_, r in self.lines if r is not None)})")
 
 
@@ -359,28 +397,29 @@ def _indices(name, values, dofs, default_all=True):
     return validate.dof_indices(name, values, len(dofs), default_all)
 
 
-class ShaftMatrices(NamedTuple):
-    """Assembled M, C, K (scipy.sparse CSR) and the DOF names of their rows."""
-
-    M: sps.csr_matrix
-    C: sps.csr_matrix
-    K: sps.csr_matrix
-    dofs: tuple
-
-
-def shaft_matrices(shaft: Shaft) -> ShaftMatrices:
-    """Assembled sparse (M, C, K, dofs) of the lumped model.
+def shaft_matrices(shaft: Shaft):
+    """Assembled (M, C, K) of the lumped model, scipy.sparse CSR, rows in the order of
+    ``shaft.dof_names``.
 
     A shaft k_t from node p (through a gear of factor g_u = -1/n, or g_u = 1) to node i stores
     1/2 k_t (phi_i - g_u phi_p)^2: K[i, i] += k_t, K[p, p] += g_u^2 k_t, K[i, p] = K[p, i] -=
     g_u k_t; C alike with c_t; ground springs and dampers on the diagonal; M = diag(J).
     Continuous shafts appear as their lumped segments.
 
+    Parameters
+    ----------
+    shaft : Shaft
+
+    Returns
+    -------
+    M, C, K : scipy.sparse.csr_matrix
+
     Examples
     --------
     >>> import dtdyn as dd
-    >>> M, C, K, dofs = dd.shaft_matrices(dd.Shaft([1.0, 1.0], [2.0, 3.0]))
-    >>> K.toarray().tolist(), dofs
+    >>> shaft = dd.Shaft([1.0, 1.0], [2.0, 3.0])
+    >>> M, C, K = dd.shaft_matrices(shaft)
+    >>> K.toarray().tolist(), shaft.dof_names
     ([[5.0, -3.0], [-3.0, 3.0]], ('main.0', 'main.1'))
     """
     _check_shaft(shaft)
@@ -397,8 +436,7 @@ def shaft_matrices(shaft: Shaft) -> ShaftMatrices:
         vals = np.concatenate([e + ground, gS[ch] * e[ch], -gu[ch] * e[ch], -gu[ch] * e[ch]])
         return sps.csr_matrix((vals, (rows, cols)), shape=(N, N))
 
-    return ShaftMatrices(sps.diags(t.J, format="csr"), assemble(t.c, t.cg), assemble(t.k, t.kg),
-                         t.names)
+    return sps.diags(t.J, format="csr"), assemble(t.c, t.cg), assemble(t.k, t.kg)
 
 
 # -- time histories ------------------------------------------------------------------------------
@@ -463,7 +501,7 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     dt : float
         Time step, s.
     force_dofs, outputs : sequence of int or DOF names, optional
-        0-based DOF indices or names (`Shaft.dofs`); all DOFs when None.
+        0-based DOF indices or names (`Shaft.dof_names`); all DOFs when None.
     scheme, form, backend, quantities, x0, v0, unstable, progress, **scheme_params
         As `simulate_chain`: the integrator and its parameters, "displacement" or
         "acceleration" form, "c" (generated C loop) or "numpy", what to store, the initial
@@ -501,7 +539,7 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     if form not in ("displacement", "acceleration"):
         raise ValueError(f"form must be 'displacement' or 'acceleration', got {form!r}")
     info = get_scheme(scheme, **scheme_params)
-    M, C, K, _ = shaft_matrices(shaft)
+    M, C, K = shaft_matrices(shaft)
     check_dt(info, dt, lambda limit: highest_frequency(M, K, limit), unstable)
     K0 = info.coefficients(form, dt)
     kappa = tree.k * K0["p"] + tree.c * K0["r"]
@@ -602,7 +640,7 @@ def shaft_frequencies(shaft: Shaft, count=None, below=None, *, exact=True) -> np
     Jpos = np.where(tree.J > 0, tree.J, np.inf)
     bound = float(np.max(2.0 * (np.abs(tree.k) + tree.kg) / Jpos))
     if not infinite:
-        M, _, K, _ = shaft_matrices(shaft)
+        M, _, K = shaft_matrices(shaft)
         bound = float(np.max(np.asarray(abs(K).sum(axis=1)).ravel() / tree.J))
     for seg in tree.segments:
         if seg is not None:

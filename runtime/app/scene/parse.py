@@ -223,7 +223,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
             raise ValueError(f"model.kind = {kind!r}: [[element]] and [ground] are not supported "
                              "for this kind yet; remove them")
         model = model_module(kind).parse_model(data["model"], data.get("branch"), base_dir)
-        names = tuple(model.dofs)
+        names = tuple(model.dof_names)
         n_dof = len(names)
     else:
         chain = _parse_model(data["model"])

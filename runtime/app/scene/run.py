@@ -172,7 +172,7 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
             **_support(scene), scheme=scene.scheme, outputs=scene.outputs,
             quantities=scene.quantities, backend=scene.backend, progress=progress,
             **scene.scheme_params)
-    elif scene.model is not None:  # a kind in MODEL_MODULES (a shaft)
+    elif scene.model is not None:  # a kind in MODEL_MODULES (a shaft, a beam)
         from dtdyn.app.scene.schema import model_module
 
         response = model_module(scene.kind).simulate(scene, progress, _support(scene))

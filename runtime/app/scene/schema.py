@@ -68,6 +68,11 @@ A model with general matrices (``kind = "matrices"``) replaces the chain keys of
                                         #   M-normalised eigenvectors of (K, M) (dense; needs M
                                         #   symmetric positive definite and K symmetric)
 
+A torsional shaft with disks, gears and branches (``kind = "shaft"``, with ``[[branch]]``
+tables) and a beam in planar bending (``kind = "beam"``) have their own ``[model]`` keys:
+dtdyn.app.scene.shaft and dtdyn.app.scene.beam describe them; loads and outputs name their DOFs
+("main.3", "w200").
+
 Paths are relative to the scene file. ``load.dof`` and ``output.outputs`` entries of such a scene
 are 0-based indices or names from ``model.dofs``. It runs with ``simulate_mck`` (any scheme,
 acceleration form, dense or sparse); ``scheme.form``, ``scheme.sweep`` and ``scheme.backend``
@@ -148,11 +153,11 @@ GROUND_UNITS = {"acceleration": ("m/s^2", "g"), "velocity": ("m/s",), "displacem
 #: standard gravity, m/s^2 (a [ground] record in units of g)
 STANDARD_GRAVITY = 9.80665
 #: model kinds: a chain (mass, stiffness, damping vectors) or general M, C, K matrices
-MODEL_KINDS = ("chain", "matrices", "shaft")
+MODEL_KINDS = ("chain", "matrices", "shaft", "beam")
 #: kinds whose [model] table a module parses and runs: parse_model(model, branches, base_dir)
-#: -> model object with ``dofs``; matrices(model, sparse); simulate(scene, progress, support);
-#: frequencies(model, count)
-MODEL_MODULES = {"shaft": "dtdyn.app.scene.shaft"}
+#: -> model object with ``dof_names``; matrices(model, sparse); simulate(scene, progress,
+#: support); frequencies(model, count)
+MODEL_MODULES = {"shaft": "dtdyn.app.scene.shaft", "beam": "dtdyn.app.scene.beam"}
 
 
 def model_module(kind: str):

@@ -128,7 +128,7 @@ def matrices(shaft, sparse=None):
     """(M, C, K): sparse CSR, or dense arrays when ``sparse`` is False."""
     from dtdyn.linear.shaft import shaft_matrices
 
-    M, C, K, _ = shaft_matrices(shaft)
+    M, C, K = shaft_matrices(shaft)
     if sparse is False:
         return M.toarray(), C.toarray(), K.toarray()
     return M, C, K

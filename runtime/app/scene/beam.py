@@ -1,0 +1,100 @@
+"""Scenes with ``kind = "beam"``: a uniform Euler-Bernoulli beam in planar bending.
+
+::
+
+    [model]
+    kind = "beam"
+    E = 2.1e11                            # Pa
+    I = 8.0e-6                            # m^4
+    rho_A = 20.0                          # kg/m
+    length = 3.0                          # m
+    elements = 200
+    left = "clamped"                      # clamped | pinned | sliding | free | [k_w, k_psi]
+    right = "free"                        #   (an elastic end: springs to the ground)
+    mass = "consistent"                   # optional: or "lumped" (HRZ)
+    rayleigh = [0.5, 1e-5]                # optional: C = alpha M + beta K
+    point_masses = [{node = 100, mass = 5.0, inertia = 0.1}]       # optional
+    supports = [{node = 50, k_w = 1e5, c_w = 20.0}]                # optional: k_psi, c_psi too
+
+DOF names (loads' ``dof``, ``[output] outputs``): "w<node>", "psi<node>" (`dtdyn.Beam`); held
+DOFs are not among them. The scene runs `simulate_beam` (scheme, form, backend from [scheme]);
+``Scene.matrices()`` gives the assembled sparse M, C, K and ``Scene.dof_names`` their DOFs;
+`dtdyn modes` counts the frequencies by Wittrick-Williams.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+MODEL_KEYS = ("kind", "E", "I", "rho_A", "length", "elements", "left", "right", "mass",
+              "rayleigh", "point_masses", "supports")
+TABLES = {"point_masses": ("PointMass", ("node", "mass", "inertia")),
+          "supports": ("Support", ("node", "k_w", "k_psi", "c_w", "c_psi"))}
+
+
+def _items(where: str, values, cls, allowed):
+    if not isinstance(values, list):
+        raise ValueError(f"{where} = {values!r}: must be an array of inline tables")
+    out = []
+    for i, tbl in enumerate(values):
+        if not isinstance(tbl, dict):
+            raise ValueError(f"{where}[{i}] = {tbl!r}: must be an inline table")
+        for key in tbl:
+            if key not in allowed:
+                raise ValueError(f"{where}[{i}].{key}: unknown key, allowed: "
+                                 f"{', '.join(allowed)}")
+        if "node" not in tbl:
+            raise ValueError(f"{where}[{i}].node is required")
+        out.append(cls(**tbl))
+    return out
+
+
+def parse_model(model: dict, branches, base_dir=None):
+    """The `dtdyn.Beam` of a ``[model]`` table (kind = "beam"); errors name the field and the
+    value (``model.E[0] = -1.0``, ``model.supports[1].k_w``)."""
+    import dtdyn.linear.beam as B
+
+    if branches is not None:
+        raise ValueError("branch: [[branch]] tables are for model.kind = 'shaft'")
+    for key in model:
+        if key not in MODEL_KEYS:
+            raise ValueError(f"model.{key}: unknown key, allowed: {', '.join(MODEL_KEYS)}")
+    for key in ("E", "I", "rho_A", "length", "elements"):
+        if key not in model:
+            raise ValueError(f"model.{key} is required (kind = 'beam')")
+    kw = {k: model[k] for k in ("E", "I", "rho_A", "length", "elements", "left", "right",
+                                "mass", "rayleigh") if k in model}
+    for key, (cls, allowed) in TABLES.items():
+        if key in model:
+            kw[key] = _items(f"model.{key}", model[key], getattr(B, cls), allowed)
+    try:
+        return B.Beam(**kw)
+    except (ValueError, TypeError) as exc:
+        msg = str(exc)
+        raise ValueError(msg if msg.startswith("model") else f"model.{msg}") from None
+
+
+def matrices(beam, sparse=None):
+    """(M, C, K): sparse CSR, or dense arrays when ``sparse`` is False."""
+    from dtdyn.linear.beam import beam_matrices
+
+    M, C, K = beam_matrices(beam)
+    if sparse is False:
+        return M.toarray(), C.toarray(), K.toarray()
+    return M, C, K
+
+
+def simulate(scene, progress=False, support=None):
+    """`simulate_beam` on the scene (support motion is not supported for beams yet)."""
+    from dtdyn.linear.beam import simulate_beam
+
+    return simulate_beam(scene.model, scene.force, scene.dt, force_dofs=scene.loaded,
+                         scheme=scene.scheme, form=scene.form, backend=scene.backend,
+                         outputs=scene.outputs, quantities=scene.quantities, progress=progress,
+                         **(support or {}), **scene.scheme_params)
+
+
+def frequencies(beam, count=None) -> np.ndarray:
+    """The lowest ``count`` (all when None) natural frequencies by the Wittrick-Williams count."""
+    from dtdyn.linear.beam import beam_frequencies
+
+    return beam_frequencies(beam, count=count)

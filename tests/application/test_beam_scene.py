@@ -1,0 +1,74 @@
+"""Scenes with kind = "beam": the issue's [model] table, the run against simulate_mck on
+Scene.matrices() (same scheme), `dtdyn modes --json` against the closed-form cantilever
+frequencies, errors that name the field."""
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import dtdyn as dd
+
+MODEL = {"kind": "beam", "E": 2.1e11, "I": 8.0e-6, "rho_A": 20.0, "length": 3.0,
+         "elements": 200, "left": "clamped", "right": "free"}
+SCENE = {
+    "title": "cantilever",
+    "model": MODEL | {"rayleigh": [0.5, 1e-6],
+                      "point_masses": [{"node": 100, "mass": 5.0, "inertia": 0.01}],
+                      "supports": [{"node": 150, "k_w": 1e5, "c_w": 20.0}]},
+    "load": [{"dof": "w200", "kind": "step", "amplitude": 100.0}],
+    "scheme": {"name": "newmark", "form": "acceleration"},
+    "time": {"dt": 1e-4, "duration": 0.1},
+    "output": {"outputs": ["w200", "psi100"], "quantities": ["x", "v"]},
+}
+
+
+def test_beam_scene_runs_like_the_assembled_model():
+    scene = dd.scene_from_dict(SCENE)
+    assert scene.kind == "beam" and scene.n_dof == 400 and scene.dof_names[:2] == ("w1", "psi1")
+    M, C, K = scene.matrices()
+    assert M.shape == (400, 400)
+    response, report = dd.run_scene(scene)
+    ref = dd.simulate_mck(M, C, K, scene.force, scene.dt, force_dofs=scene.loaded,
+                          outputs=scene.outputs, quantities=("x", "v"))
+    # both solve the same steps; each solve rounds at eps cond(A), cond(A) ~ 1 + Omega_max^2 / 4
+    # (Omega_max = omega_max dt ~ 1e3), summed over the steps at worst (tests/test_beam.py);
+    # the assembled solvers differ among themselves (dense, SuperLU, NumPy) by 1.4e-9 .. 2e-9
+    omega_max = dd.beam_frequencies(scene.model)[-1]
+    bound = scene.n_steps * np.finfo(float).eps * (1 + (omega_max * scene.dt) ** 2 / 4)
+    for q in "xv":
+        assert np.abs(getattr(response, q) - getattr(ref, q)).max() \
+            <= bound * np.abs(getattr(ref, q)).max()
+
+
+def test_modes_json_gives_the_cantilever_frequencies(tmp_path):
+    path = tmp_path / "beam.toml"
+    path.write_text("\n".join(["[model]"] + [f"{k} = {json.dumps(v)}" for k, v in MODEL.items()]
+                              + ['[[load]]', 'dof = "w200"', 'kind = "step"', "[scheme]",
+                                 'name = "newmark"', "[time]", "dt = 1e-4", "duration = 0.01"]))
+    out = subprocess.run([sys.executable, "-m", "dtdyn.app.cli", "modes", str(path), "--count",
+                          "5", "--json"], capture_output=True, text=True, check=True)
+    omega = np.array(json.loads(out.stdout)["omega"])
+    beta_l = np.array([1.875104, 4.694091, 7.854757, 10.995541, 14.137168])
+    np.testing.assert_allclose(omega, beta_l**2 * np.sqrt(2.1e11 * 8e-6 / (20.0 * 3.0**4)),
+                               rtol=1e-6)
+
+
+@pytest.mark.parametrize("change, match", [
+    ({"E": -1.0}, r"model\.E\[0\] = -1\.0"),
+    ({"elements": 2.5}, r"elements = 2\.5"),
+    ({"left": "glued"}, r"left = 'glued'"),
+    ({"supports": [{"node": 3, "k": 1.0}]}, r"model\.supports\[0\]\.k: unknown key"),
+    ({"nodes": 3}, r"model\.nodes: unknown key"),
+])
+def test_bad_beam_scene_names_the_field(change, match):
+    with pytest.raises(ValueError, match=match):
+        dd.scene_from_dict(SCENE | {"model": MODEL | change})
+
+
+def test_missing_beam_key_is_named():
+    model = dict(MODEL)
+    del model["rho_A"]
+    with pytest.raises(ValueError, match=r"model\.rho_A is required"):
+        dd.scene_from_dict(SCENE | {"model": model})
