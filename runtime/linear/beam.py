@@ -26,6 +26,7 @@ import scipy.sparse as sps
 
 from dtdyn.generated import beam as derived
 
+from dtdyn._engine import ground as support
 from dtdyn._engine import linalg, validate
 
 __all__ = ["Beam", "PointMass", "Support", "beam_matrices", "beam_frequencies", "simulate_beam"]
@@ -360,7 +361,9 @@ def _highest_frequency_bound(beam: Beam) -> float:
 
 def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
                   form="displacement", outputs=None, quantities=("x", "v", "a"), x0=None,
-                  v0=None, unstable="raise", backend="c", progress=False, **scheme_params):
+                  v0=None, unstable="raise", backend="c", progress=False,
+                  ground_acceleration=None, ground_velocity=None, ground_displacement=None,
+                  influence=None, **scheme_params):
     """Time history of a `Beam` by the DT-TMM with the matrix Riccati sweep.
 
     Each step the scheme makes every DOF's x, v, a affine in its unknown u (the increment
@@ -384,11 +387,16 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     backend : {"c", "numpy"}
         The generated C loop with the Riccati sweep, or NumPy with a sparse LU of the same
         effective matrix.
+    ground_acceleration, ground_velocity, ground_displacement, influence : optional
+        Support motion as in `simulate_mck` (one record; ``force`` may then be None): the DOFs
+        are relative to the supports, which move together; the default influence r is the
+        rigid translation (1 on every w, 0 on every psi).
 
     Returns
     -------
     Response
-        ``x``, ``v``, ``a`` of shape (n_steps + 1, len(outputs)), ``dof_names`` of the outputs.
+        ``x``, ``v``, ``a`` of shape (n_steps + 1, len(outputs)), ``dof_names`` of the outputs
+        (and ``a_abs``, ``x_abs`` under support motion).
 
     Examples
     --------
@@ -408,6 +416,12 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
         raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
     M, C, K = beam_matrices(beam)
     n = beam.n_dof
+    if influence is None and support.given(ground_acceleration, ground_velocity,
+                                           ground_displacement):
+        influence = (beam.free % 2 == 0).astype(float)  # a rigid translation: w 1, psi 0
+    force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
+                                                influence, dt=dt, ground_velocity=ground_velocity,
+                                                ground_displacement=ground_displacement)
     force, dt, loaded = validate.time_history(force, dt, force_dofs, n)
     x0, v0 = validate.initial_conditions(x0, v0, n)
     outputs = validate.dof_indices("outputs", outputs, n)
@@ -445,4 +459,4 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     res.info.update(method="DT-TMM (matrix Riccati sweep)" if loop is not None else
                     "assembled matrices (sparse LU)", form=form,
                     backend="c" if loop is not None else "numpy")
-    return res
+    return support.finish(res, ground)

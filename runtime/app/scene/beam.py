@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import numpy as np
 
+#: [ground] is supported: the supports move together (default influence: w 1, psi 0)
+GROUND = True
 MODEL_KEYS = ("kind", "E", "I", "rho_A", "length", "elements", "left", "right", "mass",
               "rayleigh", "point_masses", "supports")
 TABLES = {"point_masses": ("PointMass", ("node", "mass", "inertia")),
@@ -84,7 +86,7 @@ def matrices(beam, sparse=None):
 
 
 def simulate(scene, progress=False, support=None):
-    """`simulate_beam` on the scene (support motion is not supported for beams yet)."""
+    """`simulate_beam` on the scene, with its [ground] record when it has one."""
     from dtdyn.linear.beam import simulate_beam
 
     return simulate_beam(scene.model, scene.force, scene.dt, force_dofs=scene.loaded,

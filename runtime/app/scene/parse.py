@@ -134,9 +134,9 @@ def _parse_ground(tbl, n_dof: int, t: np.ndarray, base_dir: Path, kind: str):
                          + (" (\"g\" is for an acceleration record)" if units == "g" else ""))
     influence = spec.pop("influence", None)
     if influence is not None:
-        if kind != "matrices":
-            raise ValueError("ground.influence: a chain moves with its base as a whole (ones); "
-                             "the key is for matrices scenes")
+        if kind not in ("matrices", "beam"):
+            raise ValueError(f"ground.influence: a {kind} moves with its base as a whole; the "
+                             "key is for matrices and beam scenes")
         influence = np.asarray(_number_list("ground.influence", influence), dtype=float)
         if influence.size != n_dof:
             raise ValueError(f"ground.influence has {influence.size} entries, expected one per "
@@ -219,9 +219,10 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         if nonlinear:
             M, C, K = (A.toarray() if sps.issparse(A) else A for A in (M, C, K))
     elif kind in MODEL_MODULES:
-        if nonlinear or "ground" in data:
-            raise ValueError(f"model.kind = {kind!r}: [[element]] and [ground] are not supported "
-                             "for this kind yet; remove them")
+        if nonlinear or ("ground" in data and not getattr(model_module(kind), "GROUND", False)):
+            what = "[[element]]" if nonlinear else "[ground]"
+            raise ValueError(f"model.kind = {kind!r}: {what} is not supported for this kind yet; "
+                             "remove it")
         model = model_module(kind).parse_model(data["model"], data.get("branch"), base_dir)
         names = tuple(model.dof_names)
         n_dof = len(names)
