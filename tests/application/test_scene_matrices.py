@@ -225,8 +225,8 @@ def test_chain_scene_with_explicit_kind_and_no_names(tmp_path):
 
 NAN_M = "[model]\nkind = \"matrices\"\nM = [[1.0, 0.0], [0.0, nan]]\nK = [[1.0, 0.0], [0.0, 1.0]]\n"
 BAD = {
-    "unknown kind": ('[model]\nkind = "beam"\n', r"model\.kind = 'beam': unknown value, allowed: "
-                                                 r"'chain', 'matrices'"),
+    "unknown kind": ('[model]\nkind = "plate"\n', r"model\.kind = 'plate': unknown value, "
+                                                  r"allowed: 'chain', 'matrices', 'shaft', 'beam'"),
     "chain key in matrices": (inline_model(extra="mass = [1.0, 1.0]\n"),
                               r"model\.mass = \[1\.0, 1\.0\]: unknown key, allowed: kind, M, K"),
     "missing K": ('[model]\nkind = "matrices"\nM = [[1.0]]\n', r"model\.K is required"),
