@@ -161,12 +161,15 @@ int dtdyn_mck_loop(int solver, long n, long n_hist, long n_steps, long n_loaded,
             rhs[i] = 0.0;
         }
         for (h = 0; h < n_hist; ++h) {
-            const double lq = L[0 * n_hist + h], ls = L[1 * n_hist + h];
-            const double lb = L[2 * n_hist + h], *Hh = H + h * n;
+            const double lq = L[0 * n_hist + h], ls = L[1 * n_hist + h], *Hh = H + h * n;
             for (i = 0; i < n; ++i) {
                 q[i] += lq * Hh[i];
                 s[i] += ls * Hh[i];
-                bm[i] += lb * Hh[i];
+            }
+            if (val[2]) { /* b: the displacement form only */
+                const double lb = L[2 * n_hist + h];
+                for (i = 0; i < n; ++i)
+                    bm[i] += lb * Hh[i];
             }
         }
         for (j = 0; j < n_loaded; ++j)
