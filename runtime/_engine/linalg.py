@@ -83,7 +83,6 @@ def check_mass(M) -> None:
 def solver(A, what: str, why: str = ""):
     """``solve(B) = A^-1 B`` by sparse or dense LU, factorized once; ValueError naming ``what``
     when A is singular or numerically singular (condition number * n * eps >= 1)."""
-    tail = f": {why}" if why else ""
     if sps.issparse(A):
         return sparse_lu(A, what, why).solve
     lu_piv = dense_lu(A, what, why)
@@ -126,3 +125,19 @@ def dense_lu(A, what: str, why: str = ""):
         raise ValueError(f"{what} is singular or numerically singular (condition number "
                          f"{cond:.3g}){tail}")
     return sla.lu_factor(A, check_finite=False)
+
+
+def node_blocks(A):
+    """The 2 x 2 node blocks of a matrix with two DOFs per node, node by node: D[i] = A[node i,
+    node i], E[i] = A[node i, node i + 1], F[i] = A[node i + 1, node i] (arrays (nodes, 2, 2),
+    (nodes - 1, 2, 2) twice)."""
+    A = sps.csr_matrix(A)
+    nodes = A.shape[0] // 2
+    i = 2 * np.arange(nodes)
+    D, E, F = (np.empty((k, 2, 2)) for k in (nodes, nodes - 1, nodes - 1))
+    for a in range(2):
+        for b in range(2):
+            D[:, a, b] = A[i + a, i + b].A1
+            E[:, a, b] = A[i[:-1] + a, i[1:] + b].A1
+            F[:, a, b] = A[i[1:] + a, i[:-1] + b].A1
+    return D, E, F

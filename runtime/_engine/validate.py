@@ -42,12 +42,21 @@ def vector(name: str, values, *, positive: bool = False, nonnegative: bool = Fal
     return arr
 
 
-def dof_indices(name: str, values, n_dof: int, default_all: bool = True) -> np.ndarray:
-    """0-based, unique, in-range DOF indices (all DOFs when ``values`` is None)."""
+def dof_indices(name: str, values, n_dof: int, default_all: bool = True,
+                names: tuple | None = None) -> np.ndarray:
+    """0-based, unique, in-range DOF indices (all DOFs when ``values`` is None); with ``names``
+    (a model's ``dof_names``) an entry may also be a DOF's name."""
     if values is None:
         if not default_all:
             raise ValueError(f"{name} is required")
         return np.arange(n_dof, dtype=np.int64)
+    if names is not None:
+        vals = [values] if isinstance(values, (str, int, np.integer)) else list(values)
+        for v in vals:
+            if isinstance(v, str) and v not in names:
+                shown = ", ".join(names[:8]) + (" ..." if len(names) > 8 else "")
+                raise ValueError(f"{name}: no DOF named {v!r} (the DOFs are {shown})")
+        values = [names.index(v) if isinstance(v, str) else v for v in vals]
     idx = np.atleast_1d(np.asarray(values))
     if idx.ndim != 1 or idx.size == 0 or not np.issubdtype(idx.dtype, np.integer):
         raise ValueError(f"{name} must be a non-empty sequence of integer DOF indices, got {values!r}")

@@ -106,7 +106,7 @@ class Beam:
         Number of elements N (nodes 0 .. N).
     left, right : str or (k_w, k_psi)
         "clamped", "pinned", "sliding", "free", or an elastic end: springs to the ground.
-    mass : {"consistent", "lumped"}
+    mass_matrix : {"consistent", "lumped"}
         Element mass matrix: consistent, or HRZ-lumped (diagonal).
     rayleigh : (alpha, beta), optional
         C = alpha M + beta K (before the dampers of ``supports``).
@@ -122,7 +122,7 @@ class Beam:
     """
 
     def __init__(self, *, E, I, rho_A, length, elements, left="clamped", right="free",  # noqa: E741
-                 mass="consistent", rayleigh=None, point_masses=(), supports=()):
+                 mass_matrix="consistent", rayleigh=None, point_masses=(), supports=()):
         self.E, self.I = _number("E", E, True), _number("I", I, True)
         self.rho_A = _number("rho_A", rho_A, True)
         self.length = _number("length", length, True)
@@ -130,9 +130,9 @@ class Beam:
                 or elements < 1:
             raise ValueError(f"elements = {elements!r}: must be an integer >= 1")
         self.elements = int(elements)
-        if mass not in ("consistent", "lumped"):
-            raise ValueError(f"mass = {mass!r}: must be 'consistent' or 'lumped'")
-        self.mass = mass
+        if mass_matrix not in ("consistent", "lumped"):
+            raise ValueError(f"mass_matrix = {mass_matrix!r}: must be 'consistent' or 'lumped'")
+        self.mass_matrix = mass_matrix
         self.rayleigh = None if rayleigh is None else tuple(
             float(v) for v in validate.vector("rayleigh", rayleigh, nonnegative=True, length=2))
         supports = list(supports)
@@ -152,6 +152,13 @@ class Beam:
         held = np.zeros((self.elements + 1, 2), dtype=bool)
         held[0] = BOUNDARIES.get(self.ends["left"], (False, False))
         held[-1] |= BOUNDARIES.get(self.ends["right"], (False, False))
+        for name, items, fields in (("point_masses", self.point_masses, ("mass", "inertia")),
+                                    ("supports", self.supports, ("k_w", "k_psi"))):
+            for item in items:  # what acts on a held DOF would silently vanish
+                for j, f in enumerate(fields):
+                    if held[item.node, j] and getattr(item, f) != 0.0:
+                        raise ValueError(f"{name}: {f} = {getattr(item, f)!r} at node "
+                                         f"{item.node}, where {('w', 'psi')[j]} is held")
         #: the kept DOFs as global indices 2 node + (0: w, 1: psi)
         self.free = np.flatnonzero(~held.ravel())
         self.dof_names = tuple(f"{'w' if d % 2 == 0 else 'psi'}{d // 2}" for d in self.free)
@@ -179,14 +186,14 @@ class Beam:
     def __repr__(self):
         return (f"Beam(E={self.E:g}, I={self.I:g}, rho_A={self.rho_A:g}, length={self.length:g}, "
                 f"elements={self.elements}, left={self.ends['left']!r}, "
-                f"right={self.ends['right']!r}, mass={self.mass!r})")
+                f"right={self.ends['right']!r}, mass_matrix={self.mass_matrix!r})")
 
     def global_matrices(self):
         """(M, C, K) over all 2 (N + 1) DOFs (constrained ones included), scipy.sparse CSR."""
         n = 2 * (self.elements + 1)
         h = self.length / self.elements
         Ke = derived.element_stiffness(self.E * self.I, h)
-        Me = (derived.element_mass if self.mass == "consistent"
+        Me = (derived.element_mass if self.mass_matrix == "consistent"
               else derived.element_mass_lumped)(self.rho_A, h)
         first = 2 * np.arange(self.elements)
         rows = (first[:, None, None] + np.arange(4)[None, :, None]).repeat(4, axis=2)
@@ -238,32 +245,24 @@ def beam_matrices(beam: Beam):
     return tuple(A[f][:, f].tocsr() for A in beam.global_matrices())
 
 
-def _node_blocks(beam: Beam, A):
-    """Diagonal blocks D (n_nodes, 2, 2) and couplings E[i] = A[node i, node i + 1] of a
-    global matrix, with the constrained DOFs' rows and columns replaced by the identity's."""
-    n_nodes = beam.elements + 1
-    A = A.tocsr()
-    D = np.empty((n_nodes, 2, 2))
-    E = np.empty((n_nodes - 1, 2, 2))
-    for a in range(2):
-        for b in range(2):
-            D[:, a, b] = A[2 * np.arange(n_nodes) + a, 2 * np.arange(n_nodes) + b].A1
-            E[:, a, b] = A[2 * np.arange(n_nodes - 1) + a, 2 * np.arange(1, n_nodes) + b].A1
-    held = np.ones(2 * n_nodes, dtype=bool)
-    held[beam.free] = False
-    held = held.reshape(n_nodes, 2)
-    return D, E, held
-
-
-def wittrick_williams_counts(beam: Beam, lam) -> np.ndarray:
-    """The number of eigenvalues of (K, M) below each lam (rad^2/s^2): negative eigenvalues of
-    the 2 x 2 block pivots P_i = D_i(lam) - E_i P_{i+1}^-1 E_i^T, from the free (right) end."""
-    lam = np.atleast_1d(np.asarray(lam, dtype=float))
+def _count_blocks(beam: Beam):
+    """(DK, EK, DM, EM, held, pivmin): the node blocks of K and M (linalg.node_blocks) and the
+    held DOFs (nodes, 2) that every count of `wittrick_williams_counts` reads."""
     M, _, K = beam.global_matrices()
-    DK, EK, held = _node_blocks(beam, K)
-    DM, EM, _ = _node_blocks(beam, M)
+    DK, EK, _ = linalg.node_blocks(K)
+    DM, EM, _ = linalg.node_blocks(M)
+    held = np.ones(2 * (beam.elements + 1), dtype=bool)
+    held[beam.free] = False
     scale = max(np.abs(DK).max(), 1.0)
-    pivmin = np.finfo(float).tiny * scale * scale * 1e16
+    return DK, EK, DM, EM, held.reshape(-1, 2), np.finfo(float).tiny * scale * scale * 1e16
+
+
+def wittrick_williams_counts(beam: Beam, lam, blocks=None) -> np.ndarray:
+    """The number of eigenvalues of (K, M) below each lam (rad^2/s^2): negative eigenvalues of
+    the 2 x 2 block pivots P_i = D_i(lam) - E_i P_{i+1}^-1 E_i^T, from the free (right) end
+    (``blocks``: `_count_blocks` of the beam, when the caller keeps them)."""
+    lam = np.atleast_1d(np.asarray(lam, dtype=float))
+    DK, EK, DM, EM, held, pivmin = _count_blocks(beam) if blocks is None else blocks
     count = np.zeros(lam.size, dtype=np.int64)
     L = lam[:, None, None]
     P_next = det_next = None
@@ -311,8 +310,12 @@ def beam_frequencies(beam: Beam, count=None, below=None) -> np.ndarray:
     """
     if count is not None and below is not None:
         raise ValueError("give count or below, not both")
+    if not isinstance(beam, Beam):
+        raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
+    blocks = _count_blocks(beam)
     if below is not None:
-        wanted = int(wittrick_williams_counts(beam, [_number("below", below, True) ** 2])[0])
+        lam_below = _number("below", below, True) ** 2
+        wanted = int(wittrick_williams_counts(beam, [lam_below], blocks)[0])
     else:
         wanted = beam.n_dof if count is None else int(validate.step_count("count", count))
         if wanted > beam.n_dof:
@@ -331,7 +334,7 @@ def beam_frequencies(beam: Beam, count=None, below=None) -> np.ndarray:
         open_ = (mid > lo) & (mid < hi)
         if not open_.any():
             break
-        c = wittrick_williams_counts(beam, mid[open_])
+        c = wittrick_williams_counts(beam, mid[open_], blocks)
         idx = np.flatnonzero(open_)
         above = c > target[idx]
         hi[idx[above]] = mid[open_][above]
@@ -347,7 +350,7 @@ def _highest_frequency_bound(beam: Beam) -> float:
 
     h = beam.length / beam.elements
     Ke = derived.element_stiffness(beam.E * beam.I, h)
-    Me = (derived.element_mass if beam.mass == "consistent"
+    Me = (derived.element_mass if beam.mass_matrix == "consistent"
           else derived.element_mass_lumped)(beam.rho_A, h)
     extra = {}
     for s in beam.supports:  # each node's springs go to one element containing it
@@ -379,8 +382,8 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     force : array_like, shape (n_steps + 1, len(force_dofs))
         Force (N) or moment (N m) samples at t_k = k dt on the DOFs ``force_dofs``.
     dt : float
-    force_dofs, outputs : sequence of int, optional
-        Indices into ``beam.dof_names`` (``beam.dof("w200")``); default every DOF.
+    force_dofs, outputs : sequence of int or DOF names, optional
+        Indices into ``beam.dof_names`` or the names themselves ("w200"); default every DOF.
     scheme, form, quantities, x0, v0, unstable, progress
         As `simulate_chain` (x0, v0 over ``beam.dof_names``; explicit schemes have only the
         acceleration form).
@@ -416,15 +419,20 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
         raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
     M, C, K = beam_matrices(beam)
     n = beam.n_dof
-    if influence is None and support.given(ground_acceleration, ground_velocity,
-                                           ground_displacement):
-        influence = (beam.free % 2 == 0).astype(float)  # a rigid translation: w 1, psi 0
+    if force_dofs is not None:
+        force_dofs = validate.dof_indices("force_dofs", force_dofs, n, names=beam.dof_names)
+    record = support.given(ground_acceleration, ground_velocity, ground_displacement)
+    if influence is None and record is not None:  # a rigid translation: w 1, psi 0
+        ag = {"acceleration": ground_acceleration, "velocity": ground_velocity,
+              "displacement": ground_displacement}[record]
+        n_dir = 1 if np.ndim(ag) < 2 else np.shape(ag)[1]
+        influence = np.repeat((beam.free % 2 == 0).astype(float)[:, None], n_dir, axis=1)
     force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
                                                 influence, dt=dt, ground_velocity=ground_velocity,
                                                 ground_displacement=ground_displacement)
     force, dt, loaded = validate.time_history(force, dt, force_dofs, n)
     x0, v0 = validate.initial_conditions(x0, v0, n)
-    outputs = validate.dof_indices("outputs", outputs, n)
+    outputs = validate.dof_indices("outputs", outputs, n, names=beam.dof_names)
     quantities = stepping.check_quantities(quantities)
     if form not in ("displacement", "acceleration"):
         raise ValueError(f"form must be 'displacement' or 'acceleration', got {form!r}")

@@ -107,16 +107,8 @@ def block_factors(A, what="the effective matrix") -> tuple:
     """(P^-1, G, F) of a matrix block tridiagonal in 2 x 2 node blocks (mck_loop.c block_solve):
     condensed from the last node, P_i = D_i - G_i F_i, G_i = E_i P_{i+1}^-1; a singular P_i is
     a ValueError naming the node."""
-    A = sps.csr_matrix(A)
-    n = A.shape[0]
-    nodes = n // 2
-    i = 2 * np.arange(nodes)
-    D, E, F = (np.empty((k, 2, 2)) for k in (nodes, nodes - 1, nodes - 1))
-    for a in range(2):
-        for b in range(2):
-            D[:, a, b] = A[i + a, i + b].A1
-            E[:, a, b] = A[i[:-1] + a, i[1:] + b].A1
-            F[:, a, b] = A[i[1:] + a, i[:-1] + b].A1
+    D, E, F = linalg.node_blocks(A)
+    nodes = D.shape[0]
     Pinv, G = np.empty((nodes, 2, 2)), np.empty((nodes - 1, 2, 2))
     P = D[-1]
     for k in range(nodes - 1, -1, -1):

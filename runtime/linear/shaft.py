@@ -377,26 +377,6 @@ def _check_shaft(shaft):
         raise TypeError(f"shaft must be a dtdyn.Shaft, got {type(shaft).__name__}")
 
 
-def _indices(name, values, dofs, default_all=True):
-    """DOF indices from ints or DOF names."""
-    if values is not None:
-        vals = [values] if isinstance(values, (str, int, np.integer)) else list(values)
-        if any(isinstance(v, str) for v in vals):
-            out = []
-            for v in vals:
-                if isinstance(v, str):
-                    if v not in dofs:
-                        raise ValueError(f"{name}: no DOF named {v!r} (the DOFs are "
-                                         f"{', '.join(dofs[:8])}{' ...' if len(dofs) > 8 else ''})")
-                    out.append(dofs.index(v))
-                else:
-                    out.append(v)
-            values = out
-        else:
-            values = vals
-    return validate.dof_indices(name, values, len(dofs), default_all)
-
-
 def shaft_matrices(shaft: Shaft):
     """Assembled (M, C, K) of the lumped model, scipy.sparse CSR, rows in the order of
     ``shaft.dof_names``.
@@ -511,7 +491,7 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     -------
     Response
         ``x``, ``v``, ``a``: rotation (rad), rate, angular acceleration of the outputs;
-        ``info["dofs"]`` their names.
+        ``dof_names`` their names.
 
     Each step carries T = S phi + R from the leaves to the root (S once per call, R every step;
     a junction sums its branches, a gear scales S by 1/n^2 and R by -1/n) and the unknowns back
@@ -529,10 +509,10 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     _check_shaft(shaft)
     tree = shaft.tree
     N = tree.J.size
-    loaded = _indices("force_dofs", force_dofs, tree.names)
+    loaded = validate.dof_indices("force_dofs", force_dofs, N, names=tree.names)
     force, dt, loaded = validate.time_history(force, dt, loaded, N)
     x0, v0 = validate.initial_conditions(x0, v0, N)
-    out = _indices("outputs", outputs, tree.names)
+    out = validate.dof_indices("outputs", outputs, N, names=tree.names)
     quantities = stepping.check_quantities(quantities)
     if backend not in ("c", "numpy"):
         raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
@@ -556,8 +536,8 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     res = stepping.integrate(info, form, dt, force, (x0, v0, a0), make, out, quantities,
                              progress)
     used = "c" if backend == "c" and _c_function(info.name) is not None else "numpy"
-    res.info.update(method="DT-TMM (tree)", sweep="stable", backend=used,
-                    dofs=[tree.names[i] for i in out])
+    res.info.update(method="DT-TMM (tree)", sweep="stable", backend=used)
+    res.dof_names = tuple(tree.names[i] for i in out)
     return res
 
 
@@ -621,6 +601,8 @@ def shaft_frequencies(shaft: Shaft, count=None, below=None, *, exact=True) -> np
         raise ValueError(f"count = {count!r}: must be an integer >= 1")
     if below is not None and not (np.isfinite(below) and below > 0):
         raise ValueError(f"below = {below!r}: must be a finite frequency > 0 (rad/s)")
+    if count is not None and below is not None:
+        raise ValueError("give count or below, not both")
     if infinite and count is None and below is None:
         raise ValueError("count or below is required: a continuous shaft has infinitely many "
                          "frequencies")
@@ -648,11 +630,11 @@ def shaft_frequencies(shaft: Shaft, count=None, below=None, *, exact=True) -> np
     hi = 2.0 ** math.ceil(math.log2(max(bound, 1e-300) * 1.01))
     if below is not None:
         n_roots = int(cnt(float(below) ** 2)[0])
-        if count is not None:
-            n_roots = min(n_roots, count)
     else:
         n_total = None if infinite else tree.J.size
-        n_roots = n_total if count is None else (count if n_total is None else min(count, n_total))
+        if count is not None and n_total is not None and count > n_total:
+            raise ValueError(f"count = {count!r}: the shaft has {n_total} DOFs")
+        n_roots = n_total if count is None else count
     for _ in range(2000):
         if n_roots == 0 or cnt(hi)[0] >= n_roots:
             break

@@ -11,7 +11,7 @@
     elements = 200
     left = "clamped"                      # clamped | pinned | sliding | free | [k_w, k_psi]
     right = "free"                        #   (an elastic end: springs to the ground)
-    mass = "consistent"                   # optional: or "lumped" (HRZ)
+    mass_matrix = "consistent"            # optional: or "lumped" (HRZ)
     rayleigh = [0.5, 1e-5]                # optional: C = alpha M + beta K
     point_masses = [{node = 100, mass = 5.0, inertia = 0.1}]       # optional
     supports = [{node = 50, k_w = 1e5, c_w = 20.0}]                # optional: k_psi, c_psi too
@@ -27,7 +27,7 @@ import numpy as np
 
 #: [ground] is supported: the supports move together (default influence: w 1, psi 0)
 GROUND = True
-MODEL_KEYS = ("kind", "E", "I", "rho_A", "length", "elements", "left", "right", "mass",
+MODEL_KEYS = ("kind", "E", "I", "rho_A", "length", "elements", "left", "right", "mass_matrix",
               "rayleigh", "point_masses", "supports")
 TABLES = {"point_masses": ("PointMass", ("node", "mass", "inertia")),
           "supports": ("Support", ("node", "k_w", "k_psi", "c_w", "c_psi"))}
@@ -64,7 +64,7 @@ def parse_model(model: dict, branches, base_dir=None):
         if key not in model:
             raise ValueError(f"model.{key} is required (kind = 'beam')")
     kw = {k: model[k] for k in ("E", "I", "rho_A", "length", "elements", "left", "right",
-                                "mass", "rayleigh") if k in model}
+                                "mass_matrix", "rayleigh") if k in model}
     for key, (cls, allowed) in TABLES.items():
         if key in model:
             kw[key] = _items(f"model.{key}", model[key], getattr(B, cls), allowed)
@@ -77,22 +77,18 @@ def parse_model(model: dict, branches, base_dir=None):
 
 def matrices(beam, sparse=None):
     """(M, C, K): sparse CSR, or dense arrays when ``sparse`` is False."""
+    from dtdyn.app.scene.schema import model_matrices
     from dtdyn.linear.beam import beam_matrices
 
-    M, C, K = beam_matrices(beam)
-    if sparse is False:
-        return M.toarray(), C.toarray(), K.toarray()
-    return M, C, K
+    return model_matrices(beam_matrices, beam, sparse)
 
 
 def simulate(scene, progress=False, support=None):
     """`simulate_beam` on the scene, with its [ground] record when it has one."""
+    from dtdyn.app.scene.schema import model_simulate
     from dtdyn.linear.beam import simulate_beam
 
-    return simulate_beam(scene.model, scene.force, scene.dt, force_dofs=scene.loaded,
-                         scheme=scene.scheme, form=scene.form, backend=scene.backend,
-                         outputs=scene.outputs, quantities=scene.quantities, progress=progress,
-                         **(support or {}), **scene.scheme_params)
+    return model_simulate(simulate_beam, scene, progress, support)
 
 
 def frequencies(beam, count=None) -> np.ndarray:

@@ -180,8 +180,8 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
         from dtdyn.linear import chain  # imported here: chain may compile kernels on first use
 
         response = chain.simulate_chain(
-            **scene.chain, force=scene.force, dt=scene.dt, force_dofs=scene.loaded, **_support(scene), scheme=scene.scheme, form=scene.form,
-            sweep=scene.sweep,
+            **scene.chain, force=scene.force, dt=scene.dt, force_dofs=scene.loaded,
+            **_support(scene), scheme=scene.scheme, form=scene.form, sweep=scene.sweep,
             backend=scene.backend, outputs=scene.outputs, quantities=scene.quantities,
             progress=progress, **scene.scheme_params)
     run_time = time.perf_counter() - start

@@ -160,10 +160,6 @@ MODEL_KINDS = ("chain", "matrices", "shaft", "beam")
 MODEL_MODULES = {"shaft": "dtdyn.app.scene.shaft", "beam": "dtdyn.app.scene.beam"}
 
 
-def model_module(kind: str):
-    """The module of a kind in MODEL_MODULES."""
-    import importlib
-    return importlib.import_module(MODEL_MODULES[kind])
 _MODEL_KEYS = ("kind", "mass", "stiffness", "damping", "ground_stiffness", "ground_damping",
                "rayleigh")
 _MATRIX_MODEL_KEYS = ("kind", "M", "K", "C", "file", "dofs", "sparse", "damping")
@@ -173,6 +169,28 @@ _MTX_SUFFIXES = (".mtx", ".mtx.gz", ".mtx.bz2")
 _TIME_KEYS = ("dt", "duration")
 _OUTPUT_KEYS = ("outputs", "quantities")
 _SCHEME_COMMON = ("name", "form", "sweep", "backend")
+
+
+def model_module(kind: str):
+    """The module of a kind in MODEL_MODULES."""
+    import importlib
+    return importlib.import_module(MODEL_MODULES[kind])
+
+
+def model_matrices(assemble, model, sparse=None):
+    """(M, C, K) = assemble(model) of a kind in MODEL_MODULES: sparse CSR, or dense arrays when
+    ``sparse`` is False."""
+    M, C, K = assemble(model)
+    return (M.toarray(), C.toarray(), K.toarray()) if sparse is False else (M, C, K)
+
+
+def model_simulate(simulate, scene, progress=False, support=None):
+    """simulate(model, force, dt, ...) of a kind in MODEL_MODULES with the scene's load,
+    scheme, outputs and support motion."""
+    return simulate(scene.model, scene.force, scene.dt, force_dofs=scene.loaded,
+                    scheme=scene.scheme, form=scene.form, backend=scene.backend,
+                    outputs=scene.outputs, quantities=scene.quantities, progress=progress,
+                    **(support or {}), **scene.scheme_params)
 
 #: element kind -> (class in dtdyn.nonlinear.elements, required fields, optional fields); the
 #: optional fields' defaults are the classes' own

@@ -126,22 +126,18 @@ def parse_model(model: dict, branches, base_dir=None):
 
 def matrices(shaft, sparse=None):
     """(M, C, K): sparse CSR, or dense arrays when ``sparse`` is False."""
+    from dtdyn.app.scene.schema import model_matrices
     from dtdyn.linear.shaft import shaft_matrices
 
-    M, C, K = shaft_matrices(shaft)
-    if sparse is False:
-        return M.toarray(), C.toarray(), K.toarray()
-    return M, C, K
+    return model_matrices(shaft_matrices, shaft, sparse)
 
 
 def simulate(scene, progress=False, support=None):
     """`simulate_shaft` on the scene."""
+    from dtdyn.app.scene.schema import model_simulate
     from dtdyn.linear.shaft import simulate_shaft
 
-    return simulate_shaft(scene.model, scene.force, scene.dt, force_dofs=scene.loaded,
-                          scheme=scene.scheme, form=scene.form, backend=scene.backend,
-                          outputs=scene.outputs, quantities=scene.quantities, progress=progress,
-                          **(support or {}), **scene.scheme_params)
+    return model_simulate(simulate_shaft, scene, progress, support)
 
 
 def frequencies(shaft, count=None) -> np.ndarray:
