@@ -346,6 +346,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                        backend="c", tol=1e-12, max_iter=30, solver="newton", compiled=False,
                        ground_acceleration=None, ground_velocity=None,
                        ground_displacement=None, influence=None, x0=None, v0=None,
+                       accuracy=None, error_estimate=False, max_substeps=256,
                        **scheme_params) -> Response:
     """Forced response of M q'' + C q' + K q + L^T g = f with localized nonlinear elements.
 
@@ -390,6 +391,31 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     compiled : bool
         Backend "casadi": generate C for the whole record function and compile it (cached).
 
+    accuracy : float, optional
+        A target for the relative error instead of a sub-step count (distinct from ``tol``,
+        the Newton tolerance of each step): the record is run at S_0 = ``substeps``, 2 S_0,
+        4 S_0, ... and the first solution whose error estimate is <= ``accuracy`` is returned.
+        With p the scheme's order (modal_ramp 2, modal_parabolic 3, a one-step scheme its
+        table order) and d_k = x_k - x_{k-1} between successive runs, the Richardson estimates
+        are
+
+            |e_k| ~ |d_k| / (2^p - 1),      x_R,k = x_k + d_k / (2^p - 1),
+            |e_R,k| ~ |x_R,k - x_R,k-1| / (2^(p+1) - 1),
+
+        |.| the largest |difference| over time and columns relative to the largest |value|,
+        taken over the stored quantities (x, v, a, g, z). The extrapolation x_R is used only
+        when the observed order log2(|d_{k-1}| / |d_k|) is within 0.5 of p, and the plain
+        estimate uses min(p, observed order) (`dtdyn.nonlinear.accuracy`). ``info`` then holds
+        ``error_estimate``, ``substeps`` (of the returned run), ``extrapolated``,
+        ``observed_order``, ``accuracy_met``, and the times summed over every run. A run that
+        fails (NewtonError, a modal step beyond its stability limit) restarts at twice its
+        sub-steps.
+    error_estimate : bool
+        Without a target: also run ``substeps`` / 2 (``substeps`` even) or 2 ``substeps`` (odd)
+        and report the estimate of this run's error in ``info["error_estimate"]``.
+    max_substeps : int
+        ``accuracy``: the most sub-steps tried; beyond them a DtdynAccuracyWarning names the
+        target, the estimate reached and the sub-steps, and the best solution is returned.
     x0, v0 : (N,) array_like, optional
         Displacement and velocity at t_0 (rest when None); the elements start from the
         deformations they give, their internal states z from 0.
@@ -429,6 +455,26 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     >>> r.x.shape
     (2001, 2)
     """
+    if accuracy is not None or error_estimate:
+        from dtdyn.nonlinear import accuracy as acc
+        target = None if accuracy is None else acc.check_accuracy(accuracy)
+        S0 = validate.step_count("substeps", substeps)
+        cap = validate.step_count("max_substeps", max_substeps)
+        acc.scheme_order(scheme, scheme_params)
+
+        def run(S):
+            return nonlinear_response(
+                M, C, K, force, dt, elements=elements, force_dofs=force_dofs, scheme=scheme,
+                substeps=S, outputs=outputs, quantities=quantities, modes=modes,
+                backend=backend, tol=tol, max_iter=max_iter, solver=solver, compiled=compiled,
+                ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
+                ground_displacement=ground_displacement, influence=influence, x0=x0, v0=v0,
+                **scheme_params)
+        if target is None:
+            return acc.estimate_only(run, S0, scheme, scheme_params)
+        if S0 > cap:
+            raise ValueError(f"substeps ({S0}) must be <= max_substeps ({cap}) with accuracy")
+        return acc.reach(run, target, S0, cap, scheme, scheme_params)
     t0 = time.perf_counter()
     M, C, K = linalg.mck(M, C, K)
     n = M.shape[0]

@@ -1,0 +1,201 @@
+r"""An accuracy target for `nonlinear_response`: the sub-steps chosen from an error estimate.
+
+A scheme of order p run with S sub-steps (h = dt / S) has, once h is small enough for the leading
+term to dominate, the error
+
+    e_S(t) = x_S(t) - x(t) ~ c(t) h^p.
+
+Two runs at S_c and S_f = r S_c (r = 2 here) differ by d = x_f - x_c ~ c(t) h_f^p (1 - r^p), so
+
+    |e_f| ~ |d| / (r^p - 1),     |e_c| ~ |d| r^p / (r^p - 1)                      (Richardson)
+
+and the combination x_R = x_f + d / (r^p - 1) cancels the leading term. Its own error is of
+order q >= p + 1 (p + 2 for the schemes whose expansion holds only even powers: the ramp
+invariant and the average-acceleration Newmark measure 4 on P4), estimated the same way from two
+extrapolations R_k, R_{k-1} of the sequence S_0, 2 S_0, 4 S_0 with q = p + 1:
+
+    |x_R,k - x| ~ |R_k - R_{k-1}| / (2^(p+1) - 1),
+
+an over-estimate by at most (2^(p+2) - 1) / (2^(p+1) - 1) (2.1 for p = 2, 2.1 for p = 3) when
+q = p + 2.
+
+Norm: for each stored quantity (x, v, a, g, z) the largest |difference| over time and columns,
+relative to the largest |value| of that quantity; the estimate is the largest over the
+quantities (the measure of `dtdyn bench` and the tests: max over time and outputs relative to
+max |x|).
+
+The order p: modal_ramp 2, modal_parabolic 3 (`dtdyn.nonlinear.linear_step`), a one-step scheme
+its ``order`` in the scheme table (Newmark with gamma != 1/2: 1). The runs themselves check it:
+from three levels the observed order p_obs = log2(|d_{k-1}| / |d_k|); the estimate uses
+min(p, p_obs) (never an order the runs do not show), and the extrapolation is used only when
+|p_obs - p| <= 0.5 (the leading term dominates). Non-smooth elements (a gap's contact, Bouc-Wen's
+sign(y')) break the expansion, and the estimate is then only as good as p_obs says.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from dtdyn._engine.errors import DtdynAccuracyWarning, DtdynStepStabilityError, NewtonError
+from dtdyn.generated.scheme_table import TABLE
+
+#: the stored quantities the estimate measures, and the ones an extrapolation combines
+MEASURED = ("x", "v", "a", "g", "z")
+
+#: the extrapolation is used only when the observed order is within P_SLACK of the scheme's
+P_SLACK = 0.25
+COMBINED = MEASURED + ("a_abs", "x_abs")
+
+
+def check_accuracy(accuracy):
+    """accuracy as a float: a real number, finite and > 0, or ValueError naming it."""
+    if isinstance(accuracy, (bool, np.bool_)) or not isinstance(
+            accuracy, (int, float, np.integer, np.floating)):
+        raise ValueError(f"accuracy must be a number (a relative error such as 1e-6), got "
+                         f"{accuracy!r}")
+    value = float(accuracy)
+    if not math.isfinite(value) or value <= 0.0:
+        raise ValueError(f"accuracy must be finite and > 0, got {accuracy!r}")
+    return value
+
+
+def scheme_order(method, params) -> int:
+    """The order p in h of ``method`` with these parameters (modal_ramp 2, modal_parabolic 3, a
+    one-step scheme its table order; Newmark with gamma != 1/2 is first order)."""
+    if method == "modal_ramp":
+        return 2
+    if method == "modal_parabolic":
+        return 3
+    if method not in TABLE:
+        raise ValueError(f"scheme {method!r} has no known order; accuracy and error_estimate "
+                         f"need modal_ramp, modal_parabolic or a scheme of {', '.join(TABLE)}")
+    if method == "newmark" and float(params.get("gamma", 0.5)) != 0.5:
+        return 1
+    return int(TABLE[method]["order"])
+
+
+def difference(a, b) -> float:
+    """max over the stored quantities of max|a_q - b_q| / max|a_q| (0 for none stored)."""
+    worst = 0.0
+    for q in MEASURED:
+        x, y = getattr(a, q, None), getattr(b, q, None)
+        if x is None or y is None:
+            continue
+        scale = np.abs(x).max()
+        d = np.abs(x - y).max()
+        worst = max(worst, float(d / scale) if scale > 0 else (0.0 if d == 0 else np.inf))
+    return worst
+
+
+def _extrapolate(fine, coarse, factor):
+    """fine + factor (fine - coarse), quantity by quantity (a new Response)."""
+    from copy import copy
+    out = copy(fine)
+    out.info = dict(fine.info)
+    for q in COMBINED:
+        x, y = getattr(fine, q, None), getattr(coarse, q, None)
+        if x is not None and y is not None:
+            setattr(out, q, x + factor * (x - y))
+    return out
+
+
+def _timing(runs):
+    keys = ("setup_time", "construct_time", "compile_time", "run_time")
+    return {k: float(sum(r.info.get(k, 0.0) for r in runs)) for k in keys}
+
+
+def estimate_only(run, substeps, method, params):
+    """The run at ``substeps`` with the estimate of its own error from a companion run (S / 2
+    when S is even: the cheaper one; 2 S otherwise)."""
+    p = scheme_order(method, params)
+    S = substeps
+    mine = run(S)
+    if S % 2 == 0:
+        other = run(S // 2)
+        est = difference(mine, other) / (2**p - 1)       # mine is the fine run
+    else:
+        other = run(2 * S)
+        est = difference(mine, other) * 2**p / (2**p - 1)  # mine is the coarse run
+    mine.info.update(_timing([mine, other]))
+    mine.info.update(error_estimate=est, error_order=p, extrapolated=False,
+                     estimate_substeps=[S, other.info["substeps"]])
+    return mine
+
+
+def reach(run, accuracy, substeps, max_substeps, method, params):
+    """Run S_0 = ``substeps``, 2 S_0, 4 S_0, ... until an estimate <= ``accuracy``.
+
+    After each run k >= 1: the estimate of the finest run, |d_k| / (2^p_e - 1), p_e = p (k = 1)
+    or min(p, p_obs) (k >= 2); from k >= 2, when |p_obs - p| <= 0.5, also that of the
+    extrapolation R_k (module docstring). The first estimate <= accuracy returns its solution
+    (R_k when both qualify: the smaller error). A run that fails (NewtonError, a modal step
+    beyond its stability limit) restarts the sequence at twice its sub-steps. Beyond
+    ``max_substeps``: a DtdynAccuracyWarning naming the target, the estimate reached and the
+    sub-steps, and the best solution with its estimate.
+    """
+    p = scheme_order(method, params)
+    runs, diffs, levels, extrap, dR, all_runs = [], [], [], [], [], []
+    log = []
+    S = substeps
+    best = None
+    while S <= max_substeps:
+        try:
+            r = run(S)
+        except (NewtonError, DtdynStepStabilityError) as exc:
+            log.append((S, None, f"{type(exc).__name__}: restarted at {2 * S} sub-steps"))
+            runs, diffs, levels, extrap, dR = [], [], [], [], []
+            S *= 2
+            continue
+        all_runs.append(r)
+        runs.append(r)
+        levels.append(S)
+        k = len(runs) - 1
+        if k >= 1:
+            diffs.append(difference(r, runs[-2]))
+            p_eff, p_obs = p, None
+            if k >= 2:
+                ratio = diffs[-2] / diffs[-1] if diffs[-1] > 0 else np.inf
+                p_obs = math.log2(ratio) if ratio > 0 else -np.inf
+                p_eff = min(p, p_obs)
+            plain = diffs[-1] / (2**p_eff - 1) if p_eff > 0 else np.inf
+            cands = [(plain, r, False)]
+            R = _extrapolate(r, runs[-2], 1.0 / (2**p - 1))
+            extrap.append(R)
+            if p_obs is not None and abs(p_obs - p) <= P_SLACK and len(extrap) >= 2:
+                dR.append(difference(R, extrap[-2]))
+                if len(dR) >= 2:  # four levels: the extrapolation's own observed order
+                    ratio = dR[-2] / dR[-1] if dR[-1] > 0 else np.inf
+                    q = min(p + 1, math.log2(ratio) if ratio > 0 else -np.inf)
+                    if q >= p + 0.5:  # the extrapolation gains over the finest run
+                        cands.append((dR[-1] / (2**q - 1), R, True))
+            else:
+                dR.clear()
+            log.append((S, min(c[0] for c in cands), None))
+            est, sol, is_R = min(cands, key=lambda c: c[0])
+            if best is None or est < best[0]:
+                best = (est, sol, is_R, S, p_obs, list(levels))
+            if est <= accuracy:
+                return _finish(best, accuracy, True, all_runs, p, log)
+        else:
+            log.append((S, None, None))
+        S *= 2
+    if best is None:
+        raise NewtonError(f"accuracy={accuracy:g}: no run succeeded up to max_substeps="
+                          f"{max_substeps} ({log[-1][2] if log else 'no run'})")
+    warnings.warn(
+        f"accuracy={accuracy:g} not reached: the error estimate is {best[0]:.3g} at "
+        f"{best[3]} sub-steps (max_substeps={max_substeps}, scheme {method!r}, order {p}); "
+        f"raise max_substeps or use a higher-order scheme", DtdynAccuracyWarning, stacklevel=3)
+    return _finish(best, accuracy, False, all_runs, p, log)
+
+
+def _finish(best, accuracy, met, all_runs, p, log):
+    est, sol, is_R, S, p_obs, used = best
+    sol.info.update(_timing(all_runs))
+    sol.info.update(substeps=S, error_estimate=float(est), accuracy=accuracy, accuracy_met=met,
+                    extrapolated=is_R, error_order=p, observed_order=p_obs,
+                    estimate_substeps=used,
+                    accuracy_log=[{"substeps": s, "estimate": e, "note": n} for s, e, n in log])
+    return sol

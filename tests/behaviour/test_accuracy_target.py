@@ -1,0 +1,281 @@
+"""The accuracy target of nonlinear_response (runtime/nonlinear/accuracy.py) against independent
+truths: the solve_ivp reference (DOP853, rtol 1e-12, restarted at every sample) for P4, Bouc-Wen
+and the gap, solve_ivp directly for the Duffing oscillator released from x0, v0.
+
+Error measure, the same as the estimate's: for each stored quantity the largest |x - x_ref|
+over time and columns relative to the largest |x_ref|, the largest over the quantities.
+The claims: the returned solution is within ``accuracy`` of the truth, and its estimate within a
+factor 3 of its true error, where the scheme's order holds (smooth elements); where it does not
+(the gap's kink, Bouc-Wen's |z| and sign(y')), each test says what is measured instead.
+"""
+import warnings
+
+import numpy as np
+import pytest
+
+from dtdyn._engine.errors import DtdynAccuracyWarning
+from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap
+from dtdyn.nonlinear.reference import reference_response
+from dtdyn.nonlinear.response import nonlinear_response
+from problems import p4
+
+#: P4 shortened to 20,000 samples (20 s at 1 kHz) to keep the CasADi backend's runs short
+N_P4 = 20_000
+
+
+def error(r, ref, quantities="xva"):
+    return max(np.abs(getattr(r, q) - getattr(ref, q)).max() / np.abs(getattr(ref, q)).max()
+               for q in quantities if getattr(r, q) is not None)
+
+
+def check(r, ref, accuracy, quantities="xva"):
+    """Within the target, and the estimate within a factor 3 of the true error."""
+    e, est = error(r, ref, quantities), r.info["error_estimate"]
+    assert r.info["accuracy_met"] and est <= accuracy
+    assert e <= accuracy, (e, r.info)
+    assert e / 3 <= est <= 3 * e, (est, e, r.info["substeps"], r.info["extrapolated"])
+    return e, est
+
+
+@pytest.fixture(scope="module")
+def P4():
+    P = p4(N_P4)
+    P["args"] = (P["M"], P["C"], P["K"], P["force"], P["dt"])
+    P["kw"] = dict(force_dofs=P["force_dofs"], elements=P["elements"])
+    P["ref"] = reference_response(*P["args"], **P["kw"], cache=False)
+    return P
+
+
+# --- P4 -----------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("scheme, order", [("modal_ramp", 2), ("modal_parabolic", 3),
+                                           ("newmark", 2)])
+def test_p4_observed_order_is_the_one_the_estimate_assumes(P4, scheme, order):
+    """The Richardson estimate |x_2S - x_S| / (2^p - 1) needs the order p the scheme states:
+    measured on P4 against the reference at 2, 4, 8 sub-steps (log2 of successive error ratios:
+    2.00, 3.00, 1.97-1.99 measured)."""
+    errs = [error(nonlinear_response(*P4["args"], **P4["kw"], scheme=scheme, substeps=S,
+                                     quantities=("x",)), P4["ref"], "x") for S in (2, 4, 8)]
+    orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.all(np.abs(orders - order) <= 0.1), orders
+
+
+@pytest.mark.parametrize("backend", ["c", "casadi"])
+def test_p4_accuracy_1e6(P4, backend):
+    """modal_parabolic: runs at 1, 2, 4, 8 sub-steps; the extrapolation of the 4 and 8 runs is
+    returned (observed orders 3.0 of the runs, 4 of the extrapolations): 1.1e-8 true, 1.1e-8
+    estimated, on both backends."""
+    r = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", accuracy=1e-6,
+                           backend=backend)
+    check(r, P4["ref"], 1e-6)
+    assert r.info["backend"] == backend
+    assert abs(r.info["observed_order"] - 3) <= 0.25
+
+
+@pytest.mark.parametrize("scheme", ["modal_ramp", "newmark"])
+def test_p4_accuracy_1e6_second_order_schemes(P4, scheme):
+    """Second-order schemes: the extrapolation's order is taken as p + 1 = 3 although both are
+    symmetric (even powers only, 4 observed), so the estimate is high by up to
+    (2^4 - 1) / (2^3 - 1) = 2.14 (measured 2.14): inside the factor 3, on the safe side."""
+    r = nonlinear_response(*P4["args"], **P4["kw"], scheme=scheme, accuracy=1e-6)
+    e, est = check(r, P4["ref"], 1e-6)
+    assert 1.0 <= est / e <= 2.2
+
+
+def test_p4_accuracy_1e3_is_the_plain_run_at_two_substeps(P4):
+    """1e-3: the 2-sub-step run with the estimate from the 1-sub-step run (7.4e-5 estimated,
+    7.6e-5 true): the very run substeps=2 gives, bit for bit (tol keeps its meaning)."""
+    r = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", accuracy=1e-3)
+    check(r, P4["ref"], 1e-3)
+    assert r.info["substeps"] == 2 and not r.info["extrapolated"]
+    plain = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", substeps=2)
+    for q in "xva":
+        np.testing.assert_array_equal(getattr(r, q), getattr(plain, q))
+    assert r.info["estimate_substeps"] == [1, 2]
+
+
+@pytest.mark.parametrize("substeps", [1, 4])
+def test_error_estimate_without_a_target(P4, substeps):
+    """error_estimate=True: the run asked for, with its error estimated from 2 S (S odd: the
+    coarse run, |d| 2^p / (2^p - 1)) or S / 2 (S even: the fine run, |d| / (2^p - 1))."""
+    r = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", substeps=substeps,
+                           error_estimate=True)
+    assert r.info["substeps"] == substeps
+    e, est = error(r, P4["ref"]), r.info["error_estimate"]
+    assert e / 3 <= est <= 3 * e, (e, est)
+
+
+# --- Duffing, released from x0, v0 --------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def duffing():
+    from scipy.integrate import solve_ivp
+
+    m, c, k, k3, a0, b0 = 1.0, 2.0, 1e4, 1e9, 1e-2, -0.5
+    t = np.arange(501) * 1e-3
+    sol = solve_ivp(lambda _, y: [y[1], -(c * y[1] + k * y[0] + k3 * y[0] ** 3) / m],
+                    (0.0, t[-1]), [a0, b0], method="DOP853", rtol=1e-12, atol=1e-15, t_eval=t)
+
+    class Ref:
+        x, v, a = sol.y[0][:, None], sol.y[1][:, None], None
+
+    def run(**kw):
+        return nonlinear_response([[m]], [[c]], [[k]], np.zeros(501), 1e-3,
+                                  elements=[Cubic(0, k3=k3)], x0=[a0], v0=[b0],
+                                  quantities=("x", "v"), **kw)
+    return run, Ref
+
+
+@pytest.mark.parametrize("backend", ["c", "casadi"])
+@pytest.mark.parametrize("scheme", ["modal_ramp", "newmark"])
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_duffing(duffing, scheme, backend, accuracy):
+    """k3 x0^2 = 10 k: strongly nonlinear; 8 to 32 sub-steps, extrapolated (estimate high by
+    2.1, as on P4)."""
+    run, ref = duffing
+    check(run(scheme=scheme, backend=backend, accuracy=accuracy), ref, accuracy, "xv")
+
+
+def test_duffing_modal_parabolic_meets_the_target(duffing):
+    """modal_parabolic released from x0 != 0 does not show its third order cleanly: the observed
+    order of the runs falls from 2.9 (8 -> 16 sub-steps) to 2.4 (128 -> 256), a second-order
+    part under the third-order one. The target is met (1.1e-4 true at 1e-3; 8.9e-7 at 1e-6,
+    estimated 7.6e-7 from the observed order 2.4, no extrapolation)."""
+    run, ref = duffing
+    for accuracy in (1e-3, 1e-6):
+        r = run(scheme="modal_parabolic", accuracy=accuracy)
+        assert error(r, ref, "xv") <= accuracy
+    e, est = error(r, ref, "xv"), r.info["error_estimate"]
+    assert not r.info["extrapolated"] and e / 3 <= est <= 3 * e
+
+
+@pytest.mark.xfail(strict=True, reason="modal_parabolic from x0 != 0: the extrapolation of the "
+                   "8 and 16 sub-step runs keeps the second-order part the runs' order (2.9 "
+                   "there) does not reveal yet; its estimate 2.8e-5 is 3.9x below the true "
+                   "1.1e-4 (which still meets 1e-3)")
+def test_duffing_modal_parabolic_estimate_within_3x_at_1e3(duffing):
+    run, ref = duffing
+    r = run(scheme="modal_parabolic", accuracy=1e-3)
+    e = error(r, ref, "xv")
+    assert e / 3 <= r.info["error_estimate"] <= 3 * e
+
+
+# --- impact: a gap --------------------------------------------------------------------------
+
+def _gap(smoothing, stiffness=1e6, gap=0.05, c=10.0):
+    M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[c]])
+    fs, n = 100.0, 200
+    f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]
+    els = [Gap(0, gap=gap, stiffness=stiffness, smoothing=smoothing)]
+    ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, cache=False)
+
+    def run(**kw):
+        return nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, **kw)
+    return run, ref
+
+
+@pytest.mark.parametrize("scheme", ["newmark", "modal_ramp"])
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_impact_with_a_kink(scheme, accuracy):
+    """Contact at 100 times the linear stiffness, no smoothing: g has a kink at the contact, so
+    the second order breaks down (observed 0.8 to 2.5 between 8 and 256 sub-steps against the
+    reference). The extrapolation is refused (its observed order is not above p + 0.5 or the
+    runs' order is not within 0.25 of p) and the plain estimate with the observed order
+    min(p, p_obs) is returned: within the target and within 3x (ratios 1.06 to 1.9 measured),
+    at 256 to 1024 (1e-3) and 8192 to 32768 (1e-6) sub-steps."""
+    run, ref = _gap(0.0)
+    for quantities in (("x",), ("x", "v", "a")):
+        r = run(scheme=scheme, accuracy=accuracy, max_substeps=2**15, quantities=quantities)
+        check(r, ref, accuracy, quantities)
+        assert not r.info["extrapolated"]
+
+
+def test_impact_smoothed():
+    """The same gap with a smooth contact (smoothing 1e-3): second order again (1.96-2.00
+    observed), the extrapolation is used (of the 512 and 1024 sub-step runs: x, v and a to
+    1e-6 need more than the default cap of 256)."""
+    run, ref = _gap(1e-3)
+    r = run(scheme="newmark", accuracy=1e-6, max_substeps=4096)
+    check(r, ref, 1e-6)
+    assert r.info["extrapolated"]
+
+
+def test_impact_beyond_reach_warns():
+    """The stiff gap of test_nonlinear.py (1e12 N/m, 1 % damping): 1 and 2 sub-steps fail
+    (NewtonError) and restart the sequence at 4; no sub-step count up to 256 converges (observed
+    orders at or below 0: the errors against the reference stay O(1)), and the warning says so
+    instead of returning a result that claims the target."""
+    run, ref = _gap(1e-4, stiffness=1e12, gap=1e-2, c=2.0)
+    with pytest.warns(DtdynAccuracyWarning,
+                      match=r"accuracy=0.001 not reached: the error estimate is .* at \d+ "
+                            r"sub-steps \(max_substeps=256"):
+        r = run(scheme="newmark", accuracy=1e-3, max_substeps=256, quantities=("x",))
+    assert not r.info["accuracy_met"] and r.info["error_estimate"] > 1e-3
+    assert error(r, ref, "x") > 1e-3                     # the warning is right
+    notes = [e["note"] for e in r.info["accuracy_log"] if e["note"]]
+    assert notes[0].startswith("NewtonError: restarted at 2 sub-steps")
+
+
+# --- Bouc-Wen -----------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def bouc_wen():
+    M, K, C = np.array([[1.0]]), np.array([[100.0]]), np.array([[0.5]])
+    fs, n = 200.0, 1000
+    f = (50.0 * np.sin(2 * np.pi * np.arange(n) / fs))[:, None]
+    els = [BoucWen(0, stiffness=1e4, alpha=0.1, beta=50.0, gamma=50.0)]
+    ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, cache=False)
+
+    def run(**kw):
+        return nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, **kw)
+    return run, ref
+
+
+@pytest.mark.parametrize("scheme", ["modal_ramp", "newmark"])
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_bouc_wen(bouc_wen, scheme, accuracy):
+    """Bouc-Wen (n = 1: |z| and sign(y') in z'): the runs show order 2.0, the extrapolations less
+    than the smooth 4: at 1e-6 (128 sub-steps) the estimate is 2.0x below the true 4.2e-7,
+    at 1e-3 (16 sub-steps) 2.4-2.5x above it; within the target and the factor 3."""
+    run, ref = bouc_wen
+    check(run(scheme=scheme, accuracy=accuracy), ref, accuracy)
+
+
+def test_bouc_wen_modal_parabolic_runs_at_second_order(bouc_wen):
+    """modal_parabolic on Bouc-Wen is second order, not third (observed 2.02-2.05): the estimate
+    uses the observed order (ratio 0.93 measured at 1e-3, 32 sub-steps) and the extrapolation is
+    refused; 1e-6 would need about 500 sub-steps, so a cap of 64 warns with what it reached."""
+    run, ref = bouc_wen
+    r = run(scheme="modal_parabolic", accuracy=1e-3)
+    check(r, ref, 1e-3)
+    assert not r.info["extrapolated"] and abs(r.info["observed_order"] - 2) <= 0.25
+    with pytest.warns(DtdynAccuracyWarning, match=r"accuracy=1e-06 not reached.*at 64 sub-steps"):
+        r = run(scheme="modal_parabolic", accuracy=1e-6, max_substeps=64)
+    assert not r.info["accuracy_met"] and r.info["substeps"] == 64
+
+
+# --- bad input ----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("bad", [0, 0.0, -1e-6, np.nan, np.inf, "1e-6", True, [1e-6]])
+def test_bad_accuracy_is_named(P4, bad):
+    named = r"^accuracy must be (a number \(a relative error such as 1e-6\)|finite and > 0), got "
+    with pytest.raises(ValueError, match=named):
+        nonlinear_response(*P4["args"], **P4["kw"], accuracy=bad)
+
+
+def test_bad_max_substeps_and_unknown_order(P4):
+    with pytest.raises(ValueError, match="max_substeps"):
+        nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-6, max_substeps=0)
+    with pytest.raises(ValueError, match=r"substeps \(8\) must be <= max_substeps \(4\)"):
+        nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-6, substeps=8, max_substeps=4)
+    with pytest.raises(ValueError, match="scheme 'nonsense' has no known order"):
+        nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-6, scheme="nonsense")
+
+
+def test_cap_warns_with_target_estimate_and_substeps(P4):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(DtdynAccuracyWarning,
+                           match=r"accuracy=1e-12 not reached: the error estimate is "
+                                 r"[0-9.e-]+ at 4 sub-steps \(max_substeps=4"):
+            nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-12, max_substeps=4)
