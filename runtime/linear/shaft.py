@@ -23,6 +23,7 @@ import numpy as np
 import scipy.sparse as sps
 
 from dtdyn._engine import cbuild, stepping, validate
+from dtdyn._engine import ground as support
 from dtdyn._engine.kernels import params_array
 from dtdyn._engine.schemes import get_scheme
 from dtdyn.generated import shaft as gen
@@ -467,9 +468,23 @@ def _advance_factory(backend, tree, dt, loaded, outputs, form):
     return make_advance
 
 
+def rigid_rotation(shaft: Shaft) -> np.ndarray:
+    """Each DOF's rotation when the supports turn by one radian and nothing deforms: 1 on the
+    main line, times -1/n through each gear of ratio n (the default support-motion influence)."""
+    tree = shaft.tree
+    gu, _, _ = gen.gear_factors(tree.ratio)
+    r = np.ones(tree.J.size)
+    for i in range(tree.J.size):  # nodes are numbered parent first
+        if tree.parent[i] >= 0:
+            r[i] = gu[i] * r[tree.parent[i]]
+    return r
+
+
 def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark",
                    form="displacement", backend="c", outputs=None, quantities=("x", "v", "a"),
-                   x0=None, v0=None, unstable="raise", progress=False, **scheme_params):
+                   x0=None, v0=None, unstable="raise", progress=False, ground_acceleration=None,
+                   ground_velocity=None, ground_displacement=None, influence=None,
+                   **scheme_params):
     """Time history of a torsional shaft or tree by the DT-TMM (Riccati sweep on the tree).
 
     Parameters
@@ -486,6 +501,10 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
         As `simulate_chain`: the integrator and its parameters, "displacement" or
         "acceleration" form, "c" (generated C loop) or "numpy", what to store, the initial
         rotations and rates (a_0 consistent), the stability check.
+    ground_acceleration, ground_velocity, ground_displacement, influence : optional
+        Support motion (angular, rad/s^2, rad/s, rad) as in `simulate_mck`: the rotations are
+        then relative to the supports, which turn together; the default influence is
+        `rigid_rotation` (1 on the main line, -1/n through each gear). ``force`` may be None.
 
     Returns
     -------
@@ -509,7 +528,15 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     _check_shaft(shaft)
     tree = shaft.tree
     N = tree.J.size
-    loaded = validate.dof_indices("force_dofs", force_dofs, N, names=tree.names)
+    record = support.given(ground_acceleration, ground_velocity, ground_displacement)
+    if influence is None and record is not None:
+        influence = rigid_rotation(shaft)
+    if force_dofs is not None:
+        force_dofs = validate.dof_indices("force_dofs", force_dofs, N, names=tree.names)
+    force, loaded, ground = support.prepare(sps.diags(tree.J), force, force_dofs, N,
+                                            ground_acceleration, influence, dt=dt,
+                                            ground_velocity=ground_velocity,
+                                            ground_displacement=ground_displacement)
     force, dt, loaded = validate.time_history(force, dt, loaded, N)
     x0, v0 = validate.initial_conditions(x0, v0, N)
     out = validate.dof_indices("outputs", outputs, N, names=tree.names)
@@ -538,7 +565,7 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     used = "c" if backend == "c" and _c_function(info.name) is not None else "numpy"
     res.info.update(method="DT-TMM (tree)", sweep="stable", backend=used)
     res.dof_names = tuple(tree.names[i] for i in out)
-    return res
+    return support.finish(res, ground)
 
 
 # -- frequencies ---------------------------------------------------------------------------------

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+#: [ground] is supported: the supports turn together (default influence: the rigid rotation)
+GROUND = True
 MODEL_KEYS = ("kind", "inertia", "stiffness", "damping", "left", "right", "right_stiffness",
               "right_damping", "ground_stiffness", "ground_damping", "name")
 BRANCH_KEYS = ("name", "on", "at", "ratio", "inertia", "stiffness", "damping", "right",
