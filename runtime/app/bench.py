@@ -7,7 +7,10 @@ Time: median of repeats after a warm-up; construction and compile (the first cal
 median) reported apart. Fixed-step methods sweep dt (P3) or sub-steps (P4); adaptive solvers
 sweep rtol. References: the matrix exponential (exact for P3's piecewise-linear force) and the
 solve_ivp DOP853 rtol 1e-12 reference restarted at every sample (P4, cached on disk). solve_ivp
-peers on P4 run on a window of the record and are extrapolated (marked).
+peers on P4 run on a window of the record and are extrapolated (marked). P4 also reports every
+run's time over that of the linear modal filter response of P4L (P4 without its cubic springs,
+same record, same run): the price of the nonlinearity; and nonlinear_response's accuracy targets
+(``accuracy=1e-3, 1e-6``), timed over all the runs each needs.
 """
 from __future__ import annotations
 
@@ -158,10 +161,15 @@ def bench_p3(quick=False, log=print):
 P4_METHODS = [("modal_parabolic", {}), ("modal_ramp", {}), ("newmark", {}),
               ("hht", {"alpha": -0.05}), ("generalized_alpha", {"rho_inf": 0.8})]
 
+#: accuracy targets run on P4 (nonlinear_response's accuracy=, modal_parabolic)
+P4_ACCURACY = (1e-3, 1e-6)
+
 
 def bench_p4(quick=False, log=print):
     from scipy.integrate import solve_ivp
 
+    from dtdyn.linear.exact import exact_response
+    from dtdyn.modal.filters import modal_filter_response
     from dtdyn.nonlinear.reference import check_reference, reference_response
     from dtdyn.nonlinear.response import nonlinear_response
     n = 10_000 if quick else 100_000
@@ -177,13 +185,43 @@ def bench_p4(quick=False, log=print):
     runs = []
     add = _recorder(runs, log)
 
+    # the linear baseline: the modal filter response of P4L (P4 without its cubic springs) on
+    # the same record, timed like the nonlinear runs (the C loop's run time, median of 3), its
+    # error against the matrix exponential of P4L
+    L = problems.p4l(n)
+    lin, _, lin_build = _timed(lambda: modal_filter_response(
+        L["M"], L["C"], L["K"], L["force"], L["dt"], force_dofs=L["force_dofs"],
+        quantities=("x",)), 3)
+    lin_times = [lin.info["run_time"]]
+    for _ in range(4):
+        lin_times.append(modal_filter_response(
+            L["M"], L["C"], L["K"], L["force"], L["dt"], force_dofs=L["force_dofs"],
+            quantities=("x",)).info["run_time"])
+    t_lin = statistics.median(lin_times)
+    exact = exact_response(L["M"], L["C"], L["K"], L["force"], L["dt"],
+                           force_dofs=L["force_dofs"], quantities=("x",))
+    e_lin = _errors(lin.x[:, out], exact.x[:, out])[0]
+    log(f"  linear P4L modal filters (ramp)  max {e_lin:9.2e} (vs matrix exponential)  "
+        f"{t_lin * 1e3:9.3f} ms")
+
     for method, params in P4_METHODS:
-        for S in (1, 2, 3, 4, 8):
+        for S in (1, 2, 3, 4, 8) + ((12,) if method == "modal_parabolic" else ()):
             r, t_run, t_b = _timed(lambda: nonlinear_response(*args, **kw, scheme=method,
                                                               substeps=S, quantities=("x",),
                                                               **params), 3)
             add(method, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref,
                 r.info["run_time"], t_b)
+    # accuracy targets: the time sums every run the target needs (their C loops) and the
+    # estimates' own work (differences and extrapolations of the records)
+    for target in P4_ACCURACY:
+        r, t_run, t_b = _timed(lambda: nonlinear_response(
+            *args, **kw, scheme="modal_parabolic", accuracy=target, quantities=("x",)), 3)
+        i = r.info
+        add("modal_parabolic accuracy", "nonlinear (C)", f"accuracy={target:g}", r.x[:, out],
+            ref, i["run_time"] + i["estimate_time"], t_b,
+            f"estimate {i['error_estimate']:.2e} (x, all 4 DOFs), {i['substeps']} sub-steps "
+            f"({'extrapolated from ' if i['extrapolated'] else 'runs '}"
+            f"{', '.join(map(str, i['estimate_substeps']))})")
     for S in (4, 8):
         r, t_run, t_b = _timed(lambda: nonlinear_response(
             *args, **kw, scheme="newmark", substeps=S, backend="casadi", solver="fast_newton",
@@ -220,7 +258,10 @@ def bench_p4(quick=False, log=print):
     meta = {"problem": "P4", "description": f"nonlinear 4-DOF chain, {n} samples at 1 kHz; error "
             "of x at DOF 3 against solve_ivp DOP853 rtol 1e-12 restarted at every sample "
             f"(reference {'from the disk cache' if ref_r.info.get('cached') else f'{t_ref:.0f} s'}"
-            f"; DOP853 vs Radau on 300 samples: {radau:.1e})", "targets": [1e-3]}
+            f"; DOP853 vs Radau on 300 samples: {radau:.1e})", "targets": [1e-3, 1e-6],
+            "linear_time": t_lin, "linear_build": lin_build, "linear_error": e_lin,
+            "linear": "modal filter response (ramp invariant, C) of P4L, P4 without its cubic "
+                      "springs, on the same record"}
     return runs, meta
 
 
@@ -246,21 +287,33 @@ def write_report(runs, meta, out_dir, command):
     lines = [f"# Work-precision: {name}", "", f"Output of `{command}`. {meta['description']}.",
              "Times: median of repeats after a warm-up (solve_ivp: one run); build = "
              "construction and compile (first call minus the median).", ""]
+    t_lin = meta.get("linear_time")
+    if t_lin:
+        lines += [f"Linear baseline, the price of the nonlinearity: the {meta['linear']} runs in "
+                  f"{t_lin * 1e3:.3g} ms (max error {meta['linear_error']:.1e} against the "
+                  "matrix exponential); the column `time / linear` is each run's time over it, "
+                  "measured in the same run.", ""]
+
+    def ratio(r):  # the extra column, when there is a linear baseline
+        return f" {r.run_time / t_lin:.3g} |" if t_lin else ""
+    head, rule = (" time / linear |", "---|") if t_lin else ("", "")
     for target in meta["targets"]:
         ranked = ranking(runs, target)
         lines += [f"## Ranking at max error <= {target:g}", "",
-                  "| rank | method | setting | max error | run time [ms] | time / fastest |",
-                  "|---|---|---|---|---|---|"]
+                  "| rank | method | setting | max error | run time [ms] | time / fastest |"
+                  + head, "|---|---|---|---|---|---|" + rule]
         for k, r in enumerate(ranked, 1):
             lines.append(f"| {k} | {r.method} | {r.setting} | {r.max_error:.2e} | "
-                         f"{r.run_time * 1e3:.3g} | {r.run_time / ranked[0].run_time:.3g} |")
+                         f"{r.run_time * 1e3:.3g} | {r.run_time / ranked[0].run_time:.3g} |"
+                         + ratio(r))
         lines.append("")
     lines += ["## All runs", "", "| method | family | setting | max error | RMS error | run time "
-              "[ms] | build [ms] | note |", "|---|---|---|---|---|---|---|---|"]
+              "[ms] |" + head + " build [ms] | note |", "|---|---|---|---|---|---|" + rule
+              + "---|---|"]
     for r in runs:
         lines.append(f"| {r.method} | {r.family} | {r.setting} | {r.max_error:.2e} | "
-                     f"{r.rms_error:.2e} | {r.run_time * 1e3:.4g} | {r.build_time * 1e3:.3g} | "
-                     f"{r.note} |")
+                     f"{r.rms_error:.2e} | {r.run_time * 1e3:.4g} |" + ratio(r)
+                     + f" {r.build_time * 1e3:.3g} | {r.note} |")
     lines += ["", f"![error against run time](bench_{name}.png)", ""]
     md = out_dir / f"bench_{name}.md"
     write_atomic(md, lambda fh: fh.write("\n".join(lines).encode()))
@@ -314,10 +367,14 @@ def run(names, out_dir, quick=False, command="dtdyn bench"):
         meta["wall_time"] = time.perf_counter() - t0
         md = write_report(runs, meta, out_dir, command)
         print(f"{name}: {len(runs)} runs in {meta['wall_time']:.0f} s; report {md}")
+        t_lin = meta.get("linear_time")
+        if t_lin:
+            print(f"  linear baseline ({name}L modal filters): {t_lin * 1e3:.3g} ms")
         for target in meta["targets"]:
             top = ranking(runs, target)[:3]
             print(f"  fastest at max error <= {target:g}: " + "; ".join(
                 f"{r.method} ({r.setting}) {r.max_error:.1e} in {r.run_time * 1e3:.3g} ms"
+                + (f" ({r.run_time / t_lin:.2g}x linear)" if t_lin else "")
                 for r in top))
         written.append(md)
     return written

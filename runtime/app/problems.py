@@ -12,6 +12,8 @@ P4: the nonlinear 4-DOF chain (the shape of Ahlin's example):
 four unit masses, k = 1e4 N/m, C = 1.0 M + 2e-4 K, cubic springs k3 = 2e7 N/m^3 from DOF 0 to
 ground and between DOFs 1 and 2 (0-based), white noise of 100 N standard deviation on DOF 3
 (numpy.random.default_rng(0)), dt = 1 ms (fs = 1000 Hz), force linear between samples.
+P4L: P4 without the cubic springs (the same M, C, K, force and record): the linear baseline
+that `dtdyn bench P4` measures the price of the nonlinearity against.
 """
 from __future__ import annotations
 
@@ -148,3 +150,28 @@ def p4(n_samples: int = 100_000) -> dict:
     force = (np.random.default_rng(0).standard_normal(n_samples) * 100.0)[:, None]
     return dict(M=M, C=C, K=K, force=force, dt=1e-3, force_dofs=[3],
                 elements=[Cubic(0, None, k3=k3), Cubic(1, 2, k3=k3)], k=k, k3=k3, output=3)
+
+
+def p4l(n_samples: int = 100_000) -> dict:
+    """P4L: P4 without its cubic springs, the linear model M q'' + C q' + K q = f on the same
+    record (the baseline of `dtdyn bench P4`'s time ratios).
+
+    Parameters
+    ----------
+    n_samples : int
+        Length of the white-noise force record (the same samples as ``p4(n_samples)``).
+
+    Returns
+    -------
+    dict
+        As `p4`, with ``elements`` empty and ``k3`` = 0.
+
+    Examples
+    --------
+    >>> from dtdyn.app.problems import p4, p4l
+    >>> import numpy as np
+    >>> P, L = p4(100), p4l(100)
+    >>> L["elements"], bool(np.array_equal(P["force"], L["force"]))
+    ([], True)
+    """
+    return {**p4(n_samples), "elements": [], "k3": 0.0}

@@ -12,12 +12,15 @@ Two runs at S_c and S_f = r S_c (r = 2 here) differ by d = x_f - x_c ~ c(t) h_f^
 and the combination x_R = x_f + d / (r^p - 1) cancels the leading term. Its own error is of
 order q >= p + 1 (p + 2 for the schemes whose expansion holds only even powers: the ramp
 invariant and the average-acceleration Newmark measure 4 on P4), estimated the same way from two
-extrapolations R_k, R_{k-1} of the sequence S_0, 2 S_0, 4 S_0 with q = p + 1:
+extrapolations R_k, R_{k-1}:
 
-    |x_R,k - x| ~ |R_k - R_{k-1}| / (2^(p+1) - 1),
+    |x_R,k - x| ~ |R_k - R_{k-1}| / (2^q - 1),   q = min(p + 1, q_obs),
 
-an over-estimate by at most (2^(p+2) - 1) / (2^(p+1) - 1) (2.1 for p = 2, 2.1 for p = 3) when
-q = p + 2.
+q_obs = log2(|R_{k-1} - R_{k-2}| / |R_k - R_{k-1}|) from four levels S_0 .. 8 S_0, and used only
+when q_obs >= p + 0.5: an extrapolation whose gain the runs do not show is never returned (a
+kink, as a gap's contact, gives runs that look second order between two levels while their
+extrapolation is worse than the finest run). With q capped at p + 1 the estimate is high by up
+to (2^(p+2) - 1) / (2^(p+1) - 1) = 2.1 for the even-power schemes, on the safe side.
 
 Norm: for each stored quantity (x, v, a, g, z) the largest |difference| over time and columns,
 relative to the largest |value| of that quantity; the estimate is the largest over the
@@ -28,12 +31,14 @@ The order p: modal_ramp 2, modal_parabolic 3 (`dtdyn.nonlinear.linear_step`), a 
 its ``order`` in the scheme table (Newmark with gamma != 1/2: 1). The runs themselves check it:
 from three levels the observed order p_obs = log2(|d_{k-1}| / |d_k|); the estimate uses
 min(p, p_obs) (never an order the runs do not show), and the extrapolation is used only when
-|p_obs - p| <= 0.5 (the leading term dominates). Non-smooth elements (a gap's contact, Bouc-Wen's
-sign(y')) break the expansion, and the estimate is then only as good as p_obs says.
+|p_obs - p| <= P_SLACK = 0.25 (the leading term dominates). Non-smooth elements (a gap's
+contact, Bouc-Wen's sign(y')) break the expansion, and the estimate is then only as good as p_obs
+says.
 """
 from __future__ import annotations
 
 import math
+import time
 import warnings
 
 import numpy as np
@@ -112,14 +117,15 @@ def estimate_only(run, substeps, method, params):
     p = scheme_order(method, params)
     S = substeps
     mine = run(S)
+    other = run(S // 2 if S % 2 == 0 else 2 * S)
+    t0 = time.perf_counter()
     if S % 2 == 0:
-        other = run(S // 2)
         est = difference(mine, other) / (2**p - 1)       # mine is the fine run
     else:
-        other = run(2 * S)
         est = difference(mine, other) * 2**p / (2**p - 1)  # mine is the coarse run
     mine.info.update(_timing([mine, other]))
     mine.info.update(error_estimate=est, error_order=p, extrapolated=False,
+                     estimate_time=time.perf_counter() - t0,
                      estimate_substeps=[S, other.info["substeps"]])
     return mine
 
@@ -128,8 +134,8 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
     """Run S_0 = ``substeps``, 2 S_0, 4 S_0, ... until an estimate <= ``accuracy``.
 
     After each run k >= 1: the estimate of the finest run, |d_k| / (2^p_e - 1), p_e = p (k = 1)
-    or min(p, p_obs) (k >= 2); from k >= 2, when |p_obs - p| <= 0.5, also that of the
-    extrapolation R_k (module docstring). The first estimate <= accuracy returns its solution
+    or min(p, p_obs) (k >= 2); from k >= 3, when |p_obs - p| <= P_SLACK at the last two levels
+    and q_obs >= p + 0.5, also that of the extrapolation R_k (module docstring). The first estimate <= accuracy returns its solution
     (R_k when both qualify: the smaller error). A run that fails (NewtonError, a modal step
     beyond its stability limit) restarts the sequence at twice its sub-steps. Beyond
     ``max_substeps``: a DtdynAccuracyWarning naming the target, the estimate reached and the
@@ -137,6 +143,7 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
     """
     p = scheme_order(method, params)
     runs, diffs, levels, extrap, dR, all_runs = [], [], [], [], [], []
+    spent = [0.0]  # the estimates' own work (differences, extrapolations), s
     log = []
     S = substeps
     best = None
@@ -152,6 +159,7 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
         runs.append(r)
         levels.append(S)
         k = len(runs) - 1
+        t_est = time.perf_counter()
         if k >= 1:
             diffs.append(difference(r, runs[-2]))
             p_eff, p_obs = p, None
@@ -176,8 +184,9 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
             est, sol, is_R = min(cands, key=lambda c: c[0])
             if best is None or est < best[0]:
                 best = (est, sol, is_R, S, p_obs, list(levels))
+            spent[0] += time.perf_counter() - t_est
             if est <= accuracy:
-                return _finish(best, accuracy, True, all_runs, p, log)
+                return _finish(best, accuracy, True, all_runs, p, log, spent[0])
         else:
             log.append((S, None, None))
         S *= 2
@@ -188,14 +197,14 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
         f"accuracy={accuracy:g} not reached: the error estimate is {best[0]:.3g} at "
         f"{best[3]} sub-steps (max_substeps={max_substeps}, scheme {method!r}, order {p}); "
         f"raise max_substeps or use a higher-order scheme", DtdynAccuracyWarning, stacklevel=3)
-    return _finish(best, accuracy, False, all_runs, p, log)
+    return _finish(best, accuracy, False, all_runs, p, log, spent[0])
 
 
-def _finish(best, accuracy, met, all_runs, p, log):
+def _finish(best, accuracy, met, all_runs, p, log, estimate_time):
     est, sol, is_R, S, p_obs, used = best
     sol.info.update(_timing(all_runs))
     sol.info.update(substeps=S, error_estimate=float(est), accuracy=accuracy, accuracy_met=met,
                     extrapolated=is_R, error_order=p, observed_order=p_obs,
-                    estimate_substeps=used,
+                    estimate_substeps=used, estimate_time=estimate_time,
                     accuracy_log=[{"substeps": s, "estimate": e, "note": n} for s, e, n in log])
     return sol

@@ -400,14 +400,16 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         are
 
             |e_k| ~ |d_k| / (2^p - 1),      x_R,k = x_k + d_k / (2^p - 1),
-            |e_R,k| ~ |x_R,k - x_R,k-1| / (2^(p+1) - 1),
+            |e_R,k| ~ |x_R,k - x_R,k-1| / (2^q - 1),  q = min(p + 1, observed order of x_R),
 
         |.| the largest |difference| over time and columns relative to the largest |value|,
         taken over the stored quantities (x, v, a, g, z). The extrapolation x_R is used only
-        when the observed order log2(|d_{k-1}| / |d_k|) is within 0.5 of p, and the plain
-        estimate uses min(p, observed order) (`dtdyn.nonlinear.accuracy`). ``info`` then holds
+        when the observed order log2(|d_{k-1}| / |d_k|) is within 0.25 of p and that of x_R
+        (four levels) is at least p + 0.5; the plain estimate uses min(p, observed order)
+        (`dtdyn.nonlinear.accuracy`). ``info`` then holds
         ``error_estimate``, ``substeps`` (of the returned run), ``extrapolated``,
-        ``observed_order``, ``accuracy_met``, and the times summed over every run. A run that
+        ``observed_order``, ``accuracy_met``, the times summed over every run, and
+        ``estimate_time`` (the estimates' own work). A run that
         fails (NewtonError, a modal step beyond its stability limit) restarts at twice its
         sub-steps.
     error_estimate : bool
