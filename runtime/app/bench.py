@@ -45,21 +45,25 @@ def _errors(x, ref):
     return float(np.abs(d).max() / scale), float(np.sqrt(np.mean(d**2)) / scale)
 
 
-def _timed(fn, repeats):
+def _timed(fn, repeats, key=None):
     """(result, median run time, build time): first call, then ``repeats`` timed calls
-    (``repeats`` = 0: the first call's time, no build time)."""
+    (``repeats`` = 0: the first call's time, no build time). ``key(result)``: the run time a
+    call reports itself (e.g. its C loop's, from ``info``), its median instead of the wall
+    time's; the build time is still the first call's wall time minus the median wall time."""
     t0 = time.perf_counter()
     out = fn()
     first = time.perf_counter() - t0
-    times = []
+    times, own = [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
         out = fn()
         times.append(time.perf_counter() - t0)
+        if key is not None:
+            own.append(key(out))
     if not times:  # a single (cold) run: no build time to separate
-        return out, first, 0.0
+        return out, (first if key is None else key(out)), 0.0
     med = statistics.median(times)
-    return out, med, max(first - med, 0.0)
+    return out, (med if key is None else statistics.median(own)), max(first - med, 0.0)
 
 
 def _recorder(runs, log):
@@ -185,19 +189,16 @@ def bench_p4(quick=False, log=print):
     runs = []
     add = _recorder(runs, log)
 
+    def loop_time(r):  # the C loop's own time, as every nonlinear and linear run reports it
+        return r.info["run_time"]
+
     # the linear baseline: the modal filter response of P4L (P4 without its cubic springs) on
     # the same record, timed like the nonlinear runs (the C loop's run time, median of 3), its
     # error against the matrix exponential of P4L
     L = problems.p4l(n)
-    lin, _, lin_build = _timed(lambda: modal_filter_response(
+    lin, t_lin, lin_build = _timed(lambda: modal_filter_response(
         L["M"], L["C"], L["K"], L["force"], L["dt"], force_dofs=L["force_dofs"],
-        quantities=("x",)), 3)
-    lin_times = [lin.info["run_time"]]
-    for _ in range(4):
-        lin_times.append(modal_filter_response(
-            L["M"], L["C"], L["K"], L["force"], L["dt"], force_dofs=L["force_dofs"],
-            quantities=("x",)).info["run_time"])
-    t_lin = statistics.median(lin_times)
+        quantities=("x",)), 5, loop_time)
     exact = exact_response(L["M"], L["C"], L["K"], L["force"], L["dt"],
                            force_dofs=L["force_dofs"], quantities=("x",))
     e_lin = _errors(lin.x[:, out], exact.x[:, out])[0]
@@ -208,17 +209,17 @@ def bench_p4(quick=False, log=print):
         for S in (1, 2, 3, 4, 8) + ((12,) if method == "modal_parabolic" else ()):
             r, t_run, t_b = _timed(lambda: nonlinear_response(*args, **kw, scheme=method,
                                                               substeps=S, quantities=("x",),
-                                                              **params), 3)
-            add(method, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref,
-                r.info["run_time"], t_b)
+                                                              **params), 5, loop_time)
+            add(method, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref, t_run, t_b)
     # accuracy targets: the time sums every run the target needs (their C loops) and the
     # estimates' own work (differences and extrapolations of the records)
     for target in P4_ACCURACY:
         r, t_run, t_b = _timed(lambda: nonlinear_response(
-            *args, **kw, scheme="modal_parabolic", accuracy=target, quantities=("x",)), 3)
+            *args, **kw, scheme="modal_parabolic", accuracy=target, quantities=("x",)), 5,
+            lambda r: r.info["run_time"] + r.info["estimate_time"])
         i = r.info
         add("modal_parabolic accuracy", "nonlinear (C)", f"accuracy={target:g}", r.x[:, out],
-            ref, i["run_time"] + i["estimate_time"], t_b,
+            ref, t_run, t_b,
             f"estimate {i['error_estimate']:.2e} (x, all 4 DOFs), {i['substeps']} sub-steps "
             f"({'extrapolated from ' if i['extrapolated'] else 'runs '}"
             f"{', '.join(map(str, i['estimate_substeps']))})")
@@ -285,8 +286,9 @@ def write_report(runs, meta, out_dir, command):
     out_dir.mkdir(parents=True, exist_ok=True)
     name = meta["problem"]
     lines = [f"# Work-precision: {name}", "", f"Output of `{command}`. {meta['description']}.",
-             "Times: median of repeats after a warm-up (solve_ivp: one run); build = "
-             "construction and compile (first call minus the median).", ""]
+             "Times: median of repeats after a warm-up (solve_ivp: one run; P4's dtdyn runs: "
+             "the time each reports for its C loops, median of 5); build = construction and "
+             "compile (first call minus the median).", ""]
     t_lin = meta.get("linear_time")
     if t_lin:
         lines += [f"Linear baseline, the price of the nonlinearity: the {meta['linear']} runs in "

@@ -41,3 +41,32 @@ def test_ranking_and_report(p3_runs, tmp_path):
     assert len(data["runs"]) == len(runs) and (tmp_path / "bench_P3.png").stat().st_size > 0
     assert "Ranking at max error <= 0.001" in md.read_text()
     assert np.isfinite([r["max_error"] for r in data["runs"]]).all()
+
+
+def test_linear_baseline_column(p3_runs, tmp_path):
+    """With a linear baseline time in meta (P4: the modal filter response of P4L), the report
+    adds `time / linear` = run time / baseline to the rankings and to every run; without one
+    (P3) it has no such column."""
+    runs, meta = p3_runs
+    md = bench.write_report(runs, meta, tmp_path, "dtdyn bench P3 --quick").read_text()
+    assert "time / linear" not in md
+    base = runs[0].run_time / 2.0
+    meta = {**meta, "linear_time": base, "linear_error": 1e-14, "linear": "a baseline"}
+    md = bench.write_report(runs, meta, tmp_path, "dtdyn bench P3 --quick").read_text()
+    assert "| time / linear |" in md and "runs in" in md
+    row = next(line for line in md.splitlines()
+               if line.startswith(f"| {runs[0].method} | {runs[0].family} | {runs[0].setting} |"))
+    assert row.split("|")[7].strip() == "2"                   # run time / baseline
+    width = None                                              # every table row is complete
+    for line in md.splitlines():
+        if line.startswith(("| rank", "| method")):
+            width = line.count("|")
+        elif line.startswith("|"):
+            assert line.count("|") == width, line
+
+def test_p4l_is_p4_without_its_springs():
+    from dtdyn.app.problems import p4, p4l
+    P, L = p4(500), p4l(500)
+    assert L["elements"] == [] and len(P["elements"]) == 2
+    for key in ("M", "C", "K", "force"):
+        np.testing.assert_array_equal(P[key], L[key])
