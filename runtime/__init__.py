@@ -46,6 +46,7 @@ from dtdyn.nonlinear.chain import nonlinear_chain_response
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
 from dtdyn.nonlinear.reference import check_reference, reference_response
 from dtdyn.nonlinear.response import nonlinear_response
+from dtdyn.nonlinear.stations import nonlinear_beam_response, nonlinear_shaft_response
 
 __version__ = "0.1.0"
 
@@ -66,7 +67,8 @@ __all__ = [
     "truncation_error", "shock_response_spectrum", "sdof_response", "SRS", "load_record",
     "response_spectrum", "ResponseSpectrum",
     # nonlinear
-    "nonlinear_response", "nonlinear_chain_response", "reference_response", "check_reference",
+    "nonlinear_response", "nonlinear_chain_response", "nonlinear_shaft_response",
+    "nonlinear_beam_response", "reference_response", "check_reference",
     "Cubic", "Polynomial", "Gap", "Law", "BoucWen",
     # scenes, results, reference problems
     "ground_acceleration_from", "Scene", "load_scene", "scene_from_dict", "run_scene", "Response", "load_result",

@@ -362,6 +362,30 @@ def _highest_frequency_bound(beam: Beam) -> float:
     return float(np.sqrt(max(lam)))
 
 
+def _rigid_influence(beam: Beam, ground_acceleration, ground_velocity, ground_displacement):
+    """The default support-motion influence, a rigid translation (w 1, psi 0) per direction of
+    the one ground record given, or None without one."""
+    record = support.given(ground_acceleration, ground_velocity, ground_displacement)
+    if record is None:
+        return None
+    ag = {"acceleration": ground_acceleration, "velocity": ground_velocity,
+          "displacement": ground_displacement}[record]
+    n_dir = 1 if np.ndim(ag) < 2 else np.shape(ag)[1]
+    return np.repeat((beam.free % 2 == 0).astype(float)[:, None], n_dir, axis=1)
+
+
+def node_system(beam: Beam):
+    """(M, C, K) of the whole node-by-node system the sweep runs on, a held DOF decoupled with a
+    unit mass and stiffness: its history and load are zero, so it stays at rest. Rows
+    2 node + (0: w, 1: psi); ``beam.free`` maps ``beam.dof_names`` into them."""
+    Mg, Cg, Kg = beam.global_matrices()
+    held = np.ones(Mg.shape[0])
+    held[beam.free] = 0.0
+    keep = sps.diags(1.0 - held)
+    return tuple((keep @ A @ keep + sps.diags(held * unit)).tocsr()
+                 for A, unit in ((Mg, 1.0), (Cg, 0.0), (Kg, 1.0)))
+
+
 def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
                   form="displacement", outputs=None, quantities=("x", "v", "a"), x0=None,
                   v0=None, unstable="raise", backend="c", progress=False,
@@ -421,12 +445,9 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     n = beam.n_dof
     if force_dofs is not None:
         force_dofs = validate.dof_indices("force_dofs", force_dofs, n, names=beam.dof_names)
-    record = support.given(ground_acceleration, ground_velocity, ground_displacement)
-    if influence is None and record is not None:  # a rigid translation: w 1, psi 0
-        ag = {"acceleration": ground_acceleration, "velocity": ground_velocity,
-              "displacement": ground_displacement}[record]
-        n_dir = 1 if np.ndim(ag) < 2 else np.shape(ag)[1]
-        influence = np.repeat((beam.free % 2 == 0).astype(float)[:, None], n_dir, axis=1)
+    if influence is None:
+        influence = _rigid_influence(beam, ground_acceleration, ground_velocity,
+                                     ground_displacement)
     force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
                                                 influence, dt=dt, ground_velocity=ground_velocity,
                                                 ground_displacement=ground_displacement)
@@ -443,14 +464,7 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     f0 = np.zeros(n)
     f0[loaded] = force[0]
     a0 = linalg.solver(M, "M")(f0 - C @ v0 - K @ x0)
-    # the whole node-by-node system, a held DOF decoupled with a unit mass and stiffness: its
-    # history and load are zero, so it stays at rest
-    Mg, Cg, Kg = beam.global_matrices()
-    held = np.ones(Mg.shape[0])
-    held[beam.free] = 0.0
-    keep = sps.diags(1.0 - held)
-    Mg, Cg, Kg = ((keep @ A @ keep + sps.diags(held * unit)).tocsr()
-                  for A, unit in ((Mg, 1.0), (Cg, 0.0), (Kg, 1.0)))
+    Mg, Cg, Kg = node_system(beam)
     full = [np.zeros(Mg.shape[0]) for _ in range(3)]
     for z, part in zip(full, (x0, v0, a0)):
         z[beam.free] = part

@@ -359,6 +359,13 @@ class Shaft:
         """DOF names of the lumped model, in the order of `shaft_matrices` and the results."""
         return self._lumped.names
 
+    def dof(self, name: str) -> int:
+        """The index of a DOF by name ("main.3", "out.0"), e.g. for a nonlinear element's i, j."""
+        if name not in self.dof_names:
+            shown = ", ".join(self.dof_names[:8]) + (" ..." if len(self.dof_names) > 8 else "")
+            raise ValueError(f"{name!r} is not a DOF of this shaft (the DOFs are {shown})")
+        return self.dof_names.index(name)
+
     @property
     def tree(self) -> Tree:
         """The lumped tree the time loop runs on."""
@@ -480,6 +487,18 @@ def rigid_rotation(shaft: Shaft) -> np.ndarray:
     return r
 
 
+def check_connections(tree: Tree, info, form: str, dt: float) -> None:
+    """ValueError when a shaft's row of the sweep divides by k Dx + c Dv = 0 (an undamped
+    shaft under an explicit scheme)."""
+    K0 = info.coefficients(form, dt)
+    kappa = tree.k * K0["p"] + tree.c * K0["r"]
+    loose = np.flatnonzero((kappa == 0.0) & ((tree.k + tree.c) > 0))
+    if loose.size:
+        raise ValueError(f"shaft before {tree.names[loose[0]]!r} has damping 0 with the explicit "
+                         f"scheme {info.name!r}: its row divides by k Dx + c Dv = 0; give every "
+                         "shaft a damper or use an implicit scheme")
+
+
 def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark",
                    form="displacement", backend="c", outputs=None, quantities=("x", "v", "a"),
                    x0=None, v0=None, unstable="raise", progress=False, ground_acceleration=None,
@@ -548,13 +567,7 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     info = get_scheme(scheme, **scheme_params)
     M, C, K = shaft_matrices(shaft)
     check_dt(info, dt, lambda limit: highest_frequency(M, K, limit), unstable)
-    K0 = info.coefficients(form, dt)
-    kappa = tree.k * K0["p"] + tree.c * K0["r"]
-    loose = np.flatnonzero((kappa == 0.0) & ((tree.k + tree.c) > 0))
-    if loose.size:
-        raise ValueError(f"shaft before {tree.names[loose[0]]!r} has damping 0 with the explicit "
-                         f"scheme {info.name!r}: its row divides by k Dx + c Dv = 0; give every "
-                         "shaft a damper or use an implicit scheme")
+    check_connections(tree, info, form, dt)
     f0 = np.zeros(N)
     f0[loaded] = force[0]
     f0 = f0 - C @ v0 - K @ x0

@@ -20,6 +20,7 @@ from __future__ import annotations
 import ctypes
 import time
 from functools import lru_cache
+from types import SimpleNamespace
 from importlib import resources
 
 import numpy as np
@@ -99,15 +100,72 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
                          "one-step scheme (newmark, hht, generalized_alpha, ...)")
     h = dt / S
     sz = _sizes(elements)
+    ei = np.array([el.i for el in elements], dtype=np.int64)
+    ej = np.array([-1 if el.j is None else el.j for el in elements], dtype=np.int64)
 
-    # loads at the loaded masses: external forces and -L^T g
-    ei = np.array([el.i for el in elements])
-    ej = np.array([-1 if el.j is None else el.j for el in elements])
+    def make_advance(loaded):
+        return kernels.chain_advance(backend, info, info.coefficients(form, h), form, "stable",
+                                     chain, h, loaded, np.zeros(0, dtype=np.int64))
+
+    def accel(f0):  # a_0 = M^-1 (f_0 - L^T g_0 - C v_0 - K x_0)
+        if x0.any() or v0.any():
+            _, Cc, Kc = chain_matrices(m, k, c, sparse=True, ground_stiffness=kg,
+                                       ground_damping=cg)
+            f0 = f0 - Cc @ v0 - Kc @ x0
+        return f0 / m
+
+    def c_loop(run):  # the whole loop in generated/nl_chain.c, when it compiles
+        driver = _c_driver(elements, sz) if backend == "c" else None
+        sweep_fn = kernels.c_chain_function(info.name) if driver else None
+        if sweep_fn is None:
+            return None
+        idx = [run.loaded, run.pf, run.pi, run.pj, ei, ej, outputs]
+        mats = [m, k, c, *kernels.ground_elements(chain), kernels.params_array(info), run.U,
+                run.par, f]
+        dims = [N, len(info.history), run.loaded.size, force_dofs.size, sz.ne, sz.nw, sz.nz,
+                outputs.size, f.shape[0], S, max_iter, kernels.FORM_CODE[form], *run.rows]
+        return _run_c(driver, sweep_fn, dims, idx, mats, run.H, run.u, run.g, run.rate,
+                      run.store, h, tol, S)
+
+    store, stats = condensed_response(make_advance, N, info.history, elements, ei, ej,
+                                      force_dofs, outputs, f, x0, v0, accel, S, h, quantities,
+                                      tol, max_iter, backend, c_loop=c_loop)
+    n_samples = f.shape[0]
+    return support.finish(Response(dt * np.arange(n_samples), outputs,
+                    **{q: store[q] if q in quantities else None for q in ("x", "v", "a")},
+                    g=store["g"], z=store["z"],
+                    info={"method": f"DT-TMM {info.name} ({form} form, stable sweep)",
+                          "scheme": info.name, "params": dict(info.params), "dt": dt,
+                          "n_steps": n_samples - 1, "substeps": S, "backend": backend,
+                          "elements": [el.describe() for el in elements],
+                          "setup_time": stats.pop("setup_end") - t0, **stats}), ground)
+
+
+def condensed_response(make_advance, n, history, elements, ei, ej, force_dofs, outputs, f, x0,
+                       v0, accel, S, h, quantities, tol, max_iter, backend, c_loop=None):
+    """The condensed per-step problem around any linear one-step DT-TMM step (module docstring):
+    the one loop of the chain, the shaft and the beam.
+
+    ``make_advance(loaded) -> advance(force_rows, H, xo, vo, ao)``: the model's linear step for
+    loads on the DOFs ``loaded`` (its own numbering, ``n`` DOFs, history rows ``history``);
+    ``ei``, ``ej``: the elements' DOFs in that numbering (-1: ground); ``force_dofs``,
+    ``outputs``, ``x0``, ``v0`` in that numbering too; ``f`` the checked force record;
+    ``accel(f0) -> a_0`` the consistent initial acceleration for the load f0 = f_0 - L^T g_0
+    (the model's M, C, K with x0, v0); ``c_loop(run)``: a compiled whole loop over the prepared
+    ``run`` returning (max iterations, total, largest residual), or None to run the Python loop
+    (the step's advance, U_e, the Newton solve by `newton_solve`).
+
+    Returns ``(store, stats)``: the stored x, v, a (columns ``outputs``), g, z per sample, and
+    "loop", "setup_end", "run_time", "newton_iterations", "max_residual"."""
+    sz = _sizes(elements)
+    ei = np.asarray(ei, dtype=np.int64)
+    ej = np.asarray(ej, dtype=np.int64)
+    # loads at the loaded DOFs: external forces and -L^T g
     loaded = np.unique(np.concatenate([force_dofs, ei, ej[ej >= 0]]))
-    pos = {d: n for n, d in enumerate(loaded)}
-    pf = np.array([pos[d] for d in force_dofs])
-    pi = np.array([pos[d] for d in ei])
-    pj = np.array([pos[d] if d >= 0 else -1 for d in ej])
+    pos = {d: k for k, d in enumerate(loaded)}
+    pf = np.array([pos[d] for d in force_dofs], dtype=np.int64)
+    pi = np.array([pos[d] for d in ei], dtype=np.int64)
+    pj = np.array([pos[d] if d >= 0 else -1 for d in ej], dtype=np.int64)
 
     def loads(fv, gv):
         row = np.zeros(loaded.size)
@@ -116,40 +174,35 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
         np.add.at(row, pj[pj >= 0], gv[pj >= 0])
         return row
 
-    names = info.history
+    names = history
     ix, iv, ia = (names.index(q + "0") for q in "xva")
 
-    def kin(H):  # w = [y; y'] of the elements from the chain state
+    def kin(H):  # w = [y; y'] of the elements from the model's state
         x, v = H[ix], H[iv]
         y = x[ei] - np.where(ej >= 0, x[np.maximum(ej, 0)], 0.0)
         if not sz.need_v:
             return y
         return np.concatenate([y, v[ei] - np.where(ej >= 0, v[np.maximum(ej, 0)], 0.0)])
 
-    advance = kernels.chain_advance(backend, info, info.coefficients(form, h), form, "stable",
-                                    chain, h, loaded, np.zeros(0, dtype=np.int64))
+    advance = make_advance(loaded)
     zero_row = np.zeros(loaded.size)
     U = []
     for e in range(sz.ne):
-        H = np.zeros((len(names), N))
+        H = np.zeros((len(names), n))
         unit = np.zeros(sz.ne)
         unit[e] = 1.0
         advance(np.vstack([zero_row, loads(np.zeros(force_dofs.size), unit)]), H, None, None,
                 None)
         U.append(H)
-    U = np.array(U)  # (ne, nh, N)
+    U = np.array(U)  # (ne, nh, n)
     Dwg = np.array([kin(Ue) for Ue in U]).T  # (nw, ne)
     par = np.concatenate([Dwg.ravel(order="F"), [h]])
 
-    H = np.zeros((len(names), N))
+    H = np.zeros((len(names), n))
     H[ix], H[iv] = x0, v0
     w0 = kin(H)  # the elements start from the deformations of x0, v0, z from 0
     g, rate = _forces_at_rest(elements, sz, w0[:sz.ne], w0[sz.ne:] if sz.need_v else None)
-    f0 = np.bincount(loaded, loads(f[0], g), minlength=N)
-    if x0.any() or v0.any():  # a_0 = M^-1 (f_0 - L^T g_0 - C v_0 - K x_0)
-        _, Cc, Kc = chain_matrices(m, k, c, sparse=True, ground_stiffness=kg, ground_damping=cg)
-        f0 = f0 - Cc @ v0 - Kc @ x0
-    H[ia] = f0 / m
+    H[ia] = accel(np.bincount(loaded, loads(f[0], g), minlength=n))
     u = np.concatenate([w0, np.zeros(sz.nz)])
     n_samples = f.shape[0]
     store = {q: np.empty((n_samples, outputs.size)) for q in "xva"}
@@ -159,30 +212,26 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
         raise ValueError("quantities asks for 'z', but no element has internal states (BoucWen "
                          "has z)")
     t1 = time.perf_counter()
-    driver = _c_driver(elements, sz) if backend == "c" else None
-    sweep_fn = kernels.c_chain_function(info.name) if driver else None
-    if sweep_fn is not None:
-        idx = [loaded, pf, pi, pj, ei, ej, outputs]
-        mats = [m, k, c, *kernels.ground_elements(chain), kernels.params_array(info), U, par, f]
-        dims = [N, len(names), loaded.size, force_dofs.size, sz.ne, sz.nw, sz.nz, outputs.size,
-                n_samples, S, max_iter, kernels.FORM_CODE[form], ix, iv, ia]
-        iters, total, worst = _run_c(driver, sweep_fn, dims, idx, mats, H, u, g, rate, store, h,
-                                     tol, S)
+    run = SimpleNamespace(loaded=loaded, pf=pf, pi=pi, pj=pj, U=U, par=par, H=H, u=u, g=g,
+                          rate=rate, store=store, rows=(ix, iv, ia))
+    done = c_loop(run) if c_loop is not None else None
+    if done is not None:
+        iters, total, worst = done
     else:
         fn = _residual_evaluator(elements, sz, backend)
         scale, scale_u, iters, worst, total = 0.0, 0.0, 0, 0.0, 0
-        for n in range(n_samples):
+        for k in range(n_samples):
             for q, i in zip("xva", (ix, iv, ia)):
-                store[q][n] = H[i, outputs]
+                store[q][k] = H[i, outputs]
             if store["g"] is not None:
-                store["g"][n] = g
+                store["g"][k] = g
             if store["z"] is not None:
-                store["z"][n] = u[sz.nw:]
-            if n + 1 == n_samples:
+                store["z"][k] = u[sz.nw:]
+            if k + 1 == n_samples:
                 break
             for j in range(S):
-                fa = f[n] + (j / S) * (f[n + 1] - f[n])
-                fb = f[n] + ((j + 1) / S) * (f[n + 1] - f[n])
+                fa = f[k] + (j / S) * (f[k + 1] - f[k])
+                fb = f[k] + ((j + 1) / S) * (f[k + 1] - f[k])
                 advance(np.vstack([loads(fa, g), loads(fb, np.zeros(sz.ne))]), H, None, None,
                         None)
                 Q = kin(H)
@@ -192,7 +241,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
                 u, it, rn, (g_new, rate_new) = newton_solve(
                     lambda v: fn(v, Q, zold, rold, par), u, scale, scale_u, tol, max_iter)
                 if it < 0 or not np.isfinite(g_new).all():
-                    _newton_error(n * S + j, S, h, rn, max_iter)
+                    _newton_error(k * S + j, S, h, rn, max_iter)
                 scale_u = _grow(scale_u, u)
                 scale = max(scale, scale_u)
                 total += it
@@ -201,18 +250,11 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
                 g, rate = g_new, rate_new
                 H += np.tensordot(g, U, axes=1)
     t2 = time.perf_counter()
-    return support.finish(Response(dt * np.arange(n_samples), outputs,
-                    **{q: store[q] if q in quantities else None for q in ("x", "v", "a")},
-                    g=store["g"], z=store["z"],
-                    info={"method": f"DT-TMM {info.name} ({form} form, stable sweep)",
-                          "scheme": info.name, "params": dict(info.params), "dt": dt,
-                          "n_steps": n_samples - 1, "substeps": S, "backend": backend,
-                          "loop": "c" if sweep_fn is not None else "python",
-                          "elements": [el.describe() for el in elements],
-                          "setup_time": t1 - t0, "run_time": t2 - t1,
-                          "newton_iterations": {"max": iters,
-                                                "mean": total / max((n_samples - 1) * S, 1)},
-                          "max_residual": worst}), ground)
+    return store, {"loop": "c" if done is not None else "python", "setup_end": t1,
+                   "run_time": t2 - t1,
+                   "newton_iterations": {"max": iters,
+                                         "mean": total / max((n_samples - 1) * S, 1)},
+                   "max_residual": worst}
 
 
 def newton_solve(evaluate, u, scale_r, scale_u, tol, max_iter):
