@@ -15,7 +15,8 @@ from dtdyn.app.batch import store, worker
 from dtdyn.app.batch.cases import build_cases
 from dtdyn.app.batch.reducers import reducer_coords, reducer_name, reducers_from
 
-__all__ = ["run_batch", "auto_chunk", "TASK_BYTES", "TASKS_PER_WORKER", "PROBE_CASES"]
+__all__ = ["run_batch", "auto_chunk", "local_cluster", "TASK_BYTES", "TASKS_PER_WORKER",
+           "PROBE_CASES", "WORKER_ENVIRON", "CLUSTER_CONFIG"]
 
 #: chunk="auto": about this many tasks per worker (load balance against per-task overhead) ...
 TASKS_PER_WORKER = 4
@@ -25,6 +26,24 @@ TASK_BYTES = 64 * 2**20
 PROBE_CASES = 10
 #: failed cases listed by the printed summary (all are in the result's status and message)
 LISTED_FAILURES = 10
+#: glibc malloc settings of the worker processes of the LocalCluster that run_batch starts.
+#: Dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536 (its config
+#: distributed.nanny.pre-spawn-environ), and setting either threshold turns off glibc's dynamic
+#: mmap threshold: every array above 128 KiB a case allocates (a 100,000-sample P4 case: the
+#: load, the response, the reducers' temporaries) is then a fresh mmap, zeroed page by page
+#: (about 6,200 page faults a case) and unmapped when freed: a P4 case took 64 ms on such a
+#: worker against 52 ms in a plain process (a 64 KiB trim threshold alone, with a high mmap
+#: threshold, is as slow: the freed heap top goes back at once). These values are glibc's own
+#: dynamic ceilings on 64-bit Linux (mmap above 32 MiB, return the heap's free top above twice
+#: that), fixed: a worker keeps at most 64 MiB of freed heap. Other C libraries ignore them.
+WORKER_ENVIRON = {"MALLOC_MMAP_THRESHOLD_": str(32 * 2**20),
+                  "MALLOC_TRIM_THRESHOLD_": str(64 * 2**20)}
+#: the Dask config of that LocalCluster: WORKER_ENVIRON before the workers start, and the
+#: worker's statistical profiler (it samples the task thread's stack every 10 ms, for the
+#: dashboard) off
+CLUSTER_CONFIG = {"distributed.worker.profile.enabled": False,
+                  **{f"distributed.nanny.pre-spawn-environ.{k}": v
+                     for k, v in WORKER_ENVIRON.items()}}
 
 
 def auto_chunk(n_cases: int, n_workers: int, case_bytes: int) -> int:
@@ -33,6 +52,31 @@ def auto_chunk(n_cases: int, n_workers: int, case_bytes: int) -> int:
     by_count = math.ceil(n_cases / (TASKS_PER_WORKER * max(n_workers, 1)))
     by_memory = max(1, TASK_BYTES // max(case_bytes, 1))
     return max(1, min(by_count, by_memory, n_cases))
+
+
+def local_cluster(workers: int | None = None):
+    """The LocalCluster `run_batch` starts with ``client=None``: ``workers`` processes (default
+    one per CPU), one thread each, with `CLUSTER_CONFIG` (glibc's malloc thresholds of
+    `WORKER_ENVIRON`, the profiler off). The caller closes it."""
+    import dask
+    from distributed import LocalCluster
+
+    # the nanny lets a variable already in os.environ win over its config (and copies its
+    # config into os.environ, so an earlier cluster of this process leaves 65536 there): set
+    # ours in os.environ while the workers start, then put back what was there
+    saved = {k: os.environ.get(k) for k in WORKER_ENVIRON}
+    try:
+        os.environ.update(WORKER_ENVIRON)
+        with dask.config.set(CLUSTER_CONFIG):
+            return LocalCluster(n_workers=int(workers or os.cpu_count() or 1),
+                                threads_per_worker=1, processes=True, dashboard_address=":0",
+                                silence_logs=logging.ERROR)
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def _case_coords(params: list[dict]) -> dict:
@@ -126,8 +170,9 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         take seeds from ``numpy.random.SeedSequence(seed).spawn(n_cases)[i]`` (a seed the case
         sets in ``vary`` is kept), independent of the split over tasks and workers.
     client : distributed.Client, optional
-        Where to run. None starts a LocalCluster on this machine (processes, one thread each;
-        ``workers`` of them, default one per CPU) and closes it at the end; any Client, e.g.
+        Where to run. None starts a LocalCluster on this machine (`local_cluster`: processes,
+        one thread each, ``workers`` of them, default one per CPU; glibc's malloc thresholds
+        of `WORKER_ENVIRON`, the profiler off) and closes it at the end; any Client, e.g.
         ``Client("tcp://scheduler:8786")``, runs the same code on a cluster (every worker needs
         dtdyn installed and, with ``out``, the store's folder shared).
     workers : int, optional
@@ -202,11 +247,9 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
     started = time.perf_counter()
     try:
         if own:
-            from distributed import Client, LocalCluster
+            from distributed import Client
 
-            cluster = LocalCluster(n_workers=int(workers or os.cpu_count() or 1),
-                                   threads_per_worker=1, processes=True,
-                                   dashboard_address=":0", silence_logs=logging.ERROR)
+            cluster = local_cluster(workers)
             client = Client(cluster)
         cluster_time = time.perf_counter() - started
         start = time.perf_counter()
