@@ -105,7 +105,11 @@ def finish(path: Path, out: Path, meta_vars: dict, attrs: dict) -> None:
     if out.exists():
         old = out.with_name(f".{out.name}.{uuid.uuid4().hex[:8]}.old")
         os.replace(out, old)
-        os.replace(path, out)
+        try:
+            os.replace(path, out)
+        except OSError:  # put the old store back: never leave the user without one
+            os.replace(old, out)
+            raise
         shutil.rmtree(old, ignore_errors=True)
     else:
         os.replace(path, out)
