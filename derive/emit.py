@@ -354,6 +354,7 @@ def render_all() -> dict[str, str]:
     render("c/chain_loop.h.jinja", "chain_loop.h", "the DT-TMM chain loop (every scheme)")
     from . import shaft  # torsional shafts and trees: shaft.py, shaft.md, shaft_<scheme>.c
     shaft.render(render, _scheme_context, _chain_macros, names)
+    render("c/shaft_loop.h.jinja", "shaft_loop.h", "the DT-TMM torsional tree loop (every scheme)")
     render("numpy/init.py.jinja", "__init__.py", "dtdyn.derive.integrators.scheme_table")
     render("numpy/c_api.py.jinja", "c_api.py", "dtdyn.derive.c_api",
            bindings=c_api.bindings())

@@ -14,229 +14,117 @@
  * hist: 5 rows of N doubles (x0, v0, a0, xm1, xm2), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..
  * written (NULL: not stored). work: 12 N doubles.
+ * The loop itself is shaft_loop.h (shared by every scheme); this file defines the scheme's
+ * derived expressions for it.
  */
-#include <math.h>
-#include <stddef.h>
-#include <string.h>
-
 /* displacement form */
-static int run_displacement(long N, long n_steps, const long *parent, const double *gu,
-                            const double *gS, const double *gR, const double *m, const double *k,
-                            const double *c, const double *kg, const double *cg, double dt,
-                            const double *params, long n_loaded, const long *loaded,
-                            const double *force, double *hist, long n_out, const long *out_idx,
-                            double *xo, double *vo, double *ao, double *work) {
-    const double k0 = 1.0 / dt;
-    const double k1 = ((11.0 / 6.0)) * k0;
-    const double k2 = (1.0 / (dt * dt));
-    const double k3 = 2 * k2;
-    const double k4 = -(7.0 / 6.0) * k0;
-    const double k5 = ((1.0 / 3.0)) * k0;
-    const double k6 = -3 * k2;
-    const double w0 = 0;
-    const double w1 = 1;
-    const double p = 1;
-    const double r = k1;
-    const double alpha_u = k3;
-    const double q_x0 = 1;
-    const double s_dx0 = k4;
-    const double s_dxm1 = k5;
-    const double b_dx0 = k6;
-    const double b_dxm1 = k2;
-    const double x1_x0 = 1;
-    const double x1_u = 1;
-    const double v1_dx0 = k4;
-    const double v1_dxm1 = k5;
-    const double v1_u = k1;
-    const double a1_dx0 = k6;
-    const double a1_dxm1 = k2;
+#define SHAFT_RUN run_displacement
+#define SHAFT_CONSTANTS \
+    const double k0 = 1.0 / dt; \
+    const double k1 = ((11.0 / 6.0)) * k0; \
+    const double k2 = (1.0 / (dt * dt)); \
+    const double k3 = 2 * k2; \
+    const double k4 = -(7.0 / 6.0) * k0; \
+    const double k5 = ((1.0 / 3.0)) * k0; \
+    const double k6 = -3 * k2; \
+    const double w0 = 0; \
+    const double w1 = 1; \
+    const double p = 1; \
+    const double r = k1; \
+    const double alpha_u = k3; \
+    const double q_x0 = 1; \
+    const double s_dx0 = k4; \
+    const double s_dxm1 = k5; \
+    const double b_dx0 = k6; \
+    const double b_dxm1 = k2; \
+    const double x1_x0 = 1; \
+    const double x1_u = 1; \
+    const double v1_dx0 = k4; \
+    const double v1_dxm1 = k5; \
+    const double v1_u = k1; \
+    const double a1_dx0 = k6; \
+    const double a1_dxm1 = k2; \
     const double a1_u = k3;
-    double *x0 = hist + 0 * N;
-    double *v0 = hist + 1 * N;
-    double *a0 = hist + 2 * N;
-    double *xm1 = hist + 3 * N;
+#define SHAFT_HISTORY \
+    double *x0 = hist + 0 * N; \
+    double *v0 = hist + 1 * N; \
+    double *a0 = hist + 2 * N; \
+    double *xm1 = hist + 3 * N; \
     double *xm2 = hist + 4 * N;
-    double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
-    double *SR = work + 5 * N, *g = work + 6 * N, *af = work + 7 * N, *R = work + 8 * N;
-    double *u = work + 9 * N, *den = work + 10 * N, *RR = work + 11 * N;
-    long n, i, j, step;
-    (void)dt;
-    (void)params;
-    (void)alpha_u;
-    memset(SR, 0, (size_t)N * sizeof(double));
-    for (n = N - 1; n >= 0; --n) { /* Riccati factors: S from the leaves to the root */
-        const double mu = kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u;
-        const double kp = k[n] * p + c[n] * r;
-        const double S_L = kp * (SR[n] - mu) / (-SR[n] + kp + mu);
-        g[n] = kp / (-SR[n] + kp + mu);
-        af[n] = -kp / (SR[n] - kp - mu);
-        den[n] = -SR[n] + kp + mu;
-        if (parent[n] >= 0)
-            SR[parent[n]] += gS[n] * S_L;
-    }
-    memset(Fe, 0, (size_t)N * sizeof(double));
-    for (step = 0; step < n_steps; ++step) {
-        for (j = 0; j < n_loaded; ++j)
-            Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
-        for (i = 0; i < N; ++i) {
-            q[i] = q_x0 * x0[i];
-            s[i] = s_dx0 * (x0[i] - xm1[i]) + s_dxm1 * (xm1[i] - xm2[i]);
-            b[i] = m[i] * (b_dx0 * (x0[i] - xm1[i]) + b_dxm1 * (xm1[i] - xm2[i]));
-        }
-        if (kg)
-            for (i = 0; i < N; ++i)
-                b[i] += kg[i] * q[i] + cg[i] * s[i];
-        for (n = 0; n < N; ++n) {
-            const long pa = parent[n];
-            const double qp = pa >= 0 ? gu[n] * q[pa] : 0.0, sp = pa >= 0 ? gu[n] * s[pa] : 0.0;
-            Dl[n] = k[n] * (q[n] - qp) + c[n] * (s[n] - sp);
-        }
-        memset(RR, 0, (size_t)N * sizeof(double));
-        for (n = N - 1; n >= 0; --n) { /* R: leaves to root, summed at the junctions */
-            const double mu = kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u;
-            const double kp = k[n] * p + c[n] * r;
-            R[n] =
-                fma(g[n], RR[n], (-Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp) / den[n]);
-            if (parent[n] >= 0)
-                RR[parent[n]] += gR[n] * R[n];
-        }
-        for (n = 0; n < N; ++n) { /* u: root to leaves, through the gears */
-            const long pa = parent[n];
-            const double R_R = RR[n], up = pa >= 0 ? gu[n] * u[pa] : 0.0;
-            u[n] = fma(af[n], up, (-Dl[n] + Fe[n] + R_R - b[n]) / den[n]);
-        }
-        for (i = 0; i < N; ++i) {
-            const double x1 = x1_x0 * x0[i] + x1_u * u[i];
-            const double v1 = v1_dx0 * (x0[i] - xm1[i]) + v1_dxm1 * (xm1[i] - xm2[i]) + v1_u * u[i];
-            const double a1 = a1_dx0 * (x0[i] - xm1[i]) + a1_dxm1 * (xm1[i] - xm2[i]) + a1_u * u[i];
-            xm2[i] = xm1[i];
-            xm1[i] = x0[i];
-            x0[i] = x1;
-            v0[i] = v1;
-            a0[i] = a1;
-        }
-        for (j = 0; j < n_out; ++j) {
-            const long o = out_idx[j], row = (step + 1) * n_out + j;
-            if (xo)
-                xo[row] = x0[o];
-            if (vo)
-                vo[row] = v0[o];
-            if (ao)
-                ao[row] = a0[o];
-        }
-    }
-    return 0;
-}
+#define SHAFT_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
+#define SHAFT_G kp / (-SR[n] + kp + mu)
+#define SHAFT_AF -kp / (SR[n] - kp - mu)
+#define SHAFT_DEN -SR[n] + kp + mu
+#define SHAFT_Q q_x0 *x0[i]
+#define SHAFT_SV s_dx0 *(x0[i] - xm1[i]) + s_dxm1 *(xm1[i] - xm2[i])
+#define SHAFT_B b_dx0 *(x0[i] - xm1[i]) + b_dxm1 *(xm1[i] - xm2[i])
+#define SHAFT_H_NUM -Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp
+#define SHAFT_B_NUM -Dl[n] + Fe[n] + R_R - b[n]
+#define SHAFT_UPDATE \
+    const double x1 = x1_x0 * x0[i] + x1_u * u[i]; \
+    const double v1 = v1_dx0 * (x0[i] - xm1[i]) + v1_dxm1 * (xm1[i] - xm2[i]) + v1_u * u[i]; \
+    const double a1 = a1_dx0 * (x0[i] - xm1[i]) + a1_dxm1 * (xm1[i] - xm2[i]) + a1_u * u[i]; \
+    xm2[i] = xm1[i]; \
+    xm1[i] = x0[i]; \
+    x0[i] = x1; \
+    v0[i] = v1; \
+    a0[i] = a1;
+#include "shaft_loop.h"
 
 /* acceleration form */
-static int run_acceleration(long N, long n_steps, const long *parent, const double *gu,
-                            const double *gS, const double *gR, const double *m, const double *k,
-                            const double *c, const double *kg, const double *cg, double dt,
-                            const double *params, long n_loaded, const long *loaded,
-                            const double *force, double *hist, long n_out, const long *out_idx,
-                            double *xo, double *vo, double *ao, double *work) {
-    const double k0 = ((1.0 / 2.0)) * (dt * dt);
-    const double k1 = ((11.0 / 12.0)) * dt;
-    const double k2 = 1.0 / dt;
-    const double k3 = ((19.0 / 12.0)) * k2;
-    const double k4 = -(13.0 / 6.0) * k2;
-    const double k5 = ((7.0 / 12.0)) * k2;
-    const double w0 = 0;
-    const double w1 = 1;
-    const double p = k0;
-    const double r = k1;
-    const double alpha_u = 1;
-    const double q_x0 = (5.0 / 2.0);
-    const double q_xm1 = -2;
-    const double q_xm2 = (1.0 / 2.0);
-    const double s_x0 = k3;
-    const double s_xm1 = k4;
-    const double s_xm2 = k5;
-    const double x1_x0 = (5.0 / 2.0);
-    const double x1_xm1 = -2;
-    const double x1_xm2 = (1.0 / 2.0);
-    const double x1_u = k0;
-    const double v1_x0 = k3;
-    const double v1_xm1 = k4;
-    const double v1_xm2 = k5;
-    const double v1_u = k1;
+#define SHAFT_RUN run_acceleration
+#define SHAFT_CONSTANTS \
+    const double k0 = ((1.0 / 2.0)) * (dt * dt); \
+    const double k1 = ((11.0 / 12.0)) * dt; \
+    const double k2 = 1.0 / dt; \
+    const double k3 = ((19.0 / 12.0)) * k2; \
+    const double k4 = -(13.0 / 6.0) * k2; \
+    const double k5 = ((7.0 / 12.0)) * k2; \
+    const double w0 = 0; \
+    const double w1 = 1; \
+    const double p = k0; \
+    const double r = k1; \
+    const double alpha_u = 1; \
+    const double q_x0 = (5.0 / 2.0); \
+    const double q_xm1 = -2; \
+    const double q_xm2 = (1.0 / 2.0); \
+    const double s_x0 = k3; \
+    const double s_xm1 = k4; \
+    const double s_xm2 = k5; \
+    const double x1_x0 = (5.0 / 2.0); \
+    const double x1_xm1 = -2; \
+    const double x1_xm2 = (1.0 / 2.0); \
+    const double x1_u = k0; \
+    const double v1_x0 = k3; \
+    const double v1_xm1 = k4; \
+    const double v1_xm2 = k5; \
+    const double v1_u = k1; \
     const double a1_u = 1;
-    double *x0 = hist + 0 * N;
-    double *v0 = hist + 1 * N;
-    double *a0 = hist + 2 * N;
-    double *xm1 = hist + 3 * N;
+#define SHAFT_HISTORY \
+    double *x0 = hist + 0 * N; \
+    double *v0 = hist + 1 * N; \
+    double *a0 = hist + 2 * N; \
+    double *xm1 = hist + 3 * N; \
     double *xm2 = hist + 4 * N;
-    double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
-    double *SR = work + 5 * N, *g = work + 6 * N, *af = work + 7 * N, *R = work + 8 * N;
-    double *u = work + 9 * N, *den = work + 10 * N, *RR = work + 11 * N;
-    long n, i, j, step;
-    (void)dt;
-    (void)params;
-    (void)alpha_u;
-    memset(SR, 0, (size_t)N * sizeof(double));
-    for (n = N - 1; n >= 0; --n) { /* Riccati factors: S from the leaves to the root */
-        const double mu = kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u;
-        const double kp = k[n] * p + c[n] * r;
-        const double S_L = kp * (SR[n] - mu) / (-SR[n] + kp + mu);
-        g[n] = kp / (-SR[n] + kp + mu);
-        af[n] = -kp / (SR[n] - kp - mu);
-        den[n] = -SR[n] + kp + mu;
-        if (parent[n] >= 0)
-            SR[parent[n]] += gS[n] * S_L;
-    }
-    memset(Fe, 0, (size_t)N * sizeof(double));
-    for (step = 0; step < n_steps; ++step) {
-        for (j = 0; j < n_loaded; ++j)
-            Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
-        for (i = 0; i < N; ++i) {
-            q[i] = q_x0 * x0[i] + q_xm1 * xm1[i] + q_xm2 * xm2[i];
-            s[i] = s_x0 * x0[i] + s_xm1 * xm1[i] + s_xm2 * xm2[i];
-            b[i] = m[i] * (0.0);
-        }
-        if (kg)
-            for (i = 0; i < N; ++i)
-                b[i] += kg[i] * q[i] + cg[i] * s[i];
-        for (n = 0; n < N; ++n) {
-            const long pa = parent[n];
-            const double qp = pa >= 0 ? gu[n] * q[pa] : 0.0, sp = pa >= 0 ? gu[n] * s[pa] : 0.0;
-            Dl[n] = k[n] * (q[n] - qp) + c[n] * (s[n] - sp);
-        }
-        memset(RR, 0, (size_t)N * sizeof(double));
-        for (n = N - 1; n >= 0; --n) { /* R: leaves to root, summed at the junctions */
-            const double mu = kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u;
-            const double kp = k[n] * p + c[n] * r;
-            R[n] =
-                fma(g[n], RR[n], (-Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp) / den[n]);
-            if (parent[n] >= 0)
-                RR[parent[n]] += gR[n] * R[n];
-        }
-        for (n = 0; n < N; ++n) { /* u: root to leaves, through the gears */
-            const long pa = parent[n];
-            const double R_R = RR[n], up = pa >= 0 ? gu[n] * u[pa] : 0.0;
-            u[n] = fma(af[n], up, (-Dl[n] + Fe[n] + R_R - b[n]) / den[n]);
-        }
-        for (i = 0; i < N; ++i) {
-            const double x1 = x1_x0 * x0[i] + x1_xm1 * xm1[i] + x1_xm2 * xm2[i] + x1_u * u[i];
-            const double v1 = v1_x0 * x0[i] + v1_xm1 * xm1[i] + v1_xm2 * xm2[i] + v1_u * u[i];
-            const double a1 = a1_u * u[i];
-            xm2[i] = xm1[i];
-            xm1[i] = x0[i];
-            x0[i] = x1;
-            v0[i] = v1;
-            a0[i] = a1;
-        }
-        for (j = 0; j < n_out; ++j) {
-            const long o = out_idx[j], row = (step + 1) * n_out + j;
-            if (xo)
-                xo[row] = x0[o];
-            if (vo)
-                vo[row] = v0[o];
-            if (ao)
-                ao[row] = a0[o];
-        }
-    }
-    return 0;
-}
+#define SHAFT_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
+#define SHAFT_G kp / (-SR[n] + kp + mu)
+#define SHAFT_AF -kp / (SR[n] - kp - mu)
+#define SHAFT_DEN -SR[n] + kp + mu
+#define SHAFT_Q q_x0 *x0[i] + q_xm1 *xm1[i] + q_xm2 *xm2[i]
+#define SHAFT_SV s_x0 *x0[i] + s_xm1 *xm1[i] + s_xm2 *xm2[i]
+#define SHAFT_B 0.0
+#define SHAFT_H_NUM -Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp
+#define SHAFT_B_NUM -Dl[n] + Fe[n] + R_R - b[n]
+#define SHAFT_UPDATE \
+    const double x1 = x1_x0 * x0[i] + x1_xm1 * xm1[i] + x1_xm2 * xm2[i] + x1_u * u[i]; \
+    const double v1 = v1_x0 * x0[i] + v1_xm1 * xm1[i] + v1_xm2 * xm2[i] + v1_u * u[i]; \
+    const double a1 = a1_u * u[i]; \
+    xm2[i] = xm1[i]; \
+    xm1[i] = x0[i]; \
+    x0[i] = x1; \
+    v0[i] = v1; \
+    a0[i] = a1;
+#include "shaft_loop.h"
 
 /* form: 0 displacement, 1 acceleration. Returns 0, or -1 for an absent form. */
 int dtdyn_shaft_houbolt(int form, long N, long n_steps, const long *parent, const double *gu,
