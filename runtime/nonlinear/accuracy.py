@@ -74,7 +74,7 @@ def scheme_order(method, params) -> int:
     if method == "modal_parabolic":
         return 3
     if method not in TABLE:
-        raise ValueError(f"scheme {method!r} has no known order; accuracy and error_estimate "
+        raise ValueError(f"scheme {method!r} has no known order; accuracy and estimate "
                          f"need modal_ramp, modal_parabolic or a scheme of {', '.join(TABLE)}")
     if method == "newmark" and float(params.get("gamma", 0.5)) != 0.5:
         return 1
@@ -82,7 +82,9 @@ def scheme_order(method, params) -> int:
 
 
 def difference(a, b) -> float:
-    """max over the stored quantities of max|a_q - b_q| / max|a_q| (0 for none stored)."""
+    """max over the stored quantities of max|a_q - b_q| / max|a_q| (0 for none stored); inf
+    when a quantity's difference is not finite (a NaN or inf in either run never counts as
+    agreement: Python's max(worst, nan) would return worst)."""
     worst = 0.0
     for q in MEASURED:
         x, y = getattr(a, q, None), getattr(b, q, None)
@@ -90,12 +92,16 @@ def difference(a, b) -> float:
             continue
         scale = np.abs(x).max()
         d = np.abs(x - y).max()
-        worst = max(worst, float(d / scale) if scale > 0 else (0.0 if d == 0 else np.inf))
+        term = float(d / scale) if scale > 0 else (0.0 if d == 0 else np.inf)
+        if not math.isfinite(term):
+            return np.inf
+        worst = max(worst, term)
     return worst
 
 
 def _extrapolate(fine, coarse, factor):
-    """fine + factor (fine - coarse), quantity by quantity (a new Response)."""
+    """fine + factor (fine - coarse), quantity by quantity (a new Response; built by `reach`
+    only when its difference to the previous level's is measured)."""
     from copy import copy
     out = copy(fine)
     out.info = dict(fine.info)
@@ -113,13 +119,26 @@ def _timing(runs):
 
 def estimate_only(run, substeps, method, params):
     """The run at ``substeps`` with the estimate of its own error from a companion run (S / 2
-    when S is even: the cheaper one; 2 S otherwise)."""
+    when S is even: the cheaper one; 2 S otherwise). When the S / 2 companion fails
+    (NewtonError, a modal step beyond its stability limit) the 2 S one is used; when the
+    companion fails at every count tried, the last failure's type is raised (chained) naming
+    the companion sub-steps."""
     p = scheme_order(method, params)
     S = substeps
     mine = run(S)
-    other = run(S // 2 if S % 2 == 0 else 2 * S)
+    tried = [S // 2, 2 * S] if S % 2 == 0 else [2 * S]
+    for i, S_other in enumerate(tried):
+        try:
+            other = run(S_other)
+            break
+        except (NewtonError, DtdynStepStabilityError) as exc:
+            if i == len(tried) - 1:
+                raise type(exc)(
+                    f"estimate: the run at {S} sub-steps succeeded but its companion run failed "
+                    f"at {' and '.join(map(str, tried))} sub-steps ({type(exc).__name__}: {exc})"
+                ) from exc
     t0 = time.perf_counter()
-    if S % 2 == 0:
+    if S_other < S:
         est = difference(mine, other) / (2**p - 1)       # mine is the fine run
     else:
         est = difference(mine, other) * 2**p / (2**p - 1)  # mine is the coarse run
@@ -139,18 +158,33 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
     (R_k when both qualify: the smaller error). A run that fails (NewtonError, a modal step
     beyond its stability limit) restarts the sequence at twice its sub-steps. Beyond
     ``max_substeps``: a DtdynAccuracyWarning naming the target, the estimate reached and the
-    sub-steps, and the best solution with its estimate.
+    sub-steps, and the best solution with its estimate (inf when no run had a neighbour to be
+    estimated from, or its differences were not finite). When every run failed, the last
+    failure's own type (chained) naming the target and the sub-steps tried.
     """
     p = scheme_order(method, params)
+    # extrap: per level k >= 1 of the current sequence, [fine, coarse, R or None]: R_k is built
+    # (once) only when a difference R_k - R_{k-1} is measured
     runs, diffs, levels, extrap, dR, all_runs = [], [], [], [], [], []
+
+    def extrapolation(i):
+        e = extrap[i]
+        if e[2] is None:
+            e[2] = _extrapolate(e[0], e[1], 1.0 / (2**p - 1))
+        return e[2]
     spent = [0.0]  # the estimates' own work (differences, extrapolations), s
     log = []
     S = substeps
     best = None
+    failure, last_ok = None, None  # the last failure; the last run that succeeded
+    tried = []
     while S <= max_substeps:
+        tried.append(S)
         try:
             r = run(S)
+            last_ok = S
         except (NewtonError, DtdynStepStabilityError) as exc:
+            failure = exc
             log.append((S, None, f"{type(exc).__name__}: restarted at {2 * S} sub-steps"))
             runs, diffs, levels, extrap, dR = [], [], [], [], []
             S *= 2
@@ -169,10 +203,10 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
                 p_eff = min(p, p_obs)
             plain = diffs[-1] / (2**p_eff - 1) if p_eff > 0 else np.inf
             cands = [(plain, r, False)]
-            R = _extrapolate(r, runs[-2], 1.0 / (2**p - 1))
-            extrap.append(R)
+            extrap.append([r, runs[-2], None])
             if p_obs is not None and abs(p_obs - p) <= P_SLACK and len(extrap) >= 2:
-                dR.append(difference(R, extrap[-2]))
+                R = extrapolation(-1)
+                dR.append(difference(R, extrapolation(-2)))
                 if len(dR) >= 2:  # four levels: the extrapolation's own observed order
                     ratio = dR[-2] / dR[-1] if dR[-1] > 0 else np.inf
                     q = min(p + 1, math.log2(ratio) if ratio > 0 else -np.inf)
@@ -190,9 +224,15 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
         else:
             log.append((S, None, None))
         S *= 2
+    if not all_runs:  # every run failed: the last failure's own type
+        raise type(failure)(
+            f"accuracy={accuracy:g}: no run succeeded at {', '.join(map(str, tried))} sub-steps "
+            f"(max_substeps={max_substeps}); the last: {type(failure).__name__}: {failure}"
+        ) from failure
     if best is None:
-        raise NewtonError(f"accuracy={accuracy:g}: no run succeeded up to max_substeps="
-                          f"{max_substeps} ({log[-1][2] if log else 'no run'})")
+        # runs succeeded but none had a successful neighbour to be estimated from: the last
+        # of them, with an infinite estimate, and the warning below
+        best = (np.inf, all_runs[-1], False, last_ok, None, [last_ok])
     warnings.warn(
         f"accuracy={accuracy:g} not reached: the error estimate is {best[0]:.3g} at "
         f"{best[3]} sub-steps (max_substeps={max_substeps}, scheme {method!r}, order {p}); "

@@ -346,7 +346,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                        backend="c", tol=1e-12, max_iter=30, solver="newton", compiled=False,
                        ground_acceleration=None, ground_velocity=None,
                        ground_displacement=None, influence=None, x0=None, v0=None,
-                       accuracy=None, error_estimate=False, max_substeps=256,
+                       accuracy=None, estimate=False, max_substeps=256,
                        **scheme_params) -> Response:
     """Forced response of M q'' + C q' + K q + L^T g = f with localized nonlinear elements.
 
@@ -411,13 +411,17 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         ``observed_order``, ``accuracy_met``, the times summed over every run, and
         ``estimate_time`` (the estimates' own work). A run that
         fails (NewtonError, a modal step beyond its stability limit) restarts at twice its
-        sub-steps.
-    error_estimate : bool
+        sub-steps; when every run fails, the last failure's type is raised naming the target
+        and the sub-steps tried.
+    estimate : bool
         Without a target: also run ``substeps`` / 2 (``substeps`` even) or 2 ``substeps`` (odd)
-        and report the estimate of this run's error in ``info["error_estimate"]``.
+        and report the estimate of this run's error in ``info["error_estimate"]`` (a number);
+        when the ``substeps`` / 2 run fails (NewtonError, a modal step beyond its stability
+        limit) the 2 ``substeps`` one is used. With ``accuracy`` the estimate is always
+        reported, so ``estimate=True`` adds nothing (and is no error). Must be a bool.
     max_substeps : int
-        ``accuracy``: the most sub-steps tried; beyond them a DtdynAccuracyWarning names the
-        target, the estimate reached and the sub-steps, and the best solution is returned.
+        ``accuracy`` only: the most sub-steps tried; beyond them a DtdynAccuracyWarning names
+        the target, the estimate reached and the sub-steps, and the best solution is returned.
     x0, v0 : (N,) array_like, optional
         Displacement and velocity at t_0 (rest when None); the elements start from the
         deformations they give, their internal states z from 0.
@@ -457,7 +461,13 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     >>> r.x.shape
     (2001, 2)
     """
-    if accuracy is not None or error_estimate:
+    if not isinstance(estimate, (bool, np.bool_)):
+        raise ValueError(f"estimate must be True or False, got {estimate!r} (a relative error "
+                         f"target is accuracy=...)")
+    if "error_estimate" in scheme_params:
+        raise TypeError("nonlinear_response: the keyword error_estimate is now estimate "
+                        "(info['error_estimate'] is still the number)")
+    if accuracy is not None or estimate:
         from dtdyn.nonlinear import accuracy as acc
         target = None if accuracy is None else acc.check_accuracy(accuracy)
         S0 = validate.step_count("substeps", substeps)

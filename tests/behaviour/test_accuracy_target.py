@@ -9,11 +9,13 @@ factor 3 of its true error, where the scheme's order holds (smooth elements); wh
 (the gap's kink, Bouc-Wen's |z| and sign(y')), each test says what is measured instead.
 """
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from dtdyn._engine.errors import DtdynAccuracyWarning
+from dtdyn._engine.errors import DtdynAccuracyWarning, DtdynStepStabilityError, NewtonError
+from dtdyn.nonlinear import accuracy as acc
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap
 from dtdyn.nonlinear.reference import reference_response
 from dtdyn.nonlinear.response import nonlinear_response
@@ -96,10 +98,10 @@ def test_p4_accuracy_1e3_is_the_plain_run_at_two_substeps(P4):
 
 @pytest.mark.parametrize("substeps", [1, 4])
 def test_error_estimate_without_a_target(P4, substeps):
-    """error_estimate=True: the run asked for, with its error estimated from 2 S (S odd: the
+    """estimate=True: the run asked for, with its error estimated from 2 S (S odd: the
     coarse run, |d| 2^p / (2^p - 1)) or S / 2 (S even: the fine run, |d| / (2^p - 1))."""
     r = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", substeps=substeps,
-                           error_estimate=True)
+                           estimate=True)
     assert r.info["substeps"] == substeps
     e, est = error(r, P4["ref"]), r.info["error_estimate"]
     assert e / 3 <= est <= 3 * e, (e, est)
@@ -279,3 +281,134 @@ def test_cap_warns_with_target_estimate_and_substeps(P4):
                            match=r"accuracy=1e-12 not reached: the error estimate is "
                                  r"[0-9.e-]+ at 4 sub-steps \(max_substeps=4"):
             nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-12, max_substeps=4)
+
+
+def test_estimate_keyword_is_a_bool_and_the_old_name_is_named(P4):
+    with pytest.raises(ValueError, match=r"estimate must be True or False, got 1e-06"):
+        nonlinear_response(*P4["args"], **P4["kw"], estimate=1e-6)
+    with pytest.raises(TypeError, match="error_estimate is now estimate"):
+        nonlinear_response(*P4["args"], **P4["kw"], error_estimate=True)
+
+
+def test_accuracy_with_estimate_true_is_the_accuracy_run(P4):
+    """accuracy always reports the estimate: estimate=True beside it changes nothing."""
+    kw = dict(P4["kw"], scheme="modal_parabolic", accuracy=1e-3)
+    a = nonlinear_response(*P4["args"], **kw)
+    b = nonlinear_response(*P4["args"], **kw, estimate=True)
+    for q in "xva":
+        np.testing.assert_array_equal(getattr(a, q), getattr(b, q))
+    assert a.info["error_estimate"] == b.info["error_estimate"]
+
+
+# --- non-finite runs, failing companions ------------------------------------------------------
+
+def _fake(S, nan=False):
+    """A stand-in Response: x = sin(t) + h^2 cos(3t) + h^3 sin(2t) (second order, its
+    extrapolation third), NaN at one sample if asked."""
+    t = np.linspace(0.0, 1.0, 101)[:, None]
+    x = np.sin(t) + (1.0 / S) ** 2 * np.cos(3 * t) + (1.0 / S) ** 3 * np.sin(2 * t)
+    if nan:
+        x[50, 0] = np.nan
+    return SimpleNamespace(x=x, v=None, a=None, g=None, z=None, a_abs=None, x_abs=None,
+                           info={"substeps": S})
+
+
+def test_a_nan_is_never_agreement():
+    """max(worst, nan) is worst in Python: a NaN in either run must give inf, not 0."""
+    a, b = _fake(4), _fake(4, nan=True)
+    assert acc.difference(a, a) == 0.0
+    assert acc.difference(a, b) == np.inf and acc.difference(b, a) == np.inf
+    both = _fake(4, nan=True)
+    assert acc.difference(both, both) == np.inf        # NaN == NaN is no agreement either
+    a.v, b.v = a.x.copy(), a.x.copy()                    # a later quantity cannot hide it
+    assert acc.difference(a, b) == np.inf
+
+
+def test_a_nan_run_is_never_reported_as_met():
+    """The 2-sub-step run has a NaN: its estimate is inf and the sequence goes on; when every
+    run has one, the cap warning fires with an infinite estimate."""
+    r = acc.reach(lambda S: _fake(S, nan=S == 2), 1e-3, 1, 256, "newmark", {})
+    log = {e["substeps"]: e["estimate"] for e in r.info["accuracy_log"]}
+    assert log[2] == np.inf and r.info["accuracy_met"] and r.info["substeps"] > 2
+    assert np.isfinite(r.x).all()
+    with pytest.warns(DtdynAccuracyWarning, match=r"the error estimate is inf at"):
+        r = acc.reach(lambda S: _fake(S, nan=True), 1e-3, 1, 8, "newmark", {})
+    assert not r.info["accuracy_met"] and r.info["error_estimate"] == np.inf
+    r = acc.estimate_only(lambda S: _fake(S, nan=S == 2), 4, "newmark", {})
+    assert r.info["error_estimate"] == np.inf
+
+
+def _stiff_gap(stiffness):
+    """A gap 2000 times the linear stiffness at 1 kHz: modal_ramp at 1 sub-step is beyond its
+    stability limit for 2e7 N/m (2 passes), at 1 and 2 for 1e8 (4 passes)."""
+    M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
+    f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(1000) / 1000.0))[:, None]
+    els = [Gap(0, gap=1e-2, stiffness=stiffness)]
+
+    def run(**kw):
+        return nonlinear_response(M, C, K, f, 1e-3, force_dofs=[0], elements=els,
+                                  scheme="modal_ramp", quantities=("x",), **kw)
+    return run
+
+
+def test_estimate_falls_back_to_2s_when_the_half_run_is_unstable():
+    """substeps=2 runs; its S / 2 = 1 companion is beyond the stability limit, so the estimate
+    comes from 4 (the coarse-run formula), and the result is the 2-sub-step run bit for bit."""
+    run = _stiff_gap(2e7)
+    with pytest.raises(DtdynStepStabilityError):
+        run(substeps=1)
+    r = run(substeps=2, estimate=True)
+    plain, fine = run(substeps=2), run(substeps=4)
+    np.testing.assert_array_equal(r.x, plain.x)
+    assert r.info["substeps"] == 2 and r.info["estimate_substeps"] == [2, 4]
+    d = np.abs(plain.x - fine.x).max() / np.abs(plain.x).max()
+    assert r.info["error_estimate"] == d * 4 / 3
+
+
+def test_estimate_names_the_companions_when_both_fail():
+    def run(S):
+        if S != 4:
+            raise NewtonError(f"step 7 did not converge at {S} sub-steps")
+        return _fake(S)
+    with pytest.raises(NewtonError, match=r"run at 4 sub-steps succeeded but its companion run "
+                                          r"failed at 2 and 8 sub-steps") as err:
+        acc.estimate_only(run, 4, "newmark", {})
+    assert isinstance(err.value.__cause__, NewtonError)
+    with pytest.raises(NewtonError, match=r"companion run failed at 6 sub-steps"):
+        acc.estimate_only(lambda S: _fake(S) if S == 3 else run(S), 3, "newmark", {})
+
+
+def test_every_run_unstable_raises_the_stability_error():
+    """1 and 2 sub-steps are both beyond the limit with max_substeps=2: the stability error
+    itself (chained), naming the target and the sub-steps tried, not a NewtonError."""
+    run = _stiff_gap(1e8)
+    with pytest.raises(DtdynStepStabilityError,
+                       match=r"accuracy=0.001: no run succeeded at 1, 2 sub-steps "
+                             r"\(max_substeps=2\)") as err:
+        run(accuracy=1e-3, max_substeps=2)
+    assert isinstance(err.value.__cause__, DtdynStepStabilityError)
+    assert not isinstance(err.value, NewtonError)
+
+
+def test_lazy_extrapolation_builds_only_what_is_compared(monkeypatch):
+    """The extrapolation is built only for the levels whose difference is measured: none while
+    the observed order is off, and each level at most once."""
+    built = []
+    real = acc._extrapolate
+
+    def counting(fine, coarse, factor):
+        built.append(fine.info["substeps"])
+        return real(fine, coarse, factor)
+    monkeypatch.setattr(acc, "_extrapolate", counting)
+    with pytest.warns(DtdynAccuracyWarning):
+        r = acc.reach(lambda S: _fake(S), 1e-12, 1, 64, "newmark", {})
+    assert sorted(built) == [4, 8, 16, 32, 64] and r.info["extrapolated"]
+    built.clear()
+
+    def first_order(S):                      # observed order 1, p = 2: never extrapolated
+        out = _fake(S)
+        out.x = out.x + (1.0 / S) * np.cos(5 * out.x)
+        return out
+    with pytest.warns(DtdynAccuracyWarning):
+        acc.reach(first_order, 1e-12, 1, 16, "newmark", {})
+    assert built == []
