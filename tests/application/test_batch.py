@@ -77,7 +77,7 @@ def test_csv_table(tmp_path):
                                  "load[0].seed": 3},
                                 {"model.stiffness[0]": 2.5e4, "load[0].seed": 4}]
     path.write_text("a.b,c\n1\n")
-    with pytest.raises(ValueError, match="row 2 has 1 cells, the header 2"):
+    with pytest.raises(ValueError, match="line 2 has 1 cells, the header 2"):
         read_table(path)
 
 
@@ -286,3 +286,135 @@ def test_cluster_of_dask_scheduler_and_dask_worker(tmp_path):
         for p in reversed(procs):
             p.terminate()
             p.wait(timeout=30)
+
+
+CHAIN = ('[model]\nmass = [1.0, 1.0]\nstiffness = [1e4, 1e4]\ndamping = [1.0, 1.0]\n'
+         '[[load]]\ndof = 1\nkind = "step"\n[scheme]\nname = "average_acceleration"\n'
+         '[time]\ndt = 0.001\nduration = 0.2\n')
+
+
+def chain_file(folder: Path, name="chain.toml", extra=""):
+    path = folder / name
+    path.write_text(CHAIN + extra)
+    return path
+
+
+def test_unexpected_errors_and_non_finite_values_fail_their_case(client, tmp_path):
+    """A user reducer raising TypeError, or returning NaN, fails that case (its message); the
+    other cases are done; the linear case's error estimate metadata is there (NaN: none)."""
+    base = chain_file(tmp_path)
+    rows = [{"model.mass[0]": m} for m in (1.0, 2.0, 3.0, 4.0)]
+
+    def picky(response, scene):
+        if scene.mass[0] == 2.0:
+            raise TypeError("unsupported operand")
+        return {"m0": float(scene.mass[0]), "e": (("output",),
+                                                  [np.nan if scene.mass[0] == 3.0 else 1.0]
+                                                  * len(response.outputs))}
+
+    ds = dd.run_batch(base, vary=rows, client=client, reduce=["peak", picky], chunk=1,
+                      progress=False)
+    assert list(ds["status"].values) == ["done", "failed", "failed", "done"]
+    assert str(ds["message"].values[1]) == "reduce 'picky': TypeError: unsupported operand"
+    assert str(ds["message"].values[2]) == \
+        "FloatingPointError: non-finite values in e at output 0"
+    assert np.isnan(ds["m0"].values[1:3]).all() and ds["m0"].values[3] == 4.0
+    assert ds["error_estimate"].dtype == float
+
+
+def test_a_task_dying_fails_its_cases_and_the_batch_goes_on(client, tmp_path):
+    base = chain_file(tmp_path)
+    rows = [{"model.mass[0]": m} for m in (1.0, 2.0, 3.0)]
+
+    def crash(response, scene):
+        if scene.mass[0] == 2.0:
+            os._exit(1)   # the worker process dies under this task
+        return {"m0": float(scene.mass[0])}
+
+    ds = dd.run_batch(base, vary=rows, client=client, reduce=crash, chunk=1, progress=False)
+    assert list(ds["status"].values) == ["done", "failed", "done"]
+    # the scheduler retries the task on the restarted workers, then gives it up
+    assert re.match(r"(KilledWorker|FutureCancelledError): ", str(ds["message"].values[1])), \
+        ds["message"].values[1]
+    assert np.isnan(ds["m0"].values[1]) and ds["m0"].values[2] == 3.0
+    client.wait_for_workers(2, timeout=60)
+
+
+def test_a_stopped_batch_waits_for_running_tasks_and_leaves_nothing(client, tmp_path):
+    """A batch stopped by an error while another task still runs: nothing partial comes back
+    after that task ends; every worker's folder of the batch is removed."""
+    import time as _time
+
+    base = chain_file(tmp_path)
+    rows = [{"model.mass[0]": m} for m in (1.0, 2.0, 3.0)]
+
+    def slow_or_broken(response, scene):
+        if scene.mass[0] == 2.0:
+            _time.sleep(1.0)
+        if scene.mass[0] == 3.0:
+            raise CBackendError("no compiler (simulated)")
+        return {"m0": float(scene.mass[0])}
+
+    with pytest.raises(CBackendError, match="simulated"):
+        dd.run_batch(base, vary=rows, client=client, reduce=slow_or_broken, chunk=1,
+                     out=tmp_path / "r.zarr", progress=False)
+    _time.sleep(0.3)
+    assert not [p for p in tmp_path.iterdir() if "zarr" in p.name]
+
+    def folders():
+        from dtdyn.app.batch import worker
+        return dict(worker._FOLDERS)
+
+    dd.run_batch(base, client=client, reduce="peak", progress=False)
+    assert all(v == {} for v in client.run(folders).values())
+
+
+def test_time_axis_and_name_clashes(client, tmp_path):
+    base = chain_file(tmp_path)
+    ds = dd.run_batch(base, vary=[{}, {"time.dt": 0.002, "time.duration": 0.4}], client=client,
+                      progress=False)
+    assert list(ds["status"].values) == ["done", "failed"]
+    assert "the case's time axis (201 samples, dt = 0.002 s) differs from the batch's (201 " \
+           "samples, dt = 0.001 s" in str(ds["message"].values[1])
+    with pytest.raises(ValueError, match="reduce 'peak': the variable 'peak_x' is already made "
+                                         "by the reducer 'peak'"):
+        dd.run_batch(base, client=client, reduce="peak,peak", progress=False)
+
+    def seed(response, scene):
+        return {"seed": 1.0}
+
+    with pytest.raises(ValueError, match="reduce 'seed': the variable 'seed' has the name of "
+                                         "a batch's metadata"):
+        dd.run_batch(base, client=client, reduce=seed, progress=False)
+
+    def peak_x(response, scene):
+        return {"peak_x": 1.0}
+
+    with pytest.raises(ValueError, match="reduce 'peak_x': the variable 'peak_x' is already"):
+        dd.run_batch(base, client=client, reduce=["peak", peak_x], progress=False)
+
+
+def test_files_checked_when_the_batch_is_built(tmp_path):
+    from dtdyn.app.batch.cases import build_cases
+
+    (tmp_path / "017").write_text("0.0\n1.0\n")
+    base = chain_file(tmp_path, extra='[ground]\nkind = "file"\npath = "017"\n')
+    with pytest.raises(ValueError, match=r"case 1: ground.path = 'gm_9.csv': no such file in "):
+        build_cases(base, vary=[{}, {"ground.path": "gm_9.csv"}])
+    missing = chain_file(tmp_path, "m.toml", extra='[ground]\nkind = "file"\npath = "no.csv"\n')
+    with pytest.raises(ValueError, match=r"m.toml: ground.path = 'no.csv': no such file in "):
+        build_cases(missing)
+    table = tmp_path / "t.csv"
+    table.write_text("# comment\n\nground.path,ground.scale\n017,0.5\n# another\n017\n")
+    with pytest.raises(ValueError, match="line 6 has 1 cells"):
+        read_table(table)
+    table.write_text("ground.path,ground.scale\n017,0.5\n017,\n")
+    assert read_table(table) == [{"ground.path": "017", "ground.scale": 0.5},
+                                 {"ground.path": "017"}]
+    _, specs, _ = build_cases(base, vary=table)
+    assert len(specs[0].files) == 1
+    assert read_table({"a.b": [1.0, np.nan, None], "c": ["x", None, "y"]}) == \
+        [{"a.b": 1.0, "c": "x"}, {}, {"c": "y"}]
+    pd = pytest.importorskip("pandas")
+    frame = pd.DataFrame({"a.b": [1.0, np.nan], "c": ["x", None]})
+    assert read_table(frame) == [{"a.b": 1.0, "c": "x"}, {}]

@@ -129,6 +129,13 @@ def _plain(value, where: str):
                      "or a list of them")
 
 
+def _absent(value) -> bool:
+    """A missing cell of a DataFrame or a dict of columns: None, NaN, pandas.NA or NaT."""
+    if value is None or type(value).__name__ in ("NAType", "NaTType"):
+        return True
+    return isinstance(value, (float, np.floating)) and bool(np.isnan(value))
+
+
 def _cell(text: str):
     """A CSV cell: an integer, else a float, else true/false, else the text itself."""
     text = text.strip()
@@ -154,33 +161,40 @@ def read_table(vary) -> list[dict]:
             raise ValueError(f"vary = {str(path)!r}: no such file")
         try:
             with open(path, newline="", encoding="utf-8") as fh:
-                reader = csv.reader(row for row in fh if not row.lstrip().startswith("#"))
-                rows = [r for r in reader if any(c.strip() for c in r)]
+                # comment lines read as empty ones, so reader.line_num stays the file's line
+                reader = csv.reader("\n" if row.lstrip().startswith("#") else row
+                                    for row in fh)
+                rows = [(reader.line_num, r) for r in reader if any(c.strip() for c in r)]
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
             raise ValueError(f"vary = {str(path)!r}: cannot read the table: {exc}") from None
         if not rows:
             raise ValueError(f"vary = {str(path)!r}: the table is empty (the first row names "
                              "the keys, one row per case follows)")
-        header = [h.strip() for h in rows[0]]
+        header = [h.strip() for h in rows[0][1]]
         for h in header:
             parse_key(h)
         if len(set(header)) != len(header):
             raise ValueError(f"vary = {str(path)!r}: a key repeats in the header {header}")
+        text = [parse_key(h)[-1] in FILE_KEYS for h in header]  # file names stay text
         table = []
-        for n, row in enumerate(rows[1:], start=2):
+        for line, row in rows[1:]:
             if len(row) != len(header):
-                raise ValueError(f"vary = {str(path)!r}: row {n} has {len(row)} cells, the "
+                raise ValueError(f"vary = {str(path)!r}: line {line} has {len(row)} cells, the "
                                  f"header {len(header)}")
-            table.append({k: _cell(c) for k, c in zip(header, row) if c.strip() != ""})
+            table.append({k: (c.strip() if t else _cell(c))
+                          for k, c, t in zip(header, row, text) if c.strip() != ""})
         return table
+    columns = False
     if hasattr(vary, "to_dict") and hasattr(vary, "columns"):  # a pandas DataFrame
-        vary = vary.to_dict("records")
+        vary, columns = vary.to_dict("records"), True
     if isinstance(vary, dict):
         lengths = {k: len(v) for k, v in vary.items()}
         if len(set(lengths.values())) > 1:
             raise ValueError(f"vary: the columns have different lengths {lengths}")
         n = next(iter(lengths.values()), 0)
-        vary = [{k: vary[k][i] for k in vary} for i in range(n)]
+        vary, columns = [{k: vary[k][i] for k in vary} for i in range(n)], True
+    if columns:  # a table's NaN / None cell keeps the scene's value, as an empty CSV cell
+        vary = [{k: v for k, v in row.items() if not _absent(v)} for row in vary]
     if not isinstance(vary, (list, tuple)) or not all(isinstance(r, dict) for r in vary):
         raise ValueError(f"vary = {type(vary).__name__}: must be a CSV file, a list of dicts, a "
                          "dict of columns or a pandas DataFrame")
@@ -221,10 +235,10 @@ def _file_name(data: bytes, name: str) -> str:
     return f"files/{hashlib.sha256(data).hexdigest()[:20]}/{Path(name).name}"
 
 
-def _read_file(value: str, base_dir: Path, where: str) -> tuple[str, bytes] | None:
+def _read_file(value: str, base_dir: Path, where: str) -> tuple[str, bytes]:
     path = Path(value) if Path(value).is_absolute() else base_dir / value
     if not path.is_file():
-        return None  # not a file here: the parser on the worker says what is wrong
+        raise ValueError(f"{where} = {value!r}: no such file in {str(path.parent)!r}")
     try:
         data = path.read_bytes()
     except OSError as exc:
@@ -240,11 +254,9 @@ def _ship_files(node, base_dir: Path, files: dict, where: str = ""):
         for key, value in node.items():
             here = f"{where}.{key}" if where else key
             if key in FILE_KEYS and isinstance(value, str):
-                got = _read_file(value, base_dir, here)
-                if got is not None:
-                    files[got[0]] = got[1]
-                    value = got[0]
-                out[key] = value
+                name, data = _read_file(value, base_dir, here)
+                files[name] = data
+                out[key] = name
             else:
                 out[key] = _ship_files(value, base_dir, files, here)
         return out
@@ -322,7 +334,10 @@ def build_cases(cases, vary=None, seed=None) -> tuple[Shared, list[CaseSpec], li
                 raise ValueError(f"cases[{k}] is a Scene object: vary and seed change a scene's "
                                  "tables; give its file path or its tables (dict) instead")
         else:
-            data = _ship_files(data, folder, files)
+            try:
+                data = _ship_files(data, folder, files)
+            except ValueError as exc:
+                raise ValueError(f"{source}: {exc}") from None
         bases.append(data)
         sources.append(source)
         folders.append(folder)
@@ -334,10 +349,9 @@ def build_cases(cases, vary=None, seed=None) -> tuple[Shared, list[CaseSpec], li
             overrides = dict(row)
             for key, value in row.items():
                 if parse_key(key)[-1] in FILE_KEYS and isinstance(value, str):
-                    got = _read_file(value, folders[k], f"case {index}: {key}")
-                    if got is not None:
-                        case_files[got[0]] = got[1]
-                        overrides[key] = got[0]
+                    name, data_ = _read_file(value, folders[k], f"case {index}: {key}")
+                    case_files[name] = data_
+                    overrides[key] = name
             if not isinstance(data, Scene):
                 try:
                     apply_overrides(data, overrides)  # the keys fit the tables

@@ -13,6 +13,7 @@ import numpy as np
 from dtdyn._engine.extras import require
 from dtdyn.app.batch import store, worker
 from dtdyn.app.batch.cases import build_cases
+from dtdyn.app.batch.worker import CBackendError
 from dtdyn.app.batch.reducers import reducer_coords, reducer_name, reducers_from
 
 __all__ = ["run_batch", "auto_chunk", "local_cluster", "TASK_BYTES", "TASKS_PER_WORKER",
@@ -106,6 +107,7 @@ def _meta_vars(metas: list[dict], params: list[dict]) -> dict:
         "run_time": np.array([m["run_time"] for m in metas], dtype=float),
         "max_rel_error": np.array([m["max_rel_error"] for m in metas], dtype=float),
         "max_residual": np.array([m["max_residual"] for m in metas], dtype=float),
+        "error_estimate": np.array([m["error_estimate"] for m in metas], dtype=float),
         "seed": np.array([m["seed"] for m in metas], dtype=np.int64),
         "params": np.array([json.dumps(p) for p in params], dtype=str),
     }
@@ -126,6 +128,39 @@ def _in_memory(layout, n, blocks_by_start, meta_vars, case_coords, attrs):
         data[name] = (("case", *dims), values)
     data.update({k: ("case", v) for k, v in meta_vars.items()})
     return xr.Dataset(data, coords=coords, attrs={"dtdyn_batch": json.dumps(attrs)})
+
+
+def _task_failed(specs, exc: BaseException) -> list[dict]:
+    """The metadata of the cases of a task that did not return (its worker died, ...)."""
+    try:
+        message = f"{type(exc).__name__}: {exc}"
+    except Exception:  # noqa: BLE001 - an exception whose str() fails
+        message = f"{type(exc).__name__}: {exc!r}"
+    return [{"index": s.index, "status": "failed", "message": message, "backend": "",
+             "worker": "", "run_time": np.nan, "max_rel_error": np.nan, "max_residual": np.nan,
+             "error_estimate": np.nan, "seed": s.seed} for s in specs]
+
+
+def _stop(client, futures, timeout: float = 60.0) -> None:
+    """Stop a batch's tasks before its store is removed: cancel those not yet running, wait
+    (at most ``timeout`` s) for those a worker is running (a running task cannot be stopped
+    and would write its block into a removed store), then cancel them too."""
+    from distributed import wait
+
+    if not futures:
+        return
+    try:
+        running = {k for keys in client.processing().values() for k in keys}
+        busy = [f for f in futures if f.key in running and not f.done()]
+        client.cancel([f for f in futures if f not in busy])
+        if busy:
+            wait(busy, timeout=timeout)
+    except Exception:  # noqa: BLE001 - the client may be gone: stopping is best effort
+        pass
+    try:
+        client.cancel(futures)
+    except Exception:  # noqa: BLE001
+        pass
 
 
 def _summary_lines(summary: dict, metas: list[dict]) -> list[str]:
@@ -242,7 +277,7 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
     out_path = store.check_out(out, overwrite) if out is not None else None
 
     own = client is None
-    cluster = tmp = None
+    cluster = tmp = shared_f = None
     futures = []
     started = time.perf_counter()
     try:
@@ -258,19 +293,33 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         addresses = list(client.scheduler_info()["workers"])
         shared_f = client.scatter(shared, broadcast=True, hash=False)
         warm = time.perf_counter()
-        probes = client.gather([
-            client.submit(worker.probe, shared_f, specs[:PROBE_CASES], reducers, check,
-                          workers=[a], allow_other_workers=False, pure=False)
-            for a in addresses])
+        futures = [client.submit(worker.probe, shared_f, specs[:PROBE_CASES], reducers, check,
+                                 workers=[a], allow_other_workers=False, pure=False)
+                   for a in addresses]
+        probes, lost = [], []
+        for fut in futures:
+            try:
+                probes.append(fut.result())
+            except (CBackendError, ValueError):
+                raise
+            except Exception as exc:  # noqa: BLE001 - a worker died in its warm-up
+                lost.append(f"{type(exc).__name__}: {exc}")
+        futures = []
+        if not probes:
+            raise RuntimeError("every worker's warm-up failed:\n  " + "\n  ".join(lost))
         layout = probes[0]
         warm = time.perf_counter() - warm
         if layout["vars"] is None:
             raise ValueError(f"the first {min(n, PROBE_CASES)} case(s) all failed, so the batch "
                              "has no layout to store:\n  " + "\n  ".join(layout["failed"]))
         layout["coords"].update(reducer_coords(reducers))
+        case_coords = _case_coords(params)
+        for name in layout["vars"]:
+            if name in case_coords:
+                raise worker.NameClash(f"reduce: the variable {name!r} has the name of a varied "
+                                       "key (a per-case coordinate); rename it")
         case_bytes = 8 * sum(int(np.prod(shape)) for _, shape in layout["vars"].values())
         size = auto_chunk(n, len(addresses), case_bytes) if chunk == "auto" else int(chunk)
-        case_coords = _case_coords(params)
         if out_path is not None:
             tmp = store.temporary_path(out_path)
             store.create(tmp, layout, n, size, case_coords)
@@ -278,13 +327,20 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         futures = [client.submit(worker.run_chunk, shared_f, specs[a:a + size], reducers, check,
                                  layout, None if tmp is None else str(tmp), a, pure=False)
                    for a in starts]
+        start_of = {fut.key: a for fut, a in zip(futures, starts)}
         metas: list[dict | None] = [None] * n
         blocks_by_start = {}
         failed = 0
         with tqdm(total=n, unit="case", disable=not progress, file=sys.stderr,
                   desc="batch") as bar:
             for fut in as_completed(futures):
-                got, blocks = fut.result()
+                try:
+                    got, blocks = fut.result()
+                except CBackendError:
+                    raise
+                except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: its cases fail
+                    a = start_of[fut.key]
+                    got, blocks = _task_failed(specs[a:a + size], exc), None
                 for m in got:
                     metas[m["index"]] = m
                     failed += m["status"] != "done"
@@ -309,11 +365,16 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         if out_path is None:
             return _in_memory(layout, n, blocks_by_start, meta_vars, case_coords, attrs)
     except BaseException:
-        for fut in futures:
-            fut.cancel()
+        if client is not None:
+            _stop(client, futures)
         raise
     finally:
         store.discard(tmp)
+        if client is not None and shared_f is not None:
+            try:
+                client.run(worker.cleanup, shared.token)
+            except Exception:  # noqa: BLE001 - best effort: a worker may be gone
+                pass
         if own and client is not None:
             client.close()
             cluster.close()

@@ -21,11 +21,18 @@ from dtdyn._engine.errors import (DtdynFallbackWarning, DtdynStepStabilityError,
                                   DtdynUnstableError, NewtonError, SingularMassError)
 from dtdyn.app.batch.cases import CaseSpec, Shared, apply_overrides
 
-__all__ = ["CBackendError", "RUN_ERRORS", "probe", "run_chunk", "run_case"]
+__all__ = ["CBackendError", "RUN_ERRORS", "META", "NameClash", "probe", "run_chunk",
+           "run_case", "cleanup"]
 
-#: the errors that fail one case (recorded with their message); any other error stops the batch
+#: the errors expected to fail one case (NewtonError, ...); any other Exception of a case (a
+#: library bug's TypeError, a user reducer's KeyError) fails it too, with its type and
+#: message: only CBackendError (and KeyboardInterrupt) stop the batch
 RUN_ERRORS = (NewtonError, DtdynStepStabilityError, DtdynUnstableError, SingularMassError,
               FloatingPointError, ValueError, MemoryError)
+#: the per-case metadata variables and the coordinates of a batch: no reducer may make them
+META = ("index", "status", "message", "backend", "worker", "run_time", "max_rel_error",
+        "max_residual", "error_estimate", "seed", "params", "case", "time", "output",
+        "output_name", "period")
 
 _FOLDERS: dict[str, Path] = {}
 
@@ -33,6 +40,11 @@ _FOLDERS: dict[str, Path] = {}
 class CBackendError(RuntimeError):
     """A worker cannot run the C backend a case asks for (no compiler, a failed build, or
     ``DTDYN_NO_C``): a batch stops instead of falling back to NumPy or CasADi silently."""
+
+
+class NameClash(ValueError):
+    """Two reducers make the same variable, or a reducer makes a metadata or coordinate name:
+    raised by the warm-up (`probe`), so the batch stops before it runs."""
 
 
 def _address() -> str:
@@ -64,6 +76,13 @@ def folder(shared: Shared) -> Path:
             _write_file(got / name, data)
         _FOLDERS[shared.token] = got
     return got
+
+
+def cleanup(token: str) -> None:
+    """Remove this worker's folder of the batch ``token`` (run on every worker at the end)."""
+    got = _FOLDERS.pop(token, None)
+    if got is not None:
+        shutil.rmtree(got, ignore_errors=True)
 
 
 def _require_compiler() -> None:
@@ -109,18 +128,38 @@ def _coords(response, scene) -> dict:
     return coords
 
 
+def _fail(meta: dict, exc: BaseException, start: float, prefix: str = ""):
+    meta["message"] = prefix + f"{type(exc).__name__}: {exc}"
+    meta["run_time"] = time.perf_counter() - start
+    return meta, None
+
+
+def _nonfinite(name: str, dims, values) -> str | None:
+    """The message of a non-finite stored value (the first one), or None."""
+    values = np.asarray(values)
+    if values.dtype.kind not in "fc":
+        return None
+    bad = ~np.isfinite(values)
+    if not bad.any():
+        return None
+    where = np.argwhere(bad)[0] if values.ndim else ()
+    parts = [("sample" if d == "time" else str(d)) + f" {int(i)}" for d, i in zip(dims, where)]
+    return f"non-finite values in {name}" + (" at " + ", ".join(parts) if parts else "")
+
+
 def run_case(shared: Shared, spec: CaseSpec, reducers, check: bool, layout=None,
-             coords: bool = False):
-    """(metadata, {name: (dims, values)} or None) of one case; a RUN_ERRORS error or a failing
-    reducer fails the case (status "failed", its message), a missing C backend raises
-    CBackendError."""
+             coords: bool = False, strict: bool = False):
+    """(metadata, {name: (dims, values)} or None) of one case. Any Exception of the case (a
+    RUN_ERRORS error, a library bug, a failing reducer, a non-finite result) fails the case
+    (status "failed", ``"<type>: <message>"``); a missing C backend raises CBackendError, and
+    with ``strict`` (the warm-up) a reducer's name clash raises NameClash."""
     from dtdyn.app.batch.reducers import reducer_name
     from dtdyn.app.scene.run import run_scene
 
     start = time.perf_counter()
     meta = {"index": spec.index, "status": "failed", "message": "", "backend": "",
             "run_time": np.nan, "max_rel_error": np.nan, "max_residual": np.nan,
-            "seed": spec.seed, "worker": _address()}
+            "error_estimate": np.nan, "seed": spec.seed, "worker": _address()}
     where = folder(shared)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -129,10 +168,10 @@ def run_case(shared: Shared, spec: CaseSpec, reducers, check: bool, layout=None,
             if _wants_c(scene):
                 _require_compiler()
             response, report = run_scene(scene, check=check)
-        except RUN_ERRORS as exc:
-            meta["message"] = f"{type(exc).__name__}: {exc}"
-            meta["run_time"] = time.perf_counter() - start
-            return meta, None
+        except CBackendError:
+            raise
+        except Exception as exc:  # RUN_ERRORS and anything else: this case fails
+            return _fail(meta, exc, start)
     used = str(response.info.get("backend", scene.backend))
     if _wants_c(scene) and used != "c":
         why = "; ".join(str(w.message) for w in caught if issubclass(w.category,
@@ -142,22 +181,45 @@ def run_case(shared: Shared, spec: CaseSpec, reducers, check: bool, layout=None,
                             "not fall back silently: install a C compiler on every worker, or "
                             "give the scene backend = \"numpy\"")
     meta["backend"] = used
-    for key in ("max_rel_error", "max_residual"):
-        if report.get(key) is not None:
-            meta[key] = float(report[key])
-    arrays, failing = {}, None
+    try:
+        for key in ("max_rel_error", "max_residual"):
+            if report.get(key) is not None:
+                meta[key] = float(report[key])
+        if response.info.get("error_estimate") is not None:
+            meta["error_estimate"] = float(response.info["error_estimate"])
+    except Exception as exc:
+        return _fail(meta, exc, start)
+    arrays, made_by, failing = {}, {}, None
     try:
         for r in reducers:
             failing = reducer_name(r)
-            arrays.update(r(response, scene))
+            got = r(response, scene)
+            if not isinstance(got, dict):
+                raise TypeError(f"returned {type(got).__name__}, not a dict of name -> values")
+            for name in got:
+                if name in META:
+                    raise NameClash(f"reduce {failing!r}: the variable {name!r} has the name of "
+                                    "a batch's metadata or coordinate; rename it")
+                if name in made_by:
+                    raise NameClash(f"reduce {failing!r}: the variable {name!r} is already made "
+                                    f"by the reducer {made_by[name]!r}; rename it or drop one")
+                made_by[name] = failing
+            arrays.update(got)
         failing = None
+        for name, (dims, values) in arrays.items():
+            bad = _nonfinite(name, dims, values)
+            if bad is not None:
+                raise FloatingPointError(bad)
         if layout is not None:
             _check_layout(arrays, response, layout)
-    except Exception as exc:  # a reducer (possibly the user's) or a layout mismatch: this case
-        meta["message"] = (f"reduce {failing!r}: " if failing else "") + \
-            f"{type(exc).__name__}: {exc}"
-        meta["run_time"] = time.perf_counter() - start
-        return meta, None
+    except NameClash as exc:
+        if strict:
+            raise
+        return _fail(meta, exc, start)
+    except CBackendError:
+        raise
+    except Exception as exc:  # a reducer (possibly the user's), a non-finite value or a
+        return _fail(meta, exc, start, f"reduce {failing!r}: " if failing else "")  # layout
     others = [str(w.message) for w in caught
               if not issubclass(w.category, (DtdynFallbackWarning, DeprecationWarning))]
     meta["message"] = "; ".join(dict.fromkeys(f"warning: {m}" for m in others))
@@ -179,12 +241,26 @@ def _check_layout(arrays: dict, response, layout: dict) -> None:
         raise ValueError(f"the case stores the outputs {outputs.tolist()}, the batch "
                            f"{np.asarray(coords['output']).tolist()}: every case of a batch "
                            "stores the same DOFs")
+    uses_time = any("time" in tuple(dims) for dims, _ in want.values())
+    t = np.asarray(response.t)
+    if uses_time and (t.shape != np.shape(coords["time"]) or
+                      not np.array_equal(t, coords["time"])):
+        first = np.asarray(coords["time"])
+        raise ValueError(f"the case's time axis ({t.size} samples, dt = "
+                         f"{_step(t)} s) differs from the batch's ({first.size} samples, dt = "
+                         f"{_step(first)} s, from its first case): every case of a batch that "
+                         "stores time histories has the same time axis (same time.dt and "
+                         "time.duration)")
     for name, (dims, values) in arrays.items():
         wdims, wshape = want[name]
         if tuple(dims) != tuple(wdims) or tuple(np.shape(values)) != tuple(wshape):
             raise ValueError(f"{name} has dims {tuple(dims)} and shape {np.shape(values)}, "
                                f"the batch {tuple(wdims)} and {tuple(wshape)} (from its first "
                                "case): every case of a batch has the same samples and outputs")
+
+
+def _step(t) -> str:
+    return f"{float(t[1] - t[0]):g}" if len(t) > 1 else "?"
 
 
 def probe(shared: Shared, specs: list[CaseSpec], reducers, check: bool) -> dict:
@@ -194,7 +270,7 @@ def probe(shared: Shared, specs: list[CaseSpec], reducers, check: bool) -> dict:
     of the cases that failed before it."""
     failed = []
     for spec in specs:
-        meta, arrays = run_case(shared, spec, reducers, check, coords=True)
+        meta, arrays = run_case(shared, spec, reducers, check, coords=True, strict=True)
         if arrays is None:
             failed.append(f"case {spec.index}: {meta['message']}")
             continue
