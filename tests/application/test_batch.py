@@ -111,6 +111,8 @@ def test_batch_equals_cases_one_by_one_bitwise(client, tmp_path):
         for q in ("x", "v", "a"):
             assert np.array_equal(ds[q].values[i], getattr(response, q)), (i, q)
         assert ds["load[0].seed"].values[i] == row["load[0].seed"]
+        np.testing.assert_array_equal(ds["error_estimate"].values[i],
+                                      response.info.get("error_estimate", np.nan))
         assert json.loads(str(ds["params"].values[i])) == row
     assert np.array_equal(ds["time"].values, response.t)
     assert ds["x"].dims == ("case", "time", "output")
@@ -341,16 +343,19 @@ def test_a_task_dying_fails_its_cases_and_the_batch_goes_on(client, tmp_path):
 
 
 def test_a_stopped_batch_waits_for_running_tasks_and_leaves_nothing(client, tmp_path):
-    """A batch stopped by an error while another task still runs: nothing partial comes back
-    after that task ends; every worker's folder of the batch is removed."""
+    """A batch stopped by an error while another task still runs: the store is removed only
+    once that task has ended (it could be writing its block), so nothing partial comes back;
+    every worker's folder of the batch is removed."""
     import time as _time
 
     base = chain_file(tmp_path)
+    marker = tmp_path / "slow-task-ended"
     rows = [{"model.mass[0]": m} for m in (1.0, 2.0, 3.0)]
 
     def slow_or_broken(response, scene):
         if scene.mass[0] == 2.0:
             _time.sleep(1.0)
+            marker.write_text("")
         if scene.mass[0] == 3.0:
             raise CBackendError("no compiler (simulated)")
         return {"m0": float(scene.mass[0])}
@@ -358,7 +363,7 @@ def test_a_stopped_batch_waits_for_running_tasks_and_leaves_nothing(client, tmp_
     with pytest.raises(CBackendError, match="simulated"):
         dd.run_batch(base, vary=rows, client=client, reduce=slow_or_broken, chunk=1,
                      out=tmp_path / "r.zarr", progress=False)
-    _time.sleep(0.3)
+    assert marker.exists()   # run_batch returned after the running task
     assert not [p for p in tmp_path.iterdir() if "zarr" in p.name]
 
     def folders():

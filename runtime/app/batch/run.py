@@ -186,8 +186,9 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
     cases; the base scenes and the files they name are scattered to the workers once; each
     worker compiles or loads its C kernels once (a warm-up before the tasks) and a worker
     without a C compiler stops the batch with an error instead of falling back to NumPy. A case
-    that fails (`NewtonError`, `DtdynUnstableError`, `DtdynStepStabilityError`, a ValueError of
-    the scene parser, ...) is recorded with its message and the batch goes on.
+    that fails (`NewtonError`, `DtdynUnstableError`, a ValueError of the scene parser, any other
+    exception, a non-finite stored value, a task whose worker died) is recorded with its
+    message and the batch goes on.
 
     Parameters
     ----------
@@ -238,15 +239,17 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
     xarray.Dataset
         Dims ``case``, ``time`` / ``period``, ``output``: the kept variables, NaN for failed
         cases, and per case ``status`` ("done", "failed"), ``message``, ``backend``, ``worker``,
-        ``run_time``, ``max_rel_error``, ``max_residual``, ``seed`` (of the first random load,
-        -1: none), ``params`` (JSON) and each varied key as a coordinate; ``attrs["dtdyn_batch"]``
-        (JSON) holds the summary. Opened lazily from ``out`` when given.
+        ``run_time``, ``max_rel_error``, ``max_residual``, ``error_estimate`` (the run's
+        ``info["error_estimate"]``, NaN: none), ``seed`` (of the first random load, -1: none),
+        ``params`` (JSON) and each varied key as a coordinate; ``attrs["dtdyn_batch"]`` (JSON)
+        holds the summary. Opened lazily from ``out`` when given.
 
     Raises
     ------
     ValueError
-        Bad cases, keys, reducers or ``out`` (before anything runs), or no case of the first
-        ten succeeded (the warm-up: nothing to take the layout from).
+        Bad cases, keys, missing files, reducers or ``out`` (before anything runs), reducer
+        variables whose names clash (the warm-up), or no case of the first ten succeeded (the
+        warm-up: nothing to take the layout from).
     dtdyn.app.batch.CBackendError
         A worker cannot run the C backend the scenes ask for.
 

@@ -14,6 +14,7 @@ Layout (Zarr format 2, consolidated metadata; ``xarray.open_zarr`` reads it)::
     run_time                  (case,)  s, on the worker: parse, run and reduce
     max_rel_error             (case,)  linear cases: against exact_response (NaN: not checked)
     max_residual              (case,)  nonlinear cases: the largest final Newton residual
+    error_estimate            (case,)  the run's error estimate (info["error_estimate"]; NaN: none)
     seed                      (case,)  the seed of the case's first random load (-1: none)
     params                    (case,)  the case's overrides as JSON
     <dotted key>              (case,)  each varied key as a coordinate (e.g. "ground.scale")
