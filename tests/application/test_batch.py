@@ -398,6 +398,14 @@ def test_time_axis_and_name_clashes(client, tmp_path):
     with pytest.raises(ValueError, match="reduce 'peak_x': the variable 'peak_x' is already"):
         dd.run_batch(base, client=client, reduce=["peak", peak_x], progress=False)
 
+    def varied(response, scene):
+        return {"model.mass[0]": 1.0}
+
+    with pytest.raises(ValueError, match=r"the variable 'model.mass\[0\]' has the name of a "
+                                         "varied key"):
+        dd.run_batch(base, vary=[{"model.mass[0]": 2.0}], client=client, reduce=varied,
+                     progress=False)
+
 
 def test_files_checked_when_the_batch_is_built(tmp_path):
     from dtdyn.app.batch.cases import build_cases
