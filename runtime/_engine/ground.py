@@ -137,6 +137,23 @@ def prepare(M, force, force_dofs, n_dof, ground_acceleration, influence, *, dt=N
     return force, dofs, ground
 
 
+def prepare_model(M, force, force_dofs, names, rigid, *, dt, ground_acceleration=None,
+                  ground_velocity=None, ground_displacement=None, influence=None):
+    """`prepare` for a model whose DOFs have names (a beam, a shaft): ``force_dofs`` may name
+    them, and without ``influence`` a ground record moves the DOFs by ``rigid(n_dir)``, the
+    model's rigid-body pattern per ground direction."""
+    n = len(names)
+    if force_dofs is not None:
+        force_dofs = validate.dof_indices("force_dofs", force_dofs, n, names=names)
+    quantity = given(ground_acceleration, ground_velocity, ground_displacement)
+    if influence is None and quantity is not None:
+        record = {"acceleration": ground_acceleration, "velocity": ground_velocity,
+                  "displacement": ground_displacement}[quantity]
+        influence = rigid(1 if np.ndim(record) < 2 else np.shape(record)[1])
+    return prepare(M, force, force_dofs, n, ground_acceleration, influence, dt=dt,
+                   ground_velocity=ground_velocity, ground_displacement=ground_displacement)
+
+
 def finish(response, ground):
     """The response with ``a_abs`` (and ``x_abs`` for a displacement record) and
     ``info["ground"]`` when the run had support motion."""

@@ -362,15 +362,9 @@ def _highest_frequency_bound(beam: Beam) -> float:
     return float(np.sqrt(max(lam)))
 
 
-def _rigid_influence(beam: Beam, ground_acceleration, ground_velocity, ground_displacement):
-    """The default support-motion influence, a rigid translation (w 1, psi 0) per direction of
-    the one ground record given, or None without one."""
-    record = support.given(ground_acceleration, ground_velocity, ground_displacement)
-    if record is None:
-        return None
-    ag = {"acceleration": ground_acceleration, "velocity": ground_velocity,
-          "displacement": ground_displacement}[record]
-    n_dir = 1 if np.ndim(ag) < 2 else np.shape(ag)[1]
+def rigid_translation(beam: Beam, n_dir: int = 1) -> np.ndarray:
+    """The default support-motion influence: a rigid translation, w 1 and psi 0, per ground
+    direction (n_dof, n_dir)."""
     return np.repeat((beam.free % 2 == 0).astype(float)[:, None], n_dir, axis=1)
 
 
@@ -443,14 +437,10 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
         raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
     M, C, K = beam_matrices(beam)
     n = beam.n_dof
-    if force_dofs is not None:
-        force_dofs = validate.dof_indices("force_dofs", force_dofs, n, names=beam.dof_names)
-    if influence is None:
-        influence = _rigid_influence(beam, ground_acceleration, ground_velocity,
-                                     ground_displacement)
-    force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
-                                                influence, dt=dt, ground_velocity=ground_velocity,
-                                                ground_displacement=ground_displacement)
+    force, force_dofs, ground = support.prepare_model(
+        M, force, force_dofs, beam.dof_names, lambda k: rigid_translation(beam, k), dt=dt,
+        ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
+        ground_displacement=ground_displacement, influence=influence)
     force, dt, loaded = validate.time_history(force, dt, force_dofs, n)
     x0, v0 = validate.initial_conditions(x0, v0, n)
     outputs = validate.dof_indices("outputs", outputs, n, names=beam.dof_names)

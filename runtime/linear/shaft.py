@@ -547,15 +547,10 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     _check_shaft(shaft)
     tree = shaft.tree
     N = tree.J.size
-    record = support.given(ground_acceleration, ground_velocity, ground_displacement)
-    if influence is None and record is not None:
-        influence = rigid_rotation(shaft)
-    if force_dofs is not None:
-        force_dofs = validate.dof_indices("force_dofs", force_dofs, N, names=tree.names)
-    force, loaded, ground = support.prepare(sps.diags(tree.J), force, force_dofs, N,
-                                            ground_acceleration, influence, dt=dt,
-                                            ground_velocity=ground_velocity,
-                                            ground_displacement=ground_displacement)
+    force, loaded, ground = support.prepare_model(
+        sps.diags(tree.J), force, force_dofs, tree.names, lambda k: rigid_rotation(shaft),
+        dt=dt, ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
+        ground_displacement=ground_displacement, influence=influence)
     force, dt, loaded = validate.time_history(force, dt, loaded, N)
     x0, v0 = validate.initial_conditions(x0, v0, N)
     out = validate.dof_indices("outputs", outputs, N, names=tree.names)

@@ -129,15 +129,10 @@ def nonlinear_shaft_response(shaft, force, dt, *, elements, force_dofs=None, sch
     tree = shaft.tree
     N = tree.J.size
     dt = validate.positive_scalar("dt", dt)
-    record = support.given(ground_acceleration, ground_velocity, ground_displacement)
-    if influence is None and record is not None:
-        influence = rigid_rotation(shaft)
-    if force_dofs is not None:
-        force_dofs = validate.dof_indices("force_dofs", force_dofs, N, names=tree.names)
-    force, force_dofs, ground = support.prepare(np.diag(tree.J), force, force_dofs, N,
-                                                ground_acceleration, influence, dt=dt,
-                                                ground_velocity=ground_velocity,
-                                                ground_displacement=ground_displacement)
+    force, force_dofs, ground = support.prepare_model(
+        np.diag(tree.J), force, force_dofs, tree.names, lambda k: rigid_rotation(shaft),
+        dt=dt, ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
+        ground_displacement=ground_displacement, influence=influence)
     force_dofs = validate.dof_indices("force_dofs", force_dofs, N)
     outputs = validate.dof_indices("outputs", outputs, N, names=tree.names)
     elements, S, info, quantities = _checked("shaft", N, tree.names, elements,
@@ -219,21 +214,17 @@ def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, schem
     ((201, 1), (201, 1))
     """
     from dtdyn.linear import mck
-    from dtdyn.linear.beam import Beam, _rigid_influence, beam_matrices, node_system
+    from dtdyn.linear.beam import Beam, beam_matrices, node_system, rigid_translation
     t0 = time.perf_counter()
     if not isinstance(beam, Beam):
         raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
     M, C, K = beam_matrices(beam)
     n = beam.n_dof
     dt = validate.positive_scalar("dt", dt)
-    if force_dofs is not None:
-        force_dofs = validate.dof_indices("force_dofs", force_dofs, n, names=beam.dof_names)
-    if influence is None:
-        influence = _rigid_influence(beam, ground_acceleration, ground_velocity,
-                                     ground_displacement)
-    force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
-                                                influence, dt=dt, ground_velocity=ground_velocity,
-                                                ground_displacement=ground_displacement)
+    force, force_dofs, ground = support.prepare_model(
+        M, force, force_dofs, beam.dof_names, lambda k: rigid_translation(beam, k), dt=dt,
+        ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
+        ground_displacement=ground_displacement, influence=influence)
     force_dofs = validate.dof_indices("force_dofs", force_dofs, n)
     outputs = validate.dof_indices("outputs", outputs, n, names=beam.dof_names)
     elements, S, info, quantities = _checked("beam", n, beam.dof_names, elements,
