@@ -127,3 +127,47 @@ def field_matrix_scaled() -> sp.Matrix:
     full = T.subs({F[k]: closed[k].subs(z, b * L) for k in range(4)})
     assert (full - field_matrix()).applyfunc(sp.simplify) == sp.zeros(4)
     return T.applyfunc(sp.expand)
+
+
+def dynamic_stiffness_matrix() -> sp.Matrix:
+    """The exact element's dynamic stiffness Z (4 x 4) at s = j omega, in f_k(b L):
+    [F_a, Q_a, F_b, Q_b] = Z [w_a, psi_a, w_b, psi_b], the forces and moments the nodes apply
+    to the element. A point force F makes the shear jump by F and a point moment Q the bending
+    moment by -Q (from the variation of the energy), so with z_b = T z_a (`field_matrix_scaled`):
+    F_a = V_a, Q_a = -M_a, F_b = -V_b, Q_b = M_b. Solving the first two rows of z_b = T z_a for
+    [M_a, V_a] gives Z. Checked: Z at b = 0 is K_e (`stiffness_matrix`: the Hermite cubics are the
+    exact static shapes) and dZ/d(omega^2) at 0 is -M_e (the consistent mass: the static shapes
+    weight the inertia), and Z is symmetric."""
+    T = field_matrix_scaled()
+    wa, pa, wb, pb, Ma, Va = sp.symbols("w_a psi_a w_b psi_b M_a V_a")
+    za = sp.Matrix([wa, pa, Ma, Va])
+    zb = T * za
+    sol = sp.solve([zb[0] - wb, zb[1] - pb], [Ma, Va], dict=True)[0]
+    Mb, Vb = (sp.together(zb[i].subs(sol)) for i in (2, 3))
+    loads = [sol[Va], -sol[Ma], -Vb, Mb]
+    q = [wa, pa, wb, pb]
+    Z = sp.Matrix(4, 4, lambda i, j: sp.factor(sp.expand(sp.together(loads[i]).diff(q[j]))))
+    # the checks: static limit, consistent mass, symmetry
+    lam_ = sp.Symbol("lam")  # omega^2 = b^4 EI / rho_A
+    zz = b * L
+    series = {F[0]: 1 + zz**4 / 24, F[1]: 1 + zz**4 / 120, F[2]: sp.Rational(1, 2) + zz**4 / 720,
+              F[3]: sp.Rational(1, 6) + zz**4 / 5040}
+    Zt = Z.subs(series).subs(b, (lam_ * rho_A / EI) ** sp.Rational(1, 4))
+    assert (Zt.subs(lam_, 0) - stiffness_matrix()).applyfunc(sp.simplify) == sp.zeros(4)
+    assert (Zt.diff(lam_).subs(lam_, 0) + consistent_mass_matrix()).applyfunc(sp.simplify) \
+        == sp.zeros(4)
+    # written from node a's rows by symmetry (Z = Z^T) and by the element's mirror symmetry
+    # (x -> L - x flips w' : Z[b, b] = R Z[a, a] R, R = diag(1, -1)); both hold only through the
+    # identities between the Krylov functions, so they are checked numerically, at 40 digits
+    Zs = sp.Matrix(4, 4, lambda i, j: Z[min(i, j), max(i, j)] if min(i, j) < 2 else 0)
+    Zs[2, 2], Zs[3, 3] = Z[0, 0], Z[1, 1]
+    Zs[2, 3] = Zs[3, 2] = -Z[0, 1]
+    closed, _ = krylov_functions()
+    for bv, Lv, EIv in ((sp.Rational(7, 10), sp.Rational(13, 10), 2),
+                        (sp.Rational(29, 10), sp.Rational(4, 5), sp.Rational(1, 2)),
+                        (11, sp.Rational(11, 10), 3)):
+        at = {F[k]: closed[k].subs(z, bv * Lv) for k in range(4)}
+        num, sym = ((A.subs(at).subs({b: bv, L: Lv, EI: EIv})).evalf(40) for A in (Z, Zs))
+        assert max(abs(num[i, j] - sym[i, j]) for i in range(4) for j in range(4)) \
+            <= sp.Float(10, 40) ** -30 * max(abs(e) for e in num)
+    return Zs

@@ -275,12 +275,131 @@ def render(render_fn, scheme_context, chain_macros, schemes) -> None:
     """Emit generated/shaft.py, shaft.md and shaft_<scheme>.c through ``render_fn`` (emit's
     render(template, dest, source, **ctx))."""
     from . import c_api
-    ctx = numpy_context()
+    ctx = {**numpy_context(), **receptance_context()}
     render_fn("numpy/shaft.py.jinja", "shaft.py", "dtdyn.derive.shaft", **ctx)
-    render_fn("markdown/shaft.md.jinja", "shaft.md", "dtdyn.derive.shaft", **ctx["latex"])
+    render_fn("markdown/shaft.md.jinja", "shaft.md", "dtdyn.derive.shaft", **ctx["latex"],
+              **ctx["latex_s"])
     for name in schemes:
         sc = scheme_context(name)
         cc = c_context(sc, chain_macros(sc))
         render_fn("c/shaft.c.jinja", f"shaft_{name}.c",
                   f"dtdyn.derive.shaft with dtdyn.derive.integrators.SCHEMES[{name!r}]", **cc,
                   prototypes=c_api.prototype("dtdyn_shaft", f"dtdyn_shaft_{name}"))
+
+
+# --- frequency responses and mode shapes: the tree's solve in the Laplace domain -------------
+
+tau = sp.Symbol("tau", nonnegative=True)  # a continuous shaft's damping time c_t L / (G J_p)
+gamma = sp.Symbol("gamma")
+
+
+def continuous_stiffness_laplace():
+    """(a, b) of a continuous shaft at any s, with its damping as a Kelvin-Voigt modulus
+    G (1 + tau s), tau = c_t L / (G J_p) (each of the time domain's lumped segments has
+    c / k = tau, so both models share it): with z = G J_p / L and
+    gamma = s L sqrt(rho / (G (1 + tau s))),
+
+        a = z (1 + tau s) gamma / tanh(gamma),    b = -z (1 + tau s) gamma / sinh(gamma),
+
+    derived from exp(A L) by `dynamic_stiffness` with G -> G (1 + tau s), checked at s = i omega
+    against the undamped (a, b) of `continuous_stiffness`."""
+    E = continuous_field()
+    z = sp.Symbol("z", positive=True)
+    kv = 1 + tau * s
+    g_of_s = s * L * sp.sqrt(rho / G) / sp.sqrt(kv)
+    a_t = z * kv * gamma / sp.tanh(gamma)
+    b_t = -z * kv * gamma / sp.sinh(gamma)
+    a_d, b_d = dynamic_stiffness(E)
+    # tau of the lumped segments: c / k = (c_t E) / (G J_p E / L), whatever E
+    ct, nE = sp.symbols("c_t E", positive=True)
+    assert sp.simplify((ct * nE) / (G * Jp * nE / L) - ct * L / (G * Jp)) == 0
+    # G -> G (1 + tau s) in the field matrix, then the closed forms at gamma(s)
+    import random
+    rng = random.Random(14)
+    for _ in range(4):
+        vals = {G: rng.uniform(1, 3), Jp: rng.uniform(1, 3), rho: rng.uniform(1, 3),
+                L: rng.uniform(0.5, 2), tau: rng.uniform(0, 0.3),
+                s: complex(rng.uniform(-0.3, 0.1), rng.uniform(0.2, 3))}
+        Gs = vals[G] * (1 + vals[tau] * vals[s])
+        ref = [complex(e.subs(G, sp.Symbol("Gc")).subs({**vals, sp.Symbol("Gc"): Gs}).evalf(30))
+               for e in (a_d, b_d)]
+        gv = complex(g_of_s.subs(vals).evalf(30))
+        zv = vals[G] * vals[Jp] / vals[L]
+        got = [complex(e.subs({z: zv, tau: vals[tau], s: vals[s], gamma: gv}).evalf(30))
+               for e in (a_t, b_t)]
+        assert all(abs(x - y) <= 1e-12 * max(1.0, abs(x)) for x, y in zip(ref, got)), (ref, got)
+    # undamped, s = i omega: gamma = i beta and the real (a, b) of the frequency count
+    beta_c, a_c, b_c = continuous_stiffness()
+    at_iw = [e.subs({tau: 0, gamma: sp.I * beta_c}) for e in (a_t, b_t)]
+    assert sp.simplify((at_iw[0] - a_c.subs(G * Jp / L, z)).rewrite(sp.exp)) == 0
+    assert sp.simplify((at_iw[1] - b_c.subs(G * Jp / L, z)).rewrite(sp.exp)) == 0
+    return z, g_of_s, a_t, b_t
+
+
+def receptance_sweep():
+    """The tree's dynamic-stiffness system Z(s) phi = F solved from the leaves, for one node n
+    with its connection (a, b) to the parent through the gear factor g_u = g (phi on the
+    parent's side of the connection: g phi_p) and its own terms mu = J s^2 + c_g s + k_g.
+
+    With S_R the sum of its children's S_L (each times g_S = g^2) and y the node's load plus its
+    children's condensed loads (each times g_R = g), the node's row is D phi_n + b g phi_p = y,
+
+        D = mu + a - S_R,    S_L = -(a - b^2 / D),    y_parent += g R_L,  R_L = -b y / D,
+        phi_n = (y - b g phi_p) / D                    (forward, root to leaves),
+
+    derived here by eliminating phi_n from the two-node system (checked: the parent's row then
+    carries g^2 (a - b^2 / D) phi_p and the load -g b y / D). Undamped at s^2 = -lam it is the
+    pivot of the Wittrick-Williams count (`frequency_pivot`)."""
+    D, y, phi_p, phi_n, g = sp.symbols("D y phi_p phi_n g")
+    mu_s = J * s**2 + cg * s + kg
+    row = sp.Eq(D * phi_n + b * g * phi_p, y)
+    fwd = sp.solve(row, phi_n)[0]
+    # the connection's torque on the parent, carried through the gear: g (b phi_n + a g phi_p)
+    on_parent = sp.expand(g * (b * fwd + a * g * phi_p))
+    stiff = sp.simplify(on_parent.coeff(phi_p))
+    load = sp.simplify(on_parent - stiff * phi_p)
+    S_L = -(a - b**2 / D)
+    R_L = -b * y / D
+    gr = gear_riccati()
+    gsym = sp.Symbol("ratio")
+    assert sp.simplify(stiff - (-S_L) * g**2) == 0
+    assert sp.simplify(-load - g * R_L) == 0
+    assert sp.simplify(gr["S"] - gr["u"]**2) == 0 and sp.simplify(gr["R"] - gr["u"]) == 0
+    pivot = mu_s + a - S_R
+    lam = sp.Symbol("lam")
+    _, D_ww, _ = frequency_pivot()
+    assert sp.simplify(pivot.subs({s**2: -lam, cg: 0}).subs(s, 0) - D_ww) == 0
+    del gsym
+    return {"mu": mu_s, "pivot": pivot, "S_L": S_L, "R_L": R_L, "forward": fwd.subs(g, sp.Symbol("g"))}
+
+
+def receptance_context() -> dict:
+    """The expressions generated/shaft.py's `continuous_stiffness_s` and `tree_solve` print."""
+    from . import printing
+    z, g_of_s, a_t, b_t = continuous_stiffness_laplace()
+    sw = receptance_sweep()
+    arr = {J: sp.Symbol("J"), kg: sp.Symbol("kg"), cg: sp.Symbol("cg"), a: sp.Symbol("a[n]"),
+           b: sp.Symbol("b[n]")}
+    Dn, yn, gn, pp = sp.symbols("D[n] y[n] gu[n] phi_p")
+    D_, y_, g_, ph_ = sp.symbols("D y g phi_p")
+    c_seg = sp.Symbol("c_t", nonnegative=True)
+    a_k, b_k = dynamic_stiffness(shaft_spring()[:2, :2])  # the shaft spring-damper's (a, b)
+    return {
+        "spring_a_s": printing.py(a_k.xreplace({kt: sp.Symbol("k"), ct: sp.Symbol("c")})),
+        "spring_b_s": printing.py(b_k.xreplace({kt: sp.Symbol("k"), ct: sp.Symbol("c")})),
+        "mu_s_node": printing.py(sw["mu"].xreplace({J: sp.Symbol("J"), kg: sp.Symbol("kg"),
+                                                    cg: sp.Symbol("cg")})),
+        "cont_gamma_s": _np(g_of_s), "cont_tau": printing.py(c_seg * L / (G * Jp)),
+        "cont_a_s": _np(a_t), "cont_b_s": _np(b_t),
+        "mu_s": printing.py(sw["mu"].xreplace(arr)),
+        "pivot_s": printing.py(sw["pivot"].xreplace({**arr, sp.Symbol("mu"): sp.Symbol("mu")})
+                               .subs(sw["mu"].xreplace(arr), sp.Symbol("mu[n]"))),
+        "S_L_s": printing.py(sw["S_L"].xreplace({**arr, D_: Dn})),
+        "R_L_s": printing.py(sw["R_L"].xreplace({**arr, D_: Dn, y_: yn})),
+        "forward_s": printing.py(sw["forward"].xreplace({**arr, D_: Dn, y_: yn, g_: gn,
+                                                         ph_: pp})),
+        "latex_s": {"a_s": sp.latex(a_t), "b_s": sp.latex(b_t),
+                    "gamma_s": sp.latex(sp.Eq(gamma, g_of_s)), "pivot_s": sp.latex(sw["pivot"]),
+                    "S_L_s": sp.latex(sw["S_L"]), "R_L_s": sp.latex(sw["R_L"]),
+                    "forward_s": sp.latex(sw["forward"])},
+    }

@@ -133,3 +133,42 @@ def field_matrix(EI, rho_A, L, omega):
             ],
         ]
     )
+
+
+def element_dynamic_stiffness(EI, rho_A, L, omega):
+    """The exact element's dynamic stiffness Z at s = j omega (undamped): [F_a, Q_a, F_b, Q_b] =
+    Z [w_a, psi_a, w_b, psi_b], from exp(A L) (omega = 0: K_e)."""
+    b = (rho_A * omega * omega / EI) ** 0.25
+    f0, f1, f2, f3 = krylov(b * L)
+    return np.array(
+        [
+            [
+                EI
+                * ((L * L * L * L) * (b * b * b * b) * f2 * f3 - f0 * f1)
+                / ((L * L * L) * (f1 * f3 - (f2 * f2))),
+                EI * (f0 * f2 - (f1 * f1)) / ((L * L) * (f1 * f3 - (f2 * f2))),
+                EI * f1 / ((L * L * L) * (f1 * f3 - (f2 * f2))),
+                -EI * f2 / ((L * L) * (f1 * f3 - (f2 * f2))),
+            ],
+            [
+                EI * (f0 * f2 - (f1 * f1)) / ((L * L) * (f1 * f3 - (f2 * f2))),
+                EI * (f0 * f3 - f1 * f2) / (L * (f1 * f3 - (f2 * f2))),
+                EI * f2 / ((L * L) * (f1 * f3 - (f2 * f2))),
+                -EI * f3 / (L * (f1 * f3 - (f2 * f2))),
+            ],
+            [
+                EI * f1 / ((L * L * L) * (f1 * f3 - (f2 * f2))),
+                EI * f2 / ((L * L) * (f1 * f3 - (f2 * f2))),
+                EI
+                * ((L * L * L * L) * (b * b * b * b) * f2 * f3 - f0 * f1)
+                / ((L * L * L) * (f1 * f3 - (f2 * f2))),
+                -EI * (f0 * f2 - (f1 * f1)) / ((L * L) * (f1 * f3 - (f2 * f2))),
+            ],
+            [
+                -EI * f2 / ((L * L) * (f1 * f3 - (f2 * f2))),
+                -EI * f3 / (L * (f1 * f3 - (f2 * f2))),
+                -EI * (f0 * f2 - (f1 * f1)) / ((L * L) * (f1 * f3 - (f2 * f2))),
+                EI * (f0 * f3 - f1 * f2) / (L * (f1 * f3 - (f2 * f2))),
+            ],
+        ]
+    )

@@ -21,7 +21,7 @@ the children with g_S); a continuous segment has a = beta*z/tan(beta), b = -beta
 """
 
 import numpy as np
-from numpy import floor, pi, sin, sqrt, tan  # noqa: F401  (the derived expressions use them)
+from numpy import floor, pi, sin, sinh, sqrt, tan, tanh  # noqa: F401  (the derived expressions use them)
 import scipy.sparse as sps
 from scipy.sparse.linalg import splu
 
@@ -78,6 +78,62 @@ def wittrick_williams(lam, parent, gS, J, kg, a, b, j0, pivmin):
         if parent[n] >= 0:
             SRs[parent[n]] += gS[n] * (-a[n] + (b[n] * b[n]) / D)
     return count
+
+
+def continuous_tau(c_t, L, G, J_p):
+    """tau = c_t L / (G J_p): a continuous shaft's damping as a Kelvin-Voigt modulus G (1 + tau s)."""
+    return L * c_t / (G * J_p)
+
+
+def continuous_stiffness_s(s, z, tau, L, G, rho):
+    """(a, b) of a continuous segment at complex s (arrays), z = G J_p / L, with its damping
+    (s -> 0: the static spring z, -z; |gamma| large: b -> 0 without overflow)."""
+    s = np.asarray(s, dtype=complex)
+    gamma = L * sqrt(rho) * s / (sqrt(G) * sqrt(s * tau + 1))
+    small = np.abs(gamma) < 1e-8
+    gamma = np.where(small, 1.0, gamma)
+    with np.errstate(over="ignore", invalid="ignore"):
+        a = gamma * z * (s * tau + 1) / tanh(gamma)
+        b = np.where(np.abs(gamma.real) > 700.0, 0.0, -gamma * z * (s * tau + 1) / sinh(gamma))
+    static = z * (1.0 + tau * s)
+    return np.where(small, static, a), np.where(small, -static, b)
+
+
+def node_terms(s, J, kg, cg):
+    """mu = J s^2 + c_g s + k_g of a disk (arrays broadcast: nodes against s)."""
+    return J * (s * s) + cg * s + kg
+
+
+def spring_stiffness_s(s, k, c):
+    """(a, b) of a shaft spring k_t parallel to a damper c_t at s."""
+    return c * s + k, -c * s - k
+
+
+def tree_solve(parent, gu, gS, gR, mu, a, b, F, pivmin=0.0):
+    """phi of Z phi = F on the tree (each column of F one s): mu, a, b of shape (N, ncol) (each
+    node's own terms J s^2 + c_g s + k_g and its connection to the parent), leaves to root then
+    root to leaves, O(N) per column. A pivot below pivmin in magnitude is set to pivmin (an
+    exact eigenvalue, for inverse iteration). Returns (phi, D)."""
+    N = parent.size
+    F = np.asarray(F)
+    dtype = np.result_type(mu, a, b, F)
+    D = np.zeros((N,) + F.shape[1:], dtype=dtype)
+    SRs = np.zeros_like(D)
+    y = np.array(F, dtype=dtype)
+    for n in range(N - 1, -1, -1):
+        S_R = SRs[n]
+        Dn = -S_R + a[n] + mu[n]
+        D[n] = np.where(np.abs(Dn) < pivmin, pivmin, Dn)
+        p = parent[n]
+        if p >= 0:
+            SRs[p] += gS[n] * (-a[n] + (b[n] * b[n]) / D[n])
+            y[p] += gR[n] * (-b[n] * y[n] / D[n])
+    phi = np.zeros_like(y)
+    for n in range(N):
+        p = parent[n]
+        phi_p = phi[p] if p >= 0 else 0.0
+        phi[n] = (-b[n] * gu[n] * phi_p + y[n]) / D[n]
+    return phi, D
 
 
 def tree_solvers(parent, gu, gR, g, af):

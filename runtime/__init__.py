@@ -25,6 +25,7 @@ from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
 from dtdyn.linear.chain import chain_matrices, rayleigh_chain_damping, simulate_chain
 from dtdyn.linear.beam import (Beam, PointMass, Support, beam_frequencies, beam_matrices,
                                simulate_beam)
+from dtdyn.linear.beam_frequency import beam_frequency_response, beam_modes
 from dtdyn.linear.discrete_model import DiscreteModel
 from dtdyn.linear.discretize import discretize, first_order_form
 from dtdyn.linear.exact import exact_response
@@ -32,6 +33,7 @@ from dtdyn.linear.frequencies import chain_frequencies, chain_poles
 from dtdyn.linear.mck import simulate_mck
 from dtdyn.linear.shaft import (Branch, ContinuousShaft, Shaft, shaft_frequencies, shaft_matrices,
                                 simulate_shaft)
+from dtdyn.linear.shaft_frequency import shaft_frequency_response, shaft_modes
 from dtdyn.linear.stability import Stability, critical_omega_dt, stability
 from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
 from dtdyn.linear.tmm import frequency_response, undamped_poles
@@ -53,14 +55,15 @@ __version__ = "0.1.0"
 __all__ = [
     # linear time histories and discrete models
     "simulate_chain", "chain_matrices", "rayleigh_chain_damping", "Beam", "PointMass", "Support",
-    "beam_matrices", "beam_frequencies", "simulate_beam", "simulate_mck", "exact_response",
+    "beam_matrices", "beam_frequencies", "simulate_beam", "beam_modes",
+    "beam_frequency_response", "simulate_mck", "exact_response",
     "newmark_ss", "discrete_state_space", "state_space_response",
     "discretize", "first_order_form", "DiscreteModel",
     "frequency_response", "undamped_poles", "chain_frequencies", "chain_poles", "stability", "critical_omega_dt",
     "Stability",
     # torsional shafts and trees
     "Shaft", "Branch", "ContinuousShaft", "simulate_shaft", "shaft_matrices",
-    "shaft_frequencies",
+    "shaft_frequencies", "shaft_modes", "shaft_frequency_response",
     # modal
     "modes", "Modes", "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",
     "discrete_frequency_response", "continuous_frequency_response", "ramp_bias",

@@ -188,6 +188,20 @@ class Beam:
                 f"elements={self.elements}, left={self.ends['left']!r}, "
                 f"right={self.ends['right']!r}, mass_matrix={self.mass_matrix!r})")
 
+    def nodal_diagonals(self) -> dict:
+        """The point masses' and supports' diagonals over all 2 (N + 1) DOFs: {"m", "k", "c"}."""
+        n = 2 * (self.elements + 1)
+        diag = {name: np.zeros(n) for name in ("m", "k", "c")}
+        for p in self.point_masses:
+            diag["m"][2 * p.node] += p.mass
+            diag["m"][2 * p.node + 1] += p.inertia
+        for s in self.supports:
+            diag["k"][2 * s.node] += s.k_w
+            diag["k"][2 * s.node + 1] += s.k_psi
+            diag["c"][2 * s.node] += s.c_w
+            diag["c"][2 * s.node + 1] += s.c_psi
+        return diag
+
     def global_matrices(self):
         """(M, C, K) over all 2 (N + 1) DOFs (constrained ones included), scipy.sparse CSR."""
         n = 2 * (self.elements + 1)
@@ -207,15 +221,7 @@ class Beam:
         C = sps.csr_matrix((n, n))
         if self.rayleigh is not None:
             C = self.rayleigh[0] * M + self.rayleigh[1] * K
-        diag = {name: np.zeros(n) for name in ("m", "k", "c")}
-        for p in self.point_masses:
-            diag["m"][2 * p.node] += p.mass
-            diag["m"][2 * p.node + 1] += p.inertia
-        for s in self.supports:
-            diag["k"][2 * s.node] += s.k_w
-            diag["k"][2 * s.node + 1] += s.k_psi
-            diag["c"][2 * s.node] += s.c_w
-            diag["c"][2 * s.node + 1] += s.c_psi
+        diag = self.nodal_diagonals()
         M, C, K = (A + sps.diags(diag[d]) for A, d in ((M, "m"), (C, "c"), (K, "k")))
         return M.tocsr(), C.tocsr(), K.tocsr()
 

@@ -184,12 +184,23 @@ class _Line:
         self.kg, self.cg = self.kg.copy(), self.cg.copy()
         if right not in ENDS:
             raise ValueError(f"{label}right = {right!r}: must be one of {ENDS}")
+        #: a continuous shaft from the last disk to the right wall, or None
+        self.right_segment = None
+        if isinstance(right_stiffness, ContinuousShaft):
+            if right == "free":
+                raise ValueError(f"{label}right_stiffness = {right_stiffness!r} with right = "
+                                 "'free': a continuous shaft to the wall needs right = 'clamped'")
+            if _number(f"{label}right_damping", right_damping) != 0.0:
+                raise ValueError(f"{label}right_damping = {right_damping!r}: a ContinuousShaft "
+                                 "carries its own damping; give 0 here")
+            self.right_segment = right_stiffness
+            right_stiffness = 0.0
         rk, rc = _number(f"{label}right_stiffness", right_stiffness), \
             _number(f"{label}right_damping", right_damping)
         if right == "free" and rk + rc > 0:
             raise ValueError(f"{label}right_stiffness = {rk!r}, right_damping = {rc!r} with right "
                              "= 'free': give right = 'clamped' or 'elastic', or zeros")
-        if right != "free" and rk + rc == 0:
+        if right != "free" and rk + rc == 0 and self.right_segment is None:
             raise ValueError(f"{label}right = {right!r} needs right_stiffness > 0 (the shaft or "
                              "support from the last disk to the wall), got 0")
         self.kg[-1] += rk
@@ -227,6 +238,8 @@ class Tree(NamedTuple):
     cg: np.ndarray
     names: tuple
     segments: tuple  # exact trees: per node its ContinuousShaft connection or None
+    #: exact trees: per node a ContinuousShaft from it to a wall (a clamped right end) or None
+    ground_segments: tuple = ()
 
 
 class Shaft:
@@ -243,7 +256,9 @@ class Shaft:
         disk i. A number (k_t >= 0, c_t >= 0) or a `ContinuousShaft`.
     left, right : {"free", "clamped", "elastic"}
         The ends. Left: the wall behind stiffness[0]. Right: "clamped"/"elastic" put
-        ``right_stiffness``, ``right_damping`` (a shaft or a support) from the last disk to a wall.
+        ``right_stiffness``, ``right_damping`` (a shaft or a support) from the last disk to a wall;
+        ``right_stiffness`` may be a `ContinuousShaft` (right = "clamped", right_damping 0): its
+        lumped points are "<line>.right.e<j>", after the line's last disk.
     ground_stiffness, ground_damping : (N,) array_like, optional
         Springs and dampers from each disk to the ground (bearings, supports).
     branches : sequence of Branch
@@ -307,6 +322,7 @@ class Shaft:
     # -- the trees ---------------------------------------------------------------------------
     def _build(self, exact: bool) -> Tree:
         parent, ratio, J, k, c, kg, cg, names, segs = [], [], [], [], [], [], [], [], []
+        gsegs = []
         disk_node = {}  # (line index, disk) -> node
         for li, (line, pli, at, gear) in enumerate(self.lines):
             for i in range(line.J.size):
@@ -349,10 +365,33 @@ class Shaft:
                 cg.append(line.cg[i])
                 names.append(f"{line.name}.{i}")
                 segs.append(seg if exact else None)
+                gsegs.append(None)
                 disk_node[(li, i)] = len(names) - 1
+            end = line.right_segment
+            if end is not None and exact:
+                gsegs[-1] = end
+            elif end is not None:  # lumped: a chain of points from the last disk, the last
+                E = int(end.elements)  # one held by a segment's spring to the wall
+                ke, ce = end.G * end.Jp * E / end.length, end.damping * E
+                half = 0.5 * end.rho * end.Jp * end.length / E
+                last = len(names) - 1
+                J[last] += half
+                for j in range(1, E):
+                    parent.append(len(names) - 1)
+                    ratio.append(np.nan)
+                    J.append(2 * half)
+                    k.append(ke)
+                    c.append(ce)
+                    kg.append(0.0)
+                    cg.append(0.0)
+                    names.append(f"{line.name}.right.e{j}")
+                    segs.append(None)
+                    gsegs.append(None)
+                kg[-1] += ke
+                cg[-1] += ce
         return Tree(np.array(parent, dtype=np.int64), np.array(ratio, float), np.array(J, float),
                     np.array(k, float), np.array(c, float), np.array(kg, float),
-                    np.array(cg, float), tuple(names), tuple(segs))
+                    np.array(cg, float), tuple(names), tuple(segs), tuple(gsegs))
 
     @property
     def dof_names(self) -> tuple:
@@ -373,7 +412,8 @@ class Shaft:
 
     @property
     def has_continuous(self) -> bool:
-        return any(s is not None for line, *_ in self.lines for s in line.cont)
+        return any(s is not None for line, *_ in self.lines
+                   for s in (*line.cont, line.right_segment))
 
     def __repr__(self) -> str:
         return (f"Shaft({len(self.lines)} line(s), {len(self.dof_names)} DOFs, left={self.left!r}, "
@@ -447,7 +487,7 @@ def _advance_factory(backend, tree, dt, loaded, outputs, form):
     loaded64 = np.ascontiguousarray(loaded, dtype=np.int64)
     out64 = np.ascontiguousarray(outputs, dtype=np.int64)
     N = m.size
-    work = np.empty(12 * N)
+    work = np.empty(8 * N)
 
     def make_advance(sch, coeffs):
         fn = _c_function(sch.name) if backend == "c" else None
@@ -595,9 +635,24 @@ def _connection_stiffness(tree: Tree, lam: np.ndarray):
     return a, b, j0
 
 
+def _ground_stiffness(tree: Tree, lam: np.ndarray, j0: np.ndarray):
+    """kg (N, len(lam)): the ground springs plus, where a continuous shaft runs to a wall, its
+    a(omega) (the far end held); its clamped-clamped count added to j0 (in place)."""
+    kg = np.repeat(tree.kg[:, None], lam.size, axis=1)
+    omega = np.sqrt(np.maximum(lam, 0.0))
+    for n, seg in enumerate(tree.ground_segments):
+        if seg is None:
+            continue
+        beta = gen.continuous_beta(omega, seg.length, seg.G, seg.rho)
+        kg[n] += gen.continuous_stiffness(seg.G * seg.Jp / seg.length, beta)[0]
+        j0 += gen.clamped_clamped_count(beta).astype(np.int64)
+    return kg
+
+
 def _count(tree: Tree, gS, lam, pivmin):
     a, b, j0 = _connection_stiffness(tree, lam)
-    return gen.wittrick_williams(lam, tree.parent, gS, tree.J, tree.kg, a, b, j0, pivmin)
+    kg = _ground_stiffness(tree, lam, j0)
+    return gen.wittrick_williams(lam, tree.parent, gS, tree.J, kg, a, b, j0, pivmin)
 
 
 def shaft_frequencies(shaft: Shaft, count=None, below=None, *, exact=True) -> np.ndarray:
@@ -643,7 +698,7 @@ def shaft_frequencies(shaft: Shaft, count=None, below=None, *, exact=True) -> np
                          "frequencies")
     _, gS, _ = gen.gear_factors(tree.ratio)
     scale = max(float(np.max(np.abs(tree.k))), float(np.max(tree.kg)), 1.0)
-    for seg in tree.segments:
+    for seg in (*tree.segments, *tree.ground_segments):
         if seg is not None:
             scale = max(scale, seg.G * seg.Jp / seg.length)
     pivmin = np.finfo(float).tiny / np.finfo(float).eps * scale
@@ -659,7 +714,7 @@ def shaft_frequencies(shaft: Shaft, count=None, below=None, *, exact=True) -> np
     if not infinite:
         M, _, K = shaft_matrices(shaft)
         bound = float(np.max(np.asarray(abs(K).sum(axis=1)).ravel() / tree.J))
-    for seg in tree.segments:
+    for seg in (*tree.segments, *tree.ground_segments):
         if seg is not None:
             bound = max(bound, (math.pi * seg.wave_speed / seg.length) ** 2)
     hi = 2.0 ** math.ceil(math.log2(max(bound, 1e-300) * 1.01))

@@ -56,6 +56,8 @@ class Modes:
         With C: s_r, Im s_r > 0.
     complex_shapes : (n, m) complex ndarray or None
         With C: the displacement part of the damped eigenvectors, largest entry 1.
+    dof_names : tuple of str or None
+        The rows' DOF names, for models that name them (`shaft_modes`, `beam_modes`).
 
     Examples
     --------
@@ -76,6 +78,7 @@ class Modes:
     damped_omega: np.ndarray | None = None
     poles: np.ndarray | None = None
     complex_shapes: np.ndarray | None = None
+    dof_names: tuple | None = None
 
     @property
     def frequency_hz(self) -> np.ndarray:
@@ -102,6 +105,8 @@ class Modes:
             out["damping_ratio"] = self.damping_ratio.tolist()
             out["damped_omega_rad_s"] = self.damped_omega.tolist()
             out["poles"] = [[p.real, p.imag] for p in self.poles]
+        if self.dof_names is not None:
+            out["dof_names"] = list(self.dof_names)
         return out
 
 

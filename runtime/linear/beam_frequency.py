@@ -1,0 +1,224 @@
+r"""Mode shapes and frequency responses of beams, by the block Riccati sweep over the nodes.
+
+Both solve :math:`Z(s) u = f` with :math:`Z(s) = K + s C + s^2 M` block tridiagonal in 2 x 2
+node blocks :math:`D_i` (node i with itself) and :math:`E_i` (node i with node i + 1), by the
+sweep of `simulate_beam` in the frequency domain: from the free (right) end
+
+.. math::
+
+    P_N = D_N, \quad P_i = D_i - E_i P_{i+1}^{-1} E_i^T, \qquad
+    y_N = f_N, \quad y_i = f_i - E_i P_{i+1}^{-1} y_{i+1},
+
+then :math:`u_0 = P_0^{-1} y_0`, :math:`u_{i+1} = P_{i+1}^{-1} (y_{i+1} - E_i^T u_i)`: O(N) per
+value of s. A held DOF has the identity's row and column. :math:`P_i` is the dynamic stiffness
+of nodes i .. N condensed onto node i, the matrix form of the Riccati relation f = S u + R.
+
+With ``exact=True`` every element enters by its exact dynamic stiffness (from the field matrix
+exp(A L) of dtdyn.derive.beam, `generated/beam.md`) instead of :math:`K_e - \omega^2 M_e`.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from dtdyn._engine import linalg
+from dtdyn.generated import beam as derived
+from dtdyn.linear import sweep_modes
+from dtdyn.linear.beam import Beam, beam_frequencies, beam_matrices, rigid_translation
+from dtdyn.modal.modes import Modes
+
+__all__ = ["beam_modes", "beam_frequency_response"]
+
+
+def _check_beam(beam):
+    if not isinstance(beam, Beam):
+        raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
+
+
+def _held(beam: Beam) -> np.ndarray:
+    held = np.ones(2 * (beam.elements + 1), dtype=bool)
+    held[beam.free] = False
+    return held.reshape(-1, 2)
+
+
+def _inverse(P, detmin):
+    """Batched 2 x 2 inverses by the adjugate; a determinant below detmin set to detmin."""
+    det = P[..., 0, 0] * P[..., 1, 1] - P[..., 0, 1] * P[..., 1, 0]
+    det = np.where(np.abs(det) < detmin, detmin, det)
+    adj = np.stack([np.stack([P[..., 1, 1], -P[..., 0, 1]], -1),
+                    np.stack([-P[..., 1, 0], P[..., 0, 0]], -1)], -2)
+    return adj / det[..., None, None]
+
+
+def block_sweep(D, E, held, f, detmin=0.0):
+    """u of the block tridiagonal system (module docstring), batched over the leading axis:
+    D (k, nodes, 2, 2), E (k, nodes - 1, 2, 2), f (k, nodes, 2); held (nodes, 2)."""
+    keep = ~held
+    D = D * keep[None, :, :, None] * keep[None, :, None, :]
+    D = D + np.eye(2)[None, None] * held[None, :, :, None] * np.eye(2)[None, None]
+    E = E * keep[None, :-1, :, None] * keep[None, 1:, None, :]
+    f = f * keep[None]
+    nodes = D.shape[1]
+    Pinv = np.empty_like(D)
+    y = np.empty_like(f)
+    Pinv[:, -1] = _inverse(D[:, -1], detmin)
+    y[:, -1] = f[:, -1]
+    for i in range(nodes - 2, -1, -1):
+        G = E[:, i] @ Pinv[:, i + 1]
+        Pinv[:, i] = _inverse(D[:, i] - G @ np.swapaxes(E[:, i], -1, -2), detmin)
+        y[:, i] = f[:, i] - (G @ y[:, i + 1, :, None])[..., 0]
+    u = np.empty_like(f)
+    u[:, 0] = (Pinv[:, 0] @ y[:, 0, :, None])[..., 0]
+    for i in range(nodes - 1):
+        rhs = y[:, i + 1] - (np.swapaxes(E[:, i], -1, -2) @ u[:, i, :, None])[..., 0]
+        u[:, i + 1] = (Pinv[:, i + 1] @ rhs[..., None])[..., 0]
+    return u * keep[None]
+
+
+def beam_modes(beam: Beam, count=None, below=None) -> Modes:
+    """Natural frequencies and mass-normalized mode shapes of a `Beam` (the model of
+    `beam_matrices`), from the block Riccati sweep.
+
+    The frequencies are `beam_frequencies` (the Wittrick-Williams count). Each shape is two
+    steps of inverse iteration with the sweep's O(N) solve of (K - omega_r^2 M) u = M u_k at the
+    root itself (close or repeated roots together, by Rayleigh-Ritz on their subspace:
+    `dtdyn.linear.sweep_modes`), scaled to phi^T M phi = 1 with its largest entry positive.
+
+    Parameters
+    ----------
+    beam : Beam
+    count : int, optional
+        The lowest ``count`` modes (default: all ``beam.n_dof``).
+    below : float, optional
+        Every mode below this frequency (rad/s).
+
+    Returns
+    -------
+    Modes
+        ``omega`` (rad/s), ``shapes`` (n_dof, m) over ``dof_names`` ([w_i, psi_i] node by node,
+        as `beam_matrices`), the influence r = `rigid_translation` (1 on every w, 0 on every
+        psi), participation factors phi^T M r and effective masses.
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> beam = dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=50)
+    >>> m = dd.beam_modes(beam, count=3)
+    >>> m.shapes.shape, m.dof_names[-2:]
+    ((100, 3), ('w50', 'psi50'))
+    """
+    _check_beam(beam)
+    w = beam_frequencies(beam, count=count, below=below)
+    M, _, K = beam_matrices(beam)
+    Mg, _, Kg = beam.global_matrices()
+    DK, EK, _ = linalg.node_blocks(Kg)
+    DM, EM, _ = linalg.node_blocks(Mg)
+    held = _held(beam)
+    detmin = (np.finfo(float).eps * max(float(np.abs(DK).max()), 1.0)) ** 2
+    nodes, free = beam.elements + 1, beam.free
+
+    def solve(lam, F):
+        L = lam[:, None, None, None]
+        full = np.zeros((lam.size, 2 * nodes))
+        full[:, free] = F.T
+        u = block_sweep(DK[None] - L * DM[None], EK[None] - L * EM[None], held,
+                        full.reshape(lam.size, nodes, 2), detmin)
+        return u.reshape(lam.size, -1)[:, free].T
+
+    lam = w**2
+    phi = (sweep_modes.inverse_iteration(lam, solve, lambda X: M @ X, lambda X: K @ X,
+                                         beam.n_dof) if lam.size else np.zeros((beam.n_dof, 0)))
+    r = rigid_translation(beam)[:, 0]
+    Mr = M @ r
+    gamma = phi.T @ Mr
+    return Modes(omega=w, shapes=phi, influence=r, participation=gamma,
+                 effective_mass=gamma**2, total_mass=float(r @ Mr), dof_names=beam.dof_names)
+
+
+def _dof(name, value, beam):
+    names = beam.dof_names
+    if isinstance(value, bool) or not isinstance(value, (str, int, np.integer)):
+        raise ValueError(f"{name} = {value!r}: must be one DOF, an index or a name")
+    if isinstance(value, str):
+        if value not in names:
+            raise ValueError(f"{name}: no DOF named {value!r} (held, or outside the beam; the "
+                             f"DOFs are {names[0]} .. {names[-1]})")
+        return names.index(value)
+    if not 0 <= value < len(names):
+        raise ValueError(f"{name} = {value!r}: outside 0..{len(names) - 1}")
+    return int(value)
+
+
+def _exact_blocks(beam: Beam, w: np.ndarray):
+    """D, E (len(w), nodes, 2, 2) of the exact elements plus the nodal terms, at s = i w."""
+    if beam.rayleigh is not None:
+        raise ValueError(f"rayleigh = {beam.rayleigh!r} with exact=True: the exact field matrix "
+                         "here is the undamped one; use exact=False (Hermite elements) or "
+                         "dampers at nodes (Support c_w, c_psi)")
+    h = beam.length / beam.elements
+    Z = np.array([derived.element_dynamic_stiffness(beam.E * beam.I, beam.rho_A, h, x)
+                  for x in w])
+    nodes = beam.elements + 1
+    D = np.zeros((w.size, nodes, 2, 2), dtype=complex)
+    D[:, :-1] += Z[:, None, :2, :2]
+    D[:, 1:] += Z[:, None, 2:, 2:]
+    E = np.broadcast_to(Z[:, None, :2, 2:], (w.size, nodes - 1, 2, 2)).astype(complex)
+    diag = beam.nodal_diagonals()
+    s = 1j * w[:, None]
+    nodal = (diag["k"][None] + s * diag["c"][None] + s * s * diag["m"][None]).reshape(
+        w.size, nodes, 2)
+    D[..., 0, 0] += nodal[..., 0]
+    D[..., 1, 1] += nodal[..., 1]
+    return D, E
+
+
+def beam_frequency_response(beam: Beam, omega, force_dof, output, *, exact=False) -> np.ndarray:
+    """Receptance u_output / f (m/N, rad/N, m/(N m) or rad/(N m)) at s = i omega for a unit
+    force (on a w) or moment (on a psi) at ``force_dof``, by the block Riccati sweep (module
+    docstring), O(N) per frequency.
+
+    Parameters
+    ----------
+    beam : Beam
+    omega : array_like
+        Circular frequencies, rad/s, finite and >= 0.
+    force_dof, output : int or str
+        An index into ``beam.dof_names`` or a name ("w200", "psi3").
+    exact : bool
+        False: the Hermite elements, (K + i omega C - omega^2 M)^-1 of `beam_matrices`, with
+        the beam's Rayleigh damping and dampers. True: every element by its exact
+        Euler-Bernoulli dynamic stiffness (from exp(A L)), the point masses, supports and their
+        dampers at the nodes; the elements undamped (a Rayleigh beam is refused).
+
+    Returns
+    -------
+    (len(omega),) complex ndarray
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> beam = dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=10)
+    >>> H = dd.beam_frequency_response(beam, [0.0], "w10", "w10")
+    >>> round(float(H.real[0] * 3 * 2.1e11 * 8e-6 / 3.0**3), 12)     # static: L^3 / (3 EI)
+    1.0
+    """
+    _check_beam(beam)
+    w = np.atleast_1d(np.asarray(omega, dtype=float))
+    if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0):
+        raise ValueError(f"omega = {omega!r}: must be a non-empty 1-D array of finite "
+                         "frequencies >= 0 (rad/s)")
+    if not isinstance(exact, bool):
+        raise ValueError(f"exact = {exact!r}: must be True or False")
+    i_f, i_o = _dof("force_dof", force_dof, beam), _dof("output", output, beam)
+    nodes = beam.elements + 1
+    if exact:
+        D, E = _exact_blocks(beam, w)
+    else:
+        Mg, Cg, Kg = beam.global_matrices()
+        (DK, EK, _), (DC, EC, _), (DM, EM, _) = (linalg.node_blocks(A) for A in (Kg, Cg, Mg))
+        s = 1j * w[:, None, None, None]
+        D, E = DK + s * DC + s * s * DM, EK + s * EC + s * s * EM
+    f = np.zeros((w.size, 2 * nodes), dtype=complex)
+    f[:, beam.free[i_f]] = 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = block_sweep(D, E, _held(beam), f.reshape(w.size, nodes, 2))
+    return u.reshape(w.size, -1)[:, beam.free[i_o]]
