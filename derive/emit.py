@@ -337,7 +337,7 @@ def render_all() -> dict[str, str]:
            closed=sp.sstr(par["closed"]), kernel=sp.sstr(par["kernel"]),
            kernel_py=printing.py(par["kernel"].subs(nonlinear.zz, sp.Symbol("zs"))
                                  .replace(sp.exp, lambda a: sp.Symbol("e"))),
-           series=[repr(float(c)) for c in par["series"]])
+           series=[repr(float(c)) for c in par["series"]], **nonlinear.quintic_context())
     render("numpy/stability.py.jinja", "stability.py", "dtdyn.derive.stability",
            **_stability_context())
     names = list(I.SCHEMES)

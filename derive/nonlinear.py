@@ -90,3 +90,135 @@ def parabola_coefficient() -> dict:
     ser = sp.series(kernel, zz, 0, 18).removeO()
     series = [sp.Rational(ser.coeff(zz, k)) for k in range(18)]
     return {"closed": closed, "kernel": kernel, "series": series}
+
+
+# --- polynomial treatment of the element forces of higher degree (method "modal_quintic") ------
+#
+# Over the step [t_k, t_k + h] the element forces are the polynomial of degree m through
+# g_{k+1-m}, ..., g_k, g_{k+1} (g_{k+1}: the step's own unknown, as in the ramp and the parabola):
+#
+#     g(t_k + v h) = sum_j l_j(v) g_{k+j},   j = 1-m .. 1,   l_j the Lagrange basis in v = u/h.
+#
+# One modal term (unit residue) then receives W_j(s, h) g_{k+j} with
+#
+#     W_j = integral_0^h e^{s(h-u)} l_j(u/h) du = h sum_i c_ji i! phi_{i+1}(z),   z = s h,
+#
+# l_j(v) = sum_i c_ji v^i and phi_n(z) = (e^z - sum_{l<n} z^l / l!) / z^n = sum_k z^k / (k+n)!.
+# m = 1 is the ramp invariant, m = 2 the parabola above. The error of degree m is led by the next
+# Newton term, nabla^{m+1} g_{k+1} prod_j (v - j) / (m+1)!: its response E(s, h) nabla^{m+1}
+# g_{k+1} is the step's local error, carried along by the linear dynamics (the embedded estimate).
+
+#: the degree of "modal_quintic": the polynomial through six samples, order m + 1 = 6 in h
+QUINTIC_DEGREE = 5
+vv = sp.Symbol("v")  # u / h
+mu = sp.Symbol("mu", positive=True)  # k_t h^2 / m: the element's stiffness seen by one step
+lam_ = sp.Symbol("lambda")
+
+
+def phi_series(n: int, k: int) -> sp.Rational:
+    """Coefficient of z^k in phi_n(z): 1 / (k + n)!."""
+    return sp.Rational(1, sp.factorial(k + n))
+
+
+def _kernel_coefficients(poly, n_terms: int) -> dict:
+    """For p(v) = sum_i c_i v^i: h-free weight integral_0^1 e^{z(1-v)} p(v) dv as
+    sum_i c_i i! phi_{i+1}(z): its phi coefficients and its Taylor series in z, and its s -> 0
+    limits on a free unit mass, a = integral_0^1 (1 - v) p dv (displacement) and
+    b = integral_0^1 p dv (velocity)."""
+    c = sp.Poly(sp.expand(poly), vv).all_coeffs()[::-1]
+    phis = [sp.Rational(ci) * sp.factorial(i) for i, ci in enumerate(c)]  # of phi_{i+1}
+    series = [sum(p * phi_series(i + 1, k) for i, p in enumerate(phis)) for k in range(n_terms)]
+    a = sp.integrate((1 - vv) * poly, (vv, 0, 1))
+    b = sp.integrate(poly, (vv, 0, 1))
+    return {"phi": phis, "series": series, "a": a, "b": b}
+
+
+@lru_cache(maxsize=None)
+def polynomial_weights(degree: int, n_terms: int = 40) -> dict:
+    """The weights W_j / h (j = 1-degree .. 1) and the estimate's E / h (module comment), each as
+    phi coefficients and a Taylor series in z; the difference stencil of nabla^{degree+1}; the
+    free-mass limits a_j, b_j; and the stability limit (`polynomial_stability`)."""
+    nodes = list(range(1 - degree, 2))
+    weights = {}
+    for j in nodes:
+        ell = sp.prod([(vv - i) / sp.Integer(j - i) for i in nodes if i != j])
+        weights[j] = _kernel_coefficients(ell, n_terms)
+    omega = sp.prod([vv - i for i in nodes]) / sp.factorial(degree + 1)
+    estimate = _kernel_coefficients(omega, n_terms)
+    # the polynomial reproduces every polynomial of its degree: sum_j l_j(v) j^q = v^q
+    for q in range(degree + 1):
+        assert sp.expand(sum(sp.prod([(vv - i) / sp.Integer(j - i) for i in nodes if i != j])
+                             * sp.Integer(j) ** q for j in nodes) - vv**q) == 0
+    # nabla^{m+1} g_{k+1} = sum_i stencil_i g_{k+1-i}
+    stencil = [(-1) ** i * sp.binomial(degree + 1, i) for i in range(degree + 2)]
+    return {"degree": degree, "nodes": nodes, "weights": weights, "estimate": estimate,
+            "stencil": stencil, **polynomial_stability(degree)}
+
+
+def characteristic_polynomial(degree: int) -> sp.Expr:
+    """Of the free unit mass y'' = -k_t y stepped with the degree-m force polynomial, exact in
+    the linear part (the limit s -> 0 of the modal step, where the element's stiffness matters
+    most): with V = h y',
+
+        y_{k+1} = y_k + V_k - mu sum_j a_j y_{k+j},   V_{k+1} = V_k - mu sum_j b_j y_{k+j},
+
+    mu = k_t h^2; y_k = lambda^k gives (lambda - 1)^2 + mu ((lambda - 1) A + B) = 0, A and B the
+    generating polynomials of a_j and b_j, times lambda^(m-1)."""
+    nodes = list(range(1 - degree, 2))
+    w = {}
+    for j in nodes:
+        ell = sp.prod([(vv - i) / sp.Integer(j - i) for i in nodes if i != j])
+        w[j] = (sp.integrate((1 - vv) * ell, (vv, 0, 1)), sp.integrate(ell, (vv, 0, 1)))
+    A = sum(w[j][0] * lam_ ** (j + degree - 1) for j in nodes)
+    B = sum(w[j][1] * lam_ ** (j + degree - 1) for j in nodes)
+    return sp.expand((lam_ - 1) ** 2 * lam_ ** (degree - 1) + mu * ((lam_ - 1) * A + B))
+
+
+@lru_cache(maxsize=None)
+def polynomial_stability(degree: int) -> dict:
+    """The largest mu (and theta = a_1 mu, a_1 h^2 the weight of the step's own g in y: the
+    theta = |B0 dg/dy| the loops measure) up to which every root of the characteristic
+    polynomial lies in the closed unit disk: the boundary locus mu(phi) = -(lambda - 1)^2
+    lambda^(m-1) / ((lambda - 1) A + B) at lambda = e^{i phi}, its smallest real positive value;
+    found as the smallest mu at which the spectral radius exceeds 1 + 1e-9 (the round-off of the
+    double root at mu = 0). The ramp (m = 1) gives mu = 12, theta = 2; degrees 4 and 5 keep every
+    root inside up to mu = 1.40 and 2.59; the parabola (m = 2) grows from the start, by
+    ~ 0.02 mu^2 per step, so its "limit" is where that reaches 1e-9 (its loops hold it to a
+    chosen theta instead, `THETA_LIMIT`)."""
+    import numpy as np
+    from scipy.optimize import brentq
+
+    poly = characteristic_polynomial(degree)
+    a1 = sp.integrate((1 - vv) * sp.prod([(vv - i) / sp.Integer(1 - i)
+                                          for i in range(1 - degree, 1)]), (vv, 0, 1))
+    coeffs = [sp.Poly(poly, lam_).coeff_monomial(lam_**k) for k in range(sp.degree(poly, lam_),
+                                                                          -1, -1)]
+    fc = [sp.lambdify(mu, c, "numpy") for c in coeffs]
+
+    def growth(m_val):  # spectral radius - 1
+        return np.abs(np.roots([float(c(m_val)) for c in fc])).max() - 1.0
+    tiny = 1e-9  # above round-off of the roots (a double root at mu = 0)
+    grid = np.geomspace(1e-4, 1e3, 1401)
+    bad = [m for m in grid if growth(m) > tiny]
+    limit = 0.0
+    if bad and bad[0] > grid[0]:
+        k = int(np.searchsorted(grid, bad[0]))
+        limit = float(brentq(lambda m: growth(m) - tiny, grid[k - 1], grid[k], xtol=1e-14))
+    return {"a1": a1, "mu_limit": limit, "theta_limit": float(a1) * limit}
+
+
+def quintic_context() -> dict:
+    """What generated/nl_modal.py carries of "modal_quintic" (`polynomial_weights`), as text."""
+    pw = polynomial_weights(QUINTIC_DEGREE)
+
+    def table(k):
+        return {"phi": [repr(float(c)) for c in k["phi"]],
+                "series": [repr(float(c)) for c in k["series"]], "a": sp.sstr(k["a"]),
+                "b": sp.sstr(k["b"])}
+    return {"quintic_degree": pw["degree"], "quintic_nodes": pw["nodes"],
+            "quintic_weights": [(j, table(pw["weights"][j])) for j in pw["nodes"]],
+            "quintic_estimate": table(pw["estimate"]),
+            "quintic_stencil": [int(c) for c in pw["stencil"]],
+            "quintic_a1": sp.sstr(pw["a1"]), "quintic_mu_limit": repr(pw["mu_limit"]),
+            "quintic_theta_limit": repr(pw["theta_limit"]),
+            "quintic_charpoly": sp.sstr(characteristic_polynomial(QUINTIC_DEGREE))}

@@ -179,6 +179,118 @@ static long newton_solve(long nu, long ne, double *restrict u, double *restrict 
             u[i] += r[i];
     }
 }
+
+/*
+ * newton_solve at the compile-time sizes of this loop (NL_NW + NL_NZ unknowns, NL_NE
+ * elements): the same iterates, tests and results; the small loops unrolled, the LU without
+ * calls. Returns the iterations or -1 (as newton_solve).
+ */
+enum { NU_ = NL_NW + NL_NZ, NE_ = NL_NE };
+
+static inline long newton_fixed(double *restrict u, double *restrict r, double *restrict J,
+                                double scale_r, double scale_u, double tol, long max_iter,
+                                const double **arg, double **res, nl_int *iw, double *w, double *rn,
+                                double *theta) {
+    /* as fmax(scale, DBL_MIN), without the library call */
+    const double lim_r = tol * (scale_r > DBL_MIN ? scale_r : DBL_MIN);
+    const double lim_u = tol * (scale_u > DBL_MIN ? scale_u : DBL_MIN);
+    long it;
+    int i, k, j;
+    for (it = 0;; ++it) {
+        double m = 0.0, th = 0.0, d = 0.0;
+        nl_residual(arg, res, iw, w, 0);
+        for (i = 0; i < NU_; ++i) {
+            const double a = fabs(r[i]);
+            m = (a > m || a != a) ? a : m;
+        }
+        if (!(m < INFINITY))
+            return -1;
+        *rn = m;
+        for (i = 0; i < NE_; ++i) {
+            double row = 0.0;
+            for (k = 0; k < NE_; ++k)
+                row += fabs(J[k * NU_ + i] - (i == k ? 1.0 : 0.0));
+            th = row > th ? row : th;
+        }
+        *theta = th;
+        if (m <= lim_r)
+            return it;
+        if (NU_ <= 2) { /* d = -J^-1 r in closed form: one division on the critical path */
+            if (NU_ == 1) {
+                if (!(fabs(J[0]) > 0.0))
+                    return -1;
+                r[0] = -r[0] / J[0];
+            } else {
+                const double det = J[0] * J[NU_ + 1] - J[NU_] * J[1];
+                const double r0 = r[0], r1 = r[NU_ - 1];
+                double inv;
+                if (!(fabs(det) > 0.0))
+                    return -1;
+                inv = 1.0 / det;
+                r[0] = -(J[NU_ + 1] * r0 - J[NU_] * r1) * inv;
+                r[NU_ - 1] = -(J[0] * r1 - J[1] * r0) * inv;
+            }
+            for (i = 0; i < NU_; ++i) {
+                const double a = fabs(r[i]);
+                d = (a > d || a != a) ? a : d;
+            }
+            if (d <= lim_u)
+                return it;
+            if (it == max_iter)
+                return -1;
+            for (i = 0; i < NU_; ++i)
+                u[i] += r[i];
+            continue;
+        }
+        /* J d = -r by LU with partial pivoting (lu_solve, unrolled) */
+        for (k = 0; k < NU_; ++k) {
+            double best = fabs(J[k * NU_ + k]);
+            int p = k;
+            for (i = k + 1; i < NU_; ++i)
+                if (fabs(J[k * NU_ + i]) > best) {
+                    best = fabs(J[k * NU_ + i]);
+                    p = i;
+                }
+            if (!(best > 0.0))
+                return -1;
+            if (p != k) {
+                double t;
+                for (j = 0; j < NU_; ++j) {
+                    t = J[j * NU_ + k];
+                    J[j * NU_ + k] = J[j * NU_ + p];
+                    J[j * NU_ + p] = t;
+                }
+                t = r[k];
+                r[k] = r[p];
+                r[p] = t;
+            }
+            for (i = k + 1; i < NU_; ++i) {
+                const double l = J[k * NU_ + i] / J[k * NU_ + k];
+                J[k * NU_ + i] = l;
+                for (j = k + 1; j < NU_; ++j)
+                    J[j * NU_ + i] -= l * J[j * NU_ + k];
+                r[i] -= l * r[k];
+            }
+        }
+        for (i = NU_ - 1; i >= 0; --i) {
+            double s = r[i];
+            for (j = i + 1; j < NU_; ++j)
+                s -= J[j * NU_ + i] * r[j];
+            r[i] = s / J[i * NU_ + i];
+        }
+        for (i = 0; i < NU_; ++i) {
+            const double a = fabs(r[i]);
+            r[i] = -r[i];
+            d = (a > d || a != a) ? a : d;
+        }
+        if (d <= lim_u)
+            return it;
+        if (it == max_iter)
+            return -1;
+        for (i = 0; i < NU_; ++i)
+            u[i] += r[i];
+    }
+}
 /*
  * dims: ns, nf, ne, nw, nz, no (checked against the compile-time sizes NL_NS .. NL_NO, which
  * let the compiler unroll the small products), n_samples, substeps, max_iter, nzo. A row of
@@ -187,8 +299,18 @@ static long newton_solve(long nu, long ne, double *restrict u, double *restrict 
  * state: x (ns), u (nw + nz: last solution), g (ne), rate (nz); all updated in place.
  * stats: [max iterations, total iterations, max final residual, failing residual or theta,
  * max theta]. Returns 3 when theta = |B0 dg/dy|_inf (displacement rows and columns) exceeds
- * theta_limit (the method's
- * stability limit for the elements' tangent stiffness) at step fail[0].
+ * theta_limit (the method's stability limit for the elements' tangent stiffness) at step
+ * fail[0].
+ *
+ * Modal methods (compiled with NL_NM, NL_NH, NL_NST): the state is x = [eta; g_{k-1}; ...;
+ * g_{k-NH/NE}], NL_NM modal rows (a 2 x 2 rotation per oscillating mode, 1 x 1 per real pole:
+ * A's modal block is tridiagonal) and the element forces' history, shifted by NE each step;
+ * only the modal rows and columns of the products are computed. Further dims: NM, NH, NST;
+ * further mats: the modal block of A as (sub, diag, super) diagonals (3 NM), A's history
+ * columns H (NM x NH), the estimate's input Eg (NM x NE), the difference stencil (NST), and
+ * the modal rows or columns of Bf, Bg, Cw, Co. With NST > 0 the embedded error estimate runs
+ * along: e_{k} = A_m e_{k-1} + Eg nabla^{NST-1} g_k (the local error of the force polynomial,
+ * carried by the linear dynamics), and stats[5 + i] = max over the samples of |Co_m e|_i.
  */
 int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
                  double *restrict x, double *restrict u, double *restrict g, double *restrict rate,
@@ -202,6 +324,15 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     const double *Dog = mats[9];
     double f[nf + 1], Q[nw + 1], zold[nz + 1], rold[nz + 1], r[nu + 1], J[nu * nu + 1];
     double xn[ns];
+#ifdef NL_NM
+    enum { nm = NL_NM, nh = NL_NH, nst = NL_NST };
+    const double *tri = mats[10], *H = mats[11], *Eg = mats[12], *stencil = mats[13];
+    const double *Bfm = mats[14], *Bgm = mats[15], *Cwm = mats[16], *Com = mats[17];
+    /* padded copies so the tridiagonal product runs over whole vectors */
+    double xp[nm + 2], ep[nm + 2], gh[(nst > 1 ? nst - 1 : 1) * ne], d[ne];
+    const double *sub = tri, *dia = tri + nm, *sup = tri + 2 * nm;
+    long k;
+#endif
     double *cw = work; /* CasADi work */
     const double *arg[5];
     double *res[4];
@@ -216,10 +347,27 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     res[1] = J;
     res[2] = g;
     res[3] = rate;
+    (void)newton_solve; /* newton.c's general solver: nl_chain.c's; this loop has newton_fixed */
     stats[0] = stats[1] = stats[2] = stats[3] = stats[4] = 0.0;
     if (dims[0] != ns || dims[1] != nf || dims[2] != ne || dims[3] != nw || dims[4] != nz ||
         dims[5] != no)
         return 2; /* compiled for other sizes */
+#ifdef NL_NM
+    (void)A;
+    (void)Bf;
+    (void)Bg;
+    (void)Cw;
+    (void)Co; /* the full matrices: generic path */
+    if (dims[10] != nm || dims[11] != nh || dims[12] != nst || nm + nh != ns)
+        return 2;
+    xp[0] = xp[nm + 1] = ep[0] = ep[nm + 1] = 0.0;
+    for (i = 0; i < nm; ++i)
+        ep[i + 1] = 0.0;
+    for (k = 0; k + 1 < nst; ++k) /* the past before t_0: at rest, g_0 */
+        copy(ne, g, gh + k * ne);
+    for (i = 0; i < no; ++i)
+        stats[5 + i] = 0.0;
+#endif
     for (n = 0; n < n_samples; ++n) {
         const double *f0 = force + n * nf;
         const double *f1 = (n + 1 < n_samples) ? f0 + nf : f0;
@@ -233,7 +381,11 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                 f[i] = f0[i] + c * (f1[i] - f0[i]);
             /* Q = Cw x + Dwf f; predictor u = [Q + Dwg g_prev; z_prev + h z'_prev] */
             zero(nw, Q);
+#ifdef NL_NM
+            matvec_add(nw, nm, Cwm, x, Q); /* the history columns of Cw are zero */
+#else
             matvec_add(nw, ns, Cw, x, Q);
+#endif
             matvec_add(nw, nf, Dwf, f, Q);
             copy(nw, Q, u);
             matvec_add(nw, ne, Dwg, g, u);
@@ -243,8 +395,8 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                 u[nw + i] = zold[i] + par[nw * ne] * rold[i];
             /* Newton under the shared acceptance rule (newton_solve), scale fixed per step */
             scale = grow(scale, norm_inf(nw, Q));
-            it = newton_solve(nu, ne, u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork, cw,
-                              &rn, &theta);
+            it = newton_fixed(u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork, cw, &rn,
+                              &theta);
             if (it < 0 || !(norm_inf(ne, g) < INFINITY) || !(norm_inf(nz, rate) < INFINITY)) {
                 fail[0] = n * S + j;
                 stats[3] = rn;
@@ -264,20 +416,63 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                 stats[3] = theta;
                 return 3;
             }
+#ifdef NL_NM
+            if (nst > 0) { /* e <- A_m e + Eg nabla g_k; the history of g shifts */
+                for (i = 0; i < ne; ++i)
+                    d[i] = stencil[0] * g[i];
+                for (k = 1; k < nst; ++k)
+                    for (i = 0; i < ne; ++i)
+                        d[i] += stencil[k] * gh[(k - 1) * ne + i];
+                for (k = nst - 2; k > 0; --k)
+                    copy(ne, gh + (k - 1) * ne, gh + k * ne);
+                copy(ne, g, gh);
+                for (i = 0; i < nm; ++i)
+                    xn[i] = sub[i] * ep[i] + dia[i] * ep[i + 1] + sup[i] * ep[i + 2];
+                matvec_add(nm, ne, Eg, d, xn);
+                copy(nm, xn, ep + 1);
+            }
+#endif
             if (j == 0) {
                 double *o = out + n * (no + nzo);
                 zero(no, o);
+#ifdef NL_NM
+                matvec_add(no, nm, Com, x, o);
+                if (nst > 0) {
+                    double eo[no];
+                    zero(no, eo);
+                    matvec_add(no, nm, Com, ep + 1, eo);
+                    for (i = 0; i < no; ++i)
+                        stats[5 + i] = fabs(eo[i]) > stats[5 + i] ? fabs(eo[i]) : stats[5 + i];
+                }
+#else
                 matvec_add(no, ns, Co, x, o);
+#endif
                 matvec_add(no, nf, Dof, f, o);
                 matvec_add(no, ne, Dog, g, o);
                 copy(nzo, u + nw, o + no);
             }
             if (n + 1 < n_samples) {
+#ifdef NL_NM
+                /* modal rows: tridiagonal A_m, the history columns, the inputs */
+                copy(nm, x, xp + 1);
+                for (i = 0; i < nm; ++i)
+                    xn[i] = sub[i] * xp[i] + dia[i] * xp[i + 1] + sup[i] * xp[i + 2];
+                matvec_add(nm, nh, H, x + nm, xn);
+                matvec_add(nm, nf, Bfm, f, xn);
+                matvec_add(nm, ne, Bgm, g, xn);
+                copy(nm, xn, x);
+                /* history rows: g_k in front, the rest one slot back */
+                for (k = nh - ne; k > 0; k -= ne)
+                    copy(ne, x + nm + k - ne, x + nm + k);
+                if (nh > 0)
+                    copy(ne, g, x + nm);
+#else
                 zero(ns, xn);
                 matvec_add(ns, ns, A, x, xn);
                 matvec_add(ns, nf, Bf, f, xn);
                 matvec_add(ns, ne, Bg, g, xn);
                 copy(ns, xn, x);
+#endif
             }
         }
     }

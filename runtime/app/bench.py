@@ -162,11 +162,29 @@ def bench_p3(quick=False, log=print):
 
 # --- P4: nonlinear ------------------------------------------------------------------------------
 
-P4_METHODS = [("modal_parabolic", {}), ("modal_ramp", {}), ("newmark", {}),
+P4_METHODS = [("modal_quintic", {}), ("modal_parabolic", {}), ("modal_ramp", {}), ("newmark", {}),
               ("hht", {"alpha": -0.05}), ("generalized_alpha", {"rho_inf": 0.8})]
 
 #: accuracy targets run on P4 (nonlinear_response's accuracy=, modal_parabolic)
 P4_ACCURACY = (1e-3, 1e-6)
+
+
+def _modal_flops(method, r, S, ne, n_modes, no):
+    """Floating-point operations per sample of the modal loop (nl_loop.c, modal path; a
+    multiply-add counted as 2): per sub-step Q = Cw x + Dwf f, the predictor, each Newton
+    iteration (the two cubic laws' residual and Jacobian, ~24, and the 2 x 2 solve, ~12, at
+    mean iterations + 1 evaluations), the tridiagonal modal block, the history columns, the
+    inputs, the estimate (quintic); per sample the outputs (x of all DOFs) and the estimate's."""
+    nm, nf = 2 * n_modes, 1
+    nh = {"modal_ramp": 0, "modal_parabolic": 1, "modal_quintic": 4}[method] * ne
+    evals = r.info["newton_iterations"]["mean"] + 1
+    sub = 2 * (ne * nm + ne * nf + ne * ne) + evals * 36 \
+        + 2 * (3 * nm + nm * nh + nm * nf + nm * ne)
+    per_sample = 2 * (no * nm + no * nf + no * ne)
+    if method == "modal_quintic":
+        sub += 2 * (7 * ne + 3 * nm + nm * ne)
+        per_sample += 2 * no * nm
+    return S * sub + per_sample
 
 
 def bench_p4(quick=False, log=print):
@@ -209,23 +227,30 @@ def bench_p4(quick=False, log=print):
     e_lin = _errors(lin.x[:, out], exact.x[:, out])[0]
 
     for method, params in P4_METHODS:
-        for S in (1, 2, 3, 4, 8) + ((12,) if method == "modal_parabolic" else ()):
+        levels = (1, 2, 4) if method == "modal_quintic" else (1, 2, 3, 4, 8)
+        for S in levels + ((12,) if method == "modal_parabolic" else ()):
             r, t_run, t_b = _timed(lambda: nonlinear_response(*args, **kw, scheme=method,
                                                               substeps=S, quantities=("x",),
                                                               **params), 5, loop_time)
-            add(method, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref, t_run, t_b)
+            note = ""
+            if method.startswith("modal_"):
+                fl = _modal_flops(method, r, S, len(P["elements"]), 4, 4)
+                note = (f"{fl:.0f} flop/sample, {fl * (n - 1) / t_run / 1e9:.2f} GFLOP/s "
+                        f"achieved")
+            add(method, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref, t_run, t_b, note)
     # accuracy targets: the time sums every run the target needs (their C loops) and the
     # estimates' own work (differences and extrapolations of the records)
-    for target in P4_ACCURACY:
-        r, t_run, t_b = _timed(lambda: nonlinear_response(
-            *args, **kw, scheme="modal_parabolic", accuracy=target, quantities=("x",)), 5,
-            lambda r: r.info["run_time"] + r.info["estimate_time"])
-        i = r.info
-        add("modal_parabolic accuracy", "nonlinear (C)", f"accuracy={target:g}", r.x[:, out],
-            ref, t_run, t_b,
-            f"estimate {i['error_estimate']:.2e} (x, all 4 DOFs), {i['substeps']} sub-steps "
-            f"({'extrapolated from ' if i['extrapolated'] else 'runs '}"
-            f"{', '.join(map(str, i['estimate_substeps']))})")
+    for scheme in ("modal_quintic", "modal_parabolic"):
+        for target in P4_ACCURACY:
+            r, t_run, t_b = _timed(lambda: nonlinear_response(
+                *args, **kw, scheme=scheme, accuracy=target, quantities=("x",)), 5,
+                lambda r: r.info["run_time"] + r.info["estimate_time"])
+            i = r.info
+            add(f"{scheme} accuracy", "nonlinear (C)", f"accuracy={target:g}", r.x[:, out],
+                ref, t_run, t_b,
+                f"estimate {i['error_estimate']:.2e} (x, all 4 DOFs), {i['substeps']} sub-steps "
+                f"({'extrapolated from ' if i['extrapolated'] else 'runs '}"
+                f"{', '.join(map(str, i['estimate_substeps']))})")
     lin_times += [loop_time(linear()) for _ in range(5)]
     t_lin = statistics.median(lin_times)
     log(f"  linear P4L modal filters (ramp)  max {e_lin:9.2e} (vs matrix exponential)  "

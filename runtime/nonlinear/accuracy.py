@@ -73,6 +73,8 @@ def scheme_order(method, params) -> int:
         return 2
     if method == "modal_parabolic":
         return 3
+    if method == "modal_quintic":
+        return 6
     if method not in TABLE:
         raise ValueError(f"scheme {method!r} has no known order; accuracy and estimate "
                          f"need modal_ramp, modal_parabolic or a scheme of {', '.join(TABLE)}")
@@ -248,3 +250,46 @@ def _finish(best, accuracy, met, all_runs, p, log, estimate_time):
                     estimate_substeps=used, estimate_time=estimate_time,
                     accuracy_log=[{"substeps": s, "estimate": e, "note": n} for s, e, n in log])
     return sol
+
+
+def reach_embedded(run, accuracy, substeps, max_substeps, method, params):
+    """``accuracy`` for a method whose every run reports an embedded estimate (modal_quintic on
+    the C backend). Run S; when its estimate exceeds the target the next S follows from the order
+    p, S (estimate / accuracy)^(1/p) * 1.2 rounded up (at least 2 S when the estimate already
+    meets it: the confirmation). A run's estimate is trusted only when the next run confirms
+    it: the difference of the two runs (~ the coarser one's error) within a factor 3 of the
+    coarser run's estimate. Unconfirmed (a start away from rest, a kink, a hysteresis: the
+    force polynomial's error is then not its next term), the Richardson sequence `reach` takes
+    over from ``substeps``. A run that fails (NewtonError, a modal step beyond its stability
+    limit) hands over to `reach` too, as does a run without an embedded estimate."""
+    p = scheme_order(method, params)
+    S, runs, log, prev = substeps, [], [], None
+    while S <= max_substeps:
+        try:
+            r = run(S)
+        except (NewtonError, DtdynStepStabilityError):
+            break
+        if r.info.get("error_estimate_kind") != "embedded":
+            break
+        runs.append(r)
+        est = r.info["error_estimate"]
+        if prev is not None:
+            d, est_prev = difference(r, prev), prev.info["error_estimate"]
+            confirmed = est_prev / 3 <= d <= 3 * est_prev
+            log.append((S, est, None if confirmed else f"difference {d:.3g} to {prev_S} "
+                        f"sub-steps does not confirm its estimate {est_prev:.3g}"))
+            if not confirmed:
+                break
+            if est <= accuracy:
+                return _finish((est, r, False, S, None, [prev_S, S]), accuracy, True, runs, p,
+                               log, 0.0)
+        else:
+            log.append((S, est, None))
+        grow = (est / accuracy) ** (1.0 / p) * 1.2 if math.isfinite(est) else 2.0
+        prev, prev_S = r, S
+        S = max(2 * S if est <= accuracy else S + 1, math.ceil(S * grow))
+    out = reach(run, accuracy, substeps, max_substeps, method, params)
+    out.info["accuracy_log"] = [{"substeps": s, "estimate": e, "note": n} for s, e, n in log] \
+        + out.info["accuracy_log"]
+    out.info.update(_timing(runs + [out]))
+    return out

@@ -17,6 +17,11 @@ generated/nonlinear.md). Schemes:
   nonlinear force treated as linear over the step (second order in h).
 - "modal_parabolic": the same filters with the element forces interpolated by the parabola
   through g_{k-1}, g_k, g_{k+1} (third order in h, same per-step problem; dtdyn's addition).
+- "modal_quintic": the same filters with the element forces interpolated by the polynomial of
+  degree 5 through g_{k-4}, ..., g_{k+1} (sixth order in h, same per-step problem, stable up to
+  theta = 0.222), with an embedded error estimate: the next term of the polynomial,
+  nabla^6 g_{k+1}, is the local error of each step; the linear modal dynamics carry it along
+  (dtdyn's addition).
 - any one-step scheme of the integrator library on M, C, K ("newmark", "average_acceleration",
   "hht", "generalized_alpha", ...): the effective nonlinear system of the scheme; HHT and
   generalized-alpha evaluate the nonlinear forces like the external ones, averaged between
@@ -29,10 +34,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from dtdyn._engine import validate
+from dtdyn.generated.nl_modal import QUINTIC_THETA_LIMIT
 from dtdyn.generated.scheme_table import TABLE
 
 MULTISTEP = tuple(name for name, row in TABLE.items() if row["startup_steps"])
-MODAL = ("modal_ramp", "modal_parabolic")
+MODAL = ("modal_ramp", "modal_parabolic", "modal_quintic")
 
 #: largest theta = |B0 dg/dy|_inf (the elements' tangent stiffness k_t as seen by the step; y
 #: rows and columns only: velocity terms and internal states are not counted) a
@@ -40,8 +46,10 @@ MODAL = ("modal_ramp", "modal_parabolic")
 #: acceleration method (unstable beyond B0 k_t = 2, i.e. Omega_t = h sqrt(k_t/m) = sqrt 12);
 #: the parabolic one grows like Adams-Moulton 3 on the imaginary axis, rho - 1 ~ 1e-3 per step at
 #: theta = 0.03 without damping (docs/nonlinear.md), so it is held to theta <= 0.01.
+#: The quintic keeps every root of the free mass stepped with it in the unit disk up to
+#: theta = QUINTIC_THETA_LIMIT = 0.222 (Omega_t = 1.61; derived: generated/nl_modal.py).
 #: The implicit schemes (average acceleration, HHT, generalized-alpha) have no such limit.
-THETA_LIMIT = {"modal_ramp": 2.0, "modal_parabolic": 0.01}
+THETA_LIMIT = {"modal_ramp": 2.0, "modal_parabolic": 0.01, "modal_quintic": QUINTIC_THETA_LIMIT}
 
 
 @dataclass
@@ -66,6 +74,8 @@ class LinearStep:
     X0g: np.ndarray
     X0x: np.ndarray
     X0v: np.ndarray
+    #: modal methods: the structure the C loop uses (`modal_structure`), else None
+    modal: dict | None = None
 
 
 def _shifted(Phi, G0, G1, S, Z0, Zx, Zv, L, out, need_v, nf, h, direct=None) -> LinearStep:
@@ -94,9 +104,11 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> Li
 
     Displacement q = sum_r w_r Re(psi_r eta_r) (w = 2 for a conjugate pair, 1 for a real pole),
     velocity with psi_r s_r, acceleration with psi_r s_r^2 plus the direct term
-    sum_r w_r Re(s_r R_r) u (= M^-1 with all modes). ``parabolic`` adds
+    sum_r w_r Re(s_r R_r) u (= M^-1 with all modes). ``parabolic="parabolic"`` adds
     N2 X_f U_g (g_k - 2 g_{k-1} + g_{k-2}) (generated/nl_modal.py), the state then carrying
-    g_{k-1} (g_{-1} = g_0 at rest).
+    g_{k-1} (g_{-1} = g_0 at rest); ``parabolic="quintic"`` weighs g_{k-4} .. g_k by W_j
+    (generated/nl_modal.py, quintic_coefficients), the state carrying g_{k-1} .. g_{k-4}, and
+    adds the estimate's input E X_f U_g (step.modal["Eg"]).
     """
     from scipy.linalg import block_diag
 
@@ -114,20 +126,30 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> Li
         idx, osc = idx[sel], osc[sel]
     s = np.where(osc, s_all[idx], s_all[idx].real)
     N1, N0 = forced_coefficients("ramp", s, np.ones_like(s), h)  # old input, new input
-    N2 = parabola_coefficient(s, h) if parabolic else np.zeros_like(s)
+    N2 = parabola_coefficient(s, h) if parabolic == "parabolic" else np.zeros_like(s)
+    if parabolic == "quintic":  # W_j of g_{k+j}, j = -4 .. 1, and the estimate's E
+        from dtdyn.generated.nl_modal import QUINTIC_NODES, quintic_coefficients
+        W, E = quintic_coefficients(s, h)
+        past = [j for j in QUINTIC_NODES if j < 0][::-1]  # g_{k-1}, g_{k-2}, ...
     lam = np.exp(s * h)
     P = X_f[idx] @ U
     ne, nu = L.shape[0], U.shape[1]
     psi = Psi_q[:, idx] * np.where(osc, 2.0, 1.0)
     Sc = np.vstack([psi, psi * s, psi * s**2])
     direct = np.vstack([np.zeros((2 * L.shape[1], nu)), ((psi * s) @ P).real])
-    A_blocks, rows = [], {"G0": [], "G1": [], "G2": [], "S": [], "Zx": [], "Zv": []}
+    A_blocks, rows = [], {"G0": [], "G1": [], "G2": [], "S": [], "Zx": [], "Zv": [], "E": []}
     for r in range(idx.size):
         l, g0, g1, g2 = lam[r], N1[r] * P[r], N0[r] * P[r], N2[r] * P[r, nf:]
         g0[nf:] -= 2.0 * g2
         g1[nf:] += g2
+        e = np.zeros(ne, dtype=complex)
+        if parabolic == "quintic":  # G2: the weights of g_{k-1}, g_{k-2}, ... side by side
+            g0[nf:] = W[0][r] * P[r, nf:]
+            g1[nf:] = W[1][r] * P[r, nf:]
+            g2 = np.concatenate([W[j][r] * P[r, nf:] for j in past])
+            e = E[r] * P[r, nf:]
         parts = {"G0": g0, "G1": g1, "G2": g2, "S": Sc[:, r], "Zx": X_x[idx[r]],
-                 "Zv": X_v[idx[r]]}
+                 "Zv": X_v[idx[r]], "E": e}
         if osc[r]:  # real state (Re eta, Im eta)
             A_blocks.append(np.array([[l.real, -l.imag], [l.imag, l.real]]))
             for k, v in parts.items():
@@ -137,19 +159,53 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> Li
             for k, v in parts.items():
                 rows[k].append(v.real)
     Phi = block_diag(*A_blocks)
-    G0, G1, G2, S, Zx, Zv = (np.array(rows[k]) for k in ("G0", "G1", "G2", "S", "Zx", "Zv"))
+    G0, G1, G2, S, Zx, Zv, Eg = (np.array(rows[k]) for k in ("G0", "G1", "G2", "S", "Zx", "Zv",
+                                                               "E"))
     S = S.T
     Z0 = np.zeros_like(G1)
-    if parabolic:  # state [eta; g_{k-1}]
-        nz = Phi.shape[0]
+    nm = Phi.shape[0]
+    if parabolic:  # state [eta; g_{k-1}; ...; g_{k-n_past}], shifted by ne each step
+        nh = G2.shape[1]
         E_g = np.hstack([np.zeros((ne, nf)), np.eye(ne)])
-        Phi = np.block([[Phi, G2], [np.zeros((ne, nz + ne))]])
-        G0 = np.vstack([G0, E_g])
-        G1 = np.vstack([G1, np.zeros((ne, nu))])
-        S = np.hstack([S, np.zeros((S.shape[0], ne))])
-        Z0 = np.vstack([Z0, E_g])
-        Zx, Zv = (np.vstack([Z, np.zeros((ne, Z.shape[1]))]) for Z in (Zx, Zv))
-    return _shifted(Phi, G0, G1, S, Z0, Zx, Zv, L, out, need_v, nf, h, direct)
+        shift = np.zeros((nh, nm + nh))
+        shift[ne:, nm:nm + nh - ne] = np.eye(nh - ne)
+        Phi = np.block([[Phi, G2], [shift]])
+        G0 = np.vstack([G0, E_g, np.zeros((nh - ne, nu))])
+        G1 = np.vstack([G1, np.zeros((nh, nu))])
+        S = np.hstack([S, np.zeros((S.shape[0], nh))])
+        Z0 = np.vstack([Z0, np.tile(E_g, (nh // ne, 1))])
+        Zx, Zv = (np.vstack([Z, np.zeros((nh, Z.shape[1]))]) for Z in (Zx, Zv))
+    step = _shifted(Phi, G0, G1, S, Z0, Zx, Zv, L, out, need_v, nf, h, direct)
+    if parabolic == "quintic":
+        from dtdyn.generated.nl_modal import QUINTIC_STENCIL
+        step.modal = modal_structure(step, nm, Eg, QUINTIC_STENCIL)
+    else:
+        step.modal = modal_structure(step, nm, np.zeros((nm, ne)), np.zeros(0))
+    return step
+
+
+def modal_structure(step: LinearStep, nm: int, Eg, stencil) -> dict | None:
+    """What the C loop's modal path needs of a modal step (generated/nl_loop.c): A's modal block
+    as its three diagonals, A's history columns H, the estimate's input Eg and difference
+    stencil, and the modal rows (columns) of Bf, Bg (Cw, Co); None when the step does not have
+    that shape (then the loop takes the general path)."""
+    A, ns, ne = step.A, step.A.shape[0], step.Bg.shape[1]
+    nh = ns - nm
+    Am = A[:nm, :nm]
+    band = np.abs(np.subtract.outer(np.arange(nm), np.arange(nm))) <= 1
+    shift = np.zeros((nh, ns))
+    if nh:
+        shift[ne:, nm:ns - ne] = np.eye(nh - ne)
+    bg_hist = np.vstack([np.eye(ne), np.zeros((nh - ne, ne))]) if nh else np.zeros((0, ne))
+    if (np.any(Am[~band]) or not np.array_equal(A[nm:], shift)
+            or not np.array_equal(step.Bg[nm:], bg_hist) or np.any(step.Bf[nm:])
+            or np.any(step.Cw[:, nm:]) or np.any(step.Co[:, nm:])):
+        return None
+    sub = np.concatenate([[0.0], np.diag(Am, -1)])
+    sup = np.concatenate([np.diag(Am, 1), [0.0]])
+    return {"nm": nm, "nh": nh, "tri": np.concatenate([sub, np.diag(Am), sup]),
+            "H": A[:nm, nm:], "Eg": np.asarray(Eg, float).reshape(nm, ne),
+            "stencil": np.asarray(stencil, float)}
 
 
 def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearStep:
@@ -181,7 +237,8 @@ def linear_step(method, M, C, K, h, force_dofs, L, outputs, modes=None, need_v=F
             raise ValueError(f"scheme {method!r} takes no scheme parameters, got "
                              f"{', '.join(sorted(scheme_params))}")
         return _modal_step(M, C, K, h, U, L, outputs, modes, need_v, len(force_dofs),
-                           parabolic=method == "modal_parabolic")
+                           parabolic={"modal_ramp": False, "modal_parabolic": "parabolic",
+                                      "modal_quintic": "quintic"}[method])
     if modes is not None:
         raise ValueError(f"modes selects modal filters; scheme {method!r} integrates all DOFs")
     return _scheme_step(M, C, K, h, U, L, outputs, method, scheme_params, need_v,

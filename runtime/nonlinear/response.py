@@ -118,12 +118,14 @@ def _forces_at_rest(elements, sz: _Sizes, y=None, yd=None):
 @lru_cache(maxsize=32)
 def _c_runner(elements, dims):
     """(runner or None, construct time, compile time) for these elements and sizes (ns, nf, ne,
-    nw, nz, no); cached, so a second run pays neither."""
+    nw, nz, no[, nm, nh, nst]: the modal path of the loop); cached, so a second run pays
+    neither."""
     t0 = time.perf_counter()
     sz = _sizes(elements)
     fn = _residual_function(elements, sz)
     sizes = "".join(f"#define NL_{k} {int(v)}\n" for k, v in zip(("NS", "NF", "NE", "NW", "NZ",
-                                                                     "NO"), dims))
+                                                                     "NO", "NM", "NH", "NST"),
+                                                                    dims))
     loop = resources.files("dtdyn.generated").joinpath("nl_loop.c").read_text()
     source = sizes + loop + "\n" + _c_source(fn)
     t1 = time.perf_counter()
@@ -144,15 +146,21 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     run, n_w, n_iw, lib = runner
     ns, nf, no = step.A.shape[0], force.shape[1], step.Co.shape[0]
     n_samples = force.shape[0]
-    dims = np.array([ns, nf, sz.ne, sz.nw, sz.nz, no, n_samples, S, max_iter, nzo],
+    md = step.modal
+    extra = [] if md is None else [md["nm"], md["nh"], md["stencil"].size]
+    dims = np.array([ns, nf, sz.ne, sz.nw, sz.nz, no, n_samples, S, max_iter, nzo] + extra,
                     dtype=np.int64)
     par = np.concatenate([step.Dwg.ravel(order="F"), [step.h]])
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, par, step.Co, step.Dof,
             step.Dog]
+    if md is not None:  # the modal path: only the modal rows and columns (nl_loop.c)
+        nm = md["nm"]
+        mats += [md["tri"], md["H"], md["Eg"], np.concatenate([md["stencil"], [0.0]]),
+                 step.Bf[:nm], step.Bg[:nm], step.Cw[:, :nm], step.Co[:, :nm]]
     mats = [np.asfortranarray(m, dtype=float) for m in mats]
     ptrs = (ctypes.c_void_p * len(mats))(*[m.ctypes.data for m in mats])
     out = np.empty((n_samples, no + nzo))
-    stats = np.zeros(5)
+    stats = np.zeros(5 + no)  # then the estimate's largest |error| per output row
     fail = np.zeros(1, dtype=np.int64)
     work = np.zeros(n_w + 1)
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
@@ -365,7 +373,11 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     force_dofs : sequence of int, optional
         0-based loaded DOFs (all DOFs when None).
     scheme : str
-        "modal_ramp", "modal_parabolic", or a one-step scheme of the integrator library ("newmark",
+        "modal_ramp", "modal_parabolic", "modal_quintic" (the element forces as the polynomial
+        of degree 5 through the last six steps: sixth order, stable up to theta = 0.222, and an
+        embedded error estimate in ``info["error_estimate"]`` with every run of the C
+        backend: the next term of the polynomial carried by the linear modes, relative to the
+        largest |value| of each stored x, v, a), or a one-step scheme of the integrator library ("newmark",
         "average_acceleration", "hht", "generalized_alpha", "wilson", ...); its parameters as
         keywords.
     substeps : int
@@ -393,7 +405,10 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
 
     accuracy : float, optional
         A target for the relative error instead of a sub-step count (distinct from ``tol``,
-        the Newton tolerance of each step): the record is run at S_0 = ``substeps``, 2 S_0,
+        the Newton tolerance of each step). With "modal_quintic" (C backend) each run's embedded
+        estimate decides: S_0 = ``substeps``, then S (estimate / accuracy)^(1/6) * 1.2 rounded
+        up until the estimate is <= ``accuracy`` (`accuracy.reach_embedded`). Otherwise the
+        record is run at S_0 = ``substeps``, 2 S_0,
         4 S_0, ... and the first solution whose error estimate is <= ``accuracy`` is returned.
         With p the scheme's order (modal_ramp 2, modal_parabolic 3, a one-step scheme its
         table order) and d_k = x_k - x_{k-1} between successive runs, the Richardson estimates
@@ -482,10 +497,14 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                 ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
                 ground_displacement=ground_displacement, influence=influence, x0=x0, v0=v0,
                 **scheme_params)
+        if S0 > cap and target is not None:
+            raise ValueError(f"substeps ({S0}) must be <= max_substeps ({cap}) with accuracy")
+        if scheme == "modal_quintic" and backend == "c":  # its runs estimate themselves
+            if target is None:
+                return run(S0)
+            return acc.reach_embedded(run, target, S0, cap, scheme, scheme_params)
         if target is None:
             return acc.estimate_only(run, S0, scheme, scheme_params)
-        if S0 > cap:
-            raise ValueError(f"substeps ({S0}) must be <= max_substeps ({cap}) with accuracy")
         return acc.reach(run, target, S0, cap, scheme, scheme_params)
     t0 = time.perf_counter()
     M, C, K = linalg.mck(M, C, K)
@@ -548,9 +567,11 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     u = np.concatenate([y0] + ([yd0] if sz.need_v else []) + [np.zeros(sz.nz)])
     t1 = time.perf_counter()
 
-    used = backend
+    used, embedded = backend, None
     if backend == "c":
         dims = (step.A.shape[0], f.shape[1], sz.ne, sz.nw, sz.nz, step.Co.shape[0])
+        if step.modal is not None:
+            dims += (step.modal["nm"], step.modal["nh"], step.modal["stencil"].size)
         runner, t_build, t_compile = _c_runner(elements, dims)
         used = "c" if runner is not None else "casadi"
     if used == "c":
@@ -566,6 +587,8 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
             _newton_error(fail, S, fs, stats[3], max_iter)
         iters = {"max": int(stats[0]), "mean": stats[1] / ((f.shape[0] - 1) * S + 1)}
         worst, theta = float(stats[2]), float(stats[4])
+        if step.modal is not None and step.modal["stencil"].size:
+            embedded = stats[5:]
     else:
         xa = np.concatenate([x, u, g0, rate0, [0.0, 0.0]])
         out, worst, theta, t_build, t_compile, t_run = _run_casadi(
@@ -577,6 +600,14 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     n_motion = len(asked) * no
     store["g"] = out[:, n_motion:n_motion + sz.ne] if "g" in quantities else None
     store["z"] = out[:, step.Co.shape[0]:] if nzo else None
+    estimate_info = {}
+    if embedded is not None:  # largest |error| per output row, relative per quantity
+        est = 0.0
+        for i, q in enumerate(asked):
+            scale = np.abs(store[q]).max()
+            e = embedded[i * no:(i + 1) * no].max()
+            est = max(est, float(e / scale) if scale > 0 else (0.0 if e == 0 else np.inf))
+        estimate_info = {"error_estimate": est, "error_estimate_kind": "embedded"}
     return support.finish(Response(dt * np.arange(f.shape[0]), outputs, **store,
                     info={"scheme": method, "substeps": S, "backend": used, "dt": dt,
                           "n_steps": f.shape[0] - 1,
@@ -584,7 +615,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                           "setup_time": t1 - t0, "construct_time": t_build,
                           "compile_time": t_compile, "run_time": t_run,
                           "newton_iterations": iters, "max_residual": worst,
-                          "max_theta": theta,
+                          "max_theta": theta, **estimate_info,
                           **({"params": scheme_params} if scheme_params else {})}), ground)
 
 

@@ -97,7 +97,7 @@ LINEAR = [Cubic(0, k3=0.0), Cubic(1, 2, k3=0.0)]
 
 
 @pytest.mark.parametrize("backend", ["c", "casadi"])
-@pytest.mark.parametrize("method", ["modal_ramp", "modal_parabolic"])
+@pytest.mark.parametrize("method", ["modal_ramp", "modal_parabolic", "modal_quintic"])
 def test_g_zero_modal_equals_matrix_exponential(P4, backend, method):
     """Ramp invariant = first-order hold: exact for the piecewise-linear force (1e-12)."""
     n = 1500
@@ -508,3 +508,87 @@ def test_nonlinear_chain_initial_state_forces_and_states(backend):
         a, b = getattr(r, q), getattr(ref, q)
         assert np.abs(a - b).max() <= 1e-10 * np.abs(b).max(), q
     assert r.v is None and r.g.shape == (2001, 2) and r.z.shape == (2001, 1)
+
+
+# --- modal_quintic: the force polynomial of degree 5 ---------------------------------------------
+
+def _lagrange(j, v, nodes):
+    """Hand-written Lagrange basis polynomial of node j at v (the oracle)."""
+    out = 1.0
+    for i in nodes:
+        if i != j:
+            out *= (v - i) / (j - i)
+    return out
+
+
+@pytest.mark.parametrize("pole", [-0.5 + 100j, -30 + 3000j, -100 + 1900j, -1e4 + 0j, -2e3 + 0j,
+                                  -900 + 1700j])
+def test_quintic_weights_against_quadrature(pole):
+    """W_j = integral_0^h e^{s(h-u)} l_j(u/h) du and the estimate's E (the polynomial
+    prod (v - j) / 6!) by numerical quadrature, on both sides of the series/closed-form switch
+    (|s h| = 2)."""
+    from scipy.integrate import quad
+
+    from dtdyn.generated.nl_modal import quintic_coefficients
+    h = 1e-3
+    nodes = range(-4, 2)
+    W, E = quintic_coefficients(np.array([pole]), h)
+
+    def integral(fn):
+        re = quad(lambda u: (np.exp(pole * (h - u)) * fn(u / h)).real, 0, h, epsabs=0,
+                  epsrel=1e-13, limit=200)[0]
+        im = quad(lambda u: (np.exp(pole * (h - u)) * fn(u / h)).imag, 0, h, epsabs=0,
+                  epsrel=1e-13, limit=200)[0]
+        return re + 1j * im
+    for j in nodes:
+        want = integral(lambda v: _lagrange(j, v, nodes))
+        assert abs(W[j][0] - want) <= 1e-11 * abs(want), j
+    want = integral(lambda v: np.prod([v - i for i in nodes]) / 720.0)
+    assert abs(E[0] - want) <= 1e-11 * abs(want)
+
+
+def test_quintic_stability_limit_is_the_runtime_step_s():
+    """The derived limit (the free mass's characteristic polynomial) against the runtime's own
+    step: one mode (omega h = 0.01, undamped) with a linear element k_t, the closed loop
+    A + Bg k_t (1 - Dwg k_t)^-1 Cw: every eigenvalue in the unit disk at 0.95 of the limit,
+    one outside at 1.05; the ramp's derived limit is its theta = 2 (Omega_t = sqrt 12)."""
+    from dtdyn.generated.nl_modal import QUINTIC_THETA_LIMIT
+    from dtdyn.nonlinear.linear_step import THETA_LIMIT, linear_step
+    assert DN.polynomial_stability(1)["theta_limit"] == pytest.approx(2.0, rel=1e-9)
+    assert THETA_LIMIT["modal_quintic"] == QUINTIC_THETA_LIMIT
+    assert QUINTIC_THETA_LIMIT == pytest.approx(DN.polynomial_stability(5)["theta_limit"])
+    h, L = 0.01, np.eye(1)
+    step = linear_step("modal_quintic", np.eye(1), np.zeros((1, 1)), np.eye(1), h, [0], L,
+                       np.array([0]))
+    B0 = -step.Dwg[0, 0]
+
+    def radius(theta):
+        kt = theta / B0
+        A = step.A + step.Bg * kt @ np.linalg.inv(np.eye(1) - step.Dwg * kt) @ step.Cw
+        return np.abs(np.linalg.eigvals(A)).max()
+    assert radius(0.5 * QUINTIC_THETA_LIMIT) <= 1 + 1e-9
+    assert radius(0.95 * QUINTIC_THETA_LIMIT) <= 1 + 1e-9
+    assert radius(1.05 * QUINTIC_THETA_LIMIT) > 1 + 1e-6
+
+
+def test_quintic_backends_agree(P4):
+    """The C loop's modal path (tridiagonal modal block, shifted force history) against the
+    CasADi backend on the full matrices: the same step, so the same numbers to the Newton
+    tolerance."""
+    n = 3000
+    runs = {b: NL.nonlinear_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"],
+                                     force_dofs=[3], elements=P4["elements"],
+                                     scheme="modal_quintic", backend=b) for b in ("c", "casadi")}
+    peak = np.abs(runs["c"].x).max()
+    assert np.abs(runs["casadi"].x - runs["c"].x).max() <= 1e-9 * peak
+    assert runs["c"].info["error_estimate_kind"] == "embedded"
+
+
+def test_p4_quintic_convergence_order(P4, P4_ref):
+    """Sixth order: the error falls by 2^6.4 from 1 to 2 sub-steps and by 2^6.3 from 2 to 4
+    (measured): the finest pair's slope is the asymptotic claim (6 - 0.25 .. 6 + 0.35, as for
+    the other methods), the coarser one approaches it from above."""
+    errs = [_err(_run(P4, scheme="modal_quintic", substeps=S), P4_ref) for S in (1, 2, 4)]
+    slopes = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert 6 - 0.25 <= slopes[-1] <= 6 + 0.35, (errs, slopes)
+    assert slopes[0] >= slopes[-1] - 0.05, (errs, slopes)
