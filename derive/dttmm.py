@@ -151,6 +151,10 @@ class Sweeps:
     Stable (Riccati), per station n from N down to 1 (time-invariant part computed once):
         S_L = S_expr(S_R);  den = T22 - S_R T12;  R_L = g R_R + h
     then forward, n = 1..N:  u_n = a_fwd u_{n-1} + b_fwd   with b_fwd in R_R (= R_L of n + 1).
+    The kernels evaluate them as (identities checked in derive_sweeps; a_fwd = g)
+        R_L = g R_R + (hD Delta + g (F - beta)),  u_n = g u_{n-1} + (R_R + ((F - beta) - Delta))/den
+    with g, hD and den per station once per run: per station and step, F - beta and Delta are
+    formed once and nothing is divided but the forward term.
     Plain: z_n = T z_{n-1}: u_n = T11 u + T12 f + T13, f_{n+1} = T21 u + T22 f + T23; its error
     estimate runs the stable recurrences with F = 0 (error_step) on the error history.
     """
@@ -165,6 +169,7 @@ class Sweeps:
     # division, not a product with 1/den, whose rounding bias accumulates in the displacement form)
     h_num: sp.Expr  # h = h_num / den
     b_num: sp.Expr  # b_fwd = b_num / den
+    hD: sp.Expr  # h = hD Delta + g (F - beta)
     # the step that carries the plain sweep's error (F = 0), linear in Delta, beta and R_R with
     # per-station coefficients computed once: R_L = g R_R + hD Delta + hb beta,
     # u_n = a_fwd u_{n-1} + fR R_R + fD Delta + fb beta
@@ -196,7 +201,11 @@ def derive_sweeps() -> Sweeps:
     es = error_step
     assert sp.simplify(h0 - es["hD"] * Delta - es["hb"] * beta) == 0
     assert sp.simplify(b0 - es["fR"] * R_R - es["fD"] * Delta - es["fb"] * beta) == 0
-    return Sweeps(T, S_expr, g, h, a_fwd, b_fwd, den_s, h_num, b_num, error_step)
+    hD = sp.factor(sp.cancel(sp.diff(h, Delta)))
+    assert sp.simplify(a_fwd - g) == 0
+    assert sp.simplify(h - (hD * Delta + g * (F_n - beta))) == 0
+    assert sp.simplify(b_fwd - (R_R + (F_n - beta) - Delta) / den_s) == 0
+    return Sweeps(T, S_expr, g, h, a_fwd, b_fwd, den_s, h_num, b_num, hD, error_step)
 
 
 #: weight of the random part of the plain sweep's rounding error (module docstring)

@@ -54,10 +54,13 @@ PY_ARRAY = _names({"mu": "mu", "kappa": "kp", "S_R": "SR", "Delta": "Dl", "F_n":
 
 
 def _lin(prefix: str, coeffs: dict, array: str = "", zero: str = "0.0") -> str:
-    """C text of sum_h prefix_h * h[i] (h = "u" is the primary unknown u[i]; an increment dx0 is
-    (x0[i] - xm1[i]), kernels.in_increments), ``zero`` when empty; ``array`` is prepended to the
-    array names ("e": the plain sweep's error histories ex0, ..., and eu)."""
+    """C text of sum_h prefix_h * h[i] (h = "u" is the primary unknown: the loop's local un, or
+    eu[i] of the error histories; an increment dx0 is (x0[i] - xm1[i]),
+    kernels.in_increments), ``zero`` when empty; ``array`` is prepended to the array names
+    ("e": the plain sweep's error histories ex0, ..., and eu)."""
     def term(h):
+        if h == "u" and not array:
+            return "un"  # the station's unknown, a local of the loop
         if h.startswith("d"):
             new, old = kernels.increment_pair(h)
             return f"({array}{new}[i] - {array}{old}[i])"
@@ -115,8 +118,7 @@ def _scheme_context(name: str) -> dict:
             "form": form,
             "temps": [(str(t), printing.c(e)) for t, e in temps],
             "rows": [(n, printing.c(e)) for n, e in reduced],
-            "g": cc(sw.g), "S": cc(sw.S_expr), "a": cc(sw.a_fwd),
-            "den": cc(sw.den), "h_num": cc(sw.h_num), "b_num": cc(sw.b_num),
+            "g": cc(sw.g), "S": cc(sw.S_expr), "den": cc(sw.den), "hD": cc(sw.hD),
             "error_step": [(n, cc(e)) for n, e in sw.error_step.items()],
             "plain": _plain_entries(sw.T, cc, "{}[n]"),
             **{n: _lin(n, fs.hist_terms[n]) for n in ("q", "s", "b")},
@@ -139,14 +141,13 @@ def _scheme_context(name: str) -> dict:
 
 def _dttmm_context() -> dict:
     sw = dttmm.derive_sweeps()
-    py = lambda e, names=PY_ARRAY: printing.py(sp.sympify(e).xreplace(names))  # noqa: E731
     scalar = lambda e: printing.py(sp.sympify(e).xreplace(SCALAR))  # noqa: E731
     T = sw.T
     ctx = {"T_rows": [str(list(T.row(i))) for i in range(3)],
            "S_expr": str(sw.S_expr), "g": str(sw.g), "h": str(sw.h), "a_fwd": str(sw.a_fwd),
-           "b_fwd": str(sw.b_fwd),
-           "g_py": scalar(sw.g), "S_py": scalar(sw.S_expr), "a_py": scalar(sw.a_fwd),
-           "den_py": scalar(sw.den), "h_py": py(sw.h_num), "bf_py": py(sw.b_num),
+           "b_fwd": str(sw.b_fwd), "hD": str(sw.hD), "den": str(sw.den),
+           "g_py": scalar(sw.g), "S_py": scalar(sw.S_expr),
+           "den_py": scalar(sw.den), "hD_py": scalar(sw.hD),
            "error_step": [(n, scalar(e)) for n, e in sw.error_step.items()],
            "error_step_doc": [(n, str(e)) for n, e in sw.error_step.items()],
            "random_spread": repr(float(dttmm.RANDOM_SPREAD))}

@@ -54,11 +54,39 @@ static double step_sign(uint64_t j)
     z ^= z >> 31;
     return (z >> 63) ? 1.0 : -1.0;
 }
+/* stations per block of the stable sweep (its temporaries: 2 blocks of doubles, in L1) */
+#define CHAIN_BLOCK 256
 #endif
 
 /* mu of mass n: m alpha + k_g p + c_g r; kg and cg are NULL for a chain without ground elements
    (then mu = m alpha and beta = m b, as many operations as a plain chain needs) */
 #define GROUNDED_MU(n) (kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u)
+
+/* the stable sweep's terms of station t (in block lo..): h = hD Delta + g (F - beta) in th,
+   (F - beta) - Delta in tw; GROUND: the station has a spring-damper to the ground (kg, cg),
+   LEFT: it has a mass to its left (t > 0). Written out per case, so that the block loop is a
+   plain vector loop. */
+#define CHAIN_TERMS(GROUND, LEFT) \
+    { \
+        double qn, sn, qm = 0.0, sm = 0.0, Fb, Dn; \
+        { \
+            const long i = t; \
+            qn = CHAIN_Q; \
+            sn = CHAIN_SV; \
+            Fb = m[i] * (CHAIN_B); /* beta = m a + k_g x + c_g v */ \
+        } \
+        if (LEFT) { \
+            const long i = t - 1; \
+            qm = CHAIN_Q; \
+            sm = CHAIN_SV; \
+        } \
+        if (GROUND) \
+            Fb += kg[t] * qn + cg[t] * sn; \
+        Fb = Fe[t] - Fb; \
+        Dn = k[t] * (qn - qm) + c[t] * (sn - sm); \
+        th[t - lo] = hDelta[t] * Dn + g[t] * Fb; \
+        tw[t - lo] = Fb - Dn; \
+    }
 
 static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const double *k,
                             const double *c, const double *kg, const double *cg, double dt, const double *params, long n_loaded,
@@ -72,7 +100,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     CHAIN_CONSTANTS /* the scheme's parameters and coefficients at this dt */
     CHAIN_HISTORY   /* its history rows (and their error histories) */
     double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
-    double *SR = work + 5 * N, *g = work + 6 * N, *af = work + 7 * N, *R = work + 8 * N;
+    double *SR = work + 5 * N, *g = work + 6 * N, *hDelta = work + 7 * N, *R = work + 8 * N;
     double *u = work + 9 * N, *Pu = work + 10 * N, *den = work + 11 * N;
     /* plain sweep only: the error histories' unknown, terms and Riccati R (pairs); the
        coefficients of the zero-force step; the station matrix entries per run and per step
@@ -83,8 +111,9 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     double PfN = 1.0, epsP = 0.0, emax = sweep ? err[0] : 0.0, xmax = sweep ? err[1] : 0.0;
     uint64_t jstep = sweep ? (uint64_t)err[2] : 0u;
     long n, i, j, step;
+    double th[CHAIN_BLOCK], tw[CHAIN_BLOCK];
     (void)dt; (void)params; (void)alpha_u; (void)q; (void)b; (void)R; (void)Pu; (void)SR; (void)g;
-    (void)af; (void)den;
+    (void)hDelta; (void)den;
     (void)eu; (void)eb; (void)eDl; (void)eR;
     CHAIN_PLAIN_VOIDS
     if (!reuse) {   /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
@@ -95,7 +124,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
             SR[n] = S_R;
             g[n] = CHAIN_G;
             S_L = CHAIN_S_L;
-            af[n] = CHAIN_AF;
+            hDelta[n] = CHAIN_HD;
             den[n] = CHAIN_DEN;
             if (sweep) {
                 CHAIN_ERROR_STEP
@@ -135,30 +164,74 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     for (step = 0; step < n_steps; ++step) {
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
-        for (i = 0; i < N; ++i) {
-            q[i] = CHAIN_Q;
-            s[i] = CHAIN_SV;
-            b[i] = m[i] * (CHAIN_B);  /* beta = m a + k_g x + c_g v */
-        }
-        if (kg)
-            for (i = 0; i < N; ++i)
-                b[i] += kg[i] * q[i] + cg[i] * s[i];
-        for (n = 0; n < N; ++n) {
-            const double qp = n ? q[n - 1] : 0.0, sp = n ? s[n - 1] : 0.0;
-            Dl[n] = k[n] * (q[n] - qp) + c[n] * (s[n] - sp);
-        }
         if (sweep == 0) {
-            double up = 0.0;
-            for (n = N - 1; n >= 0; --n) {
-                const double mu = GROUNDED_MU(n), kp = k[n] * p + c[n] * r;
-                R[n] = fma(g[n], n + 1 < N ? R[n + 1] : 0.0, (CHAIN_H_NUM) / den[n]);
+            /* the stable sweep in two passes over the stations (header of dtdyn.derive.dttmm),
+               block by block (CHAIN_BLOCK stations, temporaries in L1): back,
+               R_L = g R_R + (hD Delta + g (F - beta)), keeping R_R + ((F - beta) - Delta) in b;
+               forward, u_n = g u_{n-1} + b_n / den_n, and the stations' new states. The terms
+               before and the update after the recurrences are vector loops; each recurrence
+               takes two stations a round, x_{n-1} = g_{n-1} g_n x_{n+1} + (g_{n-1} h_n + h_{n-1})
+               (back; forward alike), so that one fma latency is paid per two stations. */
+            double R_R = 0.0, un = 0.0;
+            long lo, hi, t;
+            for (hi = N; hi > 0; hi = lo) {
+                lo = hi > CHAIN_BLOCK ? hi - CHAIN_BLOCK : 0;
+                if (lo == 0) {   /* station 0: joined to the ground (q, s of its left: 0) */
+                    t = 0;
+                    if (kg)
+                        CHAIN_TERMS(1, 0)
+                    else
+                        CHAIN_TERMS(0, 0)
+                }
+                if (kg)
+                    for (t = lo ? lo : 1; t < hi; ++t)
+                        CHAIN_TERMS(1, 1)
+                else
+                    for (t = lo ? lo : 1; t < hi; ++t)
+                        CHAIN_TERMS(0, 1)
+                for (n = hi - 1; n > lo; n -= 2) {   /* two stations a round (below) */
+                    const double R_in = R_R, Rn = fma(g[n], R_in, th[n - lo]);
+                    b[n] = R_in + tw[n - lo];
+                    b[n - 1] = Rn + tw[n - 1 - lo];
+                    R_R = fma(g[n - 1] * g[n], R_in, fma(g[n - 1], th[n - lo], th[n - 1 - lo]));
+                }
+                if (n == lo) {
+                    b[n] = R_R + tw[0];
+                    R_R = fma(g[n], R_R, th[0]);
+                }
             }
-            for (n = 0; n < N; ++n) {
-                const double R_R = n + 1 < N ? R[n + 1] : 0.0;
-                up = fma(af[n], up, (CHAIN_B_NUM) / den[n]);
-                u[n] = up;
+            for (lo = 0; lo < N; lo = hi) {
+                hi = lo + CHAIN_BLOCK < N ? lo + CHAIN_BLOCK : N;
+                for (i = lo; i < hi; ++i)
+                    th[i - lo] = b[i] / den[i];
+                for (n = lo; n + 1 < hi; n += 2) {
+                    const double u_in = un;
+                    tw[n - lo] = fma(g[n], u_in, th[n - lo]);
+                    un = fma(g[n] * g[n + 1], u_in, fma(g[n + 1], th[n - lo], th[n + 1 - lo]));
+                    tw[n + 1 - lo] = un;
+                }
+                if (n < hi) {
+                    un = fma(g[n], un, th[n - lo]);
+                    tw[n - lo] = un;
+                }
+                for (i = lo; i < hi; ++i) {
+                    const double un = tw[i - lo];
+                    CHAIN_UPDATE
+                }
             }
         } else {
+            for (i = 0; i < N; ++i) {
+                q[i] = CHAIN_Q;
+                s[i] = CHAIN_SV;
+                b[i] = m[i] * (CHAIN_B);  /* beta = m a + k_g x + c_g v */
+            }
+            if (kg)
+                for (i = 0; i < N; ++i)
+                    b[i] += kg[i] * q[i] + cg[i] * s[i];
+            for (n = 0; n < N; ++n) {
+                const double qp = n ? q[n - 1] : 0.0, sp = n ? s[n - 1] : 0.0;
+                Dl[n] = k[n] * (q[n] - qp) + c[n] * (s[n] - sp);
+            }
             const pair zero2 = {0.0, 0.0};
             double Q_u = 0.0, Q_f = 0.0, z_u = 0.0, z_f, f1;
             pair kick, eup = zero2, eqp = zero2, esp = zero2;
@@ -193,20 +266,15 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
                 z_f = CHAIN_USE3 * z_u + CHAIN_USE4 * z_f + CHAIN_USE5;
                 z_u = nu;
                 u[n] = z_u;
-                eup = af[n] * eup + fR[n] * (n + 1 < N ? eR[n + 1] : zero2) + fD[n] * eDl[n] + fb[n] * eb[n];
+                eup = g[n] * eup + fR[n] * (n + 1 < N ? eR[n + 1] : zero2) + fD[n] * eDl[n] + fb[n] * eb[n];
                 eu[n] = eup + kick * Pu[n];
             }
-        }
-        if (sweep == 0) {
-            for (i = 0; i < N; ++i) {
-                CHAIN_UPDATE
-            }
-        } else {
             double ms = 0.0, mr = 0.0;
             for (i = 0; i < N; ++i) {
                 const pair ex1 = CHAIN_EX1;
                 const pair ev1 = CHAIN_EV1;
                 const pair ea1 = CHAIN_EA1;
+                const double un = u[i];
                 CHAIN_UPDATE
                 CHAIN_ERROR_SHIFT
                 if (fabs(x0[i]) > xmax) xmax = fabs(x0[i]);
@@ -232,6 +300,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
 
 /* the next form defines its own */
 #undef GROUNDED_MU
+#undef CHAIN_TERMS
 #undef CHAIN_RUN
 #undef CHAIN_CONSTANTS
 #undef CHAIN_HISTORY
@@ -239,8 +308,8 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
 #undef CHAIN_PLAIN_VOIDS
 #undef CHAIN_G
 #undef CHAIN_S_L
-#undef CHAIN_AF
 #undef CHAIN_DEN
+#undef CHAIN_HD
 #undef CHAIN_ERROR_STEP
 #undef CHAIN_PLAIN_RUN
 #undef CHAIN_PLAIN_STEP
@@ -253,8 +322,6 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
 #undef CHAIN_Q
 #undef CHAIN_SV
 #undef CHAIN_B
-#undef CHAIN_H_NUM
-#undef CHAIN_B_NUM
 #undef CHAIN_EQ
 #undef CHAIN_ES
 #undef CHAIN_EB

@@ -23,8 +23,9 @@
  * derived in dtdyn.derive.dttmm.
  * The loop itself is chain_loop.h (shared by every scheme); this file defines the scheme's
  * derived expressions for it.
- * The stable sweep's two recurrences use fma(), as the OpenBLAS triangular solve of the NumPy
- * backend does, so the two backends round alike (bitwise equal where that BLAS uses FMA).
+ * The stable sweep forms the same terms in the same order as the NumPy backend; its two
+ * recurrences use fma() and advance two stations a round (with the pair's product g_n g_{n+1}),
+ * so the backends agree to rounding, not bitwise.
  */
 /* displacement form */
 #define CHAIN_RUN run_displacement
@@ -102,8 +103,8 @@
     (void)T23;
 #define CHAIN_G kp / (-SR[n] + kp + mu)
 #define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
-#define CHAIN_AF -kp / (SR[n] - kp - mu)
 #define CHAIN_DEN -SR[n] + kp + mu
+#define CHAIN_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define CHAIN_ERROR_STEP \
     hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
     hb[n] = kp / (SR[n] - kp - mu); \
@@ -128,8 +129,6 @@
 #define CHAIN_B \
     b_dx0 *(x0[i] - xm1[i]) + b_v0 *v0[i] + b_dxm1 *(xm1[i] - xm2[i]) + b_vm1 *vm1[i] + \
         b_vm2 *vm2[i]
-#define CHAIN_H_NUM -Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp
-#define CHAIN_B_NUM -Dl[n] + Fe[n] + R_R - b[n]
 #define CHAIN_EQ q_x0 *ex0[i]
 #define CHAIN_ES s_dx0 *(ex0[i] - exm1[i]) + s_dxm1 *(exm1[i] - exm2[i])
 #define CHAIN_EB \
@@ -137,10 +136,10 @@
         b_vm2 *evm2[i]
 #define CHAIN_RANDOM_SPREAD 1.5
 #define CHAIN_UPDATE \
-    const double x1 = x1_x0 * x0[i] + x1_u * u[i]; \
-    const double v1 = v1_dx0 * (x0[i] - xm1[i]) + v1_dxm1 * (xm1[i] - xm2[i]) + v1_u * u[i]; \
+    const double x1 = x1_x0 * x0[i] + x1_u * un; \
+    const double v1 = v1_dx0 * (x0[i] - xm1[i]) + v1_dxm1 * (xm1[i] - xm2[i]) + v1_u * un; \
     const double a1 = a1_dx0 * (x0[i] - xm1[i]) + a1_v0 * v0[i] + a1_dxm1 * (xm1[i] - xm2[i]) + \
-                      a1_vm1 * vm1[i] + a1_vm2 * vm2[i] + a1_u * u[i]; \
+                      a1_vm1 * vm1[i] + a1_vm2 * vm2[i] + a1_u * un; \
     xm2[i] = xm1[i]; \
     xm1[i] = x0[i]; \
     vm2[i] = vm1[i]; \
@@ -236,8 +235,8 @@
     (void)T23;
 #define CHAIN_G kp / (-SR[n] + kp + mu)
 #define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
-#define CHAIN_AF -kp / (SR[n] - kp - mu)
 #define CHAIN_DEN -SR[n] + kp + mu
+#define CHAIN_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define CHAIN_ERROR_STEP \
     hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
     hb[n] = kp / (SR[n] - kp - mu); \
@@ -261,8 +260,6 @@
     q_x0 *x0[i] + q_v0 *v0[i] + q_xm1 *xm1[i] + q_xm2 *xm2[i] + q_vm1 *vm1[i] + q_vm2 *vm2[i]
 #define CHAIN_SV s_v0 *v0[i] + s_vm1 *vm1[i] + s_vm2 *vm2[i]
 #define CHAIN_B 0.0
-#define CHAIN_H_NUM -Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp
-#define CHAIN_B_NUM -Dl[n] + Fe[n] + R_R - b[n]
 #define CHAIN_EQ \
     q_x0 *ex0[i] + q_v0 *ev0[i] + q_xm1 *exm1[i] + q_xm2 *exm2[i] + q_vm1 *evm1[i] + q_vm2 *evm2[i]
 #define CHAIN_ES s_v0 *ev0[i] + s_vm1 *evm1[i] + s_vm2 *evm2[i]
@@ -270,9 +267,9 @@
 #define CHAIN_RANDOM_SPREAD 1.5
 #define CHAIN_UPDATE \
     const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_xm1 * xm1[i] + x1_xm2 * xm2[i] + \
-                      x1_vm1 * vm1[i] + x1_vm2 * vm2[i] + x1_u * u[i]; \
-    const double v1 = v1_v0 * v0[i] + v1_vm1 * vm1[i] + v1_vm2 * vm2[i] + v1_u * u[i]; \
-    const double a1 = a1_u * u[i]; \
+                      x1_vm1 * vm1[i] + x1_vm2 * vm2[i] + x1_u * un; \
+    const double v1 = v1_v0 * v0[i] + v1_vm1 * vm1[i] + v1_vm2 * vm2[i] + v1_u * un; \
+    const double a1 = a1_u * un; \
     xm2[i] = xm1[i]; \
     xm1[i] = x0[i]; \
     vm2[i] = vm1[i]; \

@@ -24,8 +24,9 @@
  * derived in dtdyn.derive.dttmm.
  * The loop itself is chain_loop.h (shared by every scheme); this file defines the scheme's
  * derived expressions for it.
- * The stable sweep's two recurrences use fma(), as the OpenBLAS triangular solve of the NumPy
- * backend does, so the two backends round alike (bitwise equal where that BLAS uses FMA).
+ * The stable sweep forms the same terms in the same order as the NumPy backend; its two
+ * recurrences use fma() and advance two stations a round (with the pair's product g_n g_{n+1}),
+ * so the backends agree to rounding, not bitwise.
  */
 /* displacement form */
 #define CHAIN_RUN run_displacement
@@ -91,8 +92,8 @@
     (void)T23;
 #define CHAIN_G kp / (-SR[n] + kp + mu)
 #define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
-#define CHAIN_AF -kp / (SR[n] - kp - mu)
 #define CHAIN_DEN -SR[n] + kp + mu
+#define CHAIN_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define CHAIN_ERROR_STEP \
     hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
     hb[n] = kp / (SR[n] - kp - mu); \
@@ -115,16 +116,14 @@
 #define CHAIN_Q q_x0 *x0[i]
 #define CHAIN_SV s_v0 *v0[i] + s_a0 *a0[i]
 #define CHAIN_B b_v0 *v0[i] + b_a0 *a0[i]
-#define CHAIN_H_NUM -Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp
-#define CHAIN_B_NUM -Dl[n] + Fe[n] + R_R - b[n]
 #define CHAIN_EQ q_x0 *ex0[i]
 #define CHAIN_ES s_v0 *ev0[i] + s_a0 *ea0[i]
 #define CHAIN_EB b_v0 *ev0[i] + b_a0 *ea0[i]
 #define CHAIN_RANDOM_SPREAD 1.5
 #define CHAIN_UPDATE \
-    const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * u[i]; \
-    const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i]; \
-    const double a1 = a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * u[i]; \
+    const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * un; \
+    const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * un; \
+    const double a1 = a1_v0 * v0[i] + a1_a0 * a0[i] + a1_u * un; \
     x0[i] = x1; \
     v0[i] = v1; \
     a0[i] = a1;
@@ -199,8 +198,8 @@
     (void)T23;
 #define CHAIN_G kp / (-SR[n] + kp + mu)
 #define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
-#define CHAIN_AF -kp / (SR[n] - kp - mu)
 #define CHAIN_DEN -SR[n] + kp + mu
+#define CHAIN_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define CHAIN_ERROR_STEP \
     hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
     hb[n] = kp / (SR[n] - kp - mu); \
@@ -223,16 +222,14 @@
 #define CHAIN_Q q_x0 *x0[i] + q_v0 *v0[i] + q_a0 *a0[i]
 #define CHAIN_SV s_v0 *v0[i] + s_a0 *a0[i]
 #define CHAIN_B 0.0
-#define CHAIN_H_NUM -Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp
-#define CHAIN_B_NUM -Dl[n] + Fe[n] + R_R - b[n]
 #define CHAIN_EQ q_x0 *ex0[i] + q_v0 *ev0[i] + q_a0 *ea0[i]
 #define CHAIN_ES s_v0 *ev0[i] + s_a0 *ea0[i]
 #define CHAIN_EB zero2
 #define CHAIN_RANDOM_SPREAD 1.5
 #define CHAIN_UPDATE \
-    const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * u[i]; \
-    const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * u[i]; \
-    const double a1 = a1_a0 * a0[i] + a1_u * u[i]; \
+    const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * un; \
+    const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * un; \
+    const double a1 = a1_a0 * a0[i] + a1_u * un; \
     x0[i] = x1; \
     v0[i] = v1; \
     a0[i] = a1;

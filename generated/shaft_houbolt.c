@@ -13,7 +13,7 @@
  * m, k, c, kg, cg: N doubles each (kg = cg = NULL: no ground elements).
  * hist: 5 rows of N doubles (x0, v0, a0, xm1, xm2), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..
- * written (NULL: not stored). work: 12 N doubles.
+ * written (NULL: not stored). work: 8 N doubles.
  * The loop itself is shaft_loop.h (shared by every scheme); this file defines the scheme's
  * derived expressions for it.
  */
@@ -53,17 +53,15 @@
     double *xm2 = hist + 4 * N;
 #define SHAFT_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define SHAFT_G kp / (-SR[n] + kp + mu)
-#define SHAFT_AF -kp / (SR[n] - kp - mu)
 #define SHAFT_DEN -SR[n] + kp + mu
+#define SHAFT_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define SHAFT_Q q_x0 *x0[i]
 #define SHAFT_SV s_dx0 *(x0[i] - xm1[i]) + s_dxm1 *(xm1[i] - xm2[i])
 #define SHAFT_B b_dx0 *(x0[i] - xm1[i]) + b_dxm1 *(xm1[i] - xm2[i])
-#define SHAFT_H_NUM -Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp
-#define SHAFT_B_NUM -Dl[n] + Fe[n] + R_R - b[n]
 #define SHAFT_UPDATE \
-    const double x1 = x1_x0 * x0[i] + x1_u * u[i]; \
-    const double v1 = v1_dx0 * (x0[i] - xm1[i]) + v1_dxm1 * (xm1[i] - xm2[i]) + v1_u * u[i]; \
-    const double a1 = a1_dx0 * (x0[i] - xm1[i]) + a1_dxm1 * (xm1[i] - xm2[i]) + a1_u * u[i]; \
+    const double x1 = x1_x0 * x0[i] + x1_u * un; \
+    const double v1 = v1_dx0 * (x0[i] - xm1[i]) + v1_dxm1 * (xm1[i] - xm2[i]) + v1_u * un; \
+    const double a1 = a1_dx0 * (x0[i] - xm1[i]) + a1_dxm1 * (xm1[i] - xm2[i]) + a1_u * un; \
     xm2[i] = xm1[i]; \
     xm1[i] = x0[i]; \
     x0[i] = x1; \
@@ -108,17 +106,15 @@
     double *xm2 = hist + 4 * N;
 #define SHAFT_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define SHAFT_G kp / (-SR[n] + kp + mu)
-#define SHAFT_AF -kp / (SR[n] - kp - mu)
 #define SHAFT_DEN -SR[n] + kp + mu
+#define SHAFT_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define SHAFT_Q q_x0 *x0[i] + q_xm1 *xm1[i] + q_xm2 *xm2[i]
 #define SHAFT_SV s_x0 *x0[i] + s_xm1 *xm1[i] + s_xm2 *xm2[i]
 #define SHAFT_B 0.0
-#define SHAFT_H_NUM -Dl[n] * SR[n] + Dl[n] * mu + Fe[n] * kp - b[n] * kp
-#define SHAFT_B_NUM -Dl[n] + Fe[n] + R_R - b[n]
 #define SHAFT_UPDATE \
-    const double x1 = x1_x0 * x0[i] + x1_xm1 * xm1[i] + x1_xm2 * xm2[i] + x1_u * u[i]; \
-    const double v1 = v1_x0 * x0[i] + v1_xm1 * xm1[i] + v1_xm2 * xm2[i] + v1_u * u[i]; \
-    const double a1 = a1_u * u[i]; \
+    const double x1 = x1_x0 * x0[i] + x1_xm1 * xm1[i] + x1_xm2 * xm2[i] + x1_u * un; \
+    const double v1 = v1_x0 * x0[i] + v1_xm1 * xm1[i] + v1_xm2 * xm2[i] + v1_u * un; \
+    const double a1 = a1_u * un; \
     xm2[i] = xm1[i]; \
     xm1[i] = x0[i]; \
     x0[i] = x1; \

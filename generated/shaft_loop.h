@@ -24,9 +24,8 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
 {
     SHAFT_CONSTANTS /* the scheme's parameters and coefficients at this dt */
     SHAFT_HISTORY   /* its history rows */
-    double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
-    double *SR = work + 5 * N, *g = work + 6 * N, *af = work + 7 * N, *R = work + 8 * N;
-    double *u = work + 9 * N, *den = work + 10 * N, *RR = work + 11 * N;
+    double *Fe = work, *b = work + N, *RR = work + 2 * N, *u = work + 3 * N;
+    double *SR = work + 4 * N, *g = work + 5 * N, *hDelta = work + 6 * N, *den = work + 7 * N;
     long n, i, j, step;
     (void)dt; (void)params; (void)alpha_u;
     memset(SR, 0, (size_t)N * sizeof(double));
@@ -35,42 +34,51 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
         const double kp = k[n] * p + c[n] * r;
         const double S_L = SHAFT_S_L;
         g[n] = SHAFT_G;
-        af[n] = SHAFT_AF;
+        hDelta[n] = SHAFT_HD;
         den[n] = SHAFT_DEN;
         if (parent[n] >= 0)
             SR[parent[n]] += gS[n] * S_L;
     }
     memset(Fe, 0, (size_t)N * sizeof(double));
+    memset(RR, 0, (size_t)N * sizeof(double));
     for (step = 0; step < n_steps; ++step) {
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
-        for (i = 0; i < N; ++i) {
-            q[i] = SHAFT_Q;
-            s[i] = SHAFT_SV;
-            b[i] = m[i] * (SHAFT_B);
-        }
-        if (kg)
-            for (i = 0; i < N; ++i)
-                b[i] += kg[i] * q[i] + cg[i] * s[i];
-        for (n = 0; n < N; ++n) {
+        /* leaves to root: R_L = g R_R + (hD Delta + g (F - beta)), R_R the sum of the children's
+           gR R_L: the child n + 1 hands its term over in a register (Rc), the others through RR,
+           which each station clears for the next step once read; b keeps
+           R_R + ((F - beta) - Delta) for the forward pass */
+        double Rc = 0.0, uc = 0.0;
+        for (n = N - 1; n >= 0; --n) {
             const long pa = parent[n];
-            const double qp = pa >= 0 ? gu[n] * q[pa] : 0.0, sp = pa >= 0 ? gu[n] * s[pa] : 0.0;
-            Dl[n] = k[n] * (q[n] - qp) + c[n] * (s[n] - sp);
+            double qn, sn, qp = 0.0, sp = 0.0, Fb, Dn, R_R = RR[n] + Rc, R_L;
+            i = n;
+            qn = SHAFT_Q;
+            sn = SHAFT_SV;
+            Fb = m[n] * (SHAFT_B);  /* beta = m a + k_g x + c_g v */
+            if (kg)
+                Fb += kg[n] * qn + cg[n] * sn;
+            Fb = Fe[n] - Fb;
+            if (pa >= 0) {
+                i = pa;
+                qp = gu[n] * (SHAFT_Q);
+                sp = gu[n] * (SHAFT_SV);
+            }
+            Dn = k[n] * (qn - qp) + c[n] * (sn - sp);
+            b[n] = R_R + (Fb - Dn);
+            RR[n] = 0.0;
+            R_L = gR[n] * fma(g[n], R_R, hDelta[n] * Dn + g[n] * Fb);
+            Rc = 0.0;
+            if (pa == n - 1)
+                Rc = R_L;
+            else if (pa >= 0)
+                RR[pa] += R_L;
         }
-        memset(RR, 0, (size_t)N * sizeof(double));
-        for (n = N - 1; n >= 0; --n) { /* R: leaves to root, summed at the junctions */
-            const double mu = kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u;
-            const double kp = k[n] * p + c[n] * r;
-            R[n] = fma(g[n], RR[n], (SHAFT_H_NUM) / den[n]);
-            if (parent[n] >= 0)
-                RR[parent[n]] += gR[n] * R[n];
-        }
-        for (n = 0; n < N; ++n) { /* u: root to leaves, through the gears */
-            const long pa = parent[n];
-            const double R_R = RR[n], up = pa >= 0 ? gu[n] * u[pa] : 0.0;
-            u[n] = fma(af[n], up, (SHAFT_B_NUM) / den[n]);
-        }
-        for (i = 0; i < N; ++i) {
+        for (i = 0; i < N; ++i) { /* u: root to leaves, through the gears; the new state */
+            const long pa = parent[i];
+            const double up = pa == i - 1 ? uc : pa >= 0 ? u[pa] : 0.0;
+            const double un = fma(g[i], gu[i] * up, b[i] / den[i]);
+            u[i] = uc = un;
             SHAFT_UPDATE
         }
         for (j = 0; j < n_out; ++j) {
@@ -89,11 +97,9 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
 #undef SHAFT_HISTORY
 #undef SHAFT_S_L
 #undef SHAFT_G
-#undef SHAFT_AF
 #undef SHAFT_DEN
+#undef SHAFT_HD
 #undef SHAFT_Q
 #undef SHAFT_SV
 #undef SHAFT_B
-#undef SHAFT_H_NUM
-#undef SHAFT_B_NUM
 #undef SHAFT_UPDATE
