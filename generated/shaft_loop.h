@@ -15,6 +15,37 @@
 #include <stddef.h>
 #include <string.h>
 
+#ifndef SHAFT_BLOCK
+/* stations per block (its temporaries: 2 blocks of doubles, in L1) */
+#define SHAFT_BLOCK 256
+#endif
+
+/* the terms of station t (block lo..): gR (hD Delta + g (F - beta)) in th, (F - beta) - Delta
+   in tw; PA: the index of the parent (a root: its own, with GQ = 0), GQ the gear factor of
+   q, s from the parent, GR of R to it; GROUND: spring-dampers to the ground present. Written
+   per case, so that the plain stations' loop is a plain vector loop. */
+#define SHAFT_TERMS(GROUND, PA, GQ, GR) \
+    { \
+        double qn, sn, qp, sp, Fb, Dn; \
+        { \
+            const long i = t; \
+            qn = SHAFT_Q; \
+            sn = SHAFT_SV; \
+            Fb = m[i] * (SHAFT_B); /* beta = m a + k_g x + c_g v */ \
+        } \
+        { \
+            const long i = PA; \
+            qp = (GQ) * (SHAFT_Q); \
+            sp = (GQ) * (SHAFT_SV); \
+        } \
+        if (GROUND) \
+            Fb += kg[t] * qn + cg[t] * sn; \
+        Fb = Fe[t] - Fb; \
+        Dn = k[t] * (qn - qp) + c[t] * (sn - sp); \
+        th[t - lo] = (GR) * (hDelta[t] * Dn + g[t] * Fb); \
+        tw[t - lo] = Fb - Dn; \
+    }
+
 static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
                             const double *gS, const double *gR, const double *m, const double *k,
                             const double *c, const double *kg, const double *cg, double dt,
@@ -26,60 +57,127 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
     SHAFT_HISTORY   /* its history rows */
     double *Fe = work, *b = work + N, *RR = work + 2 * N, *u = work + 3 * N;
     double *SR = work + 4 * N, *g = work + 5 * N, *hDelta = work + 6 * N, *den = work + 7 * N;
-    long n, i, j, step;
+    /* per station once per run: gq = gu (0 at a root), ggu = g gu, gRg = gR g; jf = 1 where a
+       child other than station n + 1 hangs (its R arrives through RR, its u is read from u);
+       lone: the stations that are not plain line stations (a plain station hangs on station
+       n - 1 without a gear and carries no other child), ascending; n_lone of them */
+    double *gq = work + 8 * N, *ggu = work + 9 * N, *gRg = work + 10 * N, *jf = work + 11 * N;
+    long *lone = (long *)(work + 12 * N), n_lone = 0, cur;
+    unsigned char *plain = (unsigned char *)(work + 13 * N);
+    double th[SHAFT_BLOCK], tw[SHAFT_BLOCK], Rc, uc;
+    long n, i, j, t, lo, hi, step;
     (void)dt; (void)params; (void)alpha_u;
     memset(SR, 0, (size_t)N * sizeof(double));
+    memset(jf, 0, (size_t)N * sizeof(double));
     for (n = N - 1; n >= 0; --n) { /* Riccati factors: S from the leaves to the root */
         const double mu = kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u;
         const double kp = k[n] * p + c[n] * r;
         const double S_L = SHAFT_S_L;
+        const long pa = parent[n];
         g[n] = SHAFT_G;
         hDelta[n] = SHAFT_HD;
         den[n] = SHAFT_DEN;
-        if (parent[n] >= 0)
-            SR[parent[n]] += gS[n] * S_L;
+        gq[n] = pa >= 0 ? gu[n] : 0.0;
+        ggu[n] = pa >= 0 ? g[n] * gu[n] : 0.0;
+        gRg[n] = gR[n] * g[n];
+        if (pa >= 0) {
+            SR[pa] += gS[n] * S_L;
+            if (pa != n - 1)
+                jf[pa] = 1.0;
+        }
+    }
+    for (n = 0; n < N; ++n) {
+        plain[n] = n > 0 && parent[n] == n - 1 && gu[n] == 1.0 && gR[n] == 1.0 && jf[n] == 0.0;
+        if (!plain[n])
+            lone[n_lone++] = n;
     }
     memset(Fe, 0, (size_t)N * sizeof(double));
     memset(RR, 0, (size_t)N * sizeof(double));
     for (step = 0; step < n_steps; ++step) {
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
-        /* leaves to root: R_L = g R_R + (hD Delta + g (F - beta)), R_R the sum of the children's
-           gR R_L: the child n + 1 hands its term over in a register (Rc), the others through RR,
-           which each station clears for the next step once read; b keeps
-           R_R + ((F - beta) - Delta) for the forward pass */
-        double Rc = 0.0, uc = 0.0;
-        for (n = N - 1; n >= 0; --n) {
-            const long pa = parent[n];
-            double qn, sn, qp = 0.0, sp = 0.0, Fb, Dn, R_R = RR[n] + Rc, R_L;
-            i = n;
-            qn = SHAFT_Q;
-            sn = SHAFT_SV;
-            Fb = m[n] * (SHAFT_B);  /* beta = m a + k_g x + c_g v */
-            if (kg)
-                Fb += kg[n] * qn + cg[n] * sn;
-            Fb = Fe[n] - Fb;
-            if (pa >= 0) {
-                i = pa;
-                qp = gu[n] * (SHAFT_Q);
-                sp = gu[n] * (SHAFT_SV);
+        /* leaves to root, block by block (SHAFT_BLOCK stations, temporaries in L1): the terms
+           gR (hD Delta + g (F - beta)) and (F - beta) - Delta, a vector loop as for plain
+           stations and the lone ones redone; then R_L = gR g R_R + gR h, R_R the sum of the
+           children's R_L: the child n + 1 hands its term over in a register (Rc), the others
+           through RR (cleared once read); b keeps R_R + ((F - beta) - Delta) for the forward
+           pass. Two plain stations take one round (one fma latency):
+           R_L of n - 1 = g_{n-1} g_n R_R + (g_{n-1} th_n + th_{n-1}); forward alike. */
+        Rc = 0.0;
+        cur = n_lone - 1;
+        for (hi = N; hi > 0; hi = lo) {
+            lo = hi > SHAFT_BLOCK ? hi - SHAFT_BLOCK : 0;
+            if (kg) {
+                for (t = lo ? lo : 1; t < hi; ++t)
+                    SHAFT_TERMS(1, t - 1, 1.0, 1.0)
+                for (; cur >= 0 && lone[cur] >= lo; --cur) {
+                    t = lone[cur];
+                    SHAFT_TERMS(1, parent[t] >= 0 ? parent[t] : t, gq[t], gR[t])
+                }
+            } else {
+                for (t = lo ? lo : 1; t < hi; ++t)
+                    SHAFT_TERMS(0, t - 1, 1.0, 1.0)
+                for (; cur >= 0 && lone[cur] >= lo; --cur) {
+                    t = lone[cur];
+                    SHAFT_TERMS(0, parent[t] >= 0 ? parent[t] : t, gq[t], gR[t])
+                }
             }
-            Dn = k[n] * (qn - qp) + c[n] * (sn - sp);
-            b[n] = R_R + (Fb - Dn);
-            RR[n] = 0.0;
-            R_L = gR[n] * fma(g[n], R_R, hDelta[n] * Dn + g[n] * Fb);
-            Rc = 0.0;
-            if (pa == n - 1)
-                Rc = R_L;
-            else if (pa >= 0)
-                RR[pa] += R_L;
+            for (n = hi - 1; n >= lo; --n) {
+                long pa;
+                double R_R = Rc, R_L;
+                if (plain[n]) {
+                    b[n] = Rc + tw[n - lo];
+                    if (n > lo && plain[n - 1]) {
+                        b[n - 1] = fma(g[n], Rc, th[n - lo]) + tw[n - 1 - lo];
+                        Rc = fma(g[n - 1] * g[n], Rc, fma(g[n - 1], th[n - lo], th[n - 1 - lo]));
+                        --n;
+                    } else {
+                        Rc = fma(g[n], Rc, th[n - lo]);
+                    }
+                    continue;
+                }
+                pa = parent[n];
+                if (jf[n] != 0.0) {
+                    R_R += RR[n];
+                    RR[n] = 0.0;
+                }
+                b[n] = R_R + tw[n - lo];
+                R_L = fma(gRg[n], R_R, th[n - lo]);
+                Rc = 0.0;
+                if (pa == n - 1)
+                    Rc = R_L;
+                else if (pa >= 0)
+                    RR[pa] += R_L;
+            }
         }
-        for (i = 0; i < N; ++i) { /* u: root to leaves, through the gears; the new state */
-            const long pa = parent[i];
-            const double up = pa == i - 1 ? uc : pa >= 0 ? u[pa] : 0.0;
-            const double un = fma(g[i], gu[i] * up, b[i] / den[i]);
-            u[i] = uc = un;
-            SHAFT_UPDATE
+        /* root to leaves: u_n = g gu u_parent + b_n / den_n, then the new states */
+        uc = 0.0;
+        for (lo = 0; lo < N; lo = hi) {
+            hi = lo + SHAFT_BLOCK < N ? lo + SHAFT_BLOCK : N;
+            for (i = lo; i < hi; ++i)
+                th[i - lo] = b[i] / den[i];
+            for (n = lo; n < hi; ++n) {
+                if (plain[n]) {
+                    if (n + 1 < hi && plain[n + 1]) {
+                        tw[n - lo] = fma(g[n], uc, th[n - lo]);
+                        uc = fma(g[n + 1] * g[n], uc, fma(g[n + 1], th[n - lo], th[n + 1 - lo]));
+                        ++n;
+                    } else {
+                        uc = fma(g[n], uc, th[n - lo]);
+                    }
+                } else {
+                    const long pa = parent[n];
+                    const double up = pa == n - 1 ? uc : pa >= 0 ? u[pa] : 0.0;
+                    uc = fma(ggu[n], up, th[n - lo]);
+                    if (jf[n] != 0.0)
+                        u[n] = uc;
+                }
+                tw[n - lo] = uc;
+            }
+            for (i = lo; i < hi; ++i) {
+                const double un = tw[i - lo];
+                SHAFT_UPDATE
+            }
         }
         for (j = 0; j < n_out; ++j) {
             const long o = out_idx[j], row = (step + 1) * n_out + j;
@@ -93,6 +191,7 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
 
 /* the next form defines its own */
 #undef SHAFT_RUN
+#undef SHAFT_TERMS
 #undef SHAFT_CONSTANTS
 #undef SHAFT_HISTORY
 #undef SHAFT_S_L

@@ -295,3 +295,32 @@ def test_support_motion_of_a_geared_tree():
     # a rigid turn deforms no shaft or gear: K r vanishes but at the wall's disk (its shaft to
     # the wall is fixed in the relative coordinates)
     assert np.abs((K @ r)[1:]).max() <= 1e-12 * abs(K).max()
+
+
+@pytest.mark.parametrize("form", ["displacement", "acceleration"])
+@pytest.mark.parametrize("grounded", [False, True])
+def test_blocked_tree_loop_at_block_edges(form, grounded):
+    """The C tree loop works in blocks of 256 stations and takes two plain line stations a
+    round: branches hanging at block edges (stations 255 and 256), a geared branch at the last
+    disk of the main line (its parent is station n - 1, but through a gear), a branch of a
+    branch without a gear and an odd number of stations: equal to simulate_mck."""
+    rng = np.random.default_rng(7)
+
+    def line(n):
+        return rng.uniform(0.5, 1.5, n), rng.uniform(5e3, 2e4, n), rng.uniform(0.05, 0.2, n)
+
+    extra = dict(ground_stiffness=rng.uniform(0.0, 1e3, 301)) if grounded else {}
+    sub = dd.Branch(10, *line(17), name="sub")
+    s = dd.Shaft(*line(301), **extra, branches=[
+        dd.Branch(255, *line(120), ratio=2.0, name="b255", branches=[sub]),
+        dd.Branch(256, *line(33), name="b256"),
+        dd.Branch(300, *line(64), ratio=-1.5, name="tail")])
+    M, C, K = dd.shaft_matrices(s)
+    n = M.shape[0]
+    f = np.c_[np.ones(301), np.sin(np.arange(301) * 0.1)]
+    fd = [n - 1, 150]
+    r = dd.simulate_shaft(s, f, 1e-3, force_dofs=fd, form=form, scheme="hht")
+    ref = dd.simulate_mck(M, C, K, f, 1e-3, force_dofs=fd, scheme="hht")
+    for q in "xva":
+        a, b = getattr(r, q), getattr(ref, q)
+        assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max(), q
