@@ -116,8 +116,12 @@ def _simulate_nonlinear(args, sc) -> int:
     if args.plot:
         scenes.plot_response(args.plot, response, sc)
     n_steps = sc.n_steps * report["substeps"] + 1  # as nonlinear_response counts them
-    print(f"construct time: {report['construct_time_s'] * 1e3:.2f} ms, compile or cache load: "
-          f"{report['compile_time_s'] * 1e3:.2f} ms, setup: {report['setup_time_s'] * 1e3:.2f} ms")
+    if report["construct_time_s"] is not None:  # nonlinear_response (matrices and chains)
+        print(f"construct time: {report['construct_time_s'] * 1e3:.2f} ms, compile or cache "
+              f"load: {report['compile_time_s'] * 1e3:.2f} ms, setup: "
+              f"{report['setup_time_s'] * 1e3:.2f} ms")
+    else:  # the DT-TMM sweep of a shaft or beam
+        print(f"setup: {report['setup_time_s'] * 1e3:.2f} ms")
     print(f"run time: {report['run_time_s'] * 1e3:.2f} ms ({report['backend']} backend, "
           f"{report['run_time_s'] / n_steps * 1e6:.3f} us per step of h = dt / "
           f"{report['substeps']})")

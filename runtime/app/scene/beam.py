@@ -91,6 +91,14 @@ def simulate(scene, progress=False, support=None):
     return model_simulate(simulate_beam, scene, progress, support)
 
 
+def simulate_nonlinear(scene, support=None):
+    """`nonlinear_beam_response` on a scene with [[element]] tables."""
+    from dtdyn.app.scene.schema import model_simulate_nonlinear
+    from dtdyn.nonlinear.stations import nonlinear_beam_response
+
+    return model_simulate_nonlinear(nonlinear_beam_response, scene, support)
+
+
 def frequencies(beam, count=None) -> np.ndarray:
     """The lowest ``count`` (all when None) natural frequencies by the Wittrick-Williams count."""
     from dtdyn.linear.beam import beam_frequencies

@@ -219,7 +219,9 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         if nonlinear:
             M, C, K = (A.toarray() if sps.issparse(A) else A for A in (M, C, K))
     elif kind in MODEL_MODULES:
-        if nonlinear or ("ground" in data and not getattr(model_module(kind), "GROUND", False)):
+        module = model_module(kind)
+        if ((nonlinear and not hasattr(module, "simulate_nonlinear"))
+                or ("ground" in data and not getattr(module, "GROUND", False))):
             what = "[[element]]" if nonlinear else "[ground]"
             raise ValueError(f"model.kind = {kind!r}: {what} is not supported for this kind yet; "
                              "remove it")
@@ -238,6 +240,12 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         scheme, params, options, backend = _parse_nonlinear(data.get("nonlinear", {}),
                                                             data.get("scheme"))
         form = sweep = None
+        from dtdyn.nonlinear.linear_step import MODAL
+
+        if kind in MODEL_MODULES and scheme in MODAL:
+            raise ValueError(f"scheme.name = {scheme!r}: the modal methods run on matrices; a "
+                             f"{kind} with [[element]] runs the DT-TMM sweep with a one-step "
+                             "scheme (newmark, hht, generalized_alpha, ...)")
     else:
         if "element" in data:  # an empty array: still a linear scene
             _parse_elements(data["element"], n_dof, names)

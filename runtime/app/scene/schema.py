@@ -192,6 +192,17 @@ def model_simulate(simulate, scene, progress=False, support=None):
                     outputs=scene.outputs, quantities=scene.quantities, progress=progress,
                     **(support or {}), **scene.scheme_params)
 
+
+def model_simulate_nonlinear(simulate, scene, support=None):
+    """simulate(model, force, dt, elements=..., ...) of a kind in MODEL_MODULES (its
+    nonlinear_<kind>_response) with the scene's elements, load, scheme, [nonlinear] options,
+    outputs and support motion."""
+    return simulate(scene.model, scene.force, scene.dt, elements=scene.elements,
+                    force_dofs=scene.loaded, scheme=scene.scheme, outputs=scene.outputs,
+                    quantities=scene.quantities, **(support or {}), **scene.nonlinear,
+                    **scene.scheme_params)
+
+
 #: element kind -> (class in dtdyn.nonlinear.elements, required fields, optional fields); the
 #: optional fields' defaults are the classes' own
 ELEMENT_KINDS: dict[str, tuple[str, tuple[str, ...], tuple[str, ...]]] = {

@@ -142,6 +142,14 @@ def simulate(scene, progress=False, support=None):
     return model_simulate(simulate_shaft, scene, progress, support)
 
 
+def simulate_nonlinear(scene, support=None):
+    """`nonlinear_shaft_response` on a scene with [[element]] tables."""
+    from dtdyn.app.scene.schema import model_simulate_nonlinear
+    from dtdyn.nonlinear.stations import nonlinear_shaft_response
+
+    return model_simulate_nonlinear(nonlinear_shaft_response, scene, support)
+
+
 def frequencies(shaft, count=None) -> np.ndarray:
     """The lowest ``count`` (all when None, 20 with continuous shafts) natural frequencies by
     the Wittrick-Williams count."""
