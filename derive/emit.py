@@ -332,7 +332,7 @@ def render_all() -> dict[str, str]:
            increments=[(k, sp.sstr(v)) for k, v in modal_filters.increment_form().items()])
     render("c/nl_loop.c.jinja", "nl_loop.c", "dtdyn.derive.nonlinear")
     render("markdown/nonlinear.md.jinja", "nonlinear.md", "dtdyn.derive.nonlinear",
-           **_nonlinear_context())
+           **_nonlinear_context(), **nonlinear.quintic_context())
     par = nonlinear.parabola_coefficient()
     render("numpy/nl_modal.py.jinja", "nl_modal.py", "dtdyn.derive.nonlinear.parabola_coefficient",
            closed=sp.sstr(par["closed"]), kernel=sp.sstr(par["kernel"]),

@@ -221,4 +221,9 @@ def quintic_context() -> dict:
             "quintic_stencil": [int(c) for c in pw["stencil"]],
             "quintic_a1": sp.sstr(pw["a1"]), "quintic_mu_limit": repr(pw["mu_limit"]),
             "quintic_theta_limit": repr(pw["theta_limit"]),
-            "quintic_charpoly": sp.sstr(characteristic_polynomial(QUINTIC_DEGREE))}
+            "quintic_charpoly": sp.sstr(characteristic_polynomial(QUINTIC_DEGREE)),
+            "quintic_latex": [(j, [sp.latex(c) for c in pw["weights"][j]["phi"]],
+                               sp.latex(pw["weights"][j]["a"]), sp.latex(pw["weights"][j]["b"]))
+                              for j in pw["nodes"]],
+            "quintic_estimate_latex": [sp.latex(c) for c in pw["estimate"]["phi"]],
+            "quintic_charpoly_latex": sp.latex(characteristic_polynomial(QUINTIC_DEGREE))}

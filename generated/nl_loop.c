@@ -34,6 +34,11 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                  double *restrict x, double *restrict u, double *restrict g, double *restrict rate,
                  double *restrict out, double tol, double theta_limit, double *stats, long *fail,
                  double *restrict work, nl_int *restrict iwork);
+#ifdef __GNUC__
+/* hidden: the call stays inside this library (no interposition), so it can be inlined */
+int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem)
+    __attribute__((visibility("hidden")));
+#endif
 /*
  * Cooperative stop (Ctrl-C). The runtime runs a long call of this library in a worker thread;
  * on KeyboardInterrupt the main thread calls dtdyn_set_stop(1), and the loop returns
@@ -196,6 +201,8 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
     const double lim_u = tol * (scale_u > DBL_MIN ? scale_u : DBL_MIN);
     long it;
     int i, k, j;
+    double Jf[NU_ > 2 ? NU_ * NU_ : 1];
+    (void)Jf;
     for (it = 0;; ++it) {
         double m = 0.0, th = 0.0, d = 0.0;
         nl_residual(arg, res, iw, w, 0);
@@ -242,13 +249,15 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
                 u[i] += r[i];
             continue;
         }
-        /* J d = -r by LU with partial pivoting (lu_solve, unrolled) */
+        /* J d = -r by LU with partial pivoting (lu_solve, unrolled) on a copy: J stays the
+           Jacobian at u (the modal loop's estimate uses it) */
+        copy(NU_ * NU_, J, Jf);
         for (k = 0; k < NU_; ++k) {
-            double best = fabs(J[k * NU_ + k]);
+            double best = fabs(Jf[k * NU_ + k]);
             int p = k;
             for (i = k + 1; i < NU_; ++i)
-                if (fabs(J[k * NU_ + i]) > best) {
-                    best = fabs(J[k * NU_ + i]);
+                if (fabs(Jf[k * NU_ + i]) > best) {
+                    best = fabs(Jf[k * NU_ + i]);
                     p = i;
                 }
             if (!(best > 0.0))
@@ -256,27 +265,27 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
             if (p != k) {
                 double t;
                 for (j = 0; j < NU_; ++j) {
-                    t = J[j * NU_ + k];
-                    J[j * NU_ + k] = J[j * NU_ + p];
-                    J[j * NU_ + p] = t;
+                    t = Jf[j * NU_ + k];
+                    Jf[j * NU_ + k] = Jf[j * NU_ + p];
+                    Jf[j * NU_ + p] = t;
                 }
                 t = r[k];
                 r[k] = r[p];
                 r[p] = t;
             }
             for (i = k + 1; i < NU_; ++i) {
-                const double l = J[k * NU_ + i] / J[k * NU_ + k];
-                J[k * NU_ + i] = l;
+                const double l = Jf[k * NU_ + i] / Jf[k * NU_ + k];
+                Jf[k * NU_ + i] = l;
                 for (j = k + 1; j < NU_; ++j)
-                    J[j * NU_ + i] -= l * J[j * NU_ + k];
+                    Jf[j * NU_ + i] -= l * Jf[j * NU_ + k];
                 r[i] -= l * r[k];
             }
         }
         for (i = NU_ - 1; i >= 0; --i) {
             double s = r[i];
             for (j = i + 1; j < NU_; ++j)
-                s -= J[j * NU_ + i] * r[j];
-            r[i] = s / J[i * NU_ + i];
+                s -= Jf[j * NU_ + i] * r[j];
+            r[i] = s / Jf[i * NU_ + i];
         }
         for (i = 0; i < NU_; ++i) {
             const double a = fabs(r[i]);
@@ -291,26 +300,272 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
             u[i] += r[i];
     }
 }
+#ifdef NL_NM
+/*
+ * The modal path of dtdyn_nl_run (compiled with NL_NM, NL_NH, NL_NST). The state is
+ * x = [eta; g_{k-1}; ...; g_{k-NH/NE}]: NL_NM modal rows (a 2 x 2 rotation per oscillating mode,
+ * 1 x 1 per real pole: A's modal block T is tridiagonal) and the element forces' history, whose
+ * columns of A are H. The linear part of a step does not depend on the step's own element
+ * forces, so it is formed once per step, before its Newton solve, and only g's columns follow:
+ *
+ *     eta_k = L_k + Bg g_{k-1},     L_{k+1} = T eta_k + [H Bf] [g_{k-1}; ...; g_{k-NH/NE}; f_k],
+ *     Q_k = Cw L_k + Dwf f_k + (Cw Bg) g_{k-1}
+ *
+ * (Cw's history columns are zero): between two Newton solves only (Cw Bg) g_{k-1} lies on the
+ * path from one step's element forces to the next step's Q. The modal rows are computed as
+ * vectors of 4 (rows padded with zeros to NMP, outputs to NOP), in an order that puts T's 2 x 2
+ * blocks first, so that T y = dia y + off y[partner] with the partner in the same vector.
+ *
+ * The embedded estimate (NST > 0, modal_quintic) carries the local error of the force
+ * polynomial, Eg nabla^{NST-1} g_k (nabla^{NST-1} g_k = sum_i stencil_i g_{k-i}), through the
+ * dynamics linearized at the solution: with e_k the error of eta_k, Q_k errs by Cw e_k, u_k by
+ * J^-1 [Cw e_k; 0] (J = dr/du, the Newton Jacobian at the accepted u) and g_k by
+ * dg_k = (dg/du) J^-1 [Cw e_k; 0] (the elements' tangent stiffness), so that
+ *
+ *     e_k = T e_{k-1} + Bs dg_{k-1} + Eg nabla^{NST-1} g_k,     Bs = Bg + sum_i H_i
+ *
+ * (Bs: g's weights over the steps of its polynomial summed, for an error that changes slowly
+ * over them); stats[5 + i] = max over the samples of |Co_m e + Dog dg|_i.
+ *
+ * mats beyond the general ones (column-major, modal rows padded to NMP, output rows to NOP):
+ * T = [dia; off] (2 NMP), [H Bf] (NMP x (NH + NF)), Eg (NMP x NE), the stencil
+ * (NST), Bg (NMP x NE), Bs (NMP x NE), Cw^T (NMP x NW), Cw Bg (NW x NE), [Co Dof Dog]
+ * (NOP x (NM + NF + NE)). res[4] of nl_residual: dg/du (NE x (NW + NZ)).
+ */
+typedef double v4 __attribute__((vector_size(32), aligned(8))); /* 4 rows, loads unaligned */
+enum { NMV = (NL_NM + 3) / 4, NMP = 4 * NMV, NOV = (NL_NO + 3) / 4, NOP = 4 * NOV };
+
+/* y = sum_c A_c x_c over nc padded columns of nv vectors each */
+static inline void vmatvec(int nv, int nc, const double *restrict A, const double *restrict x,
+                           v4 *restrict y, int add) {
+    int v, c;
+    for (v = 0; v < nv; ++v) {
+        v4 s = add ? y[v] : (v4){0.0, 0.0, 0.0, 0.0};
+        for (c = 0; c < nc; ++c)
+            s += *(const v4 *)(A + (c * nv + v) * 4) * x[c];
+        y[v] = s;
+    }
+}
+
+/* sum of the 4 lanes of a * b over nv vectors */
+static inline double vdot(int nv, const double *restrict a, const v4 *restrict b) {
+    v4 s = *(const v4 *)a * b[0];
+    int v;
+    for (v = 1; v < nv; ++v)
+        s += *(const v4 *)(a + 4 * v) * b[v];
+    return (s[0] + s[1]) + (s[2] + s[3]);
+}
+
+/* T y = dia y + off y[partner]: the 2 x 2 blocks come first, so a row's partner is the other
+   lane of its pair (lanes 0-1, 2-3); off = 0 on the real poles' rows */
+static inline void vblock(const double *restrict T, const v4 *restrict y, v4 *restrict out) {
+    int v;
+    for (v = 0; v < NMV; ++v) {
+        const v4 a = y[v], b = {a[1], a[0], a[3], a[2]};
+        out[v] = *(const v4 *)(T + 4 * v) * a + *(const v4 *)(T + NMP + 4 * v) * b;
+    }
+}
+
+static int modal_run(const long *dims, const double *const *mats, const double *restrict force,
+                     double *restrict x, double *restrict u, double *restrict g,
+                     double *restrict rate, double *restrict out, double tol, double theta_limit,
+                     double *stats, long *fail, double *restrict work, nl_int *restrict iwork) {
+    enum { nf = NL_NF, ne = NL_NE, nw = NL_NW, nz = NL_NZ, no = NL_NO, nu = NL_NW + NL_NZ };
+    enum { nm = NL_NM, nh = NL_NH, nst = NL_NST, ngh = NL_NST > 1 ? (NL_NST - 1) * NL_NE : 1 };
+    const long n_samples = dims[6], S = dims[7], max_iter = dims[8], nzo = dims[9];
+    const double *Dwf = mats[4], *Dwg = mats[5], *par = mats[6];
+    const double *Tb = mats[10], *HB = mats[11], *Eg = mats[12], *stencil = mats[13];
+    const double *Bgm = mats[14], *Bs = mats[15], *CwT = mats[16], *CB = mats[17];
+    const double *Cout = mats[18];
+    const double h = par[nw * ne];
+    double f[nf + 1], Q[nw + 1], zold[nz + 1], rold[nz + 1], r[nu + 1], J[nu * nu + 1];
+    double Gu[ne * nu + 1]; /* dg/du at the accepted u */
+    v4 eta[NMV], e[NMV], Lx[NMV], ep[NMV], ov[NOV], eo[NOV];
+    double xin[nh + nf + 1], cin[nm + nf + ne + 1], gq[ne], gp[ne];
+    double gh[ngh], dn[ne], du[nu + 1], dg[ne], Jc[nu * nu + 1], CL[nw + 1];
+    double *hist = xin; /* [g_{k-1}; ...; g_{k-NH/NE}; f_k]: the columns of [H Bf] */
+    double *cw = work;  /* CasADi work */
+    const double *arg[5];
+    double *res[5];
+    double scale = 0.0, scale_u = 0.0;
+    long n, j, i, k, c, it;
+    arg[0] = u;
+    arg[1] = Q;
+    arg[2] = zold;
+    arg[3] = rold;
+    arg[4] = par;
+    res[0] = r;
+    res[1] = J;
+    res[2] = g;
+    res[3] = rate;
+    res[4] = Gu;
+    for (i = 0; i < 5 + no; ++i)
+        stats[i] = 0.0;
+    /* L_0 = eta_0 with g_{-1} counted as 0 in it (gq); the linear predictor's g_{-1} is g */
+    for (v4 *p = Lx; p < Lx + NMV; ++p)
+        *p = (v4){0.0, 0.0, 0.0, 0.0};
+    copy(nm, x, (double *)Lx);
+    zero(ne, gq);
+    copy(ne, g, gp);
+    copy(nh, x + nm, hist);
+    for (i = 0; i < nw; ++i)
+        CL[i] = vdot(NMV, CwT + i * NMP, Lx);
+    for (i = 0; i < NMV; ++i)
+        ep[i] = (v4){0.0, 0.0, 0.0, 0.0};
+    for (k = 0; k + 1 < nst; ++k) /* the past before t_0: at rest, g_0 */
+        copy(ne, g, gh + k * ne);
+    for (n = 0; n < n_samples; ++n) {
+        const double *f0 = force + n * nf;
+        const double *f1 = (n + 1 < n_samples) ? f0 + nf : f0;
+        const long nsub = (n + 1 < n_samples) ? S : 1;
+        if ((n & 1023) == 0 && dtdyn_stop_flag)
+            return DTDYN_STOPPED;
+        for (j = 0; j < nsub; ++j) {
+            const double cf = (double)j / (double)S;
+            double rn = INFINITY, theta = 0.0;
+            for (i = 0; i < nf; ++i)
+                f[i] = hist[nh + i] = f0[i] + cf * (f1[i] - f0[i]);
+            /* eta_k = L_k + Bg g_{k-1}; Q_k = (Cw L_k + Dwf f_k) + (Cw Bg) g_{k-1} */
+            for (i = 0; i < NMV; ++i)
+                eta[i] = Lx[i];
+            vmatvec(NMV, ne, Bgm, gq, eta, 1);
+            for (i = 0; i < nw; ++i) {
+                double a = 0.0, b = 0.0;
+                for (c = 0; c < nf; ++c)
+                    a += Dwf[c * nw + i] * f[c];
+                for (c = 0; c < ne; ++c)
+                    b += CB[c * nw + i] * gq[c];
+                Q[i] = (a + CL[i]) + b;
+            }
+            /* the linear predictor u = [Q + Dwg g_{k-1}; z_{k-1} + h z'_{k-1}] */
+            for (i = 0; i < nw; ++i) {
+                double b = 0.0;
+                for (c = 0; c < ne; ++c)
+                    b += Dwg[c * nw + i] * gp[c];
+                u[i] = Q[i] + b;
+            }
+            copy(nz, u + nw, zold);
+            copy(nz, rate, rold);
+            for (i = 0; i < nz; ++i)
+                u[nw + i] = zold[i] + h * rold[i];
+            /* the next step's linear part: L_{k+1} = T eta_k + [H Bf] [hist; f_k], Cw L_{k+1} */
+            vmatvec(NMV, nh + nf, HB, xin, Lx, 0);
+            {
+                v4 t[NMV];
+                vblock(Tb, eta, t);
+                for (i = 0; i < NMV; ++i)
+                    Lx[i] = t[i] + Lx[i];
+            }
+            for (i = 0; i < nw; ++i)
+                CL[i] = vdot(NMV, CwT + i * NMP, Lx);
+            /* Newton under the shared acceptance rule (newton_solve), scale fixed per step */
+            scale = grow(scale, norm_inf(nw, Q));
+            it = newton_fixed(u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork, cw, &rn,
+                              &theta);
+            if (it < 0 || !(norm_inf(ne, g) < INFINITY) || !(norm_inf(nz, rate) < INFINITY)) {
+                fail[0] = n * S + j;
+                stats[3] = rn;
+                return 1;
+            }
+            scale_u = grow(scale_u, norm_inf(nu, u));
+            scale = grow(scale, scale_u);
+            stats[1] += (double)it;
+            if ((double)it > stats[0])
+                stats[0] = (double)it;
+            if (rn > stats[2])
+                stats[2] = rn;
+            if (theta > stats[4])
+                stats[4] = theta;
+            if (theta > theta_limit) { /* theta = |B0 dg/dy|_inf: the elements' stiffness */
+                fail[0] = n * S + j;
+                stats[3] = theta;
+                return 3;
+            }
+            if (nst > 0) {
+                /* e_k = (T e_{k-1} + Bs dg_{k-1}) + Eg nabla g_k; dg_k = dg/du J^-1 [Cw e_k; 0] */
+                for (i = 0; i < ne; ++i) {
+                    double s = stencil[0] * g[i];
+                    for (k = 1; k < nst; ++k)
+                        s += stencil[k] * gh[(k - 1) * ne + i];
+                    dn[i] = s;
+                }
+                for (k = nst - 2; k > 0; --k)
+                    copy(ne, gh + (k - 1) * ne, gh + k * ne);
+                copy(ne, g, gh);
+                for (i = 0; i < NMV; ++i)
+                    e[i] = ep[i];
+                vmatvec(NMV, ne, Eg, dn, e, 1);
+                for (i = 0; i < nw; ++i)
+                    du[i] = vdot(NMV, CwT + i * NMP, e);
+                for (i = nw; i < nu; ++i)
+                    du[i] = 0.0;
+                if (nu == 1) {
+                    du[0] = du[0] / J[0];
+                } else if (nu == 2) {
+                    const double inv = 1.0 / (J[0] * J[nu + 1] - J[nu] * J[1]);
+                    const double d0 = du[0], d1 = du[nu - 1];
+                    du[0] = (J[nu + 1] * d0 - J[nu] * d1) * inv;
+                    du[nu - 1] = (J[0] * d1 - J[1] * d0) * inv;
+                } else {
+                    copy(nu * nu, J, Jc);
+                    lu_solve(nu, Jc, du); /* -J^-1 [Cw e; 0]: the sign is undone below */
+                    for (i = 0; i < nu; ++i)
+                        du[i] = -du[i];
+                }
+                for (i = 0; i < ne; ++i) {
+                    double s = 0.0;
+                    for (c = 0; c < nu; ++c)
+                        s += Gu[c * ne + i] * du[c];
+                    dg[i] = s;
+                }
+                vblock(Tb, e, ep);
+                vmatvec(NMV, ne, Bs, dg, ep, 1);
+                if (j == 0) { /* Co_m e + Dog dg: the columns of eta and g in [Co Dof Dog] */
+                    vmatvec(NOV, nm, Cout, (const double *)e, eo, 0);
+                    vmatvec(NOV, ne, Cout + (nm + nf) * NOP, dg, eo, 1);
+                    for (i = 0; i < no; ++i) { /* a NaN estimate stays NaN */
+                        const double a = fabs(eo[i / 4][i % 4]);
+                        stats[5 + i] = (a > stats[5 + i] || a != a) ? a : stats[5 + i];
+                    }
+                }
+            }
+            if (j == 0) { /* Co eta + Dof f + Dog g */
+                double *o = out + n * (no + nzo);
+                copy(nm, (const double *)eta, cin);
+                copy(nf, f, cin + nm);
+                copy(ne, g, cin + nm + nf);
+                vmatvec(NOV, nm + nf + ne, Cout, cin, ov, 0);
+                for (i = 0; i < no; ++i)
+                    o[i] = ov[i / 4][i % 4];
+                copy(nzo, u + nw, o + no);
+            }
+            /* the history: g_k in front, the rest one slot back */
+            for (k = nh - ne; k > 0; k -= ne)
+                copy(ne, hist + k - ne, hist + k);
+            copy(nh > 0 ? ne : 0, g, hist);
+            copy(ne, g, gq);
+            copy(ne, g, gp);
+        }
+    }
+    /* the state at the last sample */
+    copy(nm, (const double *)eta, x);
+    copy(nh, hist, x + nm);
+    return 0;
+}
+#endif
+
 /*
  * dims: ns, nf, ne, nw, nz, no (checked against the compile-time sizes NL_NS .. NL_NO, which
- * let the compiler unroll the small products), n_samples, substeps, max_iter, nzo. A row of
- * out holds no + nzo values: Co x + Dof f + Dog g, then the first nzo internal states z.
- * mats (column-major): A, Bf, Bg, Cw, Dwf, Dwg, par = [Dwg; h], Co, Dof, Dog.
+ * let the compiler unroll the small products), n_samples, substeps, max_iter, nzo; with the
+ * modal path (NL_NM) also NM, NH, NST. A row of out holds no + nzo values: Co x + Dof f +
+ * Dog g, then the first nzo internal states z.
+ * mats (column-major): A, Bf, Bg, Cw, Dwf, Dwg, par = [Dwg; h], Co, Dof, Dog (then the modal
+ * path's, see modal_run).
  * state: x (ns), u (nw + nz: last solution), g (ne), rate (nz); all updated in place.
  * stats: [max iterations, total iterations, max final residual, failing residual or theta,
- * max theta]. Returns 3 when theta = |B0 dg/dy|_inf (displacement rows and columns) exceeds
- * theta_limit (the method's stability limit for the elements' tangent stiffness) at step
- * fail[0].
- *
- * Modal methods (compiled with NL_NM, NL_NH, NL_NST): the state is x = [eta; g_{k-1}; ...;
- * g_{k-NH/NE}], NL_NM modal rows (a 2 x 2 rotation per oscillating mode, 1 x 1 per real pole:
- * A's modal block is tridiagonal) and the element forces' history, shifted by NE each step;
- * only the modal rows and columns of the products are computed. Further dims: NM, NH, NST;
- * further mats: the modal block of A as (sub, diag, super) diagonals (3 NM), A's history
- * columns H (NM x NH), the estimate's input Eg (NM x NE), the difference stencil (NST), and
- * the modal rows or columns of Bf, Bg, Cw, Co. With NST > 0 the embedded error estimate runs
- * along: e_{k} = A_m e_{k-1} + Eg nabla^{NST-1} g_k (the local error of the force polynomial,
- * carried by the linear dynamics), and stats[5 + i] = max over the samples of |Co_m e|_i.
+ * max theta] (then the modal estimate's). Returns 3 when theta = |B0 dg/dy|_inf (displacement
+ * rows and columns) exceeds theta_limit (the method's stability limit for the elements' tangent
+ * stiffness) at step fail[0].
  */
 int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
                  double *restrict x, double *restrict u, double *restrict g, double *restrict rate,
@@ -324,18 +579,9 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     const double *Dog = mats[9];
     double f[nf + 1], Q[nw + 1], zold[nz + 1], rold[nz + 1], r[nu + 1], J[nu * nu + 1];
     double xn[ns];
-#ifdef NL_NM
-    enum { nm = NL_NM, nh = NL_NH, nst = NL_NST };
-    const double *tri = mats[10], *H = mats[11], *Eg = mats[12], *stencil = mats[13];
-    const double *Bfm = mats[14], *Bgm = mats[15], *Cwm = mats[16], *Com = mats[17];
-    /* padded copies so the tridiagonal product runs over whole vectors */
-    double xp[nm + 2], ep[nm + 2], gh[(nst > 1 ? nst - 1 : 1) * ne], d[ne];
-    const double *sub = tri, *dia = tri + nm, *sup = tri + 2 * nm;
-    long k;
-#endif
     double *cw = work; /* CasADi work */
     const double *arg[5];
-    double *res[4];
+    double *res[5];
     double scale = 0.0, scale_u = 0.0;
     long n, j, i, it;
     arg[0] = u;
@@ -347,26 +593,17 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     res[1] = J;
     res[2] = g;
     res[3] = rate;
+    res[4] = 0;
     (void)newton_solve; /* newton.c's general solver: nl_chain.c's; this loop has newton_fixed */
     stats[0] = stats[1] = stats[2] = stats[3] = stats[4] = 0.0;
     if (dims[0] != ns || dims[1] != nf || dims[2] != ne || dims[3] != nw || dims[4] != nz ||
         dims[5] != no)
         return 2; /* compiled for other sizes */
 #ifdef NL_NM
-    (void)A;
-    (void)Bf;
-    (void)Bg;
-    (void)Cw;
-    (void)Co; /* the full matrices: generic path */
-    if (dims[10] != nm || dims[11] != nh || dims[12] != nst || nm + nh != ns)
+    if (dims[10] != NL_NM || dims[11] != NL_NH || dims[12] != NL_NST || NL_NM + NL_NH != ns)
         return 2;
-    xp[0] = xp[nm + 1] = ep[0] = ep[nm + 1] = 0.0;
-    for (i = 0; i < nm; ++i)
-        ep[i + 1] = 0.0;
-    for (k = 0; k + 1 < nst; ++k) /* the past before t_0: at rest, g_0 */
-        copy(ne, g, gh + k * ne);
-    for (i = 0; i < no; ++i)
-        stats[5 + i] = 0.0;
+    return modal_run(dims, mats, force, x, u, g, rate, out, tol, theta_limit, stats, fail, work,
+                     iwork);
 #endif
     for (n = 0; n < n_samples; ++n) {
         const double *f0 = force + n * nf;
@@ -381,11 +618,7 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                 f[i] = f0[i] + c * (f1[i] - f0[i]);
             /* Q = Cw x + Dwf f; predictor u = [Q + Dwg g_prev; z_prev + h z'_prev] */
             zero(nw, Q);
-#ifdef NL_NM
-            matvec_add(nw, nm, Cwm, x, Q); /* the history columns of Cw are zero */
-#else
             matvec_add(nw, ns, Cw, x, Q);
-#endif
             matvec_add(nw, nf, Dwf, f, Q);
             copy(nw, Q, u);
             matvec_add(nw, ne, Dwg, g, u);
@@ -416,63 +649,20 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                 stats[3] = theta;
                 return 3;
             }
-#ifdef NL_NM
-            if (nst > 0) { /* e <- A_m e + Eg nabla g_k; the history of g shifts */
-                for (i = 0; i < ne; ++i)
-                    d[i] = stencil[0] * g[i];
-                for (k = 1; k < nst; ++k)
-                    for (i = 0; i < ne; ++i)
-                        d[i] += stencil[k] * gh[(k - 1) * ne + i];
-                for (k = nst - 2; k > 0; --k)
-                    copy(ne, gh + (k - 1) * ne, gh + k * ne);
-                copy(ne, g, gh);
-                for (i = 0; i < nm; ++i)
-                    xn[i] = sub[i] * ep[i] + dia[i] * ep[i + 1] + sup[i] * ep[i + 2];
-                matvec_add(nm, ne, Eg, d, xn);
-                copy(nm, xn, ep + 1);
-            }
-#endif
             if (j == 0) {
                 double *o = out + n * (no + nzo);
                 zero(no, o);
-#ifdef NL_NM
-                matvec_add(no, nm, Com, x, o);
-                if (nst > 0) {
-                    double eo[no];
-                    zero(no, eo);
-                    matvec_add(no, nm, Com, ep + 1, eo);
-                    for (i = 0; i < no; ++i)
-                        stats[5 + i] = fabs(eo[i]) > stats[5 + i] ? fabs(eo[i]) : stats[5 + i];
-                }
-#else
                 matvec_add(no, ns, Co, x, o);
-#endif
                 matvec_add(no, nf, Dof, f, o);
                 matvec_add(no, ne, Dog, g, o);
                 copy(nzo, u + nw, o + no);
             }
             if (n + 1 < n_samples) {
-#ifdef NL_NM
-                /* modal rows: tridiagonal A_m, the history columns, the inputs */
-                copy(nm, x, xp + 1);
-                for (i = 0; i < nm; ++i)
-                    xn[i] = sub[i] * xp[i] + dia[i] * xp[i + 1] + sup[i] * xp[i + 2];
-                matvec_add(nm, nh, H, x + nm, xn);
-                matvec_add(nm, nf, Bfm, f, xn);
-                matvec_add(nm, ne, Bgm, g, xn);
-                copy(nm, xn, x);
-                /* history rows: g_k in front, the rest one slot back */
-                for (k = nh - ne; k > 0; k -= ne)
-                    copy(ne, x + nm + k - ne, x + nm + k);
-                if (nh > 0)
-                    copy(ne, g, x + nm);
-#else
                 zero(ns, xn);
                 matvec_add(ns, ns, A, x, xn);
                 matvec_add(ns, nf, Bf, f, xn);
                 matvec_add(ns, ne, Bg, g, xn);
                 copy(ns, xn, x);
-#endif
             }
         }
     }

@@ -170,20 +170,22 @@ P4_ACCURACY = (1e-3, 1e-6)
 
 
 def _modal_flops(method, r, S, ne, n_modes, no):
-    """Floating-point operations per sample of the modal loop (nl_loop.c, modal path; a
-    multiply-add counted as 2): per sub-step Q = Cw x + Dwf f, the predictor, each Newton
-    iteration (the two cubic laws' residual and Jacobian, ~24, and the 2 x 2 solve, ~12, at
-    mean iterations + 1 evaluations), the tridiagonal modal block, the history columns, the
-    inputs, the estimate (quintic); per sample the outputs (x of all DOFs) and the estimate's."""
-    nm, nf = 2 * n_modes, 1
+    """Floating-point operations per sample of the modal loop (nl_loop.c, modal_run; a
+    multiply-add counted as 2): per sub-step eta = L + Bg g, Q = (Cw L + Dwf f) + (Cw Bg) g, the
+    predictor, each Newton iteration (the two cubic laws' residual and Jacobian, ~24, and the
+    2 x 2 solve, ~12, at mean iterations + 1 evaluations), the next linear part
+    [H Bf] [hist; f] + T eta (dia y + off y[partner]) and Cw of it; modal_quintic's estimate
+    (the difference stencil, Eg, Cw e, the 2 x 2 solve, dg/du, T e, Bs dg); per sample the
+    outputs (x of all DOFs, [Co Dof Dog]) and the estimate's (Co e + Dog dg)."""
+    nm, nf, nw = 2 * n_modes, 1, ne
     nh = {"modal_ramp": 0, "modal_parabolic": 1, "modal_quintic": 4}[method] * ne
     evals = r.info["newton_iterations"]["mean"] + 1
-    sub = 2 * (ne * nm + ne * nf + ne * ne) + evals * 36 \
-        + 2 * (3 * nm + nm * nh + nm * nf + nm * ne)
-    per_sample = 2 * (no * nm + no * nf + no * ne)
+    sub = 2 * nm * ne + 2 * (nw * nf + nw * ne) + nw + 2 * nw * ne + evals * 36 \
+        + 2 * nm * (nh + nf) + 3 * nm + 2 * nw * nm
+    per_sample = 2 * no * (nm + nf + ne)
     if method == "modal_quintic":
-        sub += 2 * (7 * ne + 3 * nm + nm * ne)
-        per_sample += 2 * no * nm
+        sub += 2 * 7 * ne + 2 * nm * ne + 2 * nw * nm + 12 + 2 * ne * nw + 3 * nm + 2 * nm * ne
+        per_sample += 2 * no * (nm + ne)
     return S * sub + per_sample
 
 

@@ -185,25 +185,42 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False) -> Li
 
 
 def modal_structure(step: LinearStep, nm: int, Eg, stencil) -> dict | None:
-    """What the C loop's modal path needs of a modal step (generated/nl_loop.c): A's modal block
-    as its three diagonals, A's history columns H, the estimate's input Eg and difference
-    stencil, and the modal rows (columns) of Bf, Bg (Cw, Co); None when the step does not have
-    that shape (then the loop takes the general path)."""
+    """What the C loop's modal path needs of a modal step (generated/nl_loop.c, modal_run): A's
+    modal block T, block diagonal with 2 x 2 blocks (oscillating modes) and 1 x 1 blocks (real
+    poles), as the order of its rows that puts the 2 x 2 blocks first (``perm``) and, in that
+    order, its diagonal and each row's partner entry (T y = dia y + off y[partner], the partner
+    of row 2i being 2i + 1 and the other way round); A's history columns H, the estimate's input
+    Eg and difference stencil (rows in A's order). None when the step does not have that shape
+    (then the loop takes the general path)."""
     A, ns, ne = step.A, step.A.shape[0], step.Bg.shape[1]
     nh = ns - nm
     Am = A[:nm, :nm]
-    band = np.abs(np.subtract.outer(np.arange(nm), np.arange(nm))) <= 1
     shift = np.zeros((nh, ns))
     if nh:
         shift[ne:, nm:ns - ne] = np.eye(nh - ne)
     bg_hist = np.vstack([np.eye(ne), np.zeros((nh - ne, ne))]) if nh else np.zeros((0, ne))
-    if (np.any(Am[~band]) or not np.array_equal(A[nm:], shift)
-            or not np.array_equal(step.Bg[nm:], bg_hist) or np.any(step.Bf[nm:])
-            or np.any(step.Cw[:, nm:]) or np.any(step.Co[:, nm:])):
+    if (not np.array_equal(A[nm:], shift) or not np.array_equal(step.Bg[nm:], bg_hist)
+            or np.any(step.Bf[nm:]) or np.any(step.Cw[:, nm:]) or np.any(step.Co[:, nm:])):
         return None
-    sub = np.concatenate([[0.0], np.diag(Am, -1)])
-    sup = np.concatenate([np.diag(Am, 1), [0.0]])
-    return {"nm": nm, "nh": nh, "tri": np.concatenate([sub, np.diag(Am), sup]),
+    pairs, singles, i = [], [], 0
+    while i < nm:
+        if i + 1 < nm and (Am[i, i + 1] != 0 or Am[i + 1, i] != 0):
+            pairs += [i, i + 1]
+            i += 2
+        else:
+            singles.append(i)
+            i += 1
+    perm = np.array(pairs + singles, dtype=int)
+    Tp = Am[np.ix_(perm, perm)]
+    partner = np.arange(nm)
+    npair = len(pairs)
+    partner[:npair] = np.arange(npair) ^ 1
+    off = np.where(np.arange(nm) < npair, Tp[np.arange(nm), partner], 0.0)
+    rebuilt = np.diag(np.diag(Tp))
+    rebuilt[np.arange(nm), partner] += off
+    if not np.array_equal(rebuilt, Tp):  # a coupling outside the blocks
+        return None
+    return {"nm": nm, "nh": nh, "perm": perm, "dia": np.diag(Tp).copy(), "off": off,
             "H": A[:nm, nm:], "Eg": np.asarray(Eg, float).reshape(nm, ne),
             "stencil": np.asarray(stencil, float)}
 

@@ -91,12 +91,16 @@ def _residual_expressions(elements, sz: _Sizes):
     return dict(u=u, Q=Q, zold=zold, rold=rold, par=par, r=r, g=g, rate=rate)
 
 
-def _residual_function(elements, sz: _Sizes):
+def _residual_function(elements, sz: _Sizes, tangent: bool = False):
+    """nl_residual(u, Q, z_old, z'_old, par) -> (r, dr/du, g, z'[, dg/du]): ``tangent`` adds
+    the elements' tangent dg/du (the modal loop's estimate carries its error with it)."""
     ca = require("casadi", "nonlinear", "nonlinear_response")
     e = _residual_expressions(elements, sz)
     J = ca.densify(ca.jacobian(e["r"], e["u"]))
-    return ca.Function("nl_residual", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]],
-                       [e["r"], J, e["g"], e["rate"]])
+    outs = [e["r"], J, e["g"], e["rate"]]
+    if tangent:
+        outs.append(ca.densify(ca.jacobian(e["g"], e["u"])))
+    return ca.Function("nl_residual", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]], outs)
 
 
 def _forces_at_rest(elements, sz: _Sizes, y=None, yd=None):
@@ -118,11 +122,11 @@ def _forces_at_rest(elements, sz: _Sizes, y=None, yd=None):
 @lru_cache(maxsize=32)
 def _c_runner(elements, dims):
     """(runner or None, construct time, compile time) for these elements and sizes (ns, nf, ne,
-    nw, nz, no[, nm, nh, nst]: the modal path of the loop); cached, so a second run pays
-    neither."""
+    nw, nz, no[, nm, nh, nst, np]: the modal path of the loop, whose residual function also
+    gives dg/du); cached, so a second run pays neither."""
     t0 = time.perf_counter()
     sz = _sizes(elements)
-    fn = _residual_function(elements, sz)
+    fn = _residual_function(elements, sz, tangent=len(dims) > 6)
     sizes = "".join(f"#define NL_{k} {int(v)}\n" for k, v in zip(("NS", "NF", "NE", "NW", "NZ",
                                                                      "NO", "NM", "NH", "NST"),
                                                                     dims))
@@ -141,6 +145,29 @@ def _p(a):
     return a.ctypes.data_as(ctypes.c_void_p)
 
 
+def _pad_rows(a):
+    """``a`` with its rows padded by zeros to a multiple of 4 (the C loop's vectors)."""
+    a = np.asarray(a, dtype=float)
+    n = -(-a.shape[0] // 4) * 4
+    return np.vstack([a, np.zeros((n - a.shape[0], a.shape[1]))])
+
+
+def _modal_mats(step: LinearStep, md) -> list:
+    """The modal path's matrices (nl_loop.c, modal_run): the modal rows in the order ``perm``
+    (T's 2 x 2 blocks first) and padded, as the output rows, to a multiple of 4: [dia off], [H Bf],
+    Eg, the stencil, Bg, Bs = Bg + sum_i H_i (g's weights summed: the estimate's), Cw^T, Cw Bg,
+    [Co Dof Dog]."""
+    nm, nh, ne, p = md["nm"], md["nh"], step.Bg.shape[1], md["perm"]
+    Bg, Cw = step.Bg[:nm][p], step.Cw[:, :nm][:, p]
+    H = md["H"][p]
+    Bs = Bg + sum(H[:, i:i + ne] for i in range(0, nh, ne))
+    return [_pad_rows(np.column_stack([md["dia"], md["off"]])),
+            _pad_rows(np.hstack([H, step.Bf[:nm][p]])), _pad_rows(md["Eg"][p]),
+            np.concatenate([md["stencil"], [0.0]]), _pad_rows(Bg), _pad_rows(Bs),
+            _pad_rows(Cw.T), Cw @ Bg,
+            _pad_rows(np.hstack([step.Co[:, :nm][:, p], step.Dof, step.Dog]))]
+
+
 def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate, theta_limit,
            nzo=0):
     run, n_w, n_iw, lib = runner
@@ -154,10 +181,11 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, par, step.Co, step.Dof,
             step.Dog]
     if md is not None:  # the modal path: only the modal rows and columns (nl_loop.c)
-        nm = md["nm"]
-        mats += [md["tri"], md["H"], md["Eg"], np.concatenate([md["stencil"], [0.0]]),
-                 step.Bf[:nm], step.Bg[:nm], step.Cw[:, :nm], step.Co[:, :nm]]
+        mats += _modal_mats(step, md)
     mats = [np.asfortranarray(m, dtype=float) for m in mats]
+    if md is not None:  # the loop's modal rows in the order perm, copied back after the run
+        xa, x = x, x.copy()
+        x[:md["nm"]] = xa[md["perm"]]
     ptrs = (ctypes.c_void_p * len(mats))(*[m.ctypes.data for m in mats])
     out = np.empty((n_samples, no + nzo))
     stats = np.zeros(5 + no)  # then the estimate's largest |error| per output row
@@ -167,6 +195,9 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     args = (_p(dims), ctypes.cast(ptrs, ctypes.c_void_p), _p(force), _p(x), _p(u), _p(g),
             _p(rate), _p(out), tol, theta_limit, _p(stats), _p(fail), _p(work), _p(iwork))
     rc = cbuild.interruptible(lib, lambda: run(*args), work=n_samples * S * (ns + sz.nw) ** 2)
+    if md is not None:
+        xa[md["perm"]] = x[:md["nm"]]
+        xa[md["nm"]:] = x[md["nm"]:]
     return rc, out, stats, int(fail[0])
 
 

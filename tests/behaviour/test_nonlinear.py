@@ -584,6 +584,52 @@ def test_quintic_backends_agree(P4):
     assert runs["c"].info["error_estimate_kind"] == "embedded"
 
 
+
+@pytest.mark.parametrize("method", ["modal_ramp", "modal_quintic"])
+def test_modal_path_with_real_poles_agrees_with_casadi(method):
+    """A mode beyond critical damping gives two real poles between the oscillating pairs: the
+    C loop's modal path reorders the rows (2 x 2 blocks first, so a row's partner sits in its own
+    vector) and pads them to vectors of 4; the CasADi backend steps the full matrices in A's
+    order. Same step, so the same x, v, a and g to the Newton tolerance."""
+    M = np.diag([1.0, 2.0, 1.5])
+    K = np.array([[3e4, -1e4, 0.0], [-1e4, 2e4, -1e4], [0.0, -1e4, 1e4]])
+    C = np.diag([900.0, 0.0, 0.0]) + 1e-4 * K  # mass 0 on a damper of 900 N s/m: overdamped
+    force = np.random.default_rng(3).standard_normal((2000, 1)) * 50.0
+    els = [Cubic(0, None, k3=1e7), Cubic(1, 2, k3=5e6)]
+    L = NL.element_matrix(els, 3)
+    step = NL.linear_step(method, M, C, K, 1e-3, np.array([2]), L, np.arange(3))
+    assert step.modal is not None
+    perm = step.modal["perm"]
+    assert np.count_nonzero(step.modal["off"] == 0.0) >= 2  # real poles, moved behind the pairs
+    assert not np.array_equal(perm, np.arange(perm.size))
+    runs = {b: NL.nonlinear_response(M, C, K, force, 1e-3, force_dofs=[2], elements=els,
+                                     scheme=method, backend=b, quantities=("x", "v", "a", "g"))
+            for b in ("c", "casadi")}
+    for q in "xvag":
+        a, b = getattr(runs["c"], q), getattr(runs["casadi"], q)
+        assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max(), q
+
+
+def test_modal_path_compiles_cleanly(tmp_path):
+    """nl_loop.c with the modal path compiled in (its vectors of 4 are GCC/Clang vector
+    extensions) as C99 with -Wall -Wextra -Werror -pedantic, as the general path is checked in
+    tests/generated_code."""
+    import shutil
+    import subprocess
+
+    from dtdyn._engine import cbuild
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler on this machine")
+    src = tmp_path / "nl_loop.c"
+    src.write_text(cbuild.generated_source("nl_loop.c"))
+    sizes = ["-DNL_NS=10", "-DNL_NF=1", "-DNL_NE=2", "-DNL_NW=4", "-DNL_NZ=1", "-DNL_NO=5",
+             "-DNL_NM=6", "-DNL_NH=4", "-DNL_NST=7"]
+    proc = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *sizes,
+                           "-c", str(src), "-o", str(tmp_path / "k.o")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+
 def test_p4_quintic_convergence_order(P4, P4_ref):
     """Sixth order: the error falls by 2^6.4 from 1 to 2 sub-steps and by 2^6.3 from 2 to 4
     (measured): the finest pair's slope is the asymptotic claim (6 - 0.25 .. 6 + 0.35, as for
