@@ -120,3 +120,26 @@ def test_errors_name_field_and_value(change, match):
     change(s)
     with pytest.raises(ValueError, match=match):
         dd.scene_from_dict(s)
+
+
+def test_continuous_shaft_to_a_clamped_right_end():
+    """right_stiffness as a continuous-shaft table (right = "clamped"): the scene's model is the
+    Shaft built directly, frequencies and run bitwise; a missing field is named."""
+    seg = {"length": 1.0, "G": 8e10, "Jp": 1e-7, "rho": 7800.0, "elements": 8}
+    spec = {"model": {"kind": "shaft", "inertia": [1.0, 0.5], "stiffness": [1e4, 2e4],
+                      "damping": [0.1, 0.1], "right": "clamped", "right_stiffness": seg},
+            "load": [{"dof": "main.1", "kind": "step", "amplitude": 1.0}],
+            "scheme": {"name": "newmark"}, "time": {"dt": 1e-3, "duration": 0.05}}
+    scene = dd.scene_from_dict(spec)
+    direct = dd.Shaft([1.0, 0.5], [1e4, 2e4], [0.1, 0.1], right="clamped",
+                      right_stiffness=dd.ContinuousShaft(**seg))
+    assert scene.dof_names == direct.dof_names and scene.dof_names[2] == "main.right.e1"
+    np.testing.assert_array_equal(dd.shaft_frequencies(scene.model, count=5),
+                                  dd.shaft_frequencies(direct, count=5))
+    response, _ = dd.run_scene(scene)
+    ref = dd.simulate_shaft(direct, scene.force, scene.dt, force_dofs=scene.loaded,
+                            outputs=scene.outputs)
+    np.testing.assert_array_equal(response.x, ref.x)
+    spec["model"]["right_stiffness"] = {"length": 1.0}
+    with pytest.raises(ValueError, match=r"model.right_stiffness.G is required"):
+        dd.scene_from_dict(spec)

@@ -8,7 +8,8 @@
     stiffness = [1e4, 1.2e4, 9e3]         # the shaft before each disk (stiffness[0]: from the
     damping = [0.5, 0.8, 0.3]             #   wall, left = "clamped"); a number or a continuous
     left = "clamped"                      #   shaft {length, G, Jp, rho, elements, damping}
-    right = "free"                        # free | clamped | elastic (right_stiffness, ...)
+    right = "free"                        # free | clamped | elastic (right_stiffness, ...);
+                                          #   clamped: right_stiffness may be a continuous shaft
     ground_stiffness = [0.0, 0.0, 2e3]    # optional, also ground_damping, name ("main")
 
     [[branch]]                            # any number, in order; "on" names the parent line
@@ -46,25 +47,27 @@ def _keys(where: str, table, allowed) -> dict:
     return table
 
 
-def _stiffness(where: str, values):
+def _segment(where: str, v):
+    """A stiffness: a number as given, or a table {length, G, Jp, rho, elements, damping}: a
+    `ContinuousShaft`."""
     from dtdyn.linear.shaft import ContinuousShaft
 
+    if not isinstance(v, dict):
+        return v
+    _keys(where, v, SEGMENT_KEYS)
+    for key in ("length", "G", "Jp", "rho"):
+        if key not in v:
+            raise ValueError(f"{where}.{key} is required (a continuous shaft)")
+    try:
+        return ContinuousShaft(**v)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+
+
+def _stiffness(where: str, values):
     if not isinstance(values, list):
         raise ValueError(f"{where} = {values!r}: must be a list (one shaft before each disk)")
-    out = []
-    for i, v in enumerate(values):
-        if isinstance(v, dict):
-            _keys(f"{where}[{i}]", v, SEGMENT_KEYS)
-            for key in ("length", "G", "Jp", "rho"):
-                if key not in v:
-                    raise ValueError(f"{where}[{i}].{key} is required (a continuous shaft)")
-            try:
-                out.append(ContinuousShaft(**v))
-            except ValueError as exc:
-                raise ValueError(f"{where}[{i}]: {exc}") from None
-        else:
-            out.append(v)
-    return out
+    return [_segment(f"{where}[{i}]", v) for i, v in enumerate(values)]
 
 
 def _line_kwargs(where: str, table: dict) -> dict:
@@ -74,10 +77,11 @@ def _line_kwargs(where: str, table: dict) -> dict:
             raise ValueError(f"{where}.{key} is required")
     kw["inertia"] = table["inertia"]
     kw["stiffness"] = _stiffness(f"{where}.stiffness", table["stiffness"])
-    for key in ("damping", "ground_stiffness", "ground_damping", "right", "right_stiffness",
-                "right_damping"):
+    for key in ("damping", "ground_stiffness", "ground_damping", "right", "right_damping"):
         if key in table:
             kw[key] = table[key]
+    if "right_stiffness" in table:  # a number, or a continuous shaft to a clamped right end
+        kw["right_stiffness"] = _segment(f"{where}.right_stiffness", table["right_stiffness"])
     return kw
 
 
