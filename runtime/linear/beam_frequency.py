@@ -13,12 +13,20 @@ then :math:`u_0 = P_0^{-1} y_0`, :math:`u_{i+1} = P_{i+1}^{-1} (y_{i+1} - E_i^T 
 value of s. A held DOF has the identity's row and column. :math:`P_i` is the dynamic stiffness
 of nodes i .. N condensed onto node i, the matrix form of the Riccati relation f = S u + R.
 
+Mode shapes: inverse iteration with this sweep at each Wittrick-Williams root
+(`dtdyn.linear.sweep_modes`), then one more step of inverse iteration by LAPACK's banded LU
+with partial pivoting (`scipy.linalg.solve_banded`, O(N) per mode too): the sweep eliminates
+without pivoting, and at a shift inside the spectrum it can meet a small pivot (element growth:
+residuals up to ~3e3 eps ||K|| on a 200-element beam); the pivoted step is backward stable,
+which leaves the residual ||K phi - rho M phi|| at rounding level (measured <= 0.3 eps ||K||).
+
 With ``exact=True`` every element enters by its exact dynamic stiffness (from the field matrix
 exp(A L) of dtdyn.derive.beam, `generated/beam.md`) instead of :math:`K_e - \omega^2 M_e`.
 """
 from __future__ import annotations
 
 import numpy as np
+import scipy.linalg as sla
 
 from dtdyn._engine import linalg
 from dtdyn.generated import beam as derived
@@ -127,11 +135,45 @@ def beam_modes(beam: Beam, count=None, below=None) -> Modes:
     lam = w**2
     phi = (sweep_modes.inverse_iteration(lam, solve, lambda X: M @ X, lambda X: K @ X,
                                          beam.n_dof) if lam.size else np.zeros((beam.n_dof, 0)))
+    phi = _pivoted_step(phi, lam, K, M)
     r = rigid_translation(beam)[:, 0]
     Mr = M @ r
     gamma = phi.T @ Mr
     return Modes(omega=w, shapes=phi, influence=r, participation=gamma,
                  effective_mass=gamma**2, total_mass=float(r @ Mr), dof_names=beam.dof_names)
+
+
+def _band(A, width: int) -> np.ndarray:
+    """LAPACK band storage of a sparse matrix with ``width`` sub- and super-diagonals:
+    ab[width + i - j, j] = A[i, j] (scipy's dia data holds A[j - offset, j] at column j)."""
+    D = A.todia()
+    ab = np.zeros((2 * width + 1, A.shape[0]))
+    for off, row in zip(D.offsets, D.data):
+        ab[width - off] += row
+    return ab
+
+
+def _pivoted_step(phi, lam, K, M):
+    """One step of inverse iteration per shape by the banded LU with partial pivoting (module
+    docstring), on isolated roots (a cluster's Rayleigh-Ritz basis is kept); M-normalized,
+    largest entry positive. A shift that is an eigenvalue to the bit (an exactly singular
+    factor) keeps the sweep's shape."""
+    if phi.shape[1] == 0:
+        return phi
+    width = max(abs(int(o)) for o in (K.todia().offsets.tolist() + M.todia().offsets.tolist()))
+    bK, bM = _band(K, width), _band(M, width)
+    out = phi.copy()
+    for group in sweep_modes.clusters(lam):
+        if group.size > 1:
+            continue
+        r = group[0]
+        try:
+            x = sla.solve_banded((width, width), bK - lam[r] * bM, M @ phi[:, r])
+        except np.linalg.LinAlgError:
+            continue
+        x = x / np.sqrt(x @ (M @ x))
+        out[:, r] = x * np.sign(x[np.argmax(np.abs(x))])
+    return out
 
 
 def _dof(name, value, beam):
