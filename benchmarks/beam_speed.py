@@ -1,14 +1,19 @@
-"""Beams: the DT-TMM matrix Riccati sweep against the assembled-matrix loops, and the accuracy
-of the Wittrick-Williams frequencies.
+"""Beams: the DT-TMM block kernel against the assembled-matrix loops, and the accuracy of the
+Wittrick-Williams frequencies.
 
 1. Cantilever (E = 2.1e11, I = 8e-6, rho_A = 20, L = 3): the lowest five frequencies against
    (beta L)^2 sqrt(EI / (rho_A L^4)) (beta L to 15 digits) for 100, 200, 400 elements.
-2. Time per step of a step-loaded cantilever (tip displacement stored, average acceleration,
-   displacement form) for 1,000 .. 10,000 elements: `simulate_beam` (C loop, Riccati sweep)
-   against `simulate_mck` on the same sparse matrices, NumPy/scipy.sparse loop and C loop
-   (SuperLU), same run; the fitted slope of log(time) over log(N).
+2. A step-loaded cantilever (tip displacement stored, average acceleration, displacement form
+   for the DT-TMM, 400 steps of 1e-4 s) for 1,000 .. 10,000 elements, same run:
+   `simulate_beam` (the block-tridiagonal C kernel, generated/block_chain.c) against
+   `simulate_mck` on the same sparse matrices from `beam_matrices`, its NumPy/scipy.sparse loop
+   (Newmark with scipy's sparse LU) and its C loop (SuperLU's factors). Per step: the time loop
+   (`info["run_time"]`, factorization included) over the steps; construction (assembly, checks,
+   a_0: the rest of the call) apart, in ms; the ratios of the whole calls. The fitted slope of
+   log(time per step) over log(N) for each method; "diff": the largest difference of the tip
+   displacement from the scipy.sparse run, relative to its largest value.
 
-Times: minimum of 3 runs after a warm-up. Usage: python benchmarks/beam_speed.py
+Times: the minimum of 3 runs after a warm-up. Usage: python benchmarks/beam_speed.py
 """
 from __future__ import annotations
 
@@ -18,48 +23,65 @@ import numpy as np
 
 import dtdyn as dd
 
-E, I, RHO_A = 2.1e11, 8e-6, 20.0
+E, I, RHO_A = 2.1e11, 8e-6, 20.0  # noqa: E741
 BETA_L = np.array([1.87510406871196, 4.69409113297418, 7.85475743823761, 10.9955407348755,
                    14.1371683910465])
+SIZES = (1000, 2000, 5000, 10000)
+STEPS, DT = 400, 1e-4
 
 
 def best(fn, repeats=3):
-    out = fn()
-    times = []
+    """(total, run_time, result) of the fastest of ``repeats`` calls after a warm-up."""
+    fn()
+    runs = []
     for _ in range(repeats):
         t0 = time.perf_counter()
         out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
+        total = time.perf_counter() - t0
+        runs.append((total, out.info.get("run_time", total), out))
+    return min(runs, key=lambda r: r[0])
 
 
 def main():
     print("1) cantilever, lowest five frequencies: relative error against the closed form")
     for n in (100, 200, 400):
         beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=3.0, elements=n)
-        t, w = best(lambda: dd.beam_frequencies(beam, count=5), 1)
+        t0 = time.perf_counter()
+        w = dd.beam_frequencies(beam, count=5)
+        t = time.perf_counter() - t0
         ref = BETA_L**2 * np.sqrt(E * I / (RHO_A * 3.0**4))
         print(f"   {n:4d} elements: max {np.abs(w / ref - 1).max():.1e}  ({t:.2f} s)")
-    print("\n2) time per step, step load at the tip, average acceleration (us per step)")
-    print("   elements   sweep (C)   mck NumPy   mck C (SuperLU)   NumPy/sweep   C/sweep   diff")
-    sizes, sweep_t = [1000, 3000, 10000], []
-    for n in sizes:
+    print(f"\n2) step load at the tip, average acceleration, {STEPS} steps: time loop per step "
+          "(us), construction (ms)")
+    print("   elements   DT-TMM (C)        mck scipy.sparse    mck C (SuperLU)    "
+          "scipy/DT-TMM  C/DT-TMM   diff")
+    per_step = {k: [] for k in ("dttmm", "scipy", "superlu")}
+    for n in SIZES:
         beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=0.03 * n, elements=n)
         tip = beam.dof(f"w{n}")
-        steps, dt = 400, 1e-4
-        F = np.ones(steps + 1)
+        F = np.ones(STEPS + 1)
         M, C, K = dd.beam_matrices(beam)
-        kw = dict(force_dofs=[tip], outputs=[tip], quantities=("x",), scheme="average_acceleration")
-        t1, r1 = best(lambda: dd.simulate_beam(beam, F, dt, **kw))
-        t2, r2 = best(lambda: dd.simulate_mck(M, C, K, F, dt, backend="numpy", **kw))
-        t3, r3 = best(lambda: dd.simulate_mck(M, C, K, F, dt, **kw))
-        diff = np.abs(r1.x - r2.x).max() / np.abs(r2.x).max()
-        us = [t / steps * 1e6 for t in (t1, t2, t3)]
-        sweep_t.append(us[0])
-        print(f"   {n:8d}   {us[0]:9.1f}   {us[1]:9.1f}   {us[2]:15.1f}   {us[1] / us[0]:11.1f}x"
-              f"   {us[2] / us[0]:6.1f}x   {diff:.1e}")
-    slope = np.polyfit(np.log(sizes), np.log(sweep_t), 1)[0]
-    print(f"   fitted slope of log(time per step) over log(N), sweep: {slope:.2f} (1 = linear)")
+        kw = dict(force_dofs=[tip], outputs=[tip], quantities=("x",),
+                  scheme="average_acceleration")
+        runs = {"dttmm": best(lambda: dd.simulate_beam(beam, F, DT, **kw)),
+                "scipy": best(lambda: dd.simulate_mck(M, C, K, F, DT, backend="numpy", **kw)),
+                "superlu": best(lambda: dd.simulate_mck(M, C, K, F, DT, **kw))}
+        assert runs["dttmm"][2].info["backend"] == "c", "the C kernel did not run"
+        cells = []
+        for key, (total, run, _) in runs.items():
+            per_step[key].append(run / STEPS * 1e6)
+            cells.append(f"{run / STEPS * 1e6:7.1f} ({(total - run) * 1e3:5.1f} ms)")
+        ref = runs["scipy"][2].x
+        diff = np.abs(runs["dttmm"][2].x - ref).max() / np.abs(ref).max()
+        totals = {k: v[0] for k, v in runs.items()}
+        ratios = [totals[k] / totals["dttmm"] for k in ("scipy", "superlu")]
+        print(f"   {n:8d}   {cells[0]}   {cells[1]}    {cells[2]}   {ratios[0]:9.1f}x  "
+              f"{ratios[1]:7.1f}x   {diff:.1e}")
+    print("   per node and step: " + ", ".join(
+        f"{n}: {t / (n + 1) * 1e3:.1f} ns" for n, t in zip(SIZES, per_step["dttmm"])) + " (DT-TMM)")
+    slopes = {k: np.polyfit(np.log(SIZES), np.log(v), 1)[0] for k, v in per_step.items()}
+    print(f"   fitted slope of log(time per step) over log(N): DT-TMM {slopes['dttmm']:.2f}, "
+          f"scipy.sparse {slopes['scipy']:.2f}, SuperLU {slopes['superlu']:.2f} (1 = linear)")
 
 
 if __name__ == "__main__":

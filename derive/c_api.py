@@ -37,6 +37,19 @@ KERNELS = {
         "const long *restrict shift", "const long *restrict rows", "double *restrict H",
         "long n_out", "const long *restrict out_idx", "double *restrict xo",
         "double *restrict vo", "double *restrict ao", "double *restrict work")),
+    # csrc/block_chain.c: 2 x 2 node-block chains (simulate_beam)
+    "dtdyn_block_chain_factor": ("int", (
+        "long N", "const double *restrict A", "double *restrict fac")),
+    "dtdyn_block_chain_solve": ("int", (
+        "long N", "const double *restrict fac", "double *restrict b")),
+    "dtdyn_block_chain_loop": ("int", (
+        "long N", "long n_hist", "long n_steps", "long n_loaded", "const long *restrict loaded",
+        "const double *restrict force", "const double *const *mats",
+        "const double *restrict L", "const double *restrict c_u", "double w0", "double w1",
+        "long n_shift", "const long *restrict shift", "const long *restrict rows",
+        "double *restrict H", "long n_out", "const long *restrict out_idx",
+        "double *restrict xo", "double *restrict vo", "double *restrict ao",
+        "double *restrict work")),
     "dtdyn_sturm_counts": ("int", (
         "long N", "const double *restrict k", "const double *restrict kg",
         "const double *restrict m", "double pivmin", "long n_lam", "const double *restrict lam",
@@ -74,6 +87,8 @@ SOURCES = {
     "filter_bank.c": ("dtdyn_set_stop", "dtdyn_filter_bank"),
     "sturm.c": ("dtdyn_sturm_counts", "dtdyn_sturm_laguerre"),
     "mck_loop.c": ("dtdyn_set_stop", "dtdyn_mck_loop"),
+    "block_chain.c": ("dtdyn_set_stop", "dtdyn_block_chain_factor", "dtdyn_block_chain_solve",
+                      "dtdyn_block_chain_loop"),
     "modal_states.c": ("dtdyn_set_stop", "dtdyn_modal_filters_lanes", "dtdyn_modal_filters_work",
                        "dtdyn_modal_filters"),
     "nl_loop.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_run"),

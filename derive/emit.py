@@ -327,6 +327,8 @@ def render_all() -> dict[str, str]:
            csource="sturm.c", with_stop=False)
     render("c/verbatim.c.jinja", "mck_loop.c", "derive/csrc/mck_loop.c (hand-written)",
            csource="mck_loop.c", with_stop=True)
+    render("c/verbatim.c.jinja", "block_chain.c", "derive/csrc/block_chain.c (hand-written)",
+           csource="block_chain.c", with_stop=True)
     render("c/modal_states.c.jinja", "modal_states.c",
            "dtdyn.derive.modal_filters.increment_form",
            increments=[(k, sp.sstr(v)) for k, v in modal_filters.increment_form().items()])

@@ -19,13 +19,16 @@ docs/beam.md has the equations.
 """
 from __future__ import annotations
 
+import ctypes
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sps
 
 from dtdyn.generated import beam as derived
 
+from dtdyn._engine import cbuild
 from dtdyn._engine import ground as support
 from dtdyn._engine import linalg, validate
 
@@ -398,7 +401,8 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     are then block tridiagonal in 2 x 2 node blocks, and the sweep condenses the beam from the
     free (right) end onto each node, P_i = D_i - E_i P_{i+1}^-1 F_i once per run, the load
     y_i = b_i - E_i P_{i+1}^-1 y_{i+1} every step, then the unknowns forward from the left:
-    O(N) per step, equal to `simulate_mck` on `beam_matrices` (same scheme) to rounding.
+    O(N) per step, equal to `simulate_mck` on `beam_matrices` (same scheme) to rounding
+    (docs/beam.md: the kernel and its speed).
 
     Parameters
     ----------
@@ -412,8 +416,10 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
         As `simulate_chain` (x0, v0 over ``beam.dof_names``; explicit schemes have only the
         acceleration form).
     backend : {"c", "numpy"}
-        The generated C loop with the Riccati sweep, or NumPy with a sparse LU of the same
-        effective matrix.
+        The C kernel of 2 x 2 node-block chains (generated/block_chain.c: the node blocks of
+        M, C, K, the scheme's history terms, the sweep and the update fused block by block of
+        nodes; NumPy with one warning where no compiler exists), or NumPy with a sparse LU of
+        the same effective matrix.
     ground_acceleration, ground_velocity, ground_displacement, influence : optional
         Support motion as in `simulate_mck` (one record; ``force`` may then be None): the DOFs
         are relative to the supports, which move together; the default influence r is the
@@ -441,7 +447,12 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
 
     if not isinstance(beam, Beam):
         raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
-    M, C, K = beam_matrices(beam)
+    if backend not in ("c", "numpy"):
+        raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
+    lib = _block_library() if backend == "c" else None
+    # the C kernel needs the assembled M only for a ground record's load
+    moving = support.given(ground_acceleration, ground_velocity, ground_displacement)
+    M, C, K = beam_matrices(beam) if lib is None or moving else (None, None, None)
     n = beam.n_dof
     force, force_dofs, ground = support.prepare_model(
         M, force, force_dofs, beam.dof_names, lambda k: rigid_translation(beam, k), dt=dt,
@@ -453,28 +464,224 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     quantities = stepping.check_quantities(quantities)
     if form not in ("displacement", "acceleration"):
         raise ValueError(f"form must be 'displacement' or 'acceleration', got {form!r}")
-    if backend not in ("c", "numpy"):
-        raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
     info = get_scheme(scheme, **scheme_params)
     check_dt(info, dt, lambda limit: _highest_frequency_bound(beam), unstable)
     f0 = np.zeros(n)
     f0[loaded] = force[0]
-    a0 = linalg.solver(M, "M")(f0 - C @ v0 - K @ x0)
-    Mg, Cg, Kg = node_system(beam)
-    full = [np.zeros(Mg.shape[0]) for _ in range(3)]
-    for z, part in zip(full, (x0, v0, a0)):
+    full = [np.zeros(2 * (beam.elements + 1)) for _ in range(3)]
+    for z, part in zip(full, (x0, v0)):
         z[beam.free] = part
-    loop = mck._c_loop() if backend == "c" else None
+    if lib is not None:
+        stored = node_blocks(beam)
+        full[2] = _initial_acceleration(lib, beam, stored, f0, full[0], full[1])
+    else:
+        full[2][beam.free] = linalg.solver(M, "M")(f0 - C @ v0 - K @ x0)
+        Mg, Cg, Kg = node_system(beam)
 
     def advance_for(sch, coeffs):
+        if lib is not None:
+            return _block_advance(lib, form, sch, coeffs, stored, beam.elements + 1,
+                                  beam.free[loaded], beam.free[outputs])
         return mck.make_advance(form, sch, coeffs, Mg, Cg, Kg, beam.free[loaded],
-                                beam.free[outputs], loop, blocks=loop is not None)
+                                beam.free[outputs], None)
 
     res = stepping.integrate(info, form, dt, force, full, advance_for, beam.free[outputs],
                              quantities, progress)
     res.outputs = outputs
     res.dof_names = tuple(beam.dof_names[i] for i in outputs)
-    res.info.update(method="DT-TMM (matrix Riccati sweep)" if loop is not None else
+    res.info.update(method="DT-TMM (matrix Riccati sweep)" if lib is not None else
                     "assembled matrices (sparse LU)", form=form,
-                    backend="c" if loop is not None else "numpy")
+                    backend="c" if lib is not None else "numpy")
     return support.finish(res, ground)
+
+
+@lru_cache(maxsize=None)
+def _block_library():
+    """The library of generated/block_chain.c, or None without a compiler (one warning)."""
+    lib = cbuild.load_library(cbuild.generated_source("block_chain.c"), "block_chain")
+    if lib is not None:
+        for kernel in ("dtdyn_block_chain_factor", "dtdyn_block_chain_solve",
+                       "dtdyn_block_chain_loop"):
+            cbuild.bind(lib, kernel)
+    return lib
+
+
+def _stride(nodes: int) -> int:
+    """The stride of block_chain.c's per-node arrays: nodes + 1 rounded up to 8 doubles."""
+    return (nodes + 8) // 8 * 8
+
+
+def _aligned(shape) -> np.ndarray:
+    """Zeros of ``shape`` starting on a 64-byte boundary (the kernel's vector loads)."""
+    size = int(np.prod(shape))
+    buf = np.zeros(size + 8)
+    start = (-buf.ctypes.data % 64) // 8
+    return buf[start:start + size].reshape(shape)
+
+
+def block_storage(A, held=None, unit=1.0) -> np.ndarray:
+    """A symmetric matrix block tridiagonal in 2 x 2 node blocks (DOF 2 i + c: component c of
+    node i; scipy.sparse) in the layout of block_chain.c, rows of `_stride` doubles: the
+    diagonal blocks' d00, d01, d11 over the nodes, then e00, e01, e10, e11 of
+    E_i = A[node i, node i + 1] at i + 1 (zero at 0 and N). ``held`` (nodes, 2), optional: those
+    DOFs decoupled, with ``unit`` on the diagonal (as `node_system`). ValueError when A is not
+    symmetric or couples nodes further apart."""
+    A = sps.csr_matrix(A)
+    nodes = A.shape[0] // 2
+    diags = [A.diagonal(k) for k in range(4)]
+    inside = sum(np.count_nonzero(A.diagonal(k)) for k in range(-3, 4))
+    if A.shape[0] % 2 or A.count_nonzero() != inside or np.any(diags[3][1::2] != 0.0):
+        raise ValueError("not block tridiagonal in 2 x 2 node blocks")
+    if any(np.any(A.diagonal(-k) != diags[k]) for k in (1, 2, 3)):
+        raise ValueError("not symmetric")
+    out = _aligned((7, _stride(nodes)))
+    out[:3, :nodes] = [diags[0][0::2], diags[1][0::2], diags[0][1::2]]
+    out[3:, 1:nodes] = [diags[2][0::2], diags[3][0::2], diags[1][1::2], diags[2][1::2]]
+    return _decoupled(out, held, unit)
+
+
+def _decoupled(out, held, unit):
+    """The storage ``out`` with the ``held`` DOFs decoupled and ``unit`` on their diagonal."""
+    if held is not None:
+        for i, c in np.argwhere(held):  # a few nodes: the supports
+            out[1, i] = 0.0                                 # d01
+            out[2 * c, i] = unit                            # d00 or d11
+            out[3 + 2 * c:5 + 2 * c, i + 1] = 0.0           # row c of E_i
+            out[[3 + c, 5 + c], i] = 0.0                    # column c of E_{i-1}
+    return out
+
+
+def node_blocks(beam: Beam):
+    """(K, C, M) of `node_system` in the layout of block_chain.c (`block_storage`), straight
+    from the element matrices: each node block is the sum of its two elements' blocks and the
+    node's point masses, supports and dampers, in the order of the sparse assembly (so equal to
+    it bit for bit)."""
+    nodes, N = beam.elements + 1, beam.elements
+    h = beam.length / beam.elements
+    Ke = derived.element_stiffness(beam.E * beam.I, h)
+    Me = (derived.element_mass if beam.mass_matrix == "consistent"
+          else derived.element_mass_lumped)(beam.rho_A, h)
+    diag = {k: v.reshape(nodes, 2) for k, v in beam.nodal_diagonals().items()}
+    held = np.ones(2 * nodes, dtype=bool)
+    held[beam.free] = False
+    held = held.reshape(nodes, 2)
+
+    def blocks(Ae):
+        out = np.zeros((7, _stride(nodes)))
+        for k, (a, b) in enumerate(((0, 0), (0, 1), (1, 1))):
+            out[k, :N] = Ae[a, b]             # node i as the left node of element i
+            out[k, 1:nodes] += Ae[2 + a, 2 + b]  # ... and as the right node of element i - 1
+        for k, (a, b) in enumerate(((0, 0), (0, 1), (1, 0), (1, 1))):
+            out[3 + k, 1:nodes] = Ae[a, 2 + b]
+        return out
+
+    K, M = blocks(Ke), blocks(Me)
+    C = np.zeros_like(K)
+    if beam.rayleigh is not None:
+        C = beam.rayleigh[0] * M + beam.rayleigh[1] * K
+    stored = []
+    for A, name, unit in ((K, "k", 1.0), (C, "c", 0.0), (M, "m", 1.0)):
+        out = _aligned(A.shape)
+        out[...] = A
+        out[0, :nodes] += diag[name][:, 0]
+        out[2, :nodes] += diag[name][:, 1]
+        stored.append(_decoupled(out, held, unit))
+    return tuple(stored)
+
+
+def _to_kernel(z, nodes):
+    """Node-system rows (..., 2 nodes; DOF 2 i + c) as block_chain.c stores them: component 0
+    of every node, then component 1, each in a row of `_stride` doubles (64-byte aligned)."""
+    out = _aligned(z.shape[:-1] + (2, _stride(nodes)))
+    out[..., :nodes] = np.swapaxes(z.reshape(z.shape[:-1] + (nodes, 2)), -1, -2)
+    return out
+
+
+def _from_kernel(zs, nodes):
+    """The inverse of `_to_kernel`."""
+    return np.swapaxes(zs[..., :nodes], -1, -2).reshape(zs.shape[:-2] + (2 * nodes,))
+
+
+def _initial_acceleration(lib, beam, stored, f0, x0, v0):
+    """a_0 over the node system from M a_0 = f_0 - C v_0 - K x_0 by the block Riccati solve
+    (zero on the held DOFs); a singular M falls back to the sparse solve, which names it."""
+    bK, bC, bM = stored
+    nodes = beam.elements + 1
+    rhs = np.zeros(2 * nodes)
+    rhs[beam.free] = f0
+    for b, z in ((bC, v0), (bK, x0)):
+        if z.any():
+            rhs -= _block_product(b, z, nodes)
+    held = np.ones(2 * nodes, dtype=bool)
+    held[beam.free] = False
+    rhs[held] = 0.0
+    fac = _aligned((11, _stride(nodes)))
+    if lib.dtdyn_block_chain_factor(nodes, bM.ctypes.data, fac.ctypes.data) >= 0:
+        M = beam_matrices(beam)[0]
+        linalg.solver(M, "M")(rhs[beam.free])  # raises, naming the singular M
+    a = _to_kernel(rhs, nodes)
+    lib.dtdyn_block_chain_solve(nodes, fac.ctypes.data, a.ctypes.data)
+    return _from_kernel(a, nodes)
+
+
+def _block_product(b, z, nodes):
+    """A z for A in the layout of block_chain.c and z over the node system (2 i + c)."""
+    d00, d01, d11 = b[:3, :nodes]
+    e00, e01, e10, e11 = b[3:, 1:nodes]     # E_i, i = 0 .. nodes - 2
+    z0, z1 = z.reshape(nodes, 2).T
+    out = np.empty((nodes, 2))
+    out[:, 0] = d00 * z0 + d01 * z1
+    out[:, 1] = d01 * z0 + d11 * z1
+    out[:-1, 0] += e00 * z0[1:] + e01 * z1[1:]      # E_i z_{i+1}
+    out[:-1, 1] += e10 * z0[1:] + e11 * z1[1:]
+    out[1:, 0] += e00 * z0[:-1] + e10 * z1[:-1]     # E_{i-1}^T z_{i-1}
+    out[1:, 1] += e01 * z0[:-1] + e11 * z1[:-1]
+    return out.ravel()
+
+
+def _block_advance(lib, form, sch, K_, stored, nodes, loaded, outputs):
+    """advance() of stepping.integrate by block_chain.c: the step of `mck.make_advance` on the
+    node system stored by `node_blocks` (K, C, M), the effective matrix factorized by the
+    matrix Riccati sweep once per call of this function (that is, per scheme of the run)."""
+    from dtdyn.generated.dttmm_sweep import error_history_maps
+    from dtdyn.linear.mck import EFFECTIVE
+
+    bK, bC, bM = stored
+    A = np.ascontiguousarray(K_["alpha_u"] * bM + K_["r"] * bC + K_["p"] * bK)
+    fac = _aligned((11, _stride(nodes)))
+    bad = lib.dtdyn_block_chain_factor(nodes, A.ctypes.data, fac.ctypes.data)
+    if bad >= 0:
+        raise ValueError(f"{EFFECTIVE[form]} is singular at node {bad} (condensed pivot)")
+    with_m = form != "acceleration"  # the acceleration form has b = 0
+    names = list(sch.history)
+    L_qsb, L_upd, c_u, shifts, rows = error_history_maps(K_, names)
+    L = np.ascontiguousarray(np.vstack([L_qsb, L_upd]), dtype=float)
+    c_u = np.ascontiguousarray(c_u.ravel(), dtype=float)
+    shift = np.array(shifts, dtype=np.int64).reshape(-1, 2)
+    rows = np.arange(len(names), dtype=np.int64)[rows]
+    order = np.argsort(loaded, kind="stable")
+    loaded = np.ascontiguousarray(np.asarray(loaded, dtype=np.int64)[order])
+    out_idx = np.ascontiguousarray(outputs, dtype=np.int64)
+    keep = (bK, bC, bM, fac)
+    mats = (ctypes.c_void_p * 4)(bK.ctypes.data, bC.ctypes.data,
+                                 bM.ctypes.data if with_m else None, fac.ctypes.data)
+    work = _aligned((2 * _stride(nodes) + 16,))
+    n_hist = len(names)
+    run = lib.dtdyn_block_chain_loop
+
+    def advance(frc, H, xo, vo, ao):
+        frc = np.ascontiguousarray(frc[:, order], dtype=float)
+        Hs = _to_kernel(H, nodes)
+        ptr = [0 if a is None else a.ctypes.data for a in (xo, vo, ao)]
+        args = (nodes, n_hist, frc.shape[0] - 1, loaded.size, loaded.ctypes.data,
+                frc.ctypes.data, ctypes.addressof(mats), L.ctypes.data, c_u.ctypes.data,
+                K_["w0"], K_["w1"], shift.shape[0], shift.ctypes.data, rows.ctypes.data,
+                Hs.ctypes.data, out_idx.size, out_idx.ctypes.data, *ptr, work.ctypes.data)
+        rc = cbuild.interruptible(lib, lambda: run(*args),
+                                  work=(frc.shape[0] - 1) * 100 * nodes)
+        if rc != 0:
+            raise RuntimeError(f"dtdyn_block_chain_loop returned {rc} (stopped by its stop flag)")
+        H[...] = _from_kernel(Hs, nodes)
+        return 0.0
+    advance.arrays = keep  # what mats points to lives as long as advance
+    return advance
