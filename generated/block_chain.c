@@ -37,7 +37,10 @@ int dtdyn_set_stop(int value) {
  *
  * with q, s, b = L_{q,s,b} H the scheme's history terms (L: 6 x n_hist rows q, s, b, x1, v1,
  * a1 over the history rows, dttmm_sweep.expanded; c_u: x1_u, v1_u, a1_u), written for the
- * blocks: no CSR, no indirect indexing. The effective matrix A = alpha M + r C + p K is solved
+ * blocks: no CSR, no indirect indexing. The right side is formed either from q, s, b and
+ * K, C, M, or (mats[0] NULL) as F - sum_h B_h H_h with the caller's B_h = L_q[h] K +
+ * L_s[h] C + L_b[h] M, which saves the pass for q, s, b (simulate_beam: the one-step
+ * schemes, whose terms do not cancel). The effective matrix A = alpha M + r C + p K is solved
  * by the matrix Riccati sweep, condensed from the last node once per run
  * (dtdyn_block_chain_factor):
  *
@@ -66,9 +69,13 @@ int dtdyn_set_stop(int value) {
  *   the factors (fac): 11 rows, G as g00, g01, g10, g11 with G[i + 1] = G_i (G[0] = G[N] = 0),
  *     GG as four rows with GG[i] = G_{i-1} G_i (GG[0] = GG[N] = 0), then P_i^-1 as p00, p01,
  *     p11;
- *   the history H: n_hist pairs of rows, component 0 of every node, then component 1;
+ *   the history H: n_hist pairs of rows, component 0 of every node, then component 1; the
+ *     padding of each row (nodes N ..) zero, and 8 zeros before the first row (the products
+ *     from H read them as nodes -1 and N, times a zero E);
  *   loaded, out_idx: DOF indices 2 i + c, loaded ascending.
- * mats = {K, C, M (NULL: b = 0, the acceleration form), fac}; work: 2 P + 16 doubles (z).
+ * mats = {K, C, M (NULL: b = 0, the acceleration form), fac, B_0 .. B_{n_hist-1}}: with K,
+ *   the right side from the history terms; with K NULL, from the B_h (NULL: row h does not
+ *   enter). work: 2 P + 16 doubles (z).
  * Outputs (NULL: not stored) get row k + 1 of the stored DOFs. Returns 0, DTDYN_STOPPED when
  * stopped.
  */
@@ -149,8 +156,9 @@ int dtdyn_block_chain_solve(long N, const double *restrict fac, double *restrict
 
 /* n_out of the rows of L (q, s, b, or x1, v1, a1; n_hist each) over the history at nodes
    lo .. hi - 1, component c of output o into out[2 o + c] from index 0. BC_TERMS(NH, NO): the
-   loop for NH history rows and NO outputs, unrolled, every row of H read once per node; other
-   sizes take terms_any, a loop over each output's nonzero terms. */
+   loop for NH history rows and NO outputs, unrolled, every row of H read once per node (the
+   multistep schemes: 5 and 7 rows); other sizes take terms_any, a loop over each output's
+   nonzero terms. */
 #define BC_TERMS(NH, NO) \
     static void terms_##NH##_##NO(long P, const double *restrict L, const double *restrict H, \
                                   long lo, long hi, double *const *out) { \
@@ -175,8 +183,6 @@ int dtdyn_block_chain_solve(long N, const double *restrict fac, double *restrict
             } \
         } \
     }
-BC_TERMS(3, 2)
-BC_TERMS(3, 3)
 BC_TERMS(5, 2)
 BC_TERMS(5, 3)
 BC_TERMS(7, 2)
@@ -209,7 +215,6 @@ static void history_terms(long P, long n_hist, int n_out, const double *restrict
             terms_##NH##_3(P, L, H, lo, hi, out); \
         return; \
     }
-    BC_CASE(3)
     BC_CASE(5)
     BC_CASE(7)
 #undef BC_CASE
@@ -286,6 +291,21 @@ static void sub_products(long P, const double *restrict K, const double *restric
         }
 }
 
+/* r -= B x at nodes lo .. lo + m - 1 for B in the matrix layout and x a history row pair read
+   in place (x0, x1 from node lo - 1: the zero padding around the rows stands for nodes -1
+   and N) */
+static void sub_product(long P, const double *restrict B, long lo, long m,
+                        const double *restrict x0, const double *restrict x1, double *restrict r0,
+                        double *restrict r1) {
+    long j;
+    for (j = 0; j < m; ++j) {
+        double a0 = 0.0, a1 = 0.0;
+        BC_ROW_PRODUCT(B, x0, x1)
+        r0[j] -= a0;
+        r1[j] -= a1;
+    }
+}
+
 /* x = z - B y (transposed: z - B^T y) for 2 x 2 B (b00, b01, b10, b11) and 2-vectors */
 #define BC_SUB(x0, x1, z0, z1, b00, b01, b10, b11, y0, y1) \
     { \
@@ -311,7 +331,7 @@ int dtdyn_block_chain_loop(long N, long n_hist, long n_steps, long n_loaded,
     const double *g00 = fac, *g01 = fac + P, *g10 = fac + 2 * P, *g11 = fac + 3 * P;
     const double *h00 = fac + 4 * P, *h01 = fac + 5 * P, *h10 = fac + 6 * P, *h11 = fac + 7 * P;
     const double *p00 = fac + 8 * P, *p01 = fac + 9 * P, *p11 = fac + 10 * P;
-    const int n_terms = M ? 3 : 2;
+    const int n_terms = M ? 3 : 2; /* the history terms: q, s (and b) */
     /* the update in place (x1, v1, a1 into rows 0, 1, 2 and no lags): one pass */
     const int in_place =
         n_hist == 3 && n_shift == 0 && rows[0] == 0 && rows[1] == 1 && rows[2] == 2;
@@ -332,14 +352,16 @@ int dtdyn_block_chain_loop(long N, long n_hist, long n_steps, long n_loaded,
             const long first = lo > 0 ? lo - 1 : 0, last = hi < N ? hi + 1 : N;
             double *Tq[6], *r0 = T[6], *r1 = T[7], *t0 = T[8], *t1 = T[9];
             double *v0 = T[10], *v1 = T[11];
-            for (o = 0; o < 6; ++o) /* node lo - 1 at index 0 */
-                Tq[o] = T[o] + (first - (lo - 1));
-            history_terms(P, n_hist, n_terms, L, H, first, last, Tq);
-            for (o = 0; o < 6; ++o) {
-                if (lo == 0) /* node -1 */
-                    T[o][0] = 0.0;
-                if (hi == N) /* node N */
-                    T[o][m + 1] = 0.0;
+            if (K) {
+                for (o = 0; o < 6; ++o) /* node lo - 1 at index 0 */
+                    Tq[o] = T[o] + (first - (lo - 1));
+                history_terms(P, n_hist, n_terms, L, H, first, last, Tq);
+                for (o = 0; o < 6; ++o) {
+                    if (lo == 0) /* node -1 */
+                        T[o][0] = 0.0;
+                    if (hi == N) /* node N */
+                        T[o][m + 1] = 0.0;
+                }
             }
             for (j = 0; j < m; ++j) {
                 r0[j] = 0.0;
@@ -349,9 +371,14 @@ int dtdyn_block_chain_loop(long N, long n_hist, long n_steps, long n_loaded,
                 const long d = loaded[jl - 1];
                 (d & 1 ? r1 : r0)[(d >> 1) - lo] = w0 * f0[jl - 1] + w1 * f1[jl - 1];
             }
-            {
+            if (K) {
                 double *Tv[6] = {T[0], T[1], T[2], T[3], T[4], T[5]};
                 sub_products(P, K, C, M, lo, m, Tv, r0, r1); /* F - K q - C s - M b */
+            } else {
+                for (o = 0; o < n_hist; ++o) /* F - sum_h B_h H_h */
+                    if (mats[4 + o])
+                        sub_product(P, mats[4 + o], lo, m, H + o * 2 * P + lo - 1,
+                                    H + o * 2 * P + P + lo - 1, r0, r1);
             }
             for (j = 0; j + 1 < m; ++j) { /* t_i = g_i - G_i g_{i+1} */
                 const long n = lo + j + 1;

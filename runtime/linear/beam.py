@@ -592,7 +592,9 @@ def node_blocks(beam: Beam):
 def _to_kernel(z, nodes):
     """Node-system rows (..., 2 nodes; DOF 2 i + c) as block_chain.c stores them: component 0
     of every node, then component 1, each in a row of `_stride` doubles (64-byte aligned)."""
-    out = _aligned(z.shape[:-1] + (2, _stride(nodes)))
+    shape = z.shape[:-1] + (2, _stride(nodes))
+    buf = _aligned((int(np.prod(shape)) + 16,))  # zeros around the rows (nodes -1 and N)
+    out = buf[8:8 + int(np.prod(shape))].reshape(shape)
     out[..., :nodes] = np.swapaxes(z.reshape(z.shape[:-1] + (nodes, 2)), -1, -2)
     return out
 
@@ -662,9 +664,22 @@ def _block_advance(lib, form, sch, K_, stored, nodes, loaded, outputs):
     order = np.argsort(loaded, kind="stable")
     loaded = np.ascontiguousarray(np.asarray(loaded, dtype=np.int64)[order])
     out_idx = np.ascontiguousarray(outputs, dtype=np.int64)
-    keep = (bK, bC, bM, fac)
-    mats = (ctypes.c_void_p * 4)(bK.ctypes.data, bC.ctypes.data,
-                                 bM.ctypes.data if with_m else None, fac.ctypes.data)
+    # the right side of a one-step scheme (history x0, v0, a0) as sum_h B_h H_h with
+    # B_h = L_q[h] K + L_s[h] C + L_b[h] M once per run (no pass for q, s, b); a multistep
+    # scheme's q, s, b are differences of lags, formed first, so that K, C, M multiply what
+    # is left of the cancellation (as simulate_mck does)
+    used = np.flatnonzero(np.any(L_qsb != 0.0, axis=0))
+    direct = not shifts
+    B = [None] * len(names)
+    if direct:
+        for h in used:
+            B[h] = _aligned(bK.shape)
+            B[h][...] = L_qsb[0, h] * bK + L_qsb[1, h] * bC + L_qsb[2, h] * bM
+    keep = (bK, bC, bM, fac, B)
+    ptr = lambda a: None if a is None else a.ctypes.data  # noqa: E731
+    mats = (ctypes.c_void_p * (4 + len(names)))(
+        None if direct else bK.ctypes.data, bC.ctypes.data, bM.ctypes.data if with_m else None,
+        fac.ctypes.data, *[ptr(b) for b in B])
     work = _aligned((2 * _stride(nodes) + 16,))
     n_hist = len(names)
     run = lib.dtdyn_block_chain_loop
