@@ -29,6 +29,23 @@ BETA_L = np.array([1.875104068711961, 4.694091132974175, 7.854757438237613,
                    10.99554073487547, 14.13716839104647])
 
 
+def _axes():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt.subplots(figsize=(7, 3.6))
+
+
+def _save(fig, ax, xlabel, ylabel, title, name):
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(IMG / name, dpi=110)
+    print(f"   figure: {IMG / name}")
+
+
 def cantilever_shape(bl, x):
     b = bl / LENGTH
     s = (np.cosh(bl) + np.cos(bl)) / (np.sinh(bl) + np.sin(bl))
@@ -53,10 +70,7 @@ def beam_part(plot):
         print(f"   {r + 1:4d}  {m.omega[r]:13.4f}   {abs(m.omega[r] - exact[r]) / exact[r]:14.1e}"
               f"   {shape_err[-1]:10.1e}")
     if plot:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(7, 3.6))
+        fig, ax = _axes()
         xf = np.linspace(0.0, LENGTH, 400)
         for r in range(4):
             w = m.shapes[w_rows, r]
@@ -66,13 +80,8 @@ def beam_part(plot):
             ax.plot(xf, ref, color="0.7", lw=3)
             ax.plot(x[::8], w[::8] / scale, "o", ms=3, label=f"mode {r + 1}, "
                     f"{m.omega[r] / (2 * np.pi):.1f} Hz")
-        ax.set_xlabel("x [m]")
-        ax.set_ylabel("w (scaled)")
-        ax.set_title("Cantilever: beam_modes (dots) and the closed form (grey)")
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        fig.savefig(IMG / "beam_modes.png", dpi=110)
-        print(f"   figure: {IMG / 'beam_modes.png'}")
+        _save(fig, ax, "x [m]", "w (scaled)",
+              "Cantilever: beam_modes (dots) and the closed form (grey)", "beam_modes.png")
     return max(shape_err)
 
 
@@ -106,21 +115,14 @@ def shaft_part(plot):
     print(f"   largest relative difference at {check.size} frequencies: {worst:.1e}")
     print("   natural frequencies [rad/s]: " + ", ".join(f"{v:.2f}" for v in wn))
     if plot:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(7, 3.6))
+        fig, ax = _axes()
         for o in outs:
             ax.semilogy(w, np.abs(H[o]), lw=1.2, label=f"{o} / torque at main.0")
         for v in wn[wn < w[-1]]:
             ax.axvline(v, color="0.8", lw=0.8, zorder=0)
-        ax.set_xlabel("omega [rad/s]")
-        ax.set_ylabel("|receptance| [rad/(N m)]")
-        ax.set_title("Branched geared shaft: tree sweep (lines), natural frequencies (grey)")
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        fig.savefig(IMG / "shaft_tree_frf.png", dpi=110)
-        print(f"   figure: {IMG / 'shaft_tree_frf.png'}")
+        _save(fig, ax, "omega [rad/s]", "|receptance| [rad/(N m)]",
+              "Branched geared shaft: tree sweep (lines), natural frequencies (grey)",
+              "shaft_tree_frf.png")
     return worst
 
 

@@ -16,6 +16,22 @@ def positive_scalar(name: str, value) -> float:
     return v
 
 
+def frequencies(name: str, omega) -> np.ndarray:
+    """A non-empty 1-D array of finite frequencies >= 0 (rad/s), else ValueError naming it."""
+    w = np.atleast_1d(np.asarray(omega, dtype=float))
+    if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0):
+        raise ValueError(f"{name} = {omega!r}: must be a non-empty 1-D array of finite "
+                         "frequencies >= 0 (rad/s)")
+    return w
+
+
+def flag(name: str, value) -> bool:
+    """True or False (not 0, 1 or a string), else ValueError naming it."""
+    if not isinstance(value, bool):
+        raise ValueError(f"{name} = {value!r}: must be True or False")
+    return value
+
+
 def step_count(name: str, value) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
         raise ValueError(f"{name} must be an integer >= 1, got {value!r}")

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 
-from dtdyn._engine import linalg
+from dtdyn._engine import linalg, validate
 from dtdyn.generated import beam as derived
 from dtdyn.linear import sweep_modes
 from dtdyn.linear.beam import Beam, beam_frequencies, beam_matrices, rigid_translation
@@ -244,12 +244,8 @@ def beam_frequency_response(beam: Beam, omega, force_dof, output, *, exact=False
     1.0
     """
     _check_beam(beam)
-    w = np.atleast_1d(np.asarray(omega, dtype=float))
-    if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0):
-        raise ValueError(f"omega = {omega!r}: must be a non-empty 1-D array of finite "
-                         "frequencies >= 0 (rad/s)")
-    if not isinstance(exact, bool):
-        raise ValueError(f"exact = {exact!r}: must be True or False")
+    w = validate.frequencies("omega", omega)
+    validate.flag("exact", exact)
     i_f, i_o = _dof("force_dof", force_dof, beam), _dof("output", output, beam)
     nodes = beam.elements + 1
     if exact:

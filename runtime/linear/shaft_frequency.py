@@ -142,12 +142,8 @@ def shaft_frequency_response(shaft: Shaft, omega, force_dof, output, *, exact=Tr
     [0.125, 0.16666666666666666]
     """
     _check_shaft(shaft)
-    w = np.atleast_1d(np.asarray(omega, dtype=float))
-    if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0):
-        raise ValueError(f"omega = {omega!r}: must be a non-empty 1-D array of finite "
-                         "frequencies >= 0 (rad/s)")
-    if not isinstance(exact, bool):
-        raise ValueError(f"exact = {exact!r}: must be True or False")
+    w = validate.frequencies("omega", omega)
+    validate.flag("exact", exact)
     tree = shaft._build(exact=True) if exact and shaft.has_continuous else shaft.tree
     i_f, i_o = _node("force_dof", force_dof, tree, shaft), _node("output", output, tree, shaft)
     s = 1j * w
