@@ -12,6 +12,7 @@
 #include <float.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* a pair of doubles (the two error histories); alignment 8, as the arrays NumPy allocates */
@@ -45,6 +46,13 @@ static void dd_axpy(double a, double xh, double xl, double b, double yh, double 
     two_sum(t, te, rh, rl);
 }
 
+/* qsort order of longs */
+static int compare_long(const void *a, const void *b)
+{
+    const long x = *(const long *)a, y = *(const long *)b;
+    return (x > y) - (x < y);
+}
+
 /* +1 or -1 from the step index j (the top bit of splitmix64 of j) */
 static double step_sign(uint64_t j)
 {
@@ -64,9 +72,10 @@ static double step_sign(uint64_t j)
 
 /* the stable sweep's terms of station t (in block lo..): h = hD Delta + g (F - beta) in th,
    (F - beta) - Delta in tw; GROUND: the station has a spring-damper to the ground (kg, cg),
-   LEFT: it has a mass to its left (t > 0). Written out per case, so that the block loop is a
-   plain vector loop. */
-#define CHAIN_TERMS(GROUND, LEFT) \
+   LEFT: it has a mass to its left (t > 0); FE: read its external force (0: none, where a few
+   masses are loaded the loop skips the force row and redoes those masses). Written out per
+   case, so that the block loop is a plain vector loop. */
+#define CHAIN_TERMS(GROUND, LEFT, FE) \
     { \
         double qn, sn, qm = 0.0, sm = 0.0, Fb, Dn; \
         { \
@@ -82,7 +91,7 @@ static double step_sign(uint64_t j)
         } \
         if (GROUND) \
             Fb += kg[t] * qn + cg[t] * sn; \
-        Fb = Fe[t] - Fb; \
+        Fb = ((FE) ? Fe[t] : 0.0) - Fb; \
         Dn = k[t] * (qn - qm) + c[t] * (sn - sm); \
         th[t - lo] = hDelta[t] * Dn + g[t] * Fb; \
         tw[t - lo] = Fb - Dn; \
@@ -110,7 +119,8 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     CHAIN_PLAIN_ROWS
     double PfN = 1.0, epsP = 0.0, emax = sweep ? err[0] : 0.0, xmax = sweep ? err[1] : 0.0;
     uint64_t jstep = sweep ? (uint64_t)err[2] : 0u;
-    long n, i, j, step;
+    long n, i, j, step, n_byidx = 0, *byidx = (long *)q;
+    int few = 0;
     double th[CHAIN_BLOCK], tw[CHAIN_BLOCK];
     (void)dt; (void)params; (void)alpha_u; (void)q; (void)b; (void)R; (void)Pu; (void)SR; (void)g;
     (void)hDelta; (void)den;
@@ -161,6 +171,17 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
         }
     }
     memset(Fe, 0, (size_t)N * sizeof(double));
+    if (sweep == 0 && n_loaded * 8 < N) {
+        /* a few loaded masses: their indices ascending and once each (in the q row, which the
+           stable sweep does not use); the terms loop then skips the force row */
+        few = 1;
+        for (j = 0; j < n_loaded; ++j)
+            byidx[j] = loaded[j];
+        qsort(byidx, (size_t)n_loaded, sizeof(long), compare_long);
+        for (j = 0; j < n_loaded; ++j)
+            if (n_byidx == 0 || byidx[j] != byidx[n_byidx - 1])
+                byidx[n_byidx++] = byidx[j];
+    }
     for (step = 0; step < n_steps; ++step) {
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
@@ -173,22 +194,37 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
                takes two stations a round, x_{n-1} = g_{n-1} g_n x_{n+1} + (g_{n-1} h_n + h_{n-1})
                (back; forward alike), so that one fma latency is paid per two stations. */
             double R_R = 0.0, un = 0.0;
-            long lo, hi, t;
+            long lo, hi, t, cur = n_byidx - 1;
             for (hi = N; hi > 0; hi = lo) {
                 lo = hi > CHAIN_BLOCK ? hi - CHAIN_BLOCK : 0;
                 if (lo == 0) {   /* station 0: joined to the ground (q, s of its left: 0) */
                     t = 0;
                     if (kg)
-                        CHAIN_TERMS(1, 0)
+                        CHAIN_TERMS(1, 0, 1)
                     else
-                        CHAIN_TERMS(0, 0)
+                        CHAIN_TERMS(0, 0, 1)
                 }
-                if (kg)
+                if (kg && few)
                     for (t = lo ? lo : 1; t < hi; ++t)
-                        CHAIN_TERMS(1, 1)
+                        CHAIN_TERMS(1, 1, 0)
+                else if (kg)
+                    for (t = lo ? lo : 1; t < hi; ++t)
+                        CHAIN_TERMS(1, 1, 1)
+                else if (few)
+                    for (t = lo ? lo : 1; t < hi; ++t)
+                        CHAIN_TERMS(0, 1, 0)
                 else
                     for (t = lo ? lo : 1; t < hi; ++t)
-                        CHAIN_TERMS(0, 1)
+                        CHAIN_TERMS(0, 1, 1)
+                for (; few && cur >= 0 && byidx[cur] >= lo; --cur) {  /* the loaded masses */
+                    t = byidx[cur];
+                    if (t == 0)
+                        continue;  /* done above, with its force */
+                    if (kg)
+                        CHAIN_TERMS(1, 1, 1)
+                    else
+                        CHAIN_TERMS(0, 1, 1)
+                }
                 for (n = hi - 1; n > lo; n -= 2) {   /* two stations a round (below) */
                     const double R_in = R_R, Rn = fma(g[n], R_in, th[n - lo]);
                     b[n] = R_in + tw[n - lo];
