@@ -13,7 +13,7 @@
  * m, k, c, kg, cg: N doubles each (kg = cg = NULL: no ground elements).
  * hist: 5 rows of N doubles (x0, v0, a0, xm1, xm2), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..
- * written (NULL: not stored). work: 14 N doubles.
+ * written (NULL: not stored). work: 15 N doubles.
  * The loop itself is shaft_loop.h (shared by every scheme); this file defines the scheme's
  * derived expressions for it.
  */

@@ -13,7 +13,18 @@
  */
 #include <math.h>
 #include <stddef.h>
+#include <stdlib.h>
 #include <string.h>
+
+#ifndef DTDYN_SHAFT_HELPERS
+#define DTDYN_SHAFT_HELPERS
+/* qsort order of longs */
+static int shaft_compare_long(const void *a, const void *b)
+{
+    const long x = *(const long *)a, y = *(const long *)b;
+    return (x > y) - (x < y);
+}
+#endif
 
 #ifndef SHAFT_BLOCK
 /* stations per block (its temporaries: 2 blocks of doubles, in L1) */
@@ -24,7 +35,7 @@
    in tw; PA: the index of the parent (a root: its own, with GQ = 0), GQ the gear factor of
    q, s from the parent, GR of R to it; GROUND: spring-dampers to the ground present. Written
    per case, so that the plain stations' loop is a plain vector loop. */
-#define SHAFT_TERMS(GROUND, PA, GQ, GR) \
+#define SHAFT_TERMS(GROUND, PA, GQ, GR, FE) \
     { \
         double qn, sn, qp, sp, Fb, Dn; \
         { \
@@ -40,7 +51,7 @@
         } \
         if (GROUND) \
             Fb += kg[t] * qn + cg[t] * sn; \
-        Fb = Fe[t] - Fb; \
+        Fb = ((FE) ? Fe[t] : 0.0) - Fb; \
         Dn = k[t] * (qn - qp) + c[t] * (sn - sp); \
         th[t - lo] = (GR) * (hDelta[t] * Dn + g[t] * Fb); \
         tw[t - lo] = Fb - Dn; \
@@ -63,6 +74,10 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
        n - 1 without a gear and carries no other child), ascending; n_lone of them */
     double *gq = work + 8 * N, *ggu = work + 9 * N, *gRg = work + 10 * N, *jf = work + 11 * N;
     long *lone = (long *)(work + 12 * N), n_lone = 0, cur;
+    /* a few loaded stations (fewer than N / 8): their indices ascending and once each; the
+       plain stations' terms loop then skips the force row and those stations are redone */
+    long *byidx = (long *)(work + 14 * N), n_byidx = 0, cl;
+    int few = n_loaded * 8 < N;
     unsigned char *plain = (unsigned char *)(work + 13 * N);
     double th[SHAFT_BLOCK], tw[SHAFT_BLOCK], Rc, uc;
     long n, i, j, t, lo, hi, step;
@@ -93,6 +108,14 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
     }
     memset(Fe, 0, (size_t)N * sizeof(double));
     memset(RR, 0, (size_t)N * sizeof(double));
+    if (few) {
+        for (j = 0; j < n_loaded; ++j)
+            byidx[j] = loaded[j];
+        qsort(byidx, (size_t)n_loaded, sizeof(long), shaft_compare_long);
+        for (j = 0; j < n_loaded; ++j)
+            if (n_byidx == 0 || byidx[j] != byidx[n_byidx - 1])
+                byidx[n_byidx++] = byidx[j];
+    }
     for (step = 0; step < n_steps; ++step) {
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
@@ -105,22 +128,37 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
            R_L of n - 1 = g_{n-1} g_n R_R + (g_{n-1} th_n + th_{n-1}); forward alike. */
         Rc = 0.0;
         cur = n_lone - 1;
+        cl = n_byidx - 1;
         for (hi = N; hi > 0; hi = lo) {
             lo = hi > SHAFT_BLOCK ? hi - SHAFT_BLOCK : 0;
             if (kg) {
-                for (t = lo ? lo : 1; t < hi; ++t)
-                    SHAFT_TERMS(1, t - 1, 1.0, 1.0)
+                if (few)
+                    for (t = lo ? lo : 1; t < hi; ++t)
+                        SHAFT_TERMS(1, t - 1, 1.0, 1.0, 0)
+                else
+                    for (t = lo ? lo : 1; t < hi; ++t)
+                        SHAFT_TERMS(1, t - 1, 1.0, 1.0, 1)
                 for (; cur >= 0 && lone[cur] >= lo; --cur) {
                     t = lone[cur];
-                    SHAFT_TERMS(1, parent[t] >= 0 ? parent[t] : t, gq[t], gR[t])
+                    SHAFT_TERMS(1, parent[t] >= 0 ? parent[t] : t, gq[t], gR[t], 1)
                 }
+                for (; cl >= 0 && byidx[cl] >= lo; --cl)
+                    if (plain[t = byidx[cl]])
+                        SHAFT_TERMS(1, t - 1, 1.0, 1.0, 1)
             } else {
-                for (t = lo ? lo : 1; t < hi; ++t)
-                    SHAFT_TERMS(0, t - 1, 1.0, 1.0)
+                if (few)
+                    for (t = lo ? lo : 1; t < hi; ++t)
+                        SHAFT_TERMS(0, t - 1, 1.0, 1.0, 0)
+                else
+                    for (t = lo ? lo : 1; t < hi; ++t)
+                        SHAFT_TERMS(0, t - 1, 1.0, 1.0, 1)
                 for (; cur >= 0 && lone[cur] >= lo; --cur) {
                     t = lone[cur];
-                    SHAFT_TERMS(0, parent[t] >= 0 ? parent[t] : t, gq[t], gR[t])
+                    SHAFT_TERMS(0, parent[t] >= 0 ? parent[t] : t, gq[t], gR[t], 1)
                 }
+                for (; cl >= 0 && byidx[cl] >= lo; --cl)
+                    if (plain[t = byidx[cl]])
+                        SHAFT_TERMS(0, t - 1, 1.0, 1.0, 1)
             }
             for (n = hi - 1; n >= lo; --n) {
                 long pa;

@@ -487,7 +487,7 @@ def _advance_factory(backend, tree, dt, loaded, outputs, form):
     loaded64 = np.ascontiguousarray(loaded, dtype=np.int64)
     out64 = np.ascontiguousarray(outputs, dtype=np.int64)
     N = m.size
-    work = np.empty(14 * N)
+    work = np.empty(15 * N)
 
     def make_advance(sch, coeffs):
         fn = _c_function(sch.name) if backend == "c" else None

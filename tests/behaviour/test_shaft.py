@@ -299,7 +299,8 @@ def test_support_motion_of_a_geared_tree():
 
 @pytest.mark.parametrize("form", ["displacement", "acceleration"])
 @pytest.mark.parametrize("grounded", [False, True])
-def test_blocked_tree_loop_at_block_edges(form, grounded):
+@pytest.mark.parametrize("many", [0, 1])
+def test_blocked_tree_loop_at_block_edges(form, grounded, many):
     """The C tree loop works in blocks of 256 stations and takes two plain line stations a
     round: branches hanging at block edges (stations 255 and 256), a geared branch at the last
     disk of the main line (its parent is station n - 1, but through a gear), a branch of a
@@ -317,8 +318,10 @@ def test_blocked_tree_loop_at_block_edges(form, grounded):
         dd.Branch(300, *line(64), ratio=-1.5, name="tail")])
     M, C, K = dd.shaft_matrices(s)
     n = M.shape[0]
-    f = np.c_[np.ones(301), np.sin(np.arange(301) * 0.1)]
-    fd = [n - 1, 150]
+    # loads on a few stations (the loop then skips the force row and redoes them): plain ones,
+    # the root and a branch's first station; and on every fifth station (the force row read)
+    fd = [[n - 1, 150, 0, s.dof("b255.0")], list(range(0, n, 5))][many]
+    f = np.sin(np.outer(np.arange(301) * 0.1, np.arange(1, len(fd) + 1)))
     r = dd.simulate_shaft(s, f, 1e-3, force_dofs=fd, form=form, scheme="hht")
     ref = dd.simulate_mck(M, C, K, f, 1e-3, force_dofs=fd, scheme="hht")
     for q in "xva":
