@@ -320,17 +320,29 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
  * polynomial, Eg nabla^{NST-1} g_k (nabla^{NST-1} g_k = sum_i stencil_i g_{k-i}), through the
  * dynamics linearized at the solution: with e_k the error of eta_k, Q_k errs by Cw e_k, u_k by
  * J^-1 [Cw e_k; 0] (J = dr/du, the Newton Jacobian at the accepted u) and g_k by
- * dg_k = (dg/du) J^-1 [Cw e_k; 0] (the elements' tangent stiffness), so that
+ * dg_k = K_k Cw e_k, K_k = dg/du J^-1 [I; 0] (the elements' tangent stiffness), so that
  *
  *     e_k = T e_{k-1} + Bs dg_{k-1} + Eg nabla^{NST-1} g_k,     Bs = Bg + sum_i H_i
  *
  * (Bs: g's weights over the steps of its polynomial summed, for an error that changes slowly
- * over them); stats[5 + i] = max over the samples of |Co_m e + Dog dg|_i.
+ * over them); stats[5 + i] = max over the samples of |Co_m e + Dog dg|_i. The Newton loop only
+ * copies J, dg/du and g of each step into a block of EB steps (work + dims[13]); `estimate_block`
+ * then runs the recursion over the block, away from the Newton solves: the gains K_k and the
+ * differences step by step (independent), then the recursion, then the outputs at the samples
+ * (independent). The recursion forms Cw e_k from the previous step (generated/nonlinear.md):
+ *
+ *     Cw e_k = (Cw T) e_{k-1} + (Cw Bs) dg_{k-1} + (Cw Eg) nabla^{NST-1} g_k,
+ *
+ * so that the loop-carried path from dg_{k-1} to dg_k is two small products, not the sum over
+ * the modes.
  *
  * mats beyond the general ones (column-major, modal rows padded to NMP, output rows to NOP):
  * T = [dia; off] (2 NMP), [H Bf] (NMP x (NH + NF)), Eg (NMP x NE), the stencil
  * (NST), Bg (NMP x NE), Bs (NMP x NE), Cw^T (NMP x NW), Cw Bg (NW x NE), [Co Dof Dog]
- * (NOP x (NM + NF + NE)). res[4] of nl_residual: dg/du (NE x (NW + NZ)).
+ * (NOP x (NM + NF + NE)), (Cw T)^T (NMP x NW), Cw Eg (NW x NE), Cw Bs (NW x NE). res[4] of
+ * nl_residual: dg/du (NE x (NW + NZ)). dims[13], dims[14]: the estimate's block (offset in
+ * work, EB steps): J (EB NU^2), dg/du (EB NE NU), g ((EB + NST - 1) NE), K (EB NE NW),
+ * nabla^{NST-1} g (EB NE), [e; dg] (EB (NMP + NE)).
  */
 typedef double v4 __attribute__((vector_size(32), aligned(8))); /* 4 rows, loads unaligned */
 enum { NMV = (NL_NM + 3) / 4, NMP = 4 * NMV, NOV = (NL_NO + 3) / 4, NOP = 4 * NOV };
@@ -366,25 +378,169 @@ static inline void vblock(const double *restrict T, const v4 *restrict y, v4 *re
     }
 }
 
+/* *mx = the running max of |*a| per lane; a NaN lane stays NaN */
+typedef long long v4i __attribute__((vector_size(32), aligned(8)));
+static inline void vmax_abs(v4 *restrict mx, const v4 *restrict a) {
+    const v4i magnitude = {0x7fffffffffffffffLL, 0x7fffffffffffffffLL, 0x7fffffffffffffffLL,
+                           0x7fffffffffffffffLL};
+    const v4 m = (v4)((v4i)*a & magnitude);
+    const v4i take = (m > *mx) | (m != m);
+    *mx = (v4)(((v4i)m & take) | ((v4i)*mx & ~take));
+}
+
+/*
+ * K = dg/du J^-1 [I; 0] (NE x NW, column-major) from J (NU x NU) and dg/du (NE x NU): J^-1 in
+ * closed form up to NU = 2, else by LU with partial pivoting on a copy of J.
+ */
+static inline void tangent_gain(const double *restrict J, const double *restrict Gu,
+                                double *restrict K) {
+    enum { nu = NL_NW + NL_NZ, ne = NL_NE, nw = NL_NW };
+    double Ji[nu * nw]; /* the first NW columns of J^-1, column-major */
+    int i, c, r;
+    if (nu == 1) {
+        Ji[0] = 1.0 / J[0];
+    } else if (nu == 2) {
+        const double inv = 1.0 / (J[0] * J[nu + 1] - J[nu] * J[1]);
+        Ji[0] = J[nu + 1] * inv;
+        Ji[1] = -J[1] * inv;
+        if (nw == 2) {
+            Ji[nu] = -J[nu] * inv;
+            Ji[nu + 1] = J[0] * inv;
+        }
+    } else {
+        double Jf[nu * nu];
+        for (r = 0; r < nw; ++r) {
+            copy(nu * nu, J, Jf);
+            zero(nu, Ji + r * nu);
+            Ji[r * nu + r] = -1.0; /* lu_solve solves J d = -rhs */
+            lu_solve(nu, Jf, Ji + r * nu);
+        }
+    }
+    for (r = 0; r < nw; ++r)
+        for (i = 0; i < ne; ++i) {
+            double s = 0.0;
+            for (c = 0; c < nu; ++c)
+                s += Gu[c * ne + i] * Ji[r * nu + c];
+            K[r * ne + i] = s;
+        }
+}
+
+/*
+ * The embedded estimate over a block of nb steps (modal_run's comment): J, dg/du and g of each
+ * step (g after NST - 1 earlier ones) in; e (the last step's error of eta), dg (its element
+ * forces' error) and the running max of |Co_m e + Dog dg| per output row (at the steps of a
+ * sample: step index k0 + k a multiple of S) carried from block to block. Three passes: the
+ * gains and differences of each step (independent), the recursion (e_k, dg_k into Xb), the
+ * outputs at the samples (independent).
+ */
+#ifdef __GNUC__
+/* kept out of line: inlined, it crowds the Newton loop's registers */
+static void estimate_block(long nb, long k0, long S, const double *const *mats,
+                           const double *restrict Jb, const double *restrict Gub,
+                           double *restrict Gb, double *restrict Kb, double *restrict Db,
+                           double *restrict Xb, v4 *restrict e_io, double *restrict dg_io,
+                           v4 *restrict mx) __attribute__((noinline));
+#endif
+static void estimate_block(long nb, long k0, long S, const double *const *mats,
+                           const double *restrict Jb, const double *restrict Gub,
+                           double *restrict Gb, double *restrict Kb, double *restrict Db,
+                           double *restrict Xb, v4 *restrict e_io, double *restrict dg_io,
+                           v4 *restrict mx) {
+    enum { ne = NL_NE, nw = NL_NW, nu = NL_NW + NL_NZ, nm = NL_NM, nf = NL_NF, nst = NL_NST };
+    enum { nx = NMP + NL_NE }; /* a row of Xb: e_k (padded), dg_k */
+    const double *Tb = mats[10], *Eg = mats[12], *stencil = mats[13], *Bs = mats[15];
+    const double *Cout = mats[18], *CTw = mats[19], *CE = mats[20], *CBs = mats[21];
+    v4 e[NMV];
+    double dg[ne];
+    long k, i, c, v;
+    for (v = 0; v < NMV; ++v)
+        e[v] = e_io[v];
+    copy(ne, dg_io, dg);
+    /* the gains K_k and the differences nabla^{NST-1} g_k (g_k at row k + NST - 1 of Gb) */
+    for (k = 0; k < nb; ++k)
+        tangent_gain(Jb + k * nu * nu, Gub + k * ne * nu, Kb + k * ne * nw);
+    for (k = 0; k < nb * ne; ++k) { /* over step and element at once */
+        double s = stencil[0] * Gb[k + (nst - 1) * ne];
+        for (c = 1; c < nst; ++c)
+            s += stencil[c] * Gb[k + (nst - 1 - c) * ne];
+        Db[k] = s;
+    }
+    /* the recursion, Cw e_k from e_{k-1}: the chain from one dg to the next is short */
+    for (k = 0; k < nb; ++k) {
+        const double *dn = Db + k * ne, *K = Kb + k * ne * nw;
+        double ce[nw];
+        for (i = 0; i < nw; ++i) { /* Cw e_k = (Cw T) e_{k-1} + (Cw Eg) dn_k + (Cw Bs) dg_{k-1} */
+            double a = CE[i] * dn[0], b = CBs[i] * dg[0];
+            for (c = 1; c < ne; ++c) {
+                a += CE[c * nw + i] * dn[c];
+                b += CBs[c * nw + i] * dg[c];
+            }
+            ce[i] = vdot(NMV, CTw + i * NMP, e) + (a + b);
+        }
+        for (v = 0; v < NMV; ++v) { /* e_k = T e_{k-1} + (Eg dn_k + Bs dg_{k-1}) */
+            const v4 y = e[v], yp = {y[1], y[0], y[3], y[2]};
+            v4 a = *(const v4 *)(Eg + v * 4) * dn[0], b = *(const v4 *)(Bs + v * 4) * dg[0];
+            for (c = 1; c < ne; ++c) {
+                a += *(const v4 *)(Eg + (c * NMV + v) * 4) * dn[c];
+                b += *(const v4 *)(Bs + (c * NMV + v) * 4) * dg[c];
+            }
+            e[v] = (*(const v4 *)(Tb + 4 * v) * y + *(const v4 *)(Tb + NMP + 4 * v) * yp) + (a + b);
+            *(v4 *)(Xb + k * nx + 4 * v) = e[v];
+        }
+        for (i = 0; i < ne; ++i) { /* dg_k = K_k Cw e_k */
+            double s = K[i] * ce[0];
+            for (c = 1; c < nw; ++c)
+                s += K[c * ne + i] * ce[c];
+            dg[i] = Xb[k * nx + NMP + i] = s;
+        }
+    }
+    /* Co_m e + Dog dg at the samples: the columns of eta and g in [Co Dof Dog] */
+    for (k = (S - k0 % S) % S; k < nb; k += S) {
+        const double *xk = Xb + k * nx;
+        for (v = 0; v < NOV; ++v) {
+            v4 a = *(const v4 *)(Cout + v * 4) * xk[0];
+            v4 b = *(const v4 *)(Cout + ((nm + nf) * NOV + v) * 4) * xk[NMP];
+            for (c = 1; c < nm; ++c)
+                a += *(const v4 *)(Cout + (c * NOV + v) * 4) * xk[c];
+            for (c = 1; c < ne; ++c)
+                b += *(const v4 *)(Cout + ((nm + nf + c) * NOV + v) * 4) * xk[NMP + c];
+            a += b;
+            vmax_abs(mx + v, &a);
+        }
+    }
+    for (v = 0; v < NMV; ++v)
+        e_io[v] = e[v];
+    copy(ne, dg, dg_io);
+    /* the last NST - 1 forces in front, for the next block's differences */
+    for (k = 0; k + 1 < nst; ++k)
+        copy(ne, Gb + (nb + k) * ne, Gb + k * ne);
+}
+
 static int modal_run(const long *dims, const double *const *mats, const double *restrict force,
                      double *restrict x, double *restrict u, double *restrict g,
                      double *restrict rate, double *restrict out, double tol, double theta_limit,
                      double *stats, long *fail, double *restrict work, nl_int *restrict iwork) {
     enum { nf = NL_NF, ne = NL_NE, nw = NL_NW, nz = NL_NZ, no = NL_NO, nu = NL_NW + NL_NZ };
-    enum { nm = NL_NM, nh = NL_NH, nst = NL_NST, ngh = NL_NST > 1 ? (NL_NST - 1) * NL_NE : 1 };
+    enum { nm = NL_NM, nh = NL_NH, nst = NL_NST };
     const long n_samples = dims[6], S = dims[7], max_iter = dims[8], nzo = dims[9];
+    const long eb = nst > 0 ? dims[14] : 0; /* the estimate's block: EB steps */
     const double *Dwf = mats[4], *Dwg = mats[5], *par = mats[6];
-    const double *Tb = mats[10], *HB = mats[11], *Eg = mats[12], *stencil = mats[13];
-    const double *Bgm = mats[14], *Bs = mats[15], *CwT = mats[16], *CB = mats[17];
+    const double *Tb = mats[10], *HB = mats[11];
+    const double *Bgm = mats[14], *CwT = mats[16], *CB = mats[17];
     const double *Cout = mats[18];
     const double h = par[nw * ne];
     double f[nf + 1], Q[nw + 1], zold[nz + 1], rold[nz + 1], r[nu + 1], J[nu * nu + 1];
-    double Gu[ne * nu + 1]; /* dg/du at the accepted u */
-    v4 eta[NMV], e[NMV], Lx[NMV], ep[NMV], ov[NOV], eo[NOV];
-    double xin[nh + nf + 1], cin[nm + nf + ne + 1], gq[ne], gp[ne];
-    double gh[ngh], dn[ne], du[nu + 1], dg[ne], Jc[nu * nu + 1], CL[nw + 1];
+    double Gu[ne * nu + 1]; /* dg/du at the accepted u (the estimate's) */
+    v4 eta[NMV], Lx[NMV], ov[NOV], e[NMV], mx[NOV];
+    double xin[nh + nf + 1], cin[nm + nf + ne + 1], gq[ne], gp[ne], dg[ne], CL[nw + 1];
     double *hist = xin; /* [g_{k-1}; ...; g_{k-NH/NE}; f_k]: the columns of [H Bf] */
     double *cw = work;  /* CasADi work */
+    /* the estimate's block (modal_run's comment): J, dg/du, g (after NST - 1 earlier), K, the
+       differences */
+    double *Jb = work + (nst > 0 ? dims[13] : 0), *Gub = Jb + eb * nu * nu;
+    double *Gb = Gub + eb * ne * nu, *Kb = Gb + (eb + (nst > 0 ? nst - 1 : 0)) * ne;
+    double *Db = Kb + eb * ne * nw, *Xb = Db + eb * ne;
+    long kb = 0, k0 = 0;
     const double *arg[5];
     double *res[5];
     double scale = 0.0, scale_u = 0.0;
@@ -411,9 +567,12 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     for (i = 0; i < nw; ++i)
         CL[i] = vdot(NMV, CwT + i * NMP, Lx);
     for (i = 0; i < NMV; ++i)
-        ep[i] = (v4){0.0, 0.0, 0.0, 0.0};
+        e[i] = (v4){0.0, 0.0, 0.0, 0.0};
+    for (i = 0; i < NOV; ++i)
+        mx[i] = (v4){0.0, 0.0, 0.0, 0.0};
+    zero(ne, dg);
     for (k = 0; k + 1 < nst; ++k) /* the past before t_0: at rest, g_0 */
-        copy(ne, g, gh + k * ne);
+        copy(ne, g, Gb + k * ne);
     for (n = 0; n < n_samples; ++n) {
         const double *f0 = force + n * nf;
         const double *f1 = (n + 1 < n_samples) ? f0 + nf : f0;
@@ -481,52 +640,18 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                 stats[3] = theta;
                 return 3;
             }
-            if (nst > 0) {
-                /* e_k = (T e_{k-1} + Bs dg_{k-1}) + Eg nabla g_k; dg_k = dg/du J^-1 [Cw e_k; 0] */
-                for (i = 0; i < ne; ++i) {
-                    double s = stencil[0] * g[i];
-                    for (k = 1; k < nst; ++k)
-                        s += stencil[k] * gh[(k - 1) * ne + i];
-                    dn[i] = s;
-                }
-                for (k = nst - 2; k > 0; --k)
-                    copy(ne, gh + (k - 1) * ne, gh + k * ne);
-                copy(ne, g, gh);
-                for (i = 0; i < NMV; ++i)
-                    e[i] = ep[i];
-                vmatvec(NMV, ne, Eg, dn, e, 1);
-                for (i = 0; i < nw; ++i)
-                    du[i] = vdot(NMV, CwT + i * NMP, e);
-                for (i = nw; i < nu; ++i)
-                    du[i] = 0.0;
-                if (nu == 1) {
-                    du[0] = du[0] / J[0];
-                } else if (nu == 2) {
-                    const double inv = 1.0 / (J[0] * J[nu + 1] - J[nu] * J[1]);
-                    const double d0 = du[0], d1 = du[nu - 1];
-                    du[0] = (J[nu + 1] * d0 - J[nu] * d1) * inv;
-                    du[nu - 1] = (J[0] * d1 - J[1] * d0) * inv;
-                } else {
-                    copy(nu * nu, J, Jc);
-                    lu_solve(nu, Jc, du); /* -J^-1 [Cw e; 0]: the sign is undone below */
-                    for (i = 0; i < nu; ++i)
-                        du[i] = -du[i];
-                }
-                for (i = 0; i < ne; ++i) {
-                    double s = 0.0;
-                    for (c = 0; c < nu; ++c)
-                        s += Gu[c * ne + i] * du[c];
-                    dg[i] = s;
-                }
-                vblock(Tb, e, ep);
-                vmatvec(NMV, ne, Bs, dg, ep, 1);
-                if (j == 0) { /* Co_m e + Dog dg: the columns of eta and g in [Co Dof Dog] */
-                    vmatvec(NOV, nm, Cout, (const double *)e, eo, 0);
-                    vmatvec(NOV, ne, Cout + (nm + nf) * NOP, dg, eo, 1);
-                    for (i = 0; i < no; ++i) { /* a NaN estimate stays NaN */
-                        const double a = fabs(eo[i / 4][i % 4]);
-                        stats[5 + i] = (a > stats[5 + i] || a != a) ? a : stats[5 + i];
-                    }
+            if (nst > 0) { /* the estimate, a block at a time: J, dg/du and g of the step */
+                copy(nu * nu, J, Jb + kb * nu * nu);
+                copy(ne * nu, Gu, Gub + kb * ne * nu);
+                copy(ne, g, Gb + (kb + nst - 1) * ne);
+                if (++kb == eb) {
+                    /* compiler barriers: without them GCC lays the Newton loop out around the
+                       call so that P4's loop takes ~1 ms per 100,000 steps longer */
+                    __asm__ __volatile__("" ::: "memory");
+                    estimate_block(kb, k0, S, mats, Jb, Gub, Gb, Kb, Db, Xb, e, dg, mx);
+                    __asm__ __volatile__("" ::: "memory");
+                    k0 += kb;
+                    kb = 0;
                 }
             }
             if (j == 0) { /* Co eta + Dof f + Dog g */
@@ -547,6 +672,12 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             copy(ne, g, gp);
         }
     }
+    if (nst > 0) {
+        if (kb > 0)
+            estimate_block(kb, k0, S, mats, Jb, Gub, Gb, Kb, Db, Xb, e, dg, mx);
+        for (i = 0; i < no; ++i)
+            stats[5 + i] = mx[i / 4][i % 4];
+    }
     /* the state at the last sample */
     copy(nm, (const double *)eta, x);
     copy(nh, hist, x + nm);
@@ -557,8 +688,9 @@ static int modal_run(const long *dims, const double *const *mats, const double *
 /*
  * dims: ns, nf, ne, nw, nz, no (checked against the compile-time sizes NL_NS .. NL_NO, which
  * let the compiler unroll the small products), n_samples, substeps, max_iter, nzo; with the
- * modal path (NL_NM) also NM, NH, NST. A row of out holds no + nzo values: Co x + Dof f +
- * Dog g, then the first nzo internal states z.
+ * modal path (NL_NM) also NM, NH, NST and the estimate's block (its offset in work, EB steps).
+ * A row of out holds no + nzo values: Co x + Dof f + Dog g, then the first nzo internal
+ * states z.
  * mats (column-major): A, Bf, Bg, Cw, Dwf, Dwg, par = [Dwg; h], Co, Dof, Dog (then the modal
  * path's, see modal_run).
  * state: x (ns), u (nw + nz: last solution), g (ne), rate (nz); all updated in place.
@@ -600,7 +732,8 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
         dims[5] != no)
         return 2; /* compiled for other sizes */
 #ifdef NL_NM
-    if (dims[10] != NL_NM || dims[11] != NL_NH || dims[12] != NL_NST || NL_NM + NL_NH != ns)
+    if (dims[10] != NL_NM || dims[11] != NL_NH || dims[12] != NL_NST || NL_NM + NL_NH != ns ||
+        (NL_NST > 0 && dims[14] < 1))
         return 2;
     return modal_run(dims, mats, force, x, u, g, rate, out, tol, theta_limit, stats, fail, work,
                      iwork);

@@ -174,9 +174,11 @@ def _modal_flops(method, r, S, ne, n_modes, no):
     multiply-add counted as 2): per sub-step eta = L + Bg g, Q = (Cw L + Dwf f) + (Cw Bg) g, the
     predictor, each Newton iteration (the two cubic laws' residual and Jacobian, ~24, and the
     2 x 2 solve, ~12, at mean iterations + 1 evaluations), the next linear part
-    [H Bf] [hist; f] + T eta (dia y + off y[partner]) and Cw of it; modal_quintic's estimate
-    (the difference stencil, Eg, Cw e, the 2 x 2 solve, dg/du, T e, Bs dg); per sample the
-    outputs (x of all DOFs, [Co Dof Dog]) and the estimate's (Co e + Dog dg)."""
+    [H Bf] [hist; f] + T eta (dia y + off y[partner]) and Cw of it; modal_quintic's estimate,
+    evaluated a block at a time after the Newton solves (the difference stencil, the gain
+    K = dg/du J^-1 [I; 0] from the 2 x 2 inverse, (Cw T) e + (Cw Eg) dn + (Cw Bs) dg, K of it,
+    T e + Eg dn + Bs dg); per sample the outputs (x of all DOFs, [Co Dof Dog]) and the
+    estimate's (Co e + Dog dg)."""
     nm, nf, nw = 2 * n_modes, 1, ne
     nh = {"modal_ramp": 0, "modal_parabolic": 1, "modal_quintic": 4}[method] * ne
     evals = r.info["newton_iterations"]["mean"] + 1
@@ -184,7 +186,8 @@ def _modal_flops(method, r, S, ne, n_modes, no):
         + 2 * nm * (nh + nf) + 3 * nm + 2 * nw * nm
     per_sample = 2 * no * (nm + nf + ne)
     if method == "modal_quintic":
-        sub += 2 * 7 * ne + 2 * nm * ne + 2 * nw * nm + 12 + 2 * ne * nw + 3 * nm + 2 * nm * ne
+        sub += (2 * 7 * ne + 8 + 2 * ne * nw * nw + 2 * nw * nm + 4 * nw * ne + 2 * ne * nw
+                + 3 * nm + 4 * nm * ne)
         per_sample += 2 * no * (nm + ne)
     return S * sub + per_sample
 

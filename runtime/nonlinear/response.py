@@ -156,16 +156,32 @@ def _modal_mats(step: LinearStep, md) -> list:
     """The modal path's matrices (nl_loop.c, modal_run): the modal rows in the order ``perm``
     (T's 2 x 2 blocks first) and padded, as the output rows, to a multiple of 4: [dia off], [H Bf],
     Eg, the stencil, Bg, Bs = Bg + sum_i H_i (g's weights summed: the estimate's), Cw^T, Cw Bg,
-    [Co Dof Dog]."""
+    [Co Dof Dog]; the estimate's Cw e_k from e_{k-1}: (Cw T)^T, Cw Eg, Cw Bs."""
     nm, nh, ne, p = md["nm"], md["nh"], step.Bg.shape[1], md["perm"]
     Bg, Cw = step.Bg[:nm][p], step.Cw[:, :nm][:, p]
-    H = md["H"][p]
+    H, Eg = md["H"][p], md["Eg"][p]
     Bs = Bg + sum(H[:, i:i + ne] for i in range(0, nh, ne))
+    T = np.diag(md["dia"])
+    pair = np.flatnonzero(md["off"])
+    T[pair, pair ^ 1] = md["off"][pair]  # T y = dia y + off y[partner] (modal_structure)
     return [_pad_rows(np.column_stack([md["dia"], md["off"]])),
-            _pad_rows(np.hstack([H, step.Bf[:nm][p]])), _pad_rows(md["Eg"][p]),
+            _pad_rows(np.hstack([H, step.Bf[:nm][p]])), _pad_rows(Eg),
             np.concatenate([md["stencil"], [0.0]]), _pad_rows(Bg), _pad_rows(Bs),
             _pad_rows(Cw.T), Cw @ Bg,
-            _pad_rows(np.hstack([step.Co[:, :nm][:, p], step.Dof, step.Dog]))]
+            _pad_rows(np.hstack([step.Co[:, :nm][:, p], step.Dof, step.Dog])),
+            _pad_rows((Cw @ T).T), Cw @ Eg, Cw @ Bs]
+
+
+#: steps per block of the modal loop's embedded estimate (nl_loop.c, estimate_block)
+ESTIMATE_BLOCK = 128
+
+
+def _estimate_work(sz, nst, nm) -> int:
+    """Doubles of the estimate's block in the loop's work array (nl_loop.c, modal_run): J,
+    dg/du, g (after nst - 1 earlier ones), the gains K, the differences and [e; dg] of each
+    step (e padded to a multiple of 4 modal rows)."""
+    eb, nu, ne, nmp = ESTIMATE_BLOCK, sz.nw + sz.nz, sz.ne, -(-nm // 4) * 4
+    return eb * (nu * nu + ne * nu + ne * sz.nw + ne + nmp + ne) + (eb + nst - 1) * ne
 
 
 def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate, theta_limit,
@@ -174,7 +190,8 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     ns, nf, no = step.A.shape[0], force.shape[1], step.Co.shape[0]
     n_samples = force.shape[0]
     md = step.modal
-    extra = [] if md is None else [md["nm"], md["nh"], md["stencil"].size]
+    nst = 0 if md is None else md["stencil"].size
+    extra = [] if md is None else [md["nm"], md["nh"], nst, n_w + 1, ESTIMATE_BLOCK]
     dims = np.array([ns, nf, sz.ne, sz.nw, sz.nz, no, n_samples, S, max_iter, nzo] + extra,
                     dtype=np.int64)
     par = np.concatenate([step.Dwg.ravel(order="F"), [step.h]])
@@ -190,7 +207,7 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     out = np.empty((n_samples, no + nzo))
     stats = np.zeros(5 + no)  # then the estimate's largest |error| per output row
     fail = np.zeros(1, dtype=np.int64)
-    work = np.zeros(n_w + 1)
+    work = np.zeros(n_w + 1 + (_estimate_work(sz, nst, md["nm"]) if nst else 0))
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
     args = (_p(dims), ctypes.cast(ptrs, ctypes.c_void_p), _p(force), _p(x), _p(u), _p(g),
             _p(rate), _p(out), tol, theta_limit, _p(stats), _p(fail), _p(work), _p(iwork))

@@ -571,6 +571,43 @@ def test_quintic_stability_limit_is_the_runtime_step_s():
     assert radius(1.05 * QUINTIC_THETA_LIMIT) > 1 + 1e-6
 
 
+def test_quintic_embedded_estimate_is_its_recursion(P4):
+    """The C loop evaluates the embedded estimate a block of steps at a time, after the Newton
+    solves of the block, with Cw e_k formed from e_{k-1} (generated/nonlinear.md): the number it
+    reports equals the recursion as defined, evaluated here step by step on the full modal block
+    of the runtime's step (A's modal rows, Bs = Bg + sum_i H_i, Eg, the stencil), with the
+    cubic springs' tangent 3 k3 y^2 from the stored response (y = L x, to Newton's tolerance):
+    4e-14 relative measured, 1e-9 asserted (without the tangent's feedback the number is 32%
+    lower). 3,000 steps: 23 full blocks of 128 steps and a partial one."""
+    M, C, K, f, dt = P4["M"], P4["C"], P4["K"], P4["force"], P4["dt"]
+    els = P4["elements"]
+    r = NL.nonlinear_response(M, C, K, f, dt, force_dofs=P4["force_dofs"], elements=els,
+                              scheme="modal_quintic", quantities=("x", "v", "a", "g"))
+    L = NL.element_matrix(els, 4)
+    step = NL.linear_step("modal_quintic", M, C, K, dt, np.array(P4["force_dofs"]), L,
+                          np.arange(4))
+    md, ne = step.modal, L.shape[0]
+    nm, nh = md["nm"], md["nh"]
+    Am, Bs = step.A[:nm, :nm], step.Bg[:nm] + sum(step.A[:nm, nm + i:nm + i + ne]
+                                                   for i in range(0, nh, ne))
+    Cw, Co, Dog, Dwg = step.Cw[:, :nm], step.Co[:, :nm], step.Dog, step.Dwg
+    k3 = np.array([el.k3 for el in els])
+    g = r.g
+    past = np.vstack([np.repeat(g[:1], md["stencil"].size - 1, axis=0), g])  # at rest before t_0
+    e, dg, worst = np.zeros(nm), np.zeros(ne), np.zeros(Co.shape[0])
+    for k in range(g.shape[0]):
+        dn = sum(c * past[k + md["stencil"].size - 1 - i] for i, c in enumerate(md["stencil"]))
+        e = Am @ e + Bs @ dg + md["Eg"] @ dn
+        kt = 3.0 * k3 * (L @ r.x[k]) ** 2  # dg/dy
+        J = np.eye(ne) - Dwg * kt  # dr/du of r = w - Q - Dwg g(w)
+        dg = kt * np.linalg.solve(J, Cw @ e)
+        worst = np.maximum(worst, np.abs(Co @ e + Dog @ dg))
+    want = max(worst[i * 4:(i + 1) * 4].max() / np.abs(getattr(r, q)).max()
+               for i, q in enumerate("xva"))
+    assert r.info["error_estimate_kind"] == "embedded"
+    assert r.info["error_estimate"] == pytest.approx(want, rel=1e-9)
+
+
 def test_quintic_backends_agree(P4):
     """The C loop's modal path (tridiagonal modal block, shifted force history) against the
     CasADi backend on the full matrices: the same step, so the same numbers to the Newton
