@@ -494,18 +494,30 @@ static void estimate_block(long nb, long k0, long S, const double *const *mats,
             dg[i] = Xb[k * nx + NMP + i] = s;
         }
     }
-    /* Co_m e + Dog dg at the samples: the columns of eta and g in [Co Dof Dog] */
-    for (k = (S - k0 % S) % S; k < nb; k += S) {
-        const double *xk = Xb + k * nx;
+    /* Co_m e + Dog dg at the samples (the columns of eta and g in [Co Dof Dog]), into two
+       running maxima taken alternately, so that neither waits on the other */
+    {
+        v4 m2[2][NOV];
+        long h;
+        for (v = 0; v < NOV; ++v)
+            m2[0][v] = m2[1][v] = mx[v];
+        for (k = (S - k0 % S) % S; k < nb; k += 2 * S)
+            for (h = 0; h < 2 && k + h * S < nb; ++h) {
+                const double *xk = Xb + (k + h * S) * nx;
+                for (v = 0; v < NOV; ++v) {
+                    v4 a = *(const v4 *)(Cout + v * 4) * xk[0];
+                    v4 b = *(const v4 *)(Cout + ((nm + nf) * NOV + v) * 4) * xk[NMP];
+                    for (c = 1; c < nm; ++c)
+                        a += *(const v4 *)(Cout + (c * NOV + v) * 4) * xk[c];
+                    for (c = 1; c < ne; ++c)
+                        b += *(const v4 *)(Cout + ((nm + nf + c) * NOV + v) * 4) * xk[NMP + c];
+                    a += b;
+                    vmax_abs(m2[h] + v, &a);
+                }
+            }
         for (v = 0; v < NOV; ++v) {
-            v4 a = *(const v4 *)(Cout + v * 4) * xk[0];
-            v4 b = *(const v4 *)(Cout + ((nm + nf) * NOV + v) * 4) * xk[NMP];
-            for (c = 1; c < nm; ++c)
-                a += *(const v4 *)(Cout + (c * NOV + v) * 4) * xk[c];
-            for (c = 1; c < ne; ++c)
-                b += *(const v4 *)(Cout + ((nm + nf + c) * NOV + v) * 4) * xk[NMP + c];
-            a += b;
-            vmax_abs(mx + v, &a);
+            mx[v] = m2[0][v];
+            vmax_abs(mx + v, m2[1] + v);
         }
     }
     for (v = 0; v < NMV; ++v)
