@@ -11,6 +11,9 @@
    branch for a torque at the motor, from `shaft_frequency_response` (the tree's Laplace-domain
    sweep), the direct solve of (K + i w C - w^2 M) at a few frequencies, and the natural
    frequencies of `shaft_frequencies`. -> docs/img/shaft_tree_frf.png
+3. The residuals of `beam_modes`' shapes (200 elements) and, for an undamped 40-element beam
+   between and next to its resonances, the error of the unpivoted block sweep and of the pivoted banded LU
+   against a dense solve, in units of eps cond(Z) |u|.
 
 Usage: python benchmarks/vector_state_figures.py [--no-plot]
 """
@@ -126,10 +129,54 @@ def shaft_part(plot):
     return worst
 
 
+def solver_part():
+    """The residuals of beam_modes' shapes, and the unpivoted sweep against the pivoted banded
+    LU inside the spectrum of an undamped beam (both against a dense solve)."""
+    from dtdyn._engine import linalg
+    from dtdyn.linear import beam_frequency as bf
+
+    eps = np.finfo(float).eps
+    print("\n3) residuals and pivoting (200 elements: shapes; 40 elements: receptances)")
+    for left, right in (("clamped", "free"), ("pinned", "pinned")):
+        beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=LENGTH, elements=200, left=left,
+                       right=right)
+        M, _, K = (A.toarray() for A in dd.beam_matrices(beam))
+        m = dd.beam_modes(beam, count=8)
+        res = [np.linalg.norm(K @ p - (p @ K @ p) * (M @ p)) / (np.linalg.norm(K, 2)
+               * np.linalg.norm(p)) / eps for p in m.shapes.T]
+        print(f"   {left}-{right}: beam_modes residual ||K phi - rho M phi|| <= "
+              f"{max(res):.2f} eps ||K|| ||phi|| (8 modes)")
+        beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=LENGTH, elements=40, left=left,
+                       right=right)
+        M, _, K = (A.toarray() for A in dd.beam_matrices(beam))
+        Mg, _, Kg = beam.global_matrices()
+        (DK, EK, _), (DM, EM, _) = (linalg.node_blocks(A) for A in (Kg, Mg))
+        wn = dd.beam_frequencies(beam, count=10)
+        w = np.r_[0.5 * (wn[:-1] + wn[1:]), wn[:5] * (1 + 1e-6)]
+        s2 = (w * w)[:, None, None, None]
+        D, Eb = DK - s2 * DM, EK - s2 * EM
+        n, nodes, held = beam.n_dof, beam.elements + 1, bf._held(beam)
+        worst = dict.fromkeys(("unpivoted sweep", "pivoted banded LU"), 0.0)
+        for i_f in (n - 1, beam.dof("w20"), beam.dof("psi30")):
+            f = np.zeros((w.size, 2 * nodes))
+            f[:, beam.free[i_f]] = 1.0
+            for name, solve in zip(worst, (bf.block_sweep, bf.banded_solve)):
+                u = solve(D, Eb, held, f.reshape(w.size, nodes, 2))
+                u = u.reshape(w.size, -1)[:, beam.free]
+                for j, x in enumerate(w):
+                    Z = K - x * x * M
+                    col = np.linalg.solve(Z, np.eye(n)[i_f])
+                    worst[name] = max(worst[name], np.abs(u[j] - col).max()
+                                      / (eps * np.linalg.cond(Z) * np.abs(col).max()))
+        print(f"   {left}-{right}, undamped, between and next to its first 10 resonances: "
+              + ", ".join(f"{k} {v:.2f}" for k, v in worst.items()) + " eps cond(Z) |u|")
+
+
 def main(plot=True):
     IMG.mkdir(parents=True, exist_ok=True)
     beam_part(plot)
     shaft_part(plot)
+    solver_part()
 
 
 if __name__ == "__main__":

@@ -75,7 +75,7 @@ int dtdyn_block_chain_factor(long N, const double *restrict A, double *restrict 
     for (c = 0; c < 8 * P; ++c)
         fac[c] = 0.0;
     for (i = N - 1; i >= 0; --i) {
-        double a = d00[i], b = d01[i], d = d11[i], det, big;
+        double a = d00[i], b = d01[i], d = d11[i], det;
         if (i < N - 1) { /* G_i = E_i P_{i+1}^-1, P_i = D_i - G_i E_i^T */
             const long j = i + 1;
             const double x00 = g00[j] = e00[j] * p00[j] + e01[j] * p01[j];
@@ -86,9 +86,10 @@ int dtdyn_block_chain_factor(long N, const double *restrict A, double *restrict 
             b -= x00 * e10[j] + x01 * e11[j];
             d -= x10 * e10[j] + x11 * e11[j];
         }
+        /* singular against the product of its own diagonal: a test that does not depend on
+           the units of the two DOFs (N/m and N m per rad) nor on a held DOF's unit entry */
         det = a * d - b * b;
-        big = fmax(fabs(a), fmax(fabs(b), fabs(d)));
-        if (!isfinite(det) || fabs(det) <= 1e-14 * fmax(big * big, 1e-300))
+        if (!isfinite(det) || fabs(det) <= 1e-14 * fabs(a * d) || det == 0.0)
             return (int)i;
         p00[i] = d / det;
         p01[i] = -b / det;

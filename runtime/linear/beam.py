@@ -619,8 +619,9 @@ def _initial_acceleration(lib, beam, stored, f0, x0, v0):
     rhs[held] = 0.0
     fac = _aligned((11, _stride(nodes)))
     if lib.dtdyn_block_chain_factor(nodes, bM.ctypes.data, fac.ctypes.data) >= 0:
-        M = beam_matrices(beam)[0]
-        linalg.solver(M, "M")(rhs[beam.free])  # raises, naming the singular M
+        a = np.zeros(2 * nodes)  # the sparse solve: its result, or the error naming M
+        a[beam.free] = linalg.solver(beam_matrices(beam)[0], "M")(rhs[beam.free])
+        return a
     a = _to_kernel(rhs, nodes)
     lib.dtdyn_block_chain_solve(nodes, fac.ctypes.data, a.ctypes.data)
     return _from_kernel(a, nodes)

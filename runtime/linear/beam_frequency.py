@@ -1,8 +1,8 @@
-r"""Mode shapes and frequency responses of beams, by the block Riccati sweep over the nodes.
+r"""Mode shapes and frequency responses of beams over the 2 x 2 node blocks.
 
 Both solve :math:`Z(s) u = f` with :math:`Z(s) = K + s C + s^2 M` block tridiagonal in 2 x 2
-node blocks :math:`D_i` (node i with itself) and :math:`E_i` (node i with node i + 1), by the
-sweep of `simulate_beam` in the frequency domain: from the free (right) end
+node blocks :math:`D_i` (node i with itself) and :math:`E_i` (node i with node i + 1). The
+block Riccati sweep of `simulate_beam`, in the frequency domain, runs from the free (right) end
 
 .. math::
 
@@ -12,13 +12,15 @@ sweep of `simulate_beam` in the frequency domain: from the free (right) end
 then :math:`u_0 = P_0^{-1} y_0`, :math:`u_{i+1} = P_{i+1}^{-1} (y_{i+1} - E_i^T u_i)`: O(N) per
 value of s. A held DOF has the identity's row and column. :math:`P_i` is the dynamic stiffness
 of nodes i .. N condensed onto node i, the matrix form of the Riccati relation f = S u + R.
+The sweep eliminates without pivoting: at an s inside the spectrum of an undamped beam it can
+meet a small pivot (element growth; about 20 eps cond(Z) on a 40-element pinned-pinned beam
+next to its resonances, `python benchmarks/vector_state_figures.py`). So the receptance and the last step of each shape use LAPACK's banded LU with
+partial pivoting on the same blocks (`scipy.linalg.solve_banded`: backward stable, also O(N)).
 
-Mode shapes: inverse iteration with this sweep at each Wittrick-Williams root
-(`dtdyn.linear.sweep_modes`), then one more step of inverse iteration by LAPACK's banded LU
-with partial pivoting (`scipy.linalg.solve_banded`, O(N) per mode too): the sweep eliminates
-without pivoting, and at a shift inside the spectrum it can meet a small pivot (element growth:
-residuals up to ~3e3 eps ||K|| on a 200-element beam); the pivoted step is backward stable,
-which leaves the residual ||K phi - rho M phi|| at rounding level (measured <= 0.3 eps ||K||).
+Mode shapes: inverse iteration with the sweep at each Wittrick-Williams root
+(`dtdyn.linear.sweep_modes`), then one more step by the pivoted banded LU, which leaves the
+residual ||K phi - rho M phi|| at rounding level (`python benchmarks/vector_state_figures.py`
+prints the residuals of both).
 
 With ``exact=True`` every element enters by its exact dynamic stiffness (from the field matrix
 exp(A L) of dtdyn.derive.beam, `generated/beam.md`) instead of :math:`K_e - \omega^2 M_e`.
@@ -57,14 +59,42 @@ def _inverse(P, detmin):
     return adj / det[..., None, None]
 
 
-def block_sweep(D, E, held, f, detmin=0.0):
-    """u of the block tridiagonal system (module docstring), batched over the leading axis:
-    D (k, nodes, 2, 2), E (k, nodes - 1, 2, 2), f (k, nodes, 2); held (nodes, 2)."""
+def _masked(D, E, held, f):
+    """The blocks and loads with each held DOF's row and column replaced by the identity's."""
     keep = ~held
     D = D * keep[None, :, :, None] * keep[None, :, None, :]
     D = D + np.eye(2)[None, None] * held[None, :, :, None] * np.eye(2)[None, None]
     E = E * keep[None, :-1, :, None] * keep[None, 1:, None, :]
-    f = f * keep[None]
+    return D, E, f * keep[None]
+
+
+def banded_solve(D, E, held, f):
+    """u of the same block tridiagonal systems as `block_sweep`, by LAPACK's banded LU with
+    partial pivoting (backward stable; O(N) per system), one system per leading index; a
+    singular system (a resonance of an undamped model, to the bit) gives NaN."""
+    D, E, f = _masked(D, E, held, f)
+    k, nodes = D.shape[0], D.shape[1]
+    ab = np.zeros((k, 7, 2 * nodes), dtype=np.result_type(D, E, f))
+    i = np.arange(nodes)
+    for a in range(2):
+        for b in range(2):  # ab[3 + r - c, c] = A[r, c], r = 2 i + a (node i, DOF a)
+            ab[:, 3 + a - b, 2 * i + b] = D[:, :, a, b]
+            ab[:, 1 + a - b, 2 * i[:-1] + 2 + b] = E[:, :, a, b]
+            ab[:, 5 + b - a, 2 * i[:-1] + a] = E[:, :, a, b]
+    u = np.full((k, 2 * nodes), np.nan, dtype=ab.dtype)
+    for j in range(k):
+        try:
+            u[j] = sla.solve_banded((3, 3), ab[j], f[j].reshape(-1), check_finite=False)
+        except np.linalg.LinAlgError:
+            pass
+    return u.reshape(k, nodes, 2) * ~held[None]
+
+
+def block_sweep(D, E, held, f, detmin=0.0):
+    """u of the block tridiagonal system (module docstring), batched over the leading axis:
+    D (k, nodes, 2, 2), E (k, nodes - 1, 2, 2), f (k, nodes, 2); held (nodes, 2)."""
+    keep = ~held
+    D, E, f = _masked(D, E, held, f)
     nodes = D.shape[1]
     Pinv = np.empty_like(D)
     y = np.empty_like(f)
@@ -89,7 +119,8 @@ def beam_modes(beam: Beam, count=None, below=None) -> Modes:
     The frequencies are `beam_frequencies` (the Wittrick-Williams count). Each shape is two
     steps of inverse iteration with the sweep's O(N) solve of (K - omega_r^2 M) u = M u_k at the
     root itself (close or repeated roots together, by Rayleigh-Ritz on their subspace:
-    `dtdyn.linear.sweep_modes`), scaled to phi^T M phi = 1 with its largest entry positive.
+    `dtdyn.linear.sweep_modes`) and, for an isolated root, a third by the pivoted banded LU
+    (module docstring); scaled to phi^T M phi = 1 with its largest entry positive.
 
     Parameters
     ----------
@@ -121,7 +152,7 @@ def beam_modes(beam: Beam, count=None, below=None) -> Modes:
     DK, EK, _ = linalg.node_blocks(Kg)
     DM, EM, _ = linalg.node_blocks(Mg)
     held = _held(beam)
-    detmin = (np.finfo(float).eps * max(float(np.abs(DK).max()), 1.0)) ** 2
+    detmin = (np.finfo(float).eps * float(np.abs(DK).max())) ** 2
     nodes, free = beam.elements + 1, beam.free
 
     def solve(lam, F):
@@ -215,7 +246,7 @@ def _exact_blocks(beam: Beam, w: np.ndarray):
 
 def beam_frequency_response(beam: Beam, omega, force_dof, output, *, exact=False) -> np.ndarray:
     """Receptance u_output / f (m/N, rad/N, m/(N m) or rad/(N m)) at s = i omega for a unit
-    force (on a w) or moment (on a psi) at ``force_dof``, by the block Riccati sweep (module
+    force (on a w) or moment (on a psi) at ``force_dof``, by the pivoted banded LU of the node blocks (module
     docstring), O(N) per frequency.
 
     Parameters
@@ -230,10 +261,13 @@ def beam_frequency_response(beam: Beam, omega, force_dof, output, *, exact=False
         the beam's Rayleigh damping and dampers. True: every element by its exact
         Euler-Bernoulli dynamic stiffness (from exp(A L)), the point masses, supports and their
         dampers at the nodes; the elements undamped (a Rayleigh beam is refused).
+        (`shaft_frequency_response` has ``exact=True`` by default: there it selects the
+        continuous shafts' exact field matrices, and a lumped shaft is the same either way.)
 
     Returns
     -------
     (len(omega),) complex ndarray
+        NaN where Z(omega) is singular to the bit (a resonance of an undamped beam).
 
     Examples
     --------
@@ -257,6 +291,5 @@ def beam_frequency_response(beam: Beam, omega, force_dof, output, *, exact=False
         D, E = DK + s * DC + s * s * DM, EK + s * EC + s * s * EM
     f = np.zeros((w.size, 2 * nodes), dtype=complex)
     f[:, beam.free[i_f]] = 1.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = block_sweep(D, E, _held(beam), f.reshape(w.size, nodes, 2))
+    u = banded_solve(D, E, _held(beam), f.reshape(w.size, nodes, 2))
     return u.reshape(w.size, -1)[:, beam.free[i_o]]
