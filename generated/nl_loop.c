@@ -35,6 +35,12 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                  double *restrict out, double tol, double theta_limit, double *stats, long *fail,
                  double *restrict work, nl_int *restrict iwork);
 #ifdef __GNUC__
+/* an empty statement the compiler may not move memory accesses across */
+#define COMPILER_BARRIER() __asm__ __volatile__("" ::: "memory")
+#else
+#define COMPILER_BARRIER() ((void)0)
+#endif
+#ifdef __GNUC__
 /* hidden: the call stays inside this library (no interposition), so it can be inlined */
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem)
     __attribute__((visibility("hidden")));
@@ -659,9 +665,9 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                 if (++kb == eb) {
                     /* compiler barriers: without them GCC lays the Newton loop out around the
                        call so that P4's loop takes ~1 ms per 100,000 steps longer */
-                    __asm__ __volatile__("" ::: "memory");
+                    COMPILER_BARRIER();
                     estimate_block(kb, k0, S, mats, Jb, Gub, Gb, Kb, Db, Xb, e, dg, mx);
-                    __asm__ __volatile__("" ::: "memory");
+                    COMPILER_BARRIER();
                     k0 += kb;
                     kb = 0;
                 }
