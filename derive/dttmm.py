@@ -201,7 +201,7 @@ def derive_sweeps() -> Sweeps:
     es = error_step
     assert sp.simplify(h0 - es["hD"] * Delta - es["hb"] * beta) == 0
     assert sp.simplify(b0 - es["fR"] * R_R - es["fD"] * Delta - es["fb"] * beta) == 0
-    hD = sp.factor(sp.cancel(sp.diff(h, Delta)))
+    hD = es["hD"]  # the error step's coefficient of Delta is the stable step's (F enters apart)
     assert sp.simplify(a_fwd - g) == 0
     assert sp.simplify(h - (hD * Delta + g * (F_n - beta))) == 0
     assert sp.simplify(b_fwd - (R_R + (F_n - beta) - Delta) / den_s) == 0

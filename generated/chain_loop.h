@@ -46,11 +46,25 @@ static void dd_axpy(double a, double xh, double xl, double b, double yh, double 
     two_sum(t, te, rh, rl);
 }
 
-/* qsort order of longs */
-static int compare_long(const void *a, const void *b)
+/* The loaded indices of a kernel call ascending and once each (the chain's and the tree's stable
+   sweeps redo the loaded stations after a terms loop that skips the force row). */
+static int dtdyn_compare_long(const void *a, const void *b)
 {
     const long x = *(const long *)a, y = *(const long *)b;
     return (x > y) - (x < y);
+}
+
+/* out = the n indices of loaded, sorted, repeats dropped; returns how many remain */
+static long dtdyn_sorted_loads(long n, const long *loaded, long *out)
+{
+    long j, m = 0;
+    for (j = 0; j < n; ++j)
+        out[j] = loaded[j];
+    qsort(out, (size_t)n, sizeof(long), dtdyn_compare_long);
+    for (j = 0; j < n; ++j)
+        if (m == 0 || out[j] != out[m - 1])
+            out[m++] = out[j];
+    return m;
 }
 
 /* +1 or -1 from the step index j (the top bit of splitmix64 of j) */
@@ -175,12 +189,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
         /* a few loaded masses: their indices ascending and once each (in the q row, which the
            stable sweep does not use); the terms loop then skips the force row */
         few = 1;
-        for (j = 0; j < n_loaded; ++j)
-            byidx[j] = loaded[j];
-        qsort(byidx, (size_t)n_loaded, sizeof(long), compare_long);
-        for (j = 0; j < n_loaded; ++j)
-            if (n_byidx == 0 || byidx[j] != byidx[n_byidx - 1])
-                byidx[n_byidx++] = byidx[j];
+        n_byidx = dtdyn_sorted_loads(n_loaded, loaded, byidx);
     }
     for (step = 0; step < n_steps; ++step) {
         for (j = 0; j < n_loaded; ++j)

@@ -18,11 +18,25 @@
 
 #ifndef DTDYN_SHAFT_HELPERS
 #define DTDYN_SHAFT_HELPERS
-/* qsort order of longs */
-static int shaft_compare_long(const void *a, const void *b)
+/* The loaded indices of a kernel call ascending and once each (the chain's and the tree's stable
+   sweeps redo the loaded stations after a terms loop that skips the force row). */
+static int dtdyn_compare_long(const void *a, const void *b)
 {
     const long x = *(const long *)a, y = *(const long *)b;
     return (x > y) - (x < y);
+}
+
+/* out = the n indices of loaded, sorted, repeats dropped; returns how many remain */
+static long dtdyn_sorted_loads(long n, const long *loaded, long *out)
+{
+    long j, m = 0;
+    for (j = 0; j < n; ++j)
+        out[j] = loaded[j];
+    qsort(out, (size_t)n, sizeof(long), dtdyn_compare_long);
+    for (j = 0; j < n; ++j)
+        if (m == 0 || out[j] != out[m - 1])
+            out[m++] = out[j];
+    return m;
 }
 #endif
 
@@ -108,14 +122,8 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
     }
     memset(Fe, 0, (size_t)N * sizeof(double));
     memset(RR, 0, (size_t)N * sizeof(double));
-    if (few) {
-        for (j = 0; j < n_loaded; ++j)
-            byidx[j] = loaded[j];
-        qsort(byidx, (size_t)n_loaded, sizeof(long), shaft_compare_long);
-        for (j = 0; j < n_loaded; ++j)
-            if (n_byidx == 0 || byidx[j] != byidx[n_byidx - 1])
-                byidx[n_byidx++] = byidx[j];
-    }
+    if (few)
+        n_byidx = dtdyn_sorted_loads(n_loaded, loaded, byidx);
     for (step = 0; step < n_steps; ++step) {
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
