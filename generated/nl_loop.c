@@ -345,7 +345,8 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
  * mats beyond the general ones (column-major, modal rows padded to NMP, output rows to NOP):
  * T = [dia; off] (2 NMP), [H Bf] (NMP x (NH + NF)), Eg (NMP x NE), the stencil
  * (NST), Bg (NMP x NE), Bs (NMP x NE), Cw^T (NMP x NW), Cw Bg (NW x NE), [Co Dof Dog]
- * (NOP x (NM + NF + NE)), (Cw T)^T (NMP x NW), Cw Eg (NW x NE), Cw Bs (NW x NE). res[4] of
+ * (NOP x (NM + NF + NE)), (Cw T)^T (NMP x NW), Cw Eg (NW x NE), Cw Bs (NW x NE), the forces
+ * before t_0 ((NST - 1) x NE: g_{1-NST} .. g_{-1}, for the first steps' differences). res[4] of
  * nl_residual: dg/du (NE x (NW + NZ)). dims[13], dims[14]: the estimate's block (offset in
  * work, EB steps): J (EB NU^2), dg/du (EB NE NU), g ((EB + NST - 1) NE), K (EB NE NW),
  * nabla^{NST-1} g (EB NE), [e; dg] (EB (NMP + NE)).
@@ -589,8 +590,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     for (i = 0; i < NOV; ++i)
         mx[i] = (v4){0.0, 0.0, 0.0, 0.0};
     zero(ne, dg);
-    for (k = 0; k + 1 < nst; ++k) /* the past before t_0: at rest, g_0 */
-        copy(ne, g, Gb + k * ne);
+    copy(nst > 0 ? (nst - 1) * ne : 0, mats[22], Gb); /* g before t_0, oldest first */
     for (n = 0; n < n_samples; ++n) {
         const double *f0 = force + n * nf;
         const double *f1 = (n + 1 < n_samples) ? f0 + nf : f0;

@@ -185,7 +185,7 @@ def _estimate_work(sz, nst, nm) -> int:
 
 
 def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate, theta_limit,
-           nzo=0):
+           nzo=0, past=None):
     run, n_w, n_iw, lib = runner
     ns, nf, no = step.A.shape[0], force.shape[1], step.Co.shape[0]
     n_samples = force.shape[0]
@@ -198,7 +198,9 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, par, step.Co, step.Dof,
             step.Dog]
     if md is not None:  # the modal path: only the modal rows and columns (nl_loop.c)
-        mats += _modal_mats(step, md)
+        # and the estimate's g before t_0, oldest first
+        mats += _modal_mats(step, md) + [np.append(past[nst - 2::-1].ravel() if nst else [],
+                                                   0.0)]
     mats = [np.asfortranarray(m, dtype=float) for m in mats]
     if md is not None:  # the loop's modal rows in the order perm, copied back after the run
         xa, x = x, x.copy()
@@ -463,7 +465,10 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         are
 
             |e_k| ~ |d_k| / (2^p - 1),      x_R,k = x_k + d_k / (2^p - 1),
-            |e_R,k| ~ |x_R,k - x_R,k-1| / (2^q - 1),  q = min(p + 1, observed order of x_R),
+            |e_R,k| ~ |x_R,k - x_R,k-1| / (2^q - 1),
+
+        q the observed order of x_R when it is within 0.25 of an integer p + 2 .. 2 p, else
+        min(p + 1, observed order) (`accuracy.extrapolation_order`),
 
         |.| the largest |difference| over time and columns relative to the largest |value|,
         taken over the stored quantities (x, v, a, g, z). The extrapolation x_R is used only
@@ -487,7 +492,10 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         the target, the estimate reached and the sub-steps, and the best solution is returned.
     x0, v0 : (N,) array_like, optional
         Displacement and velocity at t_0 (rest when None); the elements start from the
-        deformations they give, their internal states z from 0.
+        deformations they give, their internal states z from 0. The force polynomials of
+        modal_parabolic and modal_quintic then take the element forces before t_0 from the
+        motion's backward continuation (`dtdyn.nonlinear.startup`), so that they keep their
+        order from the first step.
     ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
@@ -612,6 +620,16 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     # (the states start from 0, whatever y'_0 is)
     rate0 = -rate0
     x = np.ascontiguousarray(step.X0f @ f[0] + step.X0g @ g0 + step.X0x @ q0 + step.X0v @ qd0)
+    # the force polynomials' past: g_0 at rest, else the motion's backward continuation
+    # (`startup`); the history rows end the state, g_{-1} first
+    n_hist = {"modal_parabolic": 1, "modal_quintic": 4}.get(method, 0)
+    nst = 0 if step.modal is None else step.modal["stencil"].size
+    past = np.tile(g0, (max(n_hist, nst - 1), 1))
+    if len(past) and (q0.any() or qd0.any()):
+        from dtdyn.nonlinear.startup import forces_before_start
+        past = forces_before_start(M, C, K, L, elements, force_dofs, f, dt, q0, qd0, h,
+                                   len(past))
+        x[x.size - n_hist * sz.ne:] = past[:n_hist].ravel()
     u = np.concatenate([y0] + ([yd0] if sz.need_v else []) + [np.zeros(sz.nz)])
     t1 = time.perf_counter()
 
@@ -625,7 +643,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     if used == "c":
         t2 = time.perf_counter()
         rc, out, stats, fail = _run_c(runner, step, sz, f, S, tol, max_iter, x, u, g0.copy(),
-                                      rate0.copy(), THETA_LIMIT.get(method, np.inf), nzo)
+                                      rate0.copy(), THETA_LIMIT.get(method, np.inf), nzo, past)
         t_run = time.perf_counter() - t2
         if rc == 2:
             raise RuntimeError(f"dtdyn_nl_run was compiled for other sizes than {dims}")
