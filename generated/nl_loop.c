@@ -590,7 +590,8 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     for (i = 0; i < NOV; ++i)
         mx[i] = (v4){0.0, 0.0, 0.0, 0.0};
     zero(ne, dg);
-    copy(nst > 0 ? (nst - 1) * ne : 0, mats[22], Gb); /* g before t_0, oldest first */
+    for (k = 0; k + 1 < nst; ++k) /* g before t_0, oldest first */
+        copy(ne, mats[22] + k * ne, Gb + k * ne);
     for (n = 0; n < n_samples; ++n) {
         const double *f0 = force + n * nf;
         const double *f1 = (n + 1 < n_samples) ? f0 + nf : f0;

@@ -36,6 +36,11 @@ min(p, p_obs) (never an order the runs do not show), and the extrapolation is us
 |p_obs - p| <= P_SLACK = 0.25 (the leading term dominates). Non-smooth elements (a gap's
 contact, Bouc-Wen's sign(y')) break the expansion, and the estimate is then only as good as p_obs
 says.
+
+scheme="auto" (`nonlinear_response` without a scheme, with a target): modal_quintic, whose runs
+carry an embedded estimate (`reach_embedded`), and when a run's estimate is not confirmed by the
+next one or a run fails, the Richardson sequence of modal_ramp (`AUTO_THEN`): sixth order where
+the element forces are smooth, the second-order ramp invariant where they are not.
 """
 from __future__ import annotations
 
@@ -264,7 +269,13 @@ def _finish(best, accuracy, met, all_runs, p, log, estimate_time):
     return sol
 
 
-def reach_embedded(run, accuracy, substeps, max_substeps, method, params):
+#: scheme="auto": the sixth-order modal method whose runs estimate themselves, then (its
+#: estimate not confirmed, or a run that fails) the ramp invariant's Richardson sequence, robust
+#: on kinks and hysteresis; a one-step scheme when the mass matrix is singular (no modal model)
+AUTO, AUTO_THEN, AUTO_SINGULAR_M = "modal_quintic", "modal_ramp", "average_acceleration"
+
+
+def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=None):
     """``accuracy`` for a method whose every run reports an embedded estimate (modal_quintic on
     the C backend). Run S; when its estimate exceeds the target the next S follows from the order
     p, S (estimate / accuracy)^(1/p) * 1.2 rounded up (at least 2 S when the estimate already
@@ -273,7 +284,9 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params):
     coarser run's estimate. Unconfirmed (a start away from rest, a kink, a hysteresis: the
     force polynomial's error is then not its next term), the Richardson sequence `reach` takes
     over from ``substeps``. A run that fails (NewtonError, a modal step beyond its stability
-    limit) hands over to `reach` too, as does a run without an embedded estimate."""
+    limit) hands over to `reach` too, as does a run without an embedded estimate. ``then``:
+    (run, method, params) of that Richardson sequence when it is not this method's (scheme
+    "auto": `AUTO_THEN`); its result's info["scheme"] names the method that ran."""
     p = scheme_order(method, params)
     S, runs, log, prev = substeps, [], [], None
     while S <= max_substeps:
@@ -300,7 +313,8 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params):
         grow = (est / accuracy) ** (1.0 / p) * 1.2 if math.isfinite(est) else 2.0
         prev, prev_S = r, S
         S = max(2 * S if est <= accuracy else S + 1, math.ceil(S * grow))
-    out = reach(run, accuracy, substeps, max_substeps, method, params)
+    run_r, method_r, params_r = then or (run, method, params)
+    out = reach(run_r, accuracy, substeps, max_substeps, method_r, params_r)
     out.info["accuracy_log"] = [{"substeps": s, "estimate": e, "note": n} for s, e, n in log] \
         + out.info["accuracy_log"]
     out.info.update(_timing(runs + [out]))

@@ -31,7 +31,7 @@ from __future__ import annotations
 import ctypes
 import time
 from dataclasses import dataclass, replace
-from functools import lru_cache
+from functools import lru_cache, partial
 from importlib import resources
 
 import numpy as np
@@ -394,17 +394,21 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, m
 # ----------------------------------------------------------------------------------------------
 # public entry point
 
+#: accuracy targets: the default cap on the sub-steps per sample, MAX_SUBSTEPS or as many as
+#: keep the record's DOF-steps (DOFs x sub-steps x samples) within STEP_BUDGET
+MAX_SUBSTEPS, STEP_BUDGET = 256, 10**8
+
 #: what a nonlinear run can store: motion of the output DOFs, element forces, internal states
 QUANTITIES = ("x", "v", "a", "g", "z")
 
 
 
-def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme="modal_ramp",
+def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=None,
                        substeps=1, outputs=None, quantities=("x", "v", "a"), modes=None,
                        backend="c", tol=1e-12, max_iter=30, solver="newton", compiled=False,
                        ground_acceleration=None, ground_velocity=None,
                        ground_displacement=None, influence=None, x0=None, v0=None,
-                       accuracy=None, estimate=False, max_substeps=256,
+                       accuracy=None, estimate=None, max_substeps=None,
                        **scheme_params) -> Response:
     """Forced response of M q'' + C q' + K q + L^T g = f with localized nonlinear elements.
 
@@ -422,14 +426,19 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen` (dtdyn.nonlinear.elements).
     force_dofs : sequence of int, optional
         0-based loaded DOFs (all DOFs when None).
-    scheme : str
+    scheme : str, optional
         "modal_ramp", "modal_parabolic", "modal_quintic" (the element forces as the polynomial
         of degree 5 through the last six steps: sixth order, stable up to theta = 0.222, and an
         embedded error estimate in ``info["error_estimate"]`` with every run of the C
-        backend: the next term of the polynomial carried by the linear modes, relative to the
-        largest |value| of each stored x, v, a), or a one-step scheme of the integrator library ("newmark",
-        "average_acceleration", "hht", "generalized_alpha", "wilson", ...); its parameters as
-        keywords.
+        backend: the next term of the polynomial carried by the dynamics linearized with the
+        elements' tangent stiffness, relative to the largest |value| of each stored x, v, a),
+        or a one-step scheme of the integrator library ("newmark", "average_acceleration",
+        "hht", "generalized_alpha", "wilson", ...); its parameters as keywords. Default: "modal_ramp", or with ``accuracy`` "auto": modal_quintic driven by
+        its embedded estimate; when that estimate is not confirmed by the next run (kinks,
+        hysteresis, a start far from the asymptotic range) or a run fails, the Richardson
+        sequence of modal_ramp from ``substeps``; "average_acceleration" when M is singular, and
+        modal_ramp's sequence on the casadi backend (no embedded estimate there).
+        ``info["scheme"]`` names the method that ran.
     substeps : int
         Steps per sample (h = dt / substeps); the force is interpolated linearly.
     outputs : sequence of int, optional
@@ -481,15 +490,18 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         fails (NewtonError, a modal step beyond its stability limit) restarts at twice its
         sub-steps; when every run fails, the last failure's type is raised naming the target
         and the sub-steps tried.
-    estimate : bool
-        Without a target: also run ``substeps`` / 2 (``substeps`` even) or 2 ``substeps`` (odd)
-        and report the estimate of this run's error in ``info["error_estimate"]`` (a number);
-        when the ``substeps`` / 2 run fails (NewtonError, a modal step beyond its stability
-        limit) the 2 ``substeps`` one is used. With ``accuracy`` the estimate is always
-        reported, so ``estimate=True`` adds nothing (and is no error). Must be a bool.
-    max_substeps : int
-        ``accuracy`` only: the most sub-steps tried; beyond them a DtdynAccuracyWarning names
-        the target, the estimate reached and the sub-steps, and the best solution is returned.
+    estimate : bool, optional
+        True without a target: also run ``substeps`` / 2 (``substeps`` even) or 2 ``substeps``
+        (odd) and report the estimate of this run's error in ``info["error_estimate"]`` (a
+        number); when the ``substeps`` / 2 run fails (NewtonError, a modal step beyond its
+        stability limit) the 2 ``substeps`` one is used. modal_quintic on the C backend
+        estimates within its own run (embedded) unless ``estimate=False``, which skips that
+        work (about a fifth of its loop on P4). With ``accuracy`` the estimate is always
+        reported (``estimate=True`` adds nothing; False is an error).
+    max_substeps : int, optional
+        ``accuracy`` only: the most sub-steps tried (default: as many as keep DOFs x sub-steps
+        x samples within 10^8, at least 256); beyond them a DtdynAccuracyWarning names the target, the estimate
+        reached and the sub-steps, and the best solution is returned.
     x0, v0 : (N,) array_like, optional
         Displacement and velocity at t_0 (rest when None); the elements start from the
         deformations they give, their internal states z from 0. The force polynomials of
@@ -532,22 +544,40 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     >>> r.x.shape
     (2001, 2)
     """
-    if not isinstance(estimate, (bool, np.bool_)):
+    if estimate is not None and not isinstance(estimate, (bool, np.bool_)):
         raise ValueError(f"estimate must be True or False, got {estimate!r} (a relative error "
                          f"target is accuracy=...)")
+    if accuracy is not None and estimate is False:
+        raise ValueError("estimate=False with accuracy: an accuracy target always estimates "
+                         "(drop estimate, or give substeps instead of accuracy)")
     if "error_estimate" in scheme_params:
         raise TypeError("nonlinear_response: the keyword error_estimate is now estimate "
                         "(info['error_estimate'] is still the number)")
+    if scheme is None:
+        scheme = "modal_ramp" if accuracy is None else "auto"
+    if scheme == "auto" and (accuracy is None or scheme_params):
+        raise ValueError("scheme 'auto' picks the method for an accuracy target: it needs "
+                         "accuracy=... and takes no scheme parameters"
+                         + (f" (got {', '.join(sorted(scheme_params))})" if scheme_params else ""))
     if accuracy is not None or estimate:
         from dtdyn.nonlinear import accuracy as acc
         target = None if accuracy is None else acc.check_accuracy(accuracy)
         S0 = validate.step_count("substeps", substeps)
+        if max_substeps is None:  # the record's sample count: the force's or the ground's
+            record = next((r for r in (force, ground_acceleration, ground_velocity,
+                                       ground_displacement) if r is not None), ())
+            n_steps = np.shape(record)[0] - 1 if np.ndim(record) else 1
+            max_substeps = max(MAX_SUBSTEPS, STEP_BUDGET // max(n_steps * len(M), 1))
         cap = validate.step_count("max_substeps", max_substeps)
+        auto = scheme == "auto"
+        if auto:
+            scheme = (acc.AUTO_SINGULAR_M if not _invertible(M) else
+                      acc.AUTO if backend == "c" else acc.AUTO_THEN)
         acc.scheme_order(scheme, scheme_params)
 
-        def run(S):
+        def run(S, method=scheme):
             return nonlinear_response(
-                M, C, K, force, dt, elements=elements, force_dofs=force_dofs, scheme=scheme,
+                M, C, K, force, dt, elements=elements, force_dofs=force_dofs, scheme=method,
                 substeps=S, outputs=outputs, quantities=quantities, modes=modes,
                 backend=backend, tol=tol, max_iter=max_iter, solver=solver, compiled=compiled,
                 ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
@@ -558,7 +588,8 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         if scheme == "modal_quintic" and backend == "c":  # its runs estimate themselves
             if target is None:
                 return run(S0)
-            return acc.reach_embedded(run, target, S0, cap, scheme, scheme_params)
+            then = (partial(run, method=acc.AUTO_THEN), acc.AUTO_THEN, {}) if auto else None
+            return acc.reach_embedded(run, target, S0, cap, scheme, scheme_params, then)
         if target is None:
             return acc.estimate_only(run, S0, scheme, scheme_params)
         return acc.reach(run, target, S0, cap, scheme, scheme_params)
@@ -597,6 +628,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     sz = _sizes(elements)
     h = dt / S
     step = linear_step(method, M, C, K, h, force_dofs, L, outputs, modes, sz.need_v,
+                       embedded=estimate is not False,
                        **scheme_params)
     # only the quantities asked are computed and stored: rows of x, v, a per output DOF, then
     # the element forces g (Dog = I), then the internal states z (copied by the loop)
@@ -683,6 +715,17 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                           "newton_iterations": iters, "max_residual": worst,
                           "max_theta": theta, **estimate_info,
                           **({"params": scheme_params} if scheme_params else {})}), ground)
+
+
+def _invertible(M) -> bool:
+    """M nonsingular by `linalg.dense_lu`'s test (condition number * n * eps < 1); True when M
+    cannot be read as a square matrix (the run then names the problem)."""
+    try:
+        A = np.asarray(M, dtype=float)
+        cond = np.linalg.cond(A)
+    except (TypeError, ValueError, np.linalg.LinAlgError):
+        return True
+    return bool(np.isfinite(cond) and cond * A.shape[0] * np.finfo(float).eps < 1.0)
 
 
 def _stability_error(method, k, S, fs, theta):

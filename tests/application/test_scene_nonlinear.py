@@ -241,6 +241,17 @@ BAD = {
     "nonlinear without elements": (dict(elements="", nonlinear='[scheme]\nname = "newmark"\n'
                                         '[nonlinear]\nsubsteps = 3\n'),
                                    r"the \[nonlinear\] options need at least one \[\[element\]\]"),
+    "accuracy zero": (dict(nonlinear='[nonlinear]\naccuracy = 0.0\n'),
+                      r"nonlinear\.accuracy = 0\.0: must be > 0 \(a relative error"),
+    "accuracy text": (dict(nonlinear='[nonlinear]\naccuracy = "1e-6"\n'),
+                      r"nonlinear\.accuracy = '1e-6': must be a (finite )?number"),
+    "max_substeps without accuracy": (dict(nonlinear='[nonlinear]\nmax_substeps = 8\n'),
+                                      r"nonlinear\.max_substeps = 8: caps the sub-steps an "
+                                      r"accuracy target may take; give nonlinear\.accuracy"),
+    "max_substeps zero": (dict(nonlinear='[nonlinear]\naccuracy = 1e-6\nmax_substeps = 0\n'),
+                          r"nonlinear\.max_substeps = 0: must be an integer >= 1"),
+    "auto without accuracy": (dict(nonlinear='[scheme]\nname = "auto"\n'),
+                              r"scheme\.name = 'auto': a scene with \[\[element\]\] takes"),
     "sparse model": (dict(model=P4_MODEL.replace('kind = "matrices"',
                                                  'kind = "matrices"\nsparse = true')),
                      r"model\.sparse = True: a scene with \[\[element\]\] runs on dense"),
@@ -307,6 +318,31 @@ def test_cli_prints_nonlinear_statistics(tmp_path, capsys):
     data = np.load(out)
     assert sorted(data.files) == ["a", "dof_names", "dtdyn_metadata", "outputs", "t", "x"]
     assert data["x"].shape == (2000, 2) and list(data["dof_names"]) == ["m1", "m3"]
+
+
+def test_accuracy_scene_equals_the_direct_call(tmp_path, capsys):
+    """[nonlinear] accuracy without a [scheme]: nonlinear_response(accuracy=...) with the method
+    it picks ("auto": modal_quintic on P4), bit for bit; the report and `dtdyn simulate` give
+    the method that ran, the estimate and whether the target was met."""
+    path = write_scene(tmp_path, nonlinear="[nonlinear]\naccuracy = 1e-6\n")
+    sc = load_scene(path)
+    assert sc.scheme == "auto" and sc.nonlinear == {"accuracy": 1e-6}
+    response, report = run_scene(sc)
+    p = problems.p4(2000)
+    direct = nonlinear_response(p["M"], p["C"], p["K"], p["force"], p["dt"],
+                                force_dofs=p["force_dofs"], elements=p["elements"], outputs=[1, 3],
+                                quantities=("x", "a"), accuracy=1e-6)
+    assert_array_equal(response.x, direct.x)
+    assert_array_equal(response.a, direct.a)
+    assert report["scheme"] == direct.info["scheme"] == "modal_quintic"
+    assert report["accuracy"] == 1e-6 and report["accuracy_met"]
+    assert report["error_estimate"] == direct.info["error_estimate"] <= 1e-6
+    assert main(["simulate", str(path)]) == 0
+    text = capsys.readouterr().out
+    assert "scheme auto (accuracy 1e-06, backend c)" in text
+    assert "all the runs the accuracy target took" in text
+    assert (f"error estimate: {report['error_estimate']:.3g} (relative, modal_quintic, "
+            f"{report['substeps']} substep(s) per sample; accuracy 1e-06 met)") in text
 
 
 GAP_HARD = '[[element]]\nkind = "gap"\ni = 3\ngap = 1e-4\nstiffness = 1e8\nsmoothing = 0.0\n'

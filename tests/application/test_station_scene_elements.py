@@ -69,3 +69,13 @@ def test_modal_methods_are_refused(spec):
     bad.pop("nonlinear", None)
     with pytest.raises(ValueError, match="scheme.name = 'modal_parabolic': the modal methods"):
         dd.scene_from_dict(bad)
+
+
+@pytest.mark.parametrize("spec", [SHAFT, BEAM])
+def test_accuracy_targets_are_refused(spec):
+    """An accuracy target runs on matrices and chains (nonlinear_response); the station sweep
+    runs at a fixed nonlinear.substeps: the field is named."""
+    bad = dict(spec, nonlinear={"accuracy": 1e-6})
+    with pytest.raises(ValueError, match=r"nonlinear.accuracy = 1e-06: a (shaft|beam) with "
+                                         r"\[\[element\]\] runs the DT-TMM sweep at a fixed"):
+        dd.scene_from_dict(bad)

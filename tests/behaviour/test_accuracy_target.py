@@ -481,3 +481,100 @@ def test_impact_smoothed_quintic(accuracy):
     targets (estimate 1.6x and 1.4x the true error measured)."""
     run, ref = _gap(1e-3)
     check(run(scheme="modal_quintic", accuracy=accuracy, max_substeps=4096), ref, accuracy)
+
+
+# --- scheme "auto": the method picked for the target ---------------------------------------------
+
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_auto_p4(P4, accuracy):
+    """Without a scheme, accuracy= picks modal_quintic: its 1-sub-step run's embedded estimate,
+    confirmed by the 2-sub-step run (the returned one, 7.6e-8 true, estimate 0.97x)."""
+    r = nonlinear_response(*P4["args"], **P4["kw"], accuracy=accuracy)
+    check(r, P4["ref"], accuracy)
+    assert r.info["scheme"] == "modal_quintic" and r.info["substeps"] == 2
+
+
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_auto_duffing(duffing, accuracy):
+    """modal_quintic's estimate at 1 sub-step (249) is not confirmed (the difference to the next
+    run is 0.25): modal_ramp's Richardson sequence takes over. Measured: 8 sub-steps, 1.4e-5
+    true, estimate 0.98x (1e-3); 16, 8.9e-7, 1.00x, extrapolated (1e-6)."""
+    run, ref = duffing
+    r = run(accuracy=accuracy)
+    check(r, ref, accuracy, "xv")
+    assert r.info["scheme"] == "modal_ramp"
+
+
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_auto_bouc_wen(bouc_wen, accuracy):
+    """Bouc-Wen's kinks: modal_ramp after the unconfirmed quintic estimate. Measured: 16
+    sub-steps, 7.3e-5 true, 1.16x (1e-3); 128, 4.1e-7, 0.49x (1e-6)."""
+    run, ref = bouc_wen
+    r = run(accuracy=accuracy, max_substeps=4096)
+    check(r, ref, accuracy)
+    assert r.info["scheme"] == "modal_ramp"
+
+
+@pytest.mark.parametrize("smoothing", [0.0, 1e-3])
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_auto_impact(smoothing, accuracy):
+    """The gap, with a kink and smoothed: modal_ramp after the quintic runs beyond their
+    stability limit or unconfirmed. Measured with the kink: 1024 sub-steps, 1.8e-4 true, 1.06x
+    (1e-3); 32768, 1.3e-7, 1.91x (1e-6: within the default cap, 10^8 DOF-steps over the 199
+    steps of the record); smoothed: 256, 3.3e-6, 1.03x; 512, 2.1e-7, 1.01x."""
+    run, ref = _gap(smoothing)
+    r = run(accuracy=accuracy)
+    check(r, ref, accuracy)
+    assert r.info["scheme"] == "modal_ramp"
+
+
+def test_auto_needs_a_target_and_takes_no_parameters(P4):
+    with pytest.raises(ValueError, match=r"scheme 'auto' picks the method for an accuracy "
+                                         r"target: it needs accuracy="):
+        nonlinear_response(*P4["args"], **P4["kw"], scheme="auto")
+    with pytest.raises(ValueError, match=r"takes no scheme parameters \(got beta\)"):
+        nonlinear_response(*P4["args"], **P4["kw"], scheme="auto", accuracy=1e-3, beta=0.3)
+
+
+def test_auto_with_a_singular_mass_matrix_runs_average_acceleration():
+    """A massless DOF (no modal model): the average-acceleration Newmark's Richardson sequence
+    meets the target against a truth of the same scheme, the extrapolation of its 256- and
+    512-sub-step runs (their difference 2.2e-9 here, the extrapolation's error far below):
+    6.1e-10 true at 8 sub-steps, extrapolated, estimate 6.3e-9 measured."""
+    M, C, K = np.diag([1.0, 0.0]), np.diag([0.5, 2.0]), np.array([[2e3, -1e3], [-1e3, 1e3]])
+    f = (10.0 * np.sin(2 * np.pi * 3 * np.arange(500) / 1000.0))[:, None]
+    kw = dict(force_dofs=[0], elements=[Cubic(0, k3=1e7)])
+    r = nonlinear_response(M, C, K, f, 1e-3, **kw, accuracy=1e-6)
+    assert r.info["scheme"] == "average_acceleration" and r.info["accuracy_met"]
+    a, b = (nonlinear_response(M, C, K, f, 1e-3, **kw, scheme="average_acceleration",
+                               substeps=S).x for S in (256, 512))
+    truth = b + (b - a) / 3
+    assert np.abs(r.x - truth).max() / np.abs(truth).max() <= 1e-6
+
+
+def test_quintic_estimate_false_skips_the_embedded_estimate(P4):
+    """estimate=False: modal_quintic's loop without its estimate (the solution bit for bit the
+    same: the estimate only reads it), no error_estimate in info; with accuracy it is refused."""
+    kw = dict(P4["kw"], scheme="modal_quintic", substeps=1)
+    a = nonlinear_response(*P4["args"], **kw)
+    b = nonlinear_response(*P4["args"], **kw, estimate=False)
+    for q in "xva":
+        np.testing.assert_array_equal(getattr(a, q), getattr(b, q))
+    assert "error_estimate" in a.info and "error_estimate" not in b.info
+    with pytest.raises(ValueError, match="estimate=False with accuracy: an accuracy target always "
+                                         "estimates"):
+        nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-3, estimate=False)
+
+
+def test_default_cap_is_a_step_budget(monkeypatch):
+    """max_substeps=None: 256 per sample, or as many as keep DOFs x sub-steps x samples within
+    STEP_BUDGET (10^8; here shrunk to 300 per step of the 199-step record of one DOF)."""
+    from dtdyn.nonlinear import response as R
+    assert (R.MAX_SUBSTEPS, R.STEP_BUDGET) == (256, 10**8)
+    monkeypatch.setattr(R, "STEP_BUDGET", 199 * 300)
+    run, _ = _gap(0.0)
+    with pytest.warns(DtdynAccuracyWarning, match=r"at 256 sub-steps \(max_substeps=300,"):
+        run(scheme="newmark", accuracy=1e-14, substeps=128, quantities=("x",))
+    monkeypatch.setattr(R, "STEP_BUDGET", 199 * 100)
+    with pytest.warns(DtdynAccuracyWarning, match=r"\(max_substeps=256,"):
+        run(scheme="newmark", accuracy=1e-14, substeps=128, quantities=("x",))

@@ -99,6 +99,17 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
     _table("nonlinear", tbl, _NONLINEAR_KEYS)
     methods = _nonlinear_methods()
     method, params = _DEFAULT_NONLINEAR_METHOD, {}
+    options = {}
+    if "accuracy" in tbl:  # a target instead of a sub-step count: the method picked ("auto")
+        target = finite_number("nonlinear.accuracy", tbl["accuracy"])
+        if target <= 0:
+            raise ValueError(f"nonlinear.accuracy = {tbl['accuracy']!r}: must be > 0 (a "
+                             "relative error such as 1e-6)")
+        options["accuracy"], method = target, "auto"
+        methods += ("auto",)
+    elif "max_substeps" in tbl:
+        raise ValueError(f"nonlinear.max_substeps = {tbl['max_substeps']!r}: caps the sub-steps "
+                         "an accuracy target may take; give nonlinear.accuracy too")
     if scheme_tbl is not None:
         if not isinstance(scheme_tbl, dict):
             raise ValueError(f"scheme = {scheme_tbl!r}: must be a table [scheme]")
@@ -112,13 +123,12 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
             raise ValueError(f"scheme.name = {name!r}: a scene with [[element]] takes one of "
                              f"{', '.join(map(repr, methods))} (multistep schemes cannot run "
                              "nonlinear elements)")
-        if name in MODAL:
+        if name in MODAL + ("auto",):
             _table("scheme", scheme_tbl, ("name",))
             method = name
         else:
             method, params = _scheme_name_params(scheme_tbl)
-    options = {}
-    for key in ("substeps", "max_iter"):
+    for key in ("substeps", "max_iter", "max_substeps"):
         if key in tbl:
             v = tbl[key]
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
@@ -131,7 +141,7 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
         options["tol"] = tol
     if "modes" in tbl:
         modes = tbl["modes"]
-        if method not in MODAL:
+        if method not in MODAL + ("auto",):
             raise ValueError(f"nonlinear.modes = {modes!r}: selects modal filters; method "
                              f"{method!r} integrates all DOFs (remove modes)")
         if (not isinstance(modes, list) or not modes

@@ -242,6 +242,10 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         form = sweep = None
         from dtdyn.nonlinear.linear_step import MODAL
 
+        if kind in MODEL_MODULES and "accuracy" in options:
+            raise ValueError(f"nonlinear.accuracy = {options['accuracy']!r}: a {kind} with "
+                             "[[element]] runs the DT-TMM sweep at a fixed nonlinear.substeps "
+                             "(accuracy targets run on matrices and chains)")
         if kind in MODEL_MODULES and scheme in MODAL:
             raise ValueError(f"scheme.name = {scheme!r}: the modal methods run on matrices; a "
                              f"{kind} with [[element]] runs the DT-TMM sweep with a one-step "

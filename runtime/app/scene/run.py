@@ -100,7 +100,8 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
     wall = time.perf_counter() - start
     info = response.info
     report = {
-        "title": scene.title, "scheme": scene.scheme, "scheme_params": dict(scene.scheme_params),
+        "title": scene.title, "scheme": info.get("scheme", scene.scheme),
+        "scheme_params": dict(scene.scheme_params),
         "form": None, "sweep": None, "backend": info["backend"], "dt": scene.dt,
         "n_steps": scene.n_steps, "n_dof": scene.n_dof, "n_outputs": int(scene.outputs.size),
         "run_time_s": info["run_time"], "exact_time_s": None, "max_rel_error": None,
@@ -110,6 +111,8 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
         "construct_time_s": info.get("construct_time"), "compile_time_s": info.get("compile_time"),
         "total_time_s": wall, "newton_iterations": info["newton_iterations"],
         "max_residual": info["max_residual"], "max_theta": info.get("max_theta"),
+        "accuracy": info.get("accuracy"), "accuracy_met": info.get("accuracy_met"),
+        "error_estimate": info.get("error_estimate"),
     }
     return response, report
 
@@ -141,7 +144,9 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
         adds ``substeps, elements`` (descriptions), ``setup_time_s,
         construct_time_s, compile_time_s`` (``run_time_s`` is the stepping loop alone,
         ``total_time_s`` the whole call), ``newton_iterations`` (``{"max", "mean"}`` per step;
-        None for backend "casadi"), ``max_residual`` and ``max_theta`` (``Response.info``).
+        None for backend "casadi"), ``max_residual`` and ``max_theta`` (``Response.info``),
+        ``accuracy``, ``accuracy_met`` and ``error_estimate`` (None when not asked or not
+        estimated); ``scheme`` is the method that ran (the one "auto" picked).
 
     Raises
     ------

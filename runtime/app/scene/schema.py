@@ -86,11 +86,16 @@ Nonlinear elements (dtdyn.nonlinear.elements) join the model, chain or matrices;
     i = 0                               # DOF: 0-based index (or a model.dofs name for matrices)
     j = 1                               # optional, default: ground; y = q_i - q_j (y = q_i)
     k3 = 2e7                            # and that kind's fields (below)
-    [scheme]                            # optional, default "modal_ramp"
-    name = "modal_parabolic"            # "modal_ramp", "modal_parabolic" or a one-step scheme
-                                        #   name (not houbolt, park) with its parameters
+    [scheme]                            # optional, default "modal_ramp" ("auto" with accuracy)
+    name = "modal_parabolic"            # "modal_ramp", "modal_parabolic", "modal_quintic" or a
+                                        #   one-step scheme name (not houbolt, park) with its
+                                        #   parameters; "auto" with accuracy
     [nonlinear]                         # optional
-    substeps = 1                        # optional: steps per sample, h = dt / substeps
+    substeps = 1                        # optional: steps per sample, h = dt / substeps (with
+                                        #   accuracy: the first run's)
+    accuracy = 1e-6                     # optional: a relative error target instead (the method
+                                        #   and sub-steps chosen: nonlinear_response's accuracy)
+    max_substeps = 256                  # optional, with accuracy: the most sub-steps tried
     backend = "c"                       # optional: "c" or "casadi"
     tol = 1e-12                         # optional: relative Newton tolerance
     max_iter = 30                       # optional: Newton iterations per step
@@ -221,7 +226,7 @@ _ELEMENT_FIELDS = {
 }
 #: Law's own argument names, which its constants cannot take
 _LAW_RESERVED = ("i", "j", "expression")
-_NONLINEAR_KEYS = ("substeps", "backend", "tol", "max_iter", "modes")
+_NONLINEAR_KEYS = ("substeps", "backend", "tol", "max_iter", "modes", "accuracy", "max_substeps")
 NONLINEAR_BACKENDS = ("c", "casadi")
 _DEFAULT_NONLINEAR_METHOD = "modal_ramp"
 
