@@ -166,11 +166,11 @@ P4_METHODS = [("modal_quintic", {}), ("modal_quintic", {"estimate": False}),
               ("modal_parabolic", {}), ("modal_ramp", {}), ("newmark", {}),
               ("hht", {"alpha": -0.05}), ("generalized_alpha", {"rho_inf": 0.8})]
 
-#: accuracy targets run on P4 (nonlinear_response's accuracy=, modal_parabolic)
+#: accuracy targets run on P4 (nonlinear_response's accuracy=: "auto" and modal_parabolic)
 P4_ACCURACY = (1e-3, 1e-6)
 
 
-def _modal_flops(method, r, S, ne, n_modes, no, embedded=True):
+def _modal_flops(method, r, S, ne, n_modes, no):
     """Floating-point operations per sample of the modal loop (nl_loop.c, modal_run; a
     multiply-add counted as 2): per sub-step eta = L + Bg g, Q = (Cw L + Dwf f) + (Cw Bg) g, the
     predictor, each Newton iteration (the two cubic laws' residual and Jacobian, ~24, and the
@@ -186,7 +186,7 @@ def _modal_flops(method, r, S, ne, n_modes, no, embedded=True):
     sub = 2 * nm * ne + 2 * (nw * nf + nw * ne) + nw + 2 * nw * ne + evals * 36 \
         + 2 * nm * (nh + nf) + 3 * nm + 2 * nw * nm
     per_sample = 2 * no * (nm + nf + ne)
-    if method == "modal_quintic" and embedded:
+    if "error_estimate" in r.info:  # modal_quintic's embedded estimate
         sub += (2 * 7 * ne + 8 + 2 * ne * nw * nw + 2 * nw * nm + 4 * nw * ne + 2 * ne * nw
                 + 3 * nm + 4 * nm * ne)
         per_sample += 2 * no * (nm + ne)
@@ -248,19 +248,18 @@ def bench_p4(quick=False, log=print):
     e_lin = _errors(lin.x[:, out], exact.x[:, out])[0]
 
     for method, params in P4_METHODS:
-        levels = ((1, 2) if params.get("estimate") is False else (1, 2, 4)
-                  if method == "modal_quintic" else (1, 2, 3, 4, 8))
-        for S in levels + ((12,) if method == "modal_parabolic" else ()):
+        levels = {"modal_quintic": (1, 2) if params else (1, 2, 4),
+                  "modal_parabolic": (1, 2, 3, 4, 8, 12)}.get(method, (1, 2, 3, 4, 8))
+        for S in levels:
             r, t_run, t_b = _timed(lambda: nonlinear_response(*args, **kw, scheme=method,
                                                               substeps=S, quantities=("x",),
                                                               **params), 5, loop_time)
             note = ""
             if method.startswith("modal_"):
-                fl = _modal_flops(method, r, S, len(P["elements"]), 4, 4,
-                                  params.get("estimate") is not False)
+                fl = _modal_flops(method, r, S, len(P["elements"]), 4, 4)
                 note = (f"{fl:.0f} flop/sample, {fl * (n - 1) / t_run / 1e9:.2f} GFLOP/s "
                         f"achieved")
-            label = method + (" estimate=False" if params.get("estimate") is False else "")
+            label = method + "".join(f" {k}={v}" for k, v in params.items() if k == "estimate")
             add(label, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref, t_run, t_b, note)
     # accuracy targets: the time sums every run the target needs (their C loops) and the
     # estimates' own work (differences and extrapolations of the records)

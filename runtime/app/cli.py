@@ -125,13 +125,9 @@ def _simulate_nonlinear(args, sc) -> int:
               f"{report['setup_time_s'] * 1e3:.2f} ms")
     else:  # the DT-TMM sweep of a shaft or beam
         print(f"setup: {report['setup_time_s'] * 1e3:.2f} ms")
-    if target is None:
-        print(f"run time: {report['run_time_s'] * 1e3:.2f} ms ({report['backend']} backend, "
-              f"{report['run_time_s'] / n_steps * 1e6:.3f} us per step of h = dt / "
-              f"{report['substeps']})")
-    else:  # the loops of every run the target took
-        print(f"run time: {report['run_time_s'] * 1e3:.2f} ms ({report['backend']} backend, "
-              f"all the runs the accuracy target took)")
+    per = (f"{report['run_time_s'] / n_steps * 1e6:.3f} us per step of h = dt / "
+           f"{report['substeps']}" if target is None else "all the runs the target took")
+    print(f"run time: {report['run_time_s'] * 1e3:.2f} ms ({report['backend']} backend, {per})")
     iters = report["newton_iterations"]
     its = ("not counted (casadi backend)" if iters is None
            else f"max {iters['max']}, mean {iters['mean']:.3f}")
@@ -139,8 +135,8 @@ def _simulate_nonlinear(args, sc) -> int:
     if report["error_estimate"] is not None:
         met = ("" if target is None else
                f"; accuracy {target:g} {'met' if report['accuracy_met'] else 'NOT met'}")
-        print(f"error estimate: {report['error_estimate']:.3g} (relative, {report['scheme']}, "
-              f"{report['substeps']} substep(s) per sample{met})")
+        print(f"error estimate: {report['error_estimate']:.3g} (relative; ran "
+              f"{report['scheme']}, {report['substeps']} substep(s) per sample{met})")
     for what, path in (("results", args.out), ("plot", args.plot)):
         if path:
             print(f"{what}: {path}")

@@ -19,10 +19,12 @@ extrapolations R_k, R_{k-1}:
 q_obs = log2(|R_{k-1} - R_{k-2}| / |R_k - R_{k-1}|) from four levels S_0 .. 8 S_0, and used only
 when q >= p + 0.5: an extrapolation whose gain the runs do not show is never returned (a
 kink, as a gap's contact, gives runs that look second order between two levels while their
-extrapolation is worse than the finest run). q is the integer p + 2 .. 2 p when q_obs is within
-P_SLACK of it (the even-power schemes show 4; modal_parabolic on a Duffing oscillator 5.9-6.0:
-its h^4 and h^5 terms are small), else min(p + 1, q_obs): a non-integer q_obs above p + 1 is
-not trusted (Bouc-Wen's kinks give 2.0, 3.5, 1.4 at successive levels).
+extrapolation is worse than the finest run). q is the integer p + 2 .. 2 p when q_obs at this
+level and at the one before (five levels) are both within P_SLACK of it (the even-power schemes
+show 4; modal_parabolic on a Duffing oscillator 5.97 and 5.91: its h^4 and h^5 terms are
+small), else min(p + 1, q_obs): a single observation above p + 1 is not trusted (Bouc-Wen's
+kinks give 3.96, 2.0, 3.5, 1.4 at successive levels). With q capped at p + 1 the estimate is
+high by up to (2^(p+2) - 1) / (2^(p+1) - 1) = 2.1 for the even-power schemes.
 
 Norm: for each stored quantity (x, v, a, g, z) the largest |difference| over time and columns,
 relative to the largest |value| of that quantity; the estimate is the largest over the
@@ -90,12 +92,23 @@ def scheme_order(method, params) -> int:
     return int(TABLE[method]["order"])
 
 
-def extrapolation_order(p, q_obs) -> float:
+def _order(coarse, fine) -> float:
+    """log2(coarse / fine): the observed order of two successive differences (inf when the finer
+    one is 0, -inf when the coarser one is)."""
+    if fine <= 0:
+        return np.inf
+    return math.log2(coarse / fine) if coarse > 0 else -np.inf
+
+
+def extrapolation_order(p, q_obs, q_before=None) -> float:
     """The order q the extrapolation's estimate assumes (module docstring): the integer
-    p + 2 .. 2 p within P_SLACK of the observed q_obs (an expansion whose next terms vanish:
-    even powers only, or a parabola whose h^4 and h^5 terms are small), else min(p + 1, q_obs)."""
+    p + 2 .. 2 p when the observed q_obs and the level before's q_before are both within P_SLACK
+    of it (an expansion whose next terms vanish: even powers only, or a parabola whose h^4 and
+    h^5 terms are small; one observation is not enough: Bouc-Wen's kinks showed 3.96 once),
+    else min(p + 1, q_obs)."""
     q_int = round(q_obs) if math.isfinite(q_obs) else 0
-    if p + 2 <= q_int <= 2 * p and abs(q_obs - q_int) <= P_SLACK:
+    if (p + 2 <= q_int <= 2 * p and q_before is not None
+            and max(abs(q_obs - q_int), abs(q_before - q_int)) <= P_SLACK):
         return float(q_int)
     return min(p + 1, q_obs)
 
@@ -217,8 +230,7 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
             diffs.append(difference(r, runs[-2]))
             p_eff, p_obs = p, None
             if k >= 2:
-                ratio = diffs[-2] / diffs[-1] if diffs[-1] > 0 else np.inf
-                p_obs = math.log2(ratio) if ratio > 0 else -np.inf
+                p_obs = _order(diffs[-2], diffs[-1])
                 p_eff = min(p, p_obs)
             plain = diffs[-1] / (2**p_eff - 1) if p_eff > 0 else np.inf
             cands = [(plain, r, False)]
@@ -227,8 +239,9 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
                 R = extrapolation(-1)
                 dR.append(difference(R, extrapolation(-2)))
                 if len(dR) >= 2:  # four levels: the extrapolation's own observed order
-                    ratio = dR[-2] / dR[-1] if dR[-1] > 0 else np.inf
-                    q = extrapolation_order(p, math.log2(ratio) if ratio > 0 else -np.inf)
+                    q_obs = [_order(dR[i - 1], dR[i]) for i in range(max(1, len(dR) - 2),
+                                                                      len(dR))]
+                    q = extrapolation_order(p, q_obs[-1], q_obs[0] if len(q_obs) > 1 else None)
                     if q >= p + 0.5:  # the extrapolation gains over the finest run
                         cands.append((dR[-1] / (2**q - 1), R, True))
             else:
@@ -239,7 +252,7 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
                 best = (est, sol, is_R, S, p_obs, list(levels))
             spent[0] += time.perf_counter() - t_est
             if est <= accuracy:
-                return _finish(best, accuracy, True, all_runs, p, log, spent[0])
+                return _finish(best, accuracy, True, all_runs, p, log, spent[0], method)
         else:
             log.append((S, None, None))
         S *= 2
@@ -256,16 +269,21 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
         f"accuracy={accuracy:g} not reached: the error estimate is {best[0]:.3g} at "
         f"{best[3]} sub-steps (max_substeps={max_substeps}, scheme {method!r}, order {p}); "
         f"raise max_substeps or use a higher-order scheme", DtdynAccuracyWarning, stacklevel=3)
-    return _finish(best, accuracy, False, all_runs, p, log, spent[0])
+    return _finish(best, accuracy, False, all_runs, p, log, spent[0], method)
 
 
-def _finish(best, accuracy, met, all_runs, p, log, estimate_time):
+def _log(log, method):
+    """accuracy_log entries of (sub-steps, estimate, note) tuples, with the method that ran."""
+    return [{"substeps": s, "estimate": e, "note": n, "scheme": method} for s, e, n in log]
+
+
+def _finish(best, accuracy, met, all_runs, p, log, estimate_time, method):
     est, sol, is_R, S, p_obs, used = best
     sol.info.update(_timing(all_runs))
     sol.info.update(substeps=S, error_estimate=float(est), accuracy=accuracy, accuracy_met=met,
                     extrapolated=is_R, error_order=p, observed_order=p_obs,
                     estimate_substeps=used, estimate_time=estimate_time,
-                    accuracy_log=[{"substeps": s, "estimate": e, "note": n} for s, e, n in log])
+                    accuracy_log=_log(log, method))
     return sol
 
 
@@ -281,9 +299,9 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=N
     p, S (estimate / accuracy)^(1/p) * 1.2 rounded up (at least 2 S when the estimate already
     meets it: the confirmation). A run's estimate is trusted only when the next run confirms
     it: the difference of the two runs (~ the coarser one's error) within a factor 3 of the
-    coarser run's estimate. Unconfirmed (a start away from rest, a kink, a hysteresis: the
-    force polynomial's error is then not its next term), the Richardson sequence `reach` takes
-    over from ``substeps``. A run that fails (NewtonError, a modal step beyond its stability
+    coarser run's estimate. Unconfirmed (a kink, a hysteresis, a run far from the asymptotic
+    range: the force polynomial's error is then not its next term), the Richardson sequence
+    `reach` takes over from ``substeps``. A run that fails (NewtonError, a modal step beyond its stability
     limit) hands over to `reach` too, as does a run without an embedded estimate. ``then``:
     (run, method, params) of that Richardson sequence when it is not this method's (scheme
     "auto": `AUTO_THEN`); its result's info["scheme"] names the method that ran."""
@@ -292,9 +310,11 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=N
     while S <= max_substeps:
         try:
             r = run(S)
-        except (NewtonError, DtdynStepStabilityError):
+        except (NewtonError, DtdynStepStabilityError) as exc:
+            log.append((S, None, f"{type(exc).__name__}: the Richardson sequence takes over"))
             break
         if r.info.get("error_estimate_kind") != "embedded":
+            log.append((S, None, "no embedded estimate: the Richardson sequence takes over"))
             break
         runs.append(r)
         est = r.info["error_estimate"]
@@ -307,7 +327,7 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=N
                 break
             if est <= accuracy:
                 return _finish((est, r, False, S, None, [prev_S, S]), accuracy, True, runs, p,
-                               log, 0.0)
+                               log, 0.0, method)
         else:
             log.append((S, est, None))
         grow = (est / accuracy) ** (1.0 / p) * 1.2 if math.isfinite(est) else 2.0
@@ -315,7 +335,6 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=N
         S = max(2 * S if est <= accuracy else S + 1, math.ceil(S * grow))
     run_r, method_r, params_r = then or (run, method, params)
     out = reach(run_r, accuracy, substeps, max_substeps, method_r, params_r)
-    out.info["accuracy_log"] = [{"substeps": s, "estimate": e, "note": n} for s, e, n in log] \
-        + out.info["accuracy_log"]
+    out.info["accuracy_log"] = _log(log, method) + out.info["accuracy_log"]
     out.info.update(_timing(runs + [out]))
     return out

@@ -100,7 +100,7 @@ def _shifted(Phi, G0, G1, S, Z0, Zx, Zv, L, out, need_v, nf, h, direct=None) -> 
 
 
 def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False,
-                embedded=True) -> LinearStep:
+                estimate=True) -> LinearStep:
     """Ramp-invariant modal model: eta_k = lam eta_{k-1} + N0 p_k + N1 p_{k-1}, p = X_f U u.
 
     Displacement q = sum_r w_r Re(psi_r eta_r) (w = 2 for a conjugate pair, 1 for a real pole),
@@ -109,7 +109,7 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False,
     N2 X_f U_g (g_k - 2 g_{k-1} + g_{k-2}) (generated/nl_modal.py), the state then carrying
     g_{k-1} (g_{-1} = g_0 at rest); ``parabolic="quintic"`` weighs g_{k-4} .. g_k by W_j
     (generated/nl_modal.py, quintic_coefficients), the state carrying g_{k-1} .. g_{k-4}, and
-    adds the estimate's input E X_f U_g (step.modal["Eg"]; ``embedded=False``: none).
+    adds the estimate's input E X_f U_g (step.modal["Eg"]; ``estimate=False``: none).
     """
     from scipy.linalg import block_diag
 
@@ -177,7 +177,7 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False,
         Z0 = np.vstack([Z0, np.tile(E_g, (nh // ne, 1))])
         Zx, Zv = (np.vstack([Z, np.zeros((nh, Z.shape[1]))]) for Z in (Zx, Zv))
     step = _shifted(Phi, G0, G1, S, Z0, Zx, Zv, L, out, need_v, nf, h, direct)
-    if parabolic == "quintic" and embedded:
+    if parabolic == "quintic" and estimate:
         from dtdyn.generated.nl_modal import QUINTIC_STENCIL
         step.modal = modal_structure(step, nm, Eg, QUINTIC_STENCIL)
     else:
@@ -246,8 +246,8 @@ def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearSte
 
 
 def linear_step(method, M, C, K, h, force_dofs, L, outputs, modes=None, need_v=False,
-                embedded=True, **scheme_params) -> LinearStep:
-    """The shifted linear model of one step h for ``method`` (module docstring); ``embedded``:
+                estimate=True, **scheme_params) -> LinearStep:
+    """The shifted linear model of one step h for ``method`` (module docstring); ``estimate``:
     modal_quintic's embedded estimate (False: its loop skips it)."""
     n = M.shape[0]
     U = np.hstack([np.eye(n)[:, force_dofs], -L.T])  # DOF forces of u = [f; g]
@@ -257,7 +257,7 @@ def linear_step(method, M, C, K, h, force_dofs, L, outputs, modes=None, need_v=F
                              f"{', '.join(sorted(scheme_params))}")
         return _modal_step(M, C, K, h, U, L, outputs, modes, need_v, len(force_dofs),
                            parabolic={"modal_ramp": False, "modal_parabolic": "parabolic",
-                                      "modal_quintic": "quintic"}[method], embedded=embedded)
+                                      "modal_quintic": "quintic"}[method], estimate=estimate)
     if modes is not None:
         raise ValueError(f"modes selects modal filters; scheme {method!r} integrates all DOFs")
     return _scheme_step(M, C, K, h, U, L, outputs, method, scheme_params, need_v,

@@ -152,11 +152,12 @@ def _pad_rows(a):
     return np.vstack([a, np.zeros((n - a.shape[0], a.shape[1]))])
 
 
-def _modal_mats(step: LinearStep, md) -> list:
+def _modal_mats(step: LinearStep, md, past) -> list:
     """The modal path's matrices (nl_loop.c, modal_run): the modal rows in the order ``perm``
     (T's 2 x 2 blocks first) and padded, as the output rows, to a multiple of 4: [dia off], [H Bf],
     Eg, the stencil, Bg, Bs = Bg + sum_i H_i (g's weights summed: the estimate's), Cw^T, Cw Bg,
-    [Co Dof Dog]; the estimate's Cw e_k from e_{k-1}: (Cw T)^T, Cw Eg, Cw Bs."""
+    [Co Dof Dog]; the estimate's Cw e_k from e_{k-1}: (Cw T)^T, Cw Eg, Cw Bs; and its forces
+    before t_0, oldest first (``past``: g_{-1}, g_{-2}, ... as rows)."""
     nm, nh, ne, p = md["nm"], md["nh"], step.Bg.shape[1], md["perm"]
     Bg, Cw = step.Bg[:nm][p], step.Cw[:, :nm][:, p]
     H, Eg = md["H"][p], md["Eg"][p]
@@ -169,7 +170,8 @@ def _modal_mats(step: LinearStep, md) -> list:
             np.concatenate([md["stencil"], [0.0]]), _pad_rows(Bg), _pad_rows(Bs),
             _pad_rows(Cw.T), Cw @ Bg,
             _pad_rows(np.hstack([step.Co[:, :nm][:, p], step.Dof, step.Dog])),
-            _pad_rows((Cw @ T).T), Cw @ Eg, Cw @ Bs]
+            _pad_rows((Cw @ T).T), Cw @ Eg, Cw @ Bs,
+            np.append(past[md["stencil"].size - 2::-1] if md["stencil"].size else [], 0.0)]
 
 
 #: steps per block of the modal loop's embedded estimate (nl_loop.c, estimate_block)
@@ -185,7 +187,7 @@ def _estimate_work(sz, nst, nm) -> int:
 
 
 def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate, theta_limit,
-           nzo=0, past=None):
+           nzo, past):
     run, n_w, n_iw, lib = runner
     ns, nf, no = step.A.shape[0], force.shape[1], step.Co.shape[0]
     n_samples = force.shape[0]
@@ -198,9 +200,7 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, par, step.Co, step.Dof,
             step.Dog]
     if md is not None:  # the modal path: only the modal rows and columns (nl_loop.c)
-        # and the estimate's g before t_0, oldest first
-        mats += _modal_mats(step, md) + [np.append(past[nst - 2::-1].ravel() if nst else [],
-                                                   0.0)]
+        mats += _modal_mats(step, md, past)
     mats = [np.asfortranarray(m, dtype=float) for m in mats]
     if md is not None:  # the loop's modal rows in the order perm, copied back after the run
         xa, x = x, x.copy()
@@ -433,12 +433,13 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         backend: the next term of the polynomial carried by the dynamics linearized with the
         elements' tangent stiffness, relative to the largest |value| of each stored x, v, a),
         or a one-step scheme of the integrator library ("newmark", "average_acceleration",
-        "hht", "generalized_alpha", "wilson", ...); its parameters as keywords. Default: "modal_ramp", or with ``accuracy`` "auto": modal_quintic driven by
-        its embedded estimate; when that estimate is not confirmed by the next run (kinks,
+        "hht", "generalized_alpha", "wilson", ...); its parameters as keywords.
+        Default: "modal_ramp", or with ``accuracy`` "auto": modal_quintic driven by its
+        embedded estimate; when that estimate is not confirmed by the next run (kinks,
         hysteresis, a start far from the asymptotic range) or a run fails, the Richardson
-        sequence of modal_ramp from ``substeps``; "average_acceleration" when M is singular, and
-        modal_ramp's sequence on the casadi backend (no embedded estimate there).
-        ``info["scheme"]`` names the method that ran.
+        sequence of modal_ramp from ``substeps``; "average_acceleration" when M is singular,
+        and modal_ramp's sequence on the casadi backend (no embedded estimate there).
+        ``info["scheme"]`` names the method that ran (docs/accuracy.md).
     substeps : int
         Steps per sample (h = dt / substeps); the force is interpolated linearly.
     outputs : sequence of int, optional
@@ -496,17 +497,18 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         number); when the ``substeps`` / 2 run fails (NewtonError, a modal step beyond its
         stability limit) the 2 ``substeps`` one is used. modal_quintic on the C backend
         estimates within its own run (embedded) unless ``estimate=False``, which skips that
-        work (about a fifth of its loop on P4). With ``accuracy`` the estimate is always
+        work (about a quarter of its loop on P4). With ``accuracy`` the estimate is always
         reported (``estimate=True`` adds nothing; False is an error).
     max_substeps : int, optional
-        ``accuracy`` only: the most sub-steps tried (default: as many as keep DOFs x sub-steps
-        x samples within 10^8, at least 256); beyond them a DtdynAccuracyWarning names the target, the estimate
-        reached and the sub-steps, and the best solution is returned.
+        ``accuracy`` only: the most sub-steps tried (default: as many as keep DOFs x
+        sub-steps x samples within 10^8, at least 256); beyond them a DtdynAccuracyWarning
+        names the target, the estimate reached and the sub-steps, and the best solution is
+        returned.
     x0, v0 : (N,) array_like, optional
         Displacement and velocity at t_0 (rest when None); the elements start from the
         deformations they give, their internal states z from 0. The force polynomials of
         modal_parabolic and modal_quintic then take the element forces before t_0 from the
-        motion's backward continuation (`dtdyn.nonlinear.startup`), so that they keep their
+        motion's smooth continuation (`dtdyn.nonlinear.startup`), so that they keep their
         order from the first step.
     ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
         Support acceleration at the force's times, linear between samples: the DOFs are then
@@ -547,6 +549,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     if estimate is not None and not isinstance(estimate, (bool, np.bool_)):
         raise ValueError(f"estimate must be True or False, got {estimate!r} (a relative error "
                          f"target is accuracy=...)")
+    estimate = None if estimate is None else bool(estimate)
     if accuracy is not None and estimate is False:
         raise ValueError("estimate=False with accuracy: an accuracy target always estimates "
                          "(drop estimate, or give substeps instead of accuracy)")
@@ -563,16 +566,21 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         from dtdyn.nonlinear import accuracy as acc
         target = None if accuracy is None else acc.check_accuracy(accuracy)
         S0 = validate.step_count("substeps", substeps)
-        if max_substeps is None:  # the record's sample count: the force's or the ground's
+        if max_substeps is None:  # the record's steps: the force's or the ground's
             record = next((r for r in (force, ground_acceleration, ground_velocity,
-                                       ground_displacement) if r is not None), ())
-            n_steps = np.shape(record)[0] - 1 if np.ndim(record) else 1
-            max_substeps = max(MAX_SUBSTEPS, STEP_BUDGET // max(n_steps * len(M), 1))
+                                       ground_displacement) if r is not None), None)
+            n_steps = np.shape(record)[0] - 1 if np.ndim(record) else 0
+            max_substeps = max(MAX_SUBSTEPS,
+                               STEP_BUDGET // max(n_steps * np.shape(M)[0], 1))
         cap = validate.step_count("max_substeps", max_substeps)
         auto = scheme == "auto"
         if auto:
             scheme = (acc.AUTO_SINGULAR_M if not _invertible(M) else
                       acc.AUTO if backend == "c" else acc.AUTO_THEN)
+            if modes is not None and scheme == acc.AUTO_SINGULAR_M:
+                raise ValueError(f"modes = {modes!r} selects modal filters, but M is singular: "
+                                 f"scheme 'auto' runs {acc.AUTO_SINGULAR_M!r} on all DOFs "
+                                 "(remove modes)")
         acc.scheme_order(scheme, scheme_params)
 
         def run(S, method=scheme):
@@ -628,7 +636,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     sz = _sizes(elements)
     h = dt / S
     step = linear_step(method, M, C, K, h, force_dofs, L, outputs, modes, sz.need_v,
-                       embedded=estimate is not False,
+                       estimate=estimate is not False,
                        **scheme_params)
     # only the quantities asked are computed and stored: rows of x, v, a per output DOF, then
     # the element forces g (Dog = I), then the internal states z (copied by the loop)
@@ -652,16 +660,18 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     # (the states start from 0, whatever y'_0 is)
     rate0 = -rate0
     x = np.ascontiguousarray(step.X0f @ f[0] + step.X0g @ g0 + step.X0x @ q0 + step.X0v @ qd0)
-    # the force polynomials' past: g_0 at rest, else the motion's backward continuation
+    # the force polynomials' past: g_0 at rest, else the motion's continuation
     # (`startup`); the history rows end the state, g_{-1} first
-    n_hist = {"modal_parabolic": 1, "modal_quintic": 4}.get(method, 0)
-    nst = 0 if step.modal is None else step.modal["stencil"].size
+    n_hist = step.modal["nh"] // sz.ne if step.modal else 0
+    nst = step.modal["stencil"].size if step.modal else 0
     past = np.tile(g0, (max(n_hist, nst - 1), 1))
     if len(past) and (q0.any() or qd0.any()):
         from dtdyn.nonlinear.startup import forces_before_start
-        past = forces_before_start(M, C, K, L, elements, force_dofs, f, dt, q0, qd0, h,
-                                   len(past))
-        x[x.size - n_hist * sz.ne:] = past[:n_hist].ravel()
+        smooth = forces_before_start(M, C, K, L, elements, force_dofs, f, dt, q0, qd0, h,
+                                     len(past))
+        if smooth is not None:
+            past = smooth
+            x[x.size - n_hist * sz.ne:] = past[:n_hist].ravel()
     u = np.concatenate([y0] + ([yd0] if sz.need_v else []) + [np.zeros(sz.nz)])
     t1 = time.perf_counter()
 
@@ -718,14 +728,17 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
 
 
 def _invertible(M) -> bool:
-    """M nonsingular by `linalg.dense_lu`'s test (condition number * n * eps < 1); True when M
-    cannot be read as a square matrix (the run then names the problem)."""
+    """M nonsingular by `linalg.dense_lu`'s test; True when M is not a square matrix of
+    numbers (the run then names the problem)."""
     try:
-        A = np.asarray(M, dtype=float)
-        cond = np.linalg.cond(A)
-    except (TypeError, ValueError, np.linalg.LinAlgError):
+        A = linalg.square_matrix("M", M)
+    except (TypeError, ValueError):
         return True
-    return bool(np.isfinite(cond) and cond * A.shape[0] * np.finfo(float).eps < 1.0)
+    try:
+        linalg.dense_lu(A, "M")
+    except ValueError:
+        return False
+    return True
 
 
 def _stability_error(method, k, S, fs, theta):

@@ -15,6 +15,7 @@ from dtdyn.linear.chain import chain_matrices
 from dtdyn.app.cli import main
 from dtdyn.nonlinear.elements import Cubic, Gap, Law
 from dtdyn.nonlinear.reference import reference_response
+from dtdyn._engine.errors import DtdynAccuracyWarning
 from dtdyn.nonlinear.response import DtdynStepStabilityError, NewtonError, nonlinear_response
 from dtdyn.app.scene import load_scene, run_scene
 
@@ -251,7 +252,8 @@ BAD = {
     "max_substeps zero": (dict(nonlinear='[nonlinear]\naccuracy = 1e-6\nmax_substeps = 0\n'),
                           r"nonlinear\.max_substeps = 0: must be an integer >= 1"),
     "auto without accuracy": (dict(nonlinear='[scheme]\nname = "auto"\n'),
-                              r"scheme\.name = 'auto': a scene with \[\[element\]\] takes"),
+                              r"scheme\.name = 'auto': picks the method for an accuracy "
+                              r"target; give nonlinear\.accuracy too"),
     "sparse model": (dict(model=P4_MODEL.replace('kind = "matrices"',
                                                  'kind = "matrices"\nsparse = true')),
                      r"model\.sparse = True: a scene with \[\[element\]\] runs on dense"),
@@ -340,9 +342,26 @@ def test_accuracy_scene_equals_the_direct_call(tmp_path, capsys):
     assert main(["simulate", str(path)]) == 0
     text = capsys.readouterr().out
     assert "scheme auto (accuracy 1e-06, backend c)" in text
-    assert "all the runs the accuracy target took" in text
-    assert (f"error estimate: {report['error_estimate']:.3g} (relative, modal_quintic, "
+    assert "all the runs the target took" in text
+    assert (f"error estimate: {report['error_estimate']:.3g} (relative; ran modal_quintic, "
             f"{report['substeps']} substep(s) per sample; accuracy 1e-06 met)") in text
+    out = tmp_path / "r.npz"
+    assert main(["simulate", str(path), "--out", str(out)]) == 0
+    from dtdyn import load_result
+    run = load_result(out).meta["run"]
+    assert run["scheme"] == "modal_quintic" and run["accuracy_met"] and run["accuracy"] == 1e-6
+
+
+def test_accuracy_scene_not_met_says_so(tmp_path, capsys):
+    """A target beyond max_substeps: the run warns, `dtdyn simulate` prints "NOT met" with the
+    estimate reached, and the results are still written (exit code 0: the response is the best
+    one reached, and says what it is)."""
+    path = write_scene(tmp_path, nonlinear='[scheme]\nname = "newmark"\n[nonlinear]\n'
+                                           'accuracy = 1e-9\nmax_substeps = 2\n')
+    with pytest.warns(DtdynAccuracyWarning, match=r"accuracy=1e-09 not reached"):
+        assert main(["simulate", str(path)]) == 0
+    text = capsys.readouterr().out
+    assert "ran newmark, 2 substep(s) per sample; accuracy 1e-09 NOT met)" in text
 
 
 GAP_HARD = '[[element]]\nkind = "gap"\ni = 3\ngap = 1e-4\nstiffness = 1e8\nsmoothing = 0.0\n'

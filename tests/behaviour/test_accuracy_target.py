@@ -77,11 +77,12 @@ def test_p4_accuracy_1e6(P4, backend):
 @pytest.mark.parametrize("scheme", ["modal_ramp", "newmark"])
 def test_p4_accuracy_1e6_second_order_schemes(P4, scheme):
     """Second-order schemes, both symmetric (even powers only): their extrapolations show order
-    4 = p + 2, which the estimate takes (`accuracy.extrapolation_order`; capped at p + 1 = 3 it
-    was 2.14x high): 0.999x the true error measured for both."""
+    4 = p + 2; the estimate takes it only when two successive levels show it (newmark: 1.00x
+    measured), else q = p + 1 = 3, high by up to (2^4 - 1) / (2^3 - 1) = 2.14 (modal_ramp:
+    2.14x measured): inside the factor 3, on the safe side."""
     r = nonlinear_response(*P4["args"], **P4["kw"], scheme=scheme, accuracy=1e-6)
     e, est = check(r, P4["ref"], 1e-6)
-    assert r.info["extrapolated"] and 0.9 <= est / e <= 1.1
+    assert r.info["extrapolated"] and 0.9 <= est / e <= 2.2
 
 
 def test_p4_accuracy_1e3_is_the_plain_run_at_two_substeps(P4):
@@ -138,23 +139,38 @@ def test_duffing(duffing, scheme, backend, accuracy):
     check(run(scheme=scheme, backend=backend, accuracy=accuracy), ref, accuracy, "xv")
 
 
-def test_duffing_modal_parabolic(duffing):
+def test_duffing_modal_parabolic_1e6(duffing):
     """modal_parabolic released from x0 != 0, its force parabola's g_{-1} from the motion's
-    backward continuation (dtdyn.nonlinear.startup): third order from the start (2.99-3.00
-    observed between 4 and 64 sub-steps), its extrapolation of order ~5.9 (5.97, 5.91 observed:
-    the estimate uses that, not p + 1 = 4, which was 3.9x high). Measured: 1e-3 at 16 sub-steps
-    (2.8e-6 true, estimate 0.95x), 1e-6 at 32 (6.0e-8 true, 0.76x), both extrapolated."""
+    continuation (dtdyn.nonlinear.startup): third order from the start (3.00 observed between 4
+    and 64 sub-steps); its extrapolation shows order ~6 at two successive levels (5.97, 5.91),
+    which the estimate then takes: 1e-6 at 32 sub-steps, extrapolated, 9.8e-8 true, estimate
+    2.1x."""
     run, ref = duffing
-    for accuracy in (1e-3, 1e-6):
-        r = run(scheme="modal_parabolic", accuracy=accuracy)
-        check(r, ref, accuracy, "xv")
-        assert r.info["extrapolated"]
+    r = run(scheme="modal_parabolic", accuracy=1e-6)
+    check(r, ref, 1e-6, "xv")
+    assert r.info["extrapolated"]
+
+
+@pytest.mark.xfail(strict=True, reason="one observation of the extrapolation's order (5.97 at 16 "
+                   "sub-steps) is not trusted (Bouc-Wen's kinks showed 3.96 once), so q = p + 1 "
+                   "= 4: the estimate is 3.2x above the true 3.1e-6 (the safe side)")
+def test_duffing_modal_parabolic_1e3(duffing):
+    run, ref = duffing
+    check(run(scheme="modal_parabolic", accuracy=1e-3), ref, 1e-3, "xv")
+
+
+def test_duffing_modal_parabolic_1e3_is_met(duffing):
+    """What the xfail above leaves: 1e-3 is met (3.1e-6), the estimate high, never low."""
+    run, ref = duffing
+    r = run(scheme="modal_parabolic", accuracy=1e-3)
+    e = error(r, ref, "xv")
+    assert r.info["accuracy_met"] and e <= r.info["error_estimate"] <= 4 * e <= 4e-3
 
 
 def test_duffing_past_forces_restore_the_order(duffing):
-    """With a constant g_{-1} = g_0 the parabola erred by O(h) at the first step and the
-    observed order fell from 2.9 towards 2 (2.4 at 128 -> 256 sub-steps); with the backward
-    continuation it is 3 at every level (against the solve_ivp reference)."""
+    """A constant g_{-1} = g_0 leaves the parabola an O(h) error at the first step and the
+    observed order falls towards 2; with the motion's continuation it is 3 at every level
+    (against the solve_ivp reference)."""
     run, ref = duffing
     errs = [error(run(scheme="modal_parabolic", substeps=S), ref, "xv") for S in (8, 16, 32, 64)]
     orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
@@ -194,7 +210,7 @@ def test_impact_with_a_kink(scheme, accuracy):
 def test_impact_smoothed():
     """The same gap with a smooth contact (smoothing 1e-3): second order again (1.96-2.00
     observed), the extrapolation is used (of the 512 and 1024 sub-step runs: x, v and a to
-    1e-6 need more than the default cap of 256)."""
+    1e-6 need more than 256 sub-steps)."""
     run, ref = _gap(1e-3)
     r = run(scheme="newmark", accuracy=1e-6, max_substeps=4096)
     check(r, ref, 1e-6)
@@ -436,32 +452,14 @@ def test_p4_quintic_accuracy(P4, accuracy):
     assert r.info["substeps"] == 2 and r.info["estimate_substeps"] == [1, 2]
 
 
-def test_duffing_quintic_accuracy_1e3(duffing):
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_duffing_quintic(duffing, accuracy):
     """Released from x0, v0 (k3 x0^2 = 10 k): the 1-sub-step run is far outside the asymptotic
-    range (error 0.25, embedded estimate 249), so the difference to the next run does not
-    confirm its estimate and the Richardson sequence takes over: 4 sub-steps, 1.8e-5 true,
-    estimate 2.6x (order min(6, 6.45 observed))."""
+    range (error 0.21, embedded estimate 76), so the difference to the next run does not
+    confirm its estimate and the Richardson sequence takes over: 1e-3 at 4 sub-steps (6.0e-6
+    true, estimate 1.8x), 1e-6 at 8 (5.6e-8, 1.7x)."""
     run, ref = duffing
-    check(run(scheme="modal_quintic", accuracy=1e-3), ref, 1e-3, "xv")
-
-
-@pytest.mark.xfail(strict=True, reason="modal_quintic on the Duffing released at k3 x0^2 = 10 k "
-                   "converges faster than order 6 before its asymptotic range (observed 6.45, "
-                   "7.33 between 2, 4, 8 sub-steps): the Richardson estimate assuming 6 is 7.4x "
-                   "above the true 3.8e-8 at 8 sub-steps (on the safe side; the embedded one is "
-                   "5.8x above)")
-def test_duffing_quintic_accuracy_1e6(duffing):
-    run, ref = duffing
-    check(run(scheme="modal_quintic", accuracy=1e-6), ref, 1e-6, "xv")
-
-
-def test_duffing_quintic_met_at_1e6(duffing):
-    """What the xfail above leaves: the target is met (3.8e-8 at 8 sub-steps), with an estimate
-    that is high, never low."""
-    run, ref = duffing
-    r = run(scheme="modal_quintic", accuracy=1e-6)
-    e = error(r, ref, "xv")
-    assert r.info["accuracy_met"] and e <= 1e-6 and e <= r.info["error_estimate"] <= 10 * e
+    check(run(scheme="modal_quintic", accuracy=accuracy), ref, accuracy, "xv")
 
 
 @pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
@@ -490,29 +488,33 @@ def test_auto_p4(P4, accuracy):
     """Without a scheme, accuracy= picks modal_quintic: its 1-sub-step run's embedded estimate,
     confirmed by the 2-sub-step run (the returned one, 7.6e-8 true, estimate 0.97x)."""
     r = nonlinear_response(*P4["args"], **P4["kw"], accuracy=accuracy)
-    check(r, P4["ref"], accuracy)
+    e, est = check(r, P4["ref"], accuracy)
     assert r.info["scheme"] == "modal_quintic" and r.info["substeps"] == 2
+    assert 0.8 <= est / e <= 1.2
 
 
 @pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
 def test_auto_duffing(duffing, accuracy):
     """modal_quintic's estimate at 1 sub-step (249) is not confirmed (the difference to the next
-    run is 0.25): modal_ramp's Richardson sequence takes over. Measured: 8 sub-steps, 1.4e-5
-    true, estimate 0.98x (1e-3); 16, 8.9e-7, 1.00x, extrapolated (1e-6)."""
+    run is 0.21): modal_ramp's Richardson sequence takes over. Measured, both extrapolated: 8
+    sub-steps, 1.4e-5 true, estimate 2.11x (1e-3: the extrapolation's order seen at one level
+    only, so q = p + 1); 16, 8.9e-7, 1.00x (1e-6)."""
     run, ref = duffing
     r = run(accuracy=accuracy)
-    check(r, ref, accuracy, "xv")
-    assert r.info["scheme"] == "modal_ramp"
+    e, est = check(r, ref, accuracy, "xv")
+    assert r.info["scheme"] == "modal_ramp" and 0.8 <= est / e <= 2.2
+    schemes = [entry["scheme"] for entry in r.info["accuracy_log"]]
+    assert schemes[0] == "modal_quintic" and schemes[-1] == "modal_ramp"
 
 
 @pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
 def test_auto_bouc_wen(bouc_wen, accuracy):
     """Bouc-Wen's kinks: modal_ramp after the unconfirmed quintic estimate. Measured: 16
-    sub-steps, 7.3e-5 true, 1.16x (1e-3); 128, 4.1e-7, 0.49x (1e-6)."""
+    sub-steps, 7.3e-5 true, 2.50x (1e-3); 128, 4.1e-7, 0.49x (1e-6), both extrapolated."""
     run, ref = bouc_wen
     r = run(accuracy=accuracy, max_substeps=4096)
-    check(r, ref, accuracy)
-    assert r.info["scheme"] == "modal_ramp"
+    e, est = check(r, ref, accuracy)
+    assert r.info["scheme"] == "modal_ramp" and 0.4 <= est / e <= 2.6
 
 
 @pytest.mark.parametrize("smoothing", [0.0, 1e-3])
@@ -521,11 +523,11 @@ def test_auto_impact(smoothing, accuracy):
     """The gap, with a kink and smoothed: modal_ramp after the quintic runs beyond their
     stability limit or unconfirmed. Measured with the kink: 1024 sub-steps, 1.8e-4 true, 1.06x
     (1e-3); 32768, 1.3e-7, 1.91x (1e-6: within the default cap, 10^8 DOF-steps over the 199
-    steps of the record); smoothed: 256, 3.3e-6, 1.03x; 512, 2.1e-7, 1.01x."""
+    steps of the record); smoothed: 256, 3.3e-6, 2.21x; 512, 2.1e-7, 1.01x."""
     run, ref = _gap(smoothing)
     r = run(accuracy=accuracy)
-    check(r, ref, accuracy)
-    assert r.info["scheme"] == "modal_ramp"
+    e, est = check(r, ref, accuracy)
+    assert r.info["scheme"] == "modal_ramp" and 0.9 <= est / e <= 2.3
 
 
 def test_auto_needs_a_target_and_takes_no_parameters(P4):

@@ -99,7 +99,7 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
     _table("nonlinear", tbl, _NONLINEAR_KEYS)
     methods = _nonlinear_methods()
     method, params = _DEFAULT_NONLINEAR_METHOD, {}
-    options = {}
+    options, modal = {}, MODAL + ("auto",)  # "auto" picks a modal method where it can
     if "accuracy" in tbl:  # a target instead of a sub-step count: the method picked ("auto")
         target = finite_number("nonlinear.accuracy", tbl["accuracy"])
         if target <= 0:
@@ -119,11 +119,14 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
                                  "scene with [[element]] runs nonlinear_response (set "
                                  "nonlinear.backend): remove the key")
         name = scheme_tbl.get("name")
+        if name == "auto" and "accuracy" not in options:
+            raise ValueError("scheme.name = 'auto': picks the method for an accuracy target; "
+                             "give nonlinear.accuracy too")
         if name not in methods:
             raise ValueError(f"scheme.name = {name!r}: a scene with [[element]] takes one of "
                              f"{', '.join(map(repr, methods))} (multistep schemes cannot run "
                              "nonlinear elements)")
-        if name in MODAL + ("auto",):
+        if name in modal:
             _table("scheme", scheme_tbl, ("name",))
             method = name
         else:
@@ -141,7 +144,7 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
         options["tol"] = tol
     if "modes" in tbl:
         modes = tbl["modes"]
-        if method not in MODAL + ("auto",):
+        if method not in modal:
             raise ValueError(f"nonlinear.modes = {modes!r}: selects modal filters; method "
                              f"{method!r} integrates all DOFs (remove modes)")
         if (not isinstance(modes, list) or not modes

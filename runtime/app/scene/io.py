@@ -24,8 +24,21 @@ def save_results(path: str | os.PathLike, response: Response, scene: Scene) -> P
         names = tuple(scene.dof_label(d) for d in response.outputs)
     stored = dataclasses.replace(  # only what the scene asks for
         response, **{q: None for q in QUANTITIES if q not in scene.quantities},
-        meta={"scene": scene_summary(scene), **response.meta}, dof_names=names)
+        meta={"scene": scene_summary(scene), **run_summary(response), **response.meta},
+        dof_names=names)
     return stored.save(path)
+
+
+def run_summary(response: Response) -> dict:
+    """What the run chose, where the scene left it open (nonlinear.accuracy: the method "auto"
+    picked, its sub-steps, the estimate reached), as {"run": {...}}; {} for a plain run."""
+    info = response.info
+    if info.get("accuracy") is None:
+        return {}
+    return {"run": {"scheme": info["scheme"], "substeps": int(info["substeps"]),
+                    "error_estimate": float(info["error_estimate"]),
+                    "accuracy": float(info["accuracy"]),
+                    "accuracy_met": bool(info["accuracy_met"])}}
 
 
 def scene_summary(scene: Scene) -> dict:

@@ -90,9 +90,10 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
                 outputs=scene.outputs, quantities=scene.quantities, scheme=scene.scheme,
                 **scene.nonlinear, **scene.scheme_params)
     except (nonlinear.NewtonError, nonlinear.DtdynStepStabilityError) as exc:
-        substeps = scene.nonlinear.get("substeps", 1)
-        raise type(exc)(f"{scene.source}: {exc} (the scene has nonlinear.substeps = "
-                        f"{substeps})") from None
+        has = ", ".join(f"nonlinear.{k} = {scene.nonlinear[k]:g}"
+                        for k in ("accuracy", "max_substeps") if k in scene.nonlinear)
+        has = has or f"nonlinear.substeps = {scene.nonlinear.get('substeps', 1)}"
+        raise type(exc)(f"{scene.source}: {exc} (the scene has {has})") from None
     except ValueError as exc:
         if str(exc).startswith("modes"):  # the range of nonlinear.modes is known only here
             raise ValueError(f"{scene.source}: nonlinear.{exc}") from None

@@ -95,7 +95,8 @@ Nonlinear elements (dtdyn.nonlinear.elements) join the model, chain or matrices;
                                         #   accuracy: the first run's)
     accuracy = 1e-6                     # optional: a relative error target instead (the method
                                         #   and sub-steps chosen: nonlinear_response's accuracy)
-    max_substeps = 256                  # optional, with accuracy: the most sub-steps tried
+    max_substeps = 1024                 # optional, with accuracy: the most sub-steps tried
+                                        #   (default: 10^8 DOF-steps over the record, >= 256)
     backend = "c"                       # optional: "c" or "casadi"
     tol = 1e-12                         # optional: relative Newton tolerance
     max_iter = 30                       # optional: Newton iterations per step
