@@ -206,7 +206,7 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
     const double lim_r = tol * (scale_r > DBL_MIN ? scale_r : DBL_MIN);
     const double lim_u = tol * (scale_u > DBL_MIN ? scale_u : DBL_MIN);
     long it;
-    int i, k, j;
+    int i, k;
     double Jf[NU_ > 2 ? NU_ * NU_ : 1];
     (void)Jf;
     for (it = 0;; ++it) {
@@ -255,47 +255,13 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
                 u[i] += r[i];
             continue;
         }
-        /* J d = -r by LU with partial pivoting (lu_solve, unrolled) on a copy: J stays the
-           Jacobian at u (the modal loop's estimate uses it) */
+        /* J d = -r by lu_solve (inlined at the constant NU_) on a copy: J stays the Jacobian
+           at u (the modal loop's estimate uses it) */
         copy(NU_ * NU_, J, Jf);
-        for (k = 0; k < NU_; ++k) {
-            double best = fabs(Jf[k * NU_ + k]);
-            int p = k;
-            for (i = k + 1; i < NU_; ++i)
-                if (fabs(Jf[k * NU_ + i]) > best) {
-                    best = fabs(Jf[k * NU_ + i]);
-                    p = i;
-                }
-            if (!(best > 0.0))
-                return -1;
-            if (p != k) {
-                double t;
-                for (j = 0; j < NU_; ++j) {
-                    t = Jf[j * NU_ + k];
-                    Jf[j * NU_ + k] = Jf[j * NU_ + p];
-                    Jf[j * NU_ + p] = t;
-                }
-                t = r[k];
-                r[k] = r[p];
-                r[p] = t;
-            }
-            for (i = k + 1; i < NU_; ++i) {
-                const double l = Jf[k * NU_ + i] / Jf[k * NU_ + k];
-                Jf[k * NU_ + i] = l;
-                for (j = k + 1; j < NU_; ++j)
-                    Jf[j * NU_ + i] -= l * Jf[j * NU_ + k];
-                r[i] -= l * r[k];
-            }
-        }
-        for (i = NU_ - 1; i >= 0; --i) {
-            double s = r[i];
-            for (j = i + 1; j < NU_; ++j)
-                s -= Jf[j * NU_ + i] * r[j];
-            r[i] = s / Jf[i * NU_ + i];
-        }
+        if (lu_solve(NU_, Jf, r))
+            return -1;
         for (i = 0; i < NU_; ++i) {
             const double a = fabs(r[i]);
-            r[i] = -r[i];
             d = (a > d || a != a) ? a : d;
         }
         if (d <= lim_u)
