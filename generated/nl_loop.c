@@ -272,6 +272,41 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
             u[i] += r[i];
     }
 }
+/*
+ * One step's Newton solve (newton_fixed) with the loops' bookkeeping: the residual scale raised
+ * by Q before and by the accepted u after, the statistics (stats[0..2, 4]: most and summed
+ * iterations, largest residual and theta), and the failures: 1 (no convergence, or non-finite
+ * element forces or rates: stats[3] the residual), 3 (theta = |B0 dg/dy|_inf, the elements'
+ * stiffness, beyond theta_limit: stats[3] theta), else 0.
+ */
+static inline int solve_step(double *restrict u, double *restrict r, double *restrict J,
+                             const double *restrict Q, double *scale, double *scale_u, double tol,
+                             long max_iter, const double **arg, double **res, nl_int *iw, double *w,
+                             double theta_limit, double *stats) {
+    double rn = INFINITY, theta = 0.0;
+    long it;
+    *scale = grow(*scale, norm_inf(NL_NW, Q));
+    it = newton_fixed(u, r, J, *scale, *scale_u, tol, max_iter, arg, res, iw, w, &rn, &theta);
+    if (it < 0 || !(norm_inf(NL_NE, res[2]) < INFINITY) || !(norm_inf(NL_NZ, res[3]) < INFINITY)) {
+        stats[3] = rn;
+        return 1;
+    }
+    *scale_u = grow(*scale_u, norm_inf(NU_, u));
+    *scale = grow(*scale, *scale_u);
+    stats[1] += (double)it;
+    if ((double)it > stats[0])
+        stats[0] = (double)it;
+    if (rn > stats[2])
+        stats[2] = rn;
+    if (theta > stats[4])
+        stats[4] = theta;
+    if (theta > theta_limit) {
+        stats[3] = theta;
+        return 3;
+    }
+    return 0;
+}
+
 #ifdef NL_NM
 /*
  * The modal path of dtdyn_nl_run (compiled with NL_NM, NL_NH, NL_NST). The state is
@@ -529,7 +564,8 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     const double *arg[5];
     double *res[5];
     double scale = 0.0, scale_u = 0.0;
-    long n, j, i, k, c, it;
+    long n, j, i, k, c;
+    int rc;
     arg[0] = u;
     arg[1] = Q;
     arg[2] = zold;
@@ -566,7 +602,6 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             return DTDYN_STOPPED;
         for (j = 0; j < nsub; ++j) {
             const double cf = (double)j / (double)S;
-            double rn = INFINITY, theta = 0.0;
             for (i = 0; i < nf; ++i)
                 f[i] = hist[nh + i] = f0[i] + cf * (f1[i] - f0[i]);
             /* eta_k = L_k + Bg g_{k-1}; Q_k = (Cw L_k + Dwf f_k) + (Cw Bg) g_{k-1} */
@@ -603,27 +638,11 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             for (i = 0; i < nw; ++i)
                 CL[i] = vdot(NMV, CwT + i * NMP, Lx);
             /* Newton under the shared acceptance rule (newton_solve), scale fixed per step */
-            scale = grow(scale, norm_inf(nw, Q));
-            it = newton_fixed(u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork, cw, &rn,
-                              &theta);
-            if (it < 0 || !(norm_inf(ne, g) < INFINITY) || !(norm_inf(nz, rate) < INFINITY)) {
+            rc = solve_step(u, r, J, Q, &scale, &scale_u, tol, max_iter, arg, res, iwork, cw,
+                            theta_limit, stats);
+            if (rc) {
                 fail[0] = n * S + j;
-                stats[3] = rn;
-                return 1;
-            }
-            scale_u = grow(scale_u, norm_inf(nu, u));
-            scale = grow(scale, scale_u);
-            stats[1] += (double)it;
-            if ((double)it > stats[0])
-                stats[0] = (double)it;
-            if (rn > stats[2])
-                stats[2] = rn;
-            if (theta > stats[4])
-                stats[4] = theta;
-            if (theta > theta_limit) { /* theta = |B0 dg/dy|_inf: the elements' stiffness */
-                fail[0] = n * S + j;
-                stats[3] = theta;
-                return 3;
+                return rc;
             }
             if (nst > 0) { /* the estimate, a block at a time: J, dg/du and g of the step */
                 copy(nu * nu, J, Jb + kb * nu * nu);
@@ -700,7 +719,8 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     const double *arg[5];
     double *res[5];
     double scale = 0.0, scale_u = 0.0;
-    long n, j, i, it;
+    long n, j, i;
+    int rc;
     arg[0] = u;
     arg[1] = Q;
     arg[2] = zold;
@@ -731,7 +751,6 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
             return DTDYN_STOPPED;
         for (j = 0; j < nsub; ++j) {
             const double c = (double)j / (double)S;
-            double rn = INFINITY, theta = 0.0;
             for (i = 0; i < nf; ++i)
                 f[i] = f0[i] + c * (f1[i] - f0[i]);
             /* Q = Cw x + Dwf f; predictor u = [Q + Dwg g_prev; z_prev + h z'_prev] */
@@ -745,27 +764,11 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
             for (i = 0; i < nz; ++i)
                 u[nw + i] = zold[i] + par[nw * ne] * rold[i];
             /* Newton under the shared acceptance rule (newton_solve), scale fixed per step */
-            scale = grow(scale, norm_inf(nw, Q));
-            it = newton_fixed(u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork, cw, &rn,
-                              &theta);
-            if (it < 0 || !(norm_inf(ne, g) < INFINITY) || !(norm_inf(nz, rate) < INFINITY)) {
+            rc = solve_step(u, r, J, Q, &scale, &scale_u, tol, max_iter, arg, res, iwork, cw,
+                            theta_limit, stats);
+            if (rc) {
                 fail[0] = n * S + j;
-                stats[3] = rn;
-                return 1;
-            }
-            scale_u = grow(scale_u, norm_inf(nu, u));
-            scale = grow(scale, scale_u);
-            stats[1] += (double)it;
-            if ((double)it > stats[0])
-                stats[0] = (double)it;
-            if (rn > stats[2])
-                stats[2] = rn;
-            if (theta > stats[4])
-                stats[4] = theta;
-            if (theta > theta_limit) { /* theta = |B0 dg/dy|_inf: the elements' stiffness */
-                fail[0] = n * S + j;
-                stats[3] = theta;
-                return 3;
+                return rc;
             }
             if (j == 0) {
                 double *o = out + n * (no + nzo);

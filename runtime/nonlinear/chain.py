@@ -24,6 +24,7 @@ from types import SimpleNamespace
 from importlib import resources
 
 import numpy as np
+import scipy.sparse as sps
 
 from dtdyn._engine import cbuild
 from dtdyn._engine import ground as support
@@ -75,7 +76,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
     m, k, c, kg, cg = chain
     N = m.size
     dt = validate.positive_scalar("dt", dt)
-    force, force_dofs, ground = support.prepare(np.diag(m), force, force_dofs, N,
+    force, force_dofs, ground = support.prepare(sps.diags(m), force, force_dofs, N,
                                                 ground_acceleration, influence, dt=dt,
                                                 ground_velocity=ground_velocity,
                                                 ground_displacement=ground_displacement)
