@@ -7,7 +7,7 @@
 2. Cost per step of the C kernel for N = 1e2 .. 1e5 masses: the fitted slope of log(time) over
    log(N) should be 1 (O(N) per step).
 3. C against NumPy backends: largest relative difference (should be <= 1e-12; both form the
-   same terms in the same order, the C recurrences take two masses a round).
+   same terms in the same order, the C recurrences take four masses a round).
 
 Times: minimum of repeats after one warm-up run (compilation excluded and reported apart).
 Usage: python benchmarks/chain_speed.py [--quick]
@@ -98,7 +98,7 @@ def main(quick=False):
     for form, (d, scheme) in worst.items():
         print(f"   {form} form, largest relative difference: {d:.1e} ({scheme}) (target <= 1e-12)")
     print("   (both evaluate the same generated expressions in the same order; the C kernel's\n"
-          "    recurrences take two masses a round, so the backends agree to rounding)")
+          "    recurrences take four masses a round, so the backends agree to rounding)")
 
 
 if __name__ == "__main__":

@@ -25,8 +25,8 @@
  * The loop itself is chain_loop.h (shared by every scheme); this file defines the scheme's
  * derived expressions for it.
  * The stable sweep forms the same terms in the same order as the NumPy backend; its two
- * recurrences use fma() and advance two stations a round (with the pair's product g_n g_{n+1}),
- * so the backends agree to rounding, not bitwise.
+ * recurrences use fma() and advance four stations a round (with the products of their g), and it
+ * multiplies by 1 / den where NumPy divides, so the backends agree to rounding, not bitwise.
  */
 /* acceleration form */
 #define CHAIN_RUN run_acceleration

@@ -149,7 +149,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
             g[n] = CHAIN_G;
             S_L = CHAIN_S_L;
             hDelta[n] = CHAIN_HD;
-            den[n] = CHAIN_DEN;
+            den[n] = 1.0 / (CHAIN_DEN); /* its reciprocal: a product per station and step */
             if (sweep) {
                 CHAIN_ERROR_STEP
             }
@@ -198,10 +198,12 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
             /* the stable sweep in two passes over the stations (header of dtdyn.derive.dttmm),
                block by block (CHAIN_BLOCK stations, temporaries in L1): back,
                R_L = g R_R + (hD Delta + g (F - beta)), keeping R_R + ((F - beta) - Delta) in b;
-               forward, u_n = g u_{n-1} + b_n / den_n, and the stations' new states. The terms
-               before and the update after the recurrences are vector loops; each recurrence
-               takes two stations a round, x_{n-1} = g_{n-1} g_n x_{n+1} + (g_{n-1} h_n + h_{n-1})
-               (back; forward alike), so that one fma latency is paid per two stations. */
+               forward, u_n = g u_{n-1} + b_n / den_n (den holds 1 / den_n), and the stations'
+               new states. The terms before and the update after the recurrences are vector
+               loops; each recurrence takes four stations a round, x_{n-4} = (g_{n-4} .. g_{n-1})
+               x_n + (the same recurrence from 0 over the four), each station's x one fma from
+               the round's x_n (back; forward alike), so that one fma latency is paid per four
+               stations. */
             double R_R = 0.0, un = 0.0;
             long lo, hi, t, cur = n_byidx - 1;
             for (hi = N; hi > 0; hi = lo) {
@@ -234,28 +236,36 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
                     else
                         CHAIN_TERMS(0, 1, 1)
                 }
-                for (n = hi - 1; n > lo; n -= 2) {   /* two stations a round (below) */
-                    const double R_in = R_R, Rn = fma(g[n], R_in, th[n - lo]);
-                    b[n] = R_in + tw[n - lo];
-                    b[n - 1] = Rn + tw[n - 1 - lo];
-                    R_R = fma(g[n - 1] * g[n], R_in, fma(g[n - 1], th[n - lo], th[n - 1 - lo]));
+                for (n = hi - 1; n - 3 >= lo; n -= 4) {   /* four stations a round (above) */
+                    const double *gg = g + n - 3, *hh = th + n - 3 - lo, *ww = tw + n - 3 - lo;
+                    const double R_in = R_R, g2 = gg[2] * gg[3], g1 = gg[1] * g2;
+                    const double c2 = fma(gg[2], hh[3], hh[2]), c1 = fma(gg[1], c2, hh[1]);
+                    b[n] = R_in + ww[3];
+                    b[n - 1] = fma(gg[3], R_in, hh[3]) + ww[2];
+                    b[n - 2] = fma(g2, R_in, c2) + ww[1];
+                    b[n - 3] = fma(g1, R_in, c1) + ww[0];
+                    R_R = fma(gg[0] * g1, R_in, fma(gg[0], c1, hh[0]));
                 }
-                if (n == lo) {
-                    b[n] = R_R + tw[0];
-                    R_R = fma(g[n], R_R, th[0]);
+                for (; n >= lo; --n) {
+                    b[n] = R_R + tw[n - lo];
+                    R_R = fma(g[n], R_R, th[n - lo]);
                 }
             }
             for (lo = 0; lo < N; lo = hi) {
                 hi = lo + CHAIN_BLOCK < N ? lo + CHAIN_BLOCK : N;
                 for (i = lo; i < hi; ++i)
-                    th[i - lo] = b[i] / den[i];
-                for (n = lo; n + 1 < hi; n += 2) {
-                    const double u_in = un;
-                    tw[n - lo] = fma(g[n], u_in, th[n - lo]);
-                    un = fma(g[n] * g[n + 1], u_in, fma(g[n + 1], th[n - lo], th[n + 1 - lo]));
-                    tw[n + 1 - lo] = un;
+                    th[i - lo] = b[i] * den[i];
+                for (n = lo; n + 3 < hi; n += 4) {
+                    const double *gg = g + n, *hh = th + n - lo;
+                    double *uu = tw + n - lo;
+                    const double u_in = un, g1 = gg[0] * gg[1], g2 = g1 * gg[2];
+                    const double c1 = fma(gg[1], hh[0], hh[1]), c2 = fma(gg[2], c1, hh[2]);
+                    uu[0] = fma(gg[0], u_in, hh[0]);
+                    uu[1] = fma(g1, u_in, c1);
+                    uu[2] = fma(g2, u_in, c2);
+                    un = uu[3] = fma(g2 * gg[3], u_in, fma(gg[3], c2, hh[3]));
                 }
-                if (n < hi) {
+                for (; n < hi; ++n) {
                     un = fma(g[n], un, th[n - lo]);
                     tw[n - lo] = un;
                 }

@@ -12,7 +12,8 @@ Stable sweep (Riccati): S_L = kappa*(S_R - mu)/(-S_R + kappa + mu);  R_L = g R_R
 h = (Delta*S_R - Delta*mu - F_n*kappa + beta_n*kappa)/(S_R - kappa - mu);  forward u_n = a u_{n-1} + b,  a = -kappa/(S_R - kappa - mu),  b = (Delta - F_n - R_R + beta_n)/(S_R - kappa - mu).
 Evaluated (both backends) as R_L = g R_R + (hD Delta + g (F - beta)), hD = (S_R - mu)/(S_R - kappa - mu), and
 u_n = g u_{n-1} + (R_R + ((F - beta) - Delta)) / den, den = -S_R + kappa + mu (a = g); the C kernel
-advances both recurrences two stations a round, so the backends agree to rounding.
+advances both recurrences four stations a round and multiplies by 1 / den, so the backends agree
+to rounding.
 The time loop runs in Python but every station loop is a vector operation or one LAPACK
 triangular banded solve (dtbtrs), so a step costs O(N).
 
