@@ -442,18 +442,28 @@ static inline void tangent_gain(const double *restrict J, const double *restrict
  * outputs at the samples (independent).
  */
 #ifdef __GNUC__
-/* kept out of line: inlined, it crowds the Newton loop's registers */
+/* kept out of line: inlined, it crowds the Newton loop's registers. An estimate, not the
+   solution, so its products and sums may fuse (fma; GCC here, clang's pragma in the body):
+   fewer instructions on P4's recursion, which is bound by both latency and throughput */
+#ifdef __clang__
+#define ESTIMATE_ATTRIBUTES __attribute__((noinline))
+#else
+#define ESTIMATE_ATTRIBUTES __attribute__((noinline, optimize("fp-contract=fast")))
+#endif
 static void estimate_block(long nb, long k0, long S, const double *const *mats,
                            const double *restrict Jb, const double *restrict Gub,
                            double *restrict Gb, double *restrict Kb, double *restrict Db,
                            double *restrict Xb, v4 *restrict e_io, double *restrict dg_io,
-                           v4 *restrict mx) __attribute__((noinline));
+                           v4 *restrict mx) ESTIMATE_ATTRIBUTES;
 #endif
 static void estimate_block(long nb, long k0, long S, const double *const *mats,
                            const double *restrict Jb, const double *restrict Gub,
                            double *restrict Gb, double *restrict Kb, double *restrict Db,
                            double *restrict Xb, v4 *restrict e_io, double *restrict dg_io,
                            v4 *restrict mx) {
+#ifdef __clang__
+#pragma clang fp contract(fast)
+#endif
     enum { ne = NL_NE, nw = NL_NW, nu = NL_NW + NL_NZ, nm = NL_NM, nf = NL_NF, nst = NL_NST };
     enum { nx = NMP + NL_NE }; /* a row of Xb: e_k (padded), dg_k */
     const double *Tb = mats[10], *Eg = mats[12], *stencil = mats[13], *Bs = mats[15];

@@ -370,8 +370,11 @@ def test_chain_equals_mck_path(form, scheme, params, elements):
                                        Cubic(3, k3=2e7)]])
 def test_chain_c_loop_equals_python_loop(monkeypatch, elements):
     """generated/nl_chain.c runs the same steps as the Python loop around the same C sweep and
-    the same compiled residual: equal bitwise (measured), held to 1e-14; and a Newton failure
-    names the same step."""
+    the same compiled residual, but sums g U and solves J d = r in its own order (NumPy: BLAS
+    and LAPACK), so the two differ by roundings, which the hysteresis carries along the record.
+    Held to 1e-14 of the largest value, or to 4x what the Python loop itself moves when the
+    force changes by one rounding (relative 2^-52): measured 0.97x (x) to 0.90x (a) of that
+    with Bouc-Wen. A Newton failure names the same step."""
     import dtdyn.nonlinear.chain as NC
     m, k, c, f = _chain_case()
     a = NC.nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3], elements=elements,
@@ -379,10 +382,14 @@ def test_chain_c_loop_equals_python_loop(monkeypatch, elements):
     monkeypatch.setattr(NC, "_c_driver", lambda *args: None)
     b = NC.nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3], elements=elements,
                                     substeps=2)
+    b1 = NC.nonlinear_chain_response(m, k, c, f * (1 + np.finfo(float).eps), 0.001,
+                                     force_dofs=[3], elements=elements, substeps=2)
     assert (a.info["loop"], b.info["loop"]) == ("c", "python")
     assert a.info["newton_iterations"] == b.info["newton_iterations"]
     for q in "xva":
-        assert np.abs(getattr(a, q) - getattr(b, q)).max() <= 1e-14 * np.abs(getattr(b, q)).max()
+        spread = np.abs(getattr(b1, q) - getattr(b, q)).max()
+        bound = max(1e-14 * np.abs(getattr(b, q)).max(), 4 * spread)
+        assert np.abs(getattr(a, q) - getattr(b, q)).max() <= bound, q
     monkeypatch.undo()
     messages = []
     for driver in (NC._c_driver, lambda *args: None):
