@@ -37,6 +37,12 @@ class Run:
     run_time: float
     build_time: float
     note: str = ""
+    #: the linear baseline's median timed in alternation with this run's repeats (P4)
+    linear_time: float | None = None
+
+    def price(self, t_lin):
+        """run time / linear baseline: the paired one where measured, else ``t_lin``."""
+        return self.run_time / (self.linear_time or t_lin)
 
 
 def _errors(x, ref):
@@ -66,11 +72,30 @@ def _timed(fn, repeats, key=None):
     return out, (med if key is None else statistics.median(own)), max(first - med, 0.0)
 
 
+def _paired(fn, linear, repeats, key):
+    """(result, median run time, build time, median linear time): as `_timed`, with each of the
+    ``repeats`` calls preceded by one of ``linear() -> its time``, so that the ratio of the two
+    medians sees the same stretch of a shared machine."""
+    t0 = time.perf_counter()
+    out = fn()
+    first = time.perf_counter() - t0
+    walls, own, lin = [], [], []
+    for _ in range(repeats):
+        lin.append(linear())
+        t0 = time.perf_counter()
+        out = fn()
+        walls.append(time.perf_counter() - t0)
+        own.append(key(out))
+    return (out, statistics.median(own), max(first - statistics.median(walls), 0.0),
+            statistics.median(lin))
+
+
 def _recorder(runs, log):
-    """add(method, family, setting, x, x_ref, run time, build time, note): append and log a Run."""
-    def add(method, family, setting, x, ref, t_run, t_build, note=""):
+    """add(method, family, setting, x, x_ref, run time, build time, note[, linear time]):
+    append and log a Run."""
+    def add(method, family, setting, x, ref, t_run, t_build, note="", t_lin=None):
         e_max, e_rms = _errors(x, ref)
-        runs.append(Run(method, family, setting, e_max, e_rms, t_run, t_build, note))
+        runs.append(Run(method, family, setting, e_max, e_rms, t_run, t_build, note, t_lin))
         log(f"  {method:32s} {setting:>12s}  max {e_max:9.2e}  rms {e_rms:9.2e}  "
             f"{t_run * 1e3:9.3f} ms  {note}")
     return add
@@ -240,9 +265,15 @@ def bench_p4(quick=False, log=print):
         return modal_filter_response(L["M"], L["C"], L["K"], L["force"], L["dt"],
                                      force_dofs=L["force_dofs"], quantities=("x",))
     lin, _, lin_build = _timed(linear, 0)
-    # measured before and after the nonlinear runs (the machine is shared: the median of both
-    # sets is less exposed to a busy stretch than either)
+    # measured before, between (one before each timed nonlinear run: `_paired`) and after the
+    # nonlinear runs (the machine is shared: each run's ratio uses the linear runs alternating
+    # with its own)
     lin_times = [loop_time(linear()) for _ in range(5)]
+
+    def lin_time():
+        t = loop_time(linear())
+        lin_times.append(t)
+        return t
     exact = exact_response(L["M"], L["C"], L["K"], L["force"], L["dt"],
                            force_dofs=L["force_dofs"], quantities=("x",))
     e_lin = _errors(lin.x[:, out], exact.x[:, out])[0]
@@ -251,22 +282,23 @@ def bench_p4(quick=False, log=print):
         levels = {"modal_quintic": (1, 2) if params else (1, 2, 4),
                   "modal_parabolic": (1, 2, 3, 4, 8, 12)}.get(method, (1, 2, 3, 4, 8))
         for S in levels:
-            r, t_run, t_b = _timed(lambda: nonlinear_response(*args, **kw, scheme=method,
-                                                              substeps=S, quantities=("x",),
-                                                              **params), 5, loop_time)
+            r, t_run, t_b, t_l = _paired(lambda: nonlinear_response(
+                *args, **kw, scheme=method, substeps=S, quantities=("x",), **params),
+                lin_time, 5, loop_time)
             note = ""
             if method.startswith("modal_"):
                 fl = _modal_flops(method, r, S, len(P["elements"]), 4, 4)
                 note = (f"{fl:.0f} flop/sample, {fl * (n - 1) / t_run / 1e9:.2f} GFLOP/s "
                         f"achieved")
             label = method + "".join(f" {k}={v}" for k, v in params.items() if k == "estimate")
-            add(label, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref, t_run, t_b, note)
+            add(label, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref, t_run, t_b, note,
+                t_l)
     # accuracy targets: the time sums every run the target needs (their C loops) and the
     # estimates' own work (differences and extrapolations of the records)
     for scheme in ("auto", "modal_parabolic"):
         for target in P4_ACCURACY:
-            r, t_run, t_b = _timed(lambda: nonlinear_response(
-                *args, **kw, scheme=scheme, accuracy=target, quantities=("x",)), 5,
+            r, t_run, t_b, t_l = _paired(lambda: nonlinear_response(
+                *args, **kw, scheme=scheme, accuracy=target, quantities=("x",)), lin_time, 5,
                 lambda r: r.info["run_time"] + r.info["estimate_time"])
             i = r.info
             add(f"{scheme} accuracy", "nonlinear (C)", f"accuracy={target:g}", r.x[:, out],
@@ -278,7 +310,8 @@ def bench_p4(quick=False, log=print):
     lin_times += [loop_time(linear()) for _ in range(5)]
     t_lin = statistics.median(lin_times)
     log(f"  linear P4L modal filters (ramp)  max {e_lin:9.2e} (vs matrix exponential)  "
-        f"{t_lin * 1e3:9.3f} ms  (median of 10: 5 before, 5 after the nonlinear runs)")
+        f"{t_lin * 1e3:9.3f} ms  (median of {len(lin_times)}: 5 before, one before each timed "
+        "nonlinear run, 5 after)")
     for S in (4, 8):
         r, t_run, t_b = _timed(lambda: nonlinear_response(
             *args, **kw, scheme="newmark", substeps=S, backend="casadi", solver="fast_newton",
@@ -318,8 +351,8 @@ def bench_p4(quick=False, log=print):
             f"; DOP853 vs Radau on 300 samples: {radau:.1e})", "targets": [1e-3, 1e-6],
             "linear_time": t_lin, "linear_build": lin_build, "linear_error": e_lin,
             "linear": "modal filter response (ramp invariant, C) of P4L, P4 without its cubic "
-                      "springs, on the same record (median of 10 runs, 5 before and 5 after the "
-                      "nonlinear ones),"}
+                      f"springs, on the same record ({len(lin_times)} runs: 5 before, one before "
+                      "each timed run of dtdyn's nonlinear C loops, 5 after),"}
     return runs, meta
 
 
@@ -351,11 +384,13 @@ def write_report(runs, meta, out_dir, command):
     if t_lin:
         lines += [f"Linear baseline, the price of the nonlinearity: the {meta['linear']} runs in "
                   f"{t_lin * 1e3:.3g} ms (max error {meta['linear_error']:.1e} against the "
-                  "matrix exponential); the column `time / linear` is each run's time over it, "
-                  "measured in the same run.", ""]
+                  "matrix exponential; the median of its runs); the column `time / linear` is "
+                  "each run's time over the linear runs timed in alternation with its own "
+                  "(median of 5 each) where there are such, else over that median: measured in "
+                  "the same run.", ""]
 
     def ratio(r):  # the extra column, when there is a linear baseline
-        return f" {r.run_time / t_lin:.3g} |" if t_lin else ""
+        return f" {r.price(t_lin):.3g} |" if t_lin else ""
     head, rule = (" time / linear |", "---|") if t_lin else ("", "")
     for target in meta["targets"]:
         ranked = ranking(runs, target)
@@ -434,7 +469,7 @@ def run(names, out_dir, quick=False, command="dtdyn bench"):
             top = ranking(runs, target)[:3]
             print(f"  fastest at max error <= {target:g}: " + "; ".join(
                 f"{r.method} ({r.setting}) {r.max_error:.1e} in {r.run_time * 1e3:.3g} ms"
-                + (f" ({r.run_time / t_lin:.2g}x linear)" if t_lin else "")
+                + (f" ({r.price(t_lin):.2g}x linear)" if t_lin else "")
                 for r in top))
         written.append(md)
     return written
