@@ -269,6 +269,8 @@ def test_truncated_cached_kernel_is_rebuilt(tmp_path):
 
 LONG_RUN = """
 import sys, time, numpy as np, dtdyn as dd
+import signal
+signal.signal(signal.SIGINT, signal.default_int_handler)  # ignored in a shell's background job
 M, C, K = dd.chain_matrices([1.0] * 4, [1e3] * 4, [0.1] * 4)
 f = np.sin(np.arange({n}) * 7e-3)
 run = lambda f: dd.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[3], outputs=[0],

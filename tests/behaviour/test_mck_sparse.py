@@ -121,6 +121,8 @@ def test_sparse_c_loop_stops_at_the_first_non_finite_step(chain):
 
 LONG_RUN = """
 import time, numpy as np, scipy.sparse as sps, dtdyn as dd
+import signal
+signal.signal(signal.SIGINT, signal.default_int_handler)  # ignored in a shell's background job
 M, C, K = dd.chain_matrices([1.0] * 3000, [1e3] * 3000, [0.1] * 3000, sparse=True)
 run = lambda f: dd.simulate_mck(M, C, K, f, 1e-3, force_dofs=[2999], outputs=[0],
                                 quantities=("x",))
