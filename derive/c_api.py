@@ -58,7 +58,7 @@ KERNELS = {
         "long N", "const double *restrict k", "const double *restrict kg",
         "const double *restrict m", "double pivmin", "long n_lam", "const double *restrict lam",
         "long *restrict counts", "double *restrict G", "double *restrict H")),
-    "dtdyn_modal_filters_lanes": ("int", ("void",)),
+    "dtdyn_modal_filters_lanes": ("int", ("long m",)),
     "dtdyn_modal_filters_work": ("long", ("long m", "long n_out")),
     "dtdyn_modal_filters": ("int", (
         "long n", "long m", "long n_in", "long n_out", "int im_out",

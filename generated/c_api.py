@@ -163,7 +163,7 @@ SIGNATURES = {
             "c_void_p",
         ),
     ),
-    "dtdyn_modal_filters_lanes": ("c_int", ()),
+    "dtdyn_modal_filters_lanes": ("c_int", ("c_long",)),
     "dtdyn_modal_filters_work": ("c_long", ("c_long", "c_long")),
     "dtdyn_modal_filters": (
         "c_int",

@@ -14,9 +14,12 @@
  *   y_{n,o} = sum_j wt[o][j] e_re[j] + wt[o][m + j] e_im[j]   (wt = [Re W, -Im W]^T)
  * with only the first sum when im_out = 0 (every weight real: real mode shapes).
  *
- * Layout. m is a multiple of LANES (the caller pads with zero states), so the loops over the
- * LANES states of a chunk have a constant trip count: the states of a chunk stay in registers
- * and are advanced together, sample after sample. The record is cut into blocks of BLOCK
+ * Layout. The states are advanced in chunks of LANES = 4, 8 or 16 (dtdyn_modal_filters_lanes:
+ * the smallest that holds m, 16 from 9 states on; the caller pads m with zero states to a
+ * multiple of it), so the loops over the LANES states of a chunk have a constant trip count:
+ * the states of a chunk stay in registers and are advanced together, sample after sample. The
+ * kernel is compiled once per chunk size (functions suffixed _4, _8, _16); zero states add exact
+ * zeros, so every chunk size gives the same numbers. The record is cut into blocks of BLOCK
  * samples; for each block the recursion writes the states of chunk c at sample k as one row
  * (re[LANES], im[LANES]) of ec, then the outputs are formed from these rows: for few outputs
  * as dot products over the states (LANES partial sums added pairwise at the end), otherwise
@@ -25,117 +28,18 @@
  * coef: d_re[m], d_im[m], then g0_re, g0_im, g1_re, g1_im, each n_in x m (row i: input i).
  * wt: n_out x 2m. x: (n + 1) x n_in, row 0 = x_{-1} (0 at rest). e: the 2m states (re[m],
  * then im[m]), in and out. y: n x n_out. work: dtdyn_modal_filters_work(m, n_out) doubles.
- * Returns 0, or -1 when m is not a multiple of dtdyn_modal_filters_lanes().
+ * Returns 0, or -1 when m is not a multiple of dtdyn_modal_filters_lanes(m).
  */
 #include <stddef.h>
 
-#define LANES 16
 #define BLOCK 256
 /* from this many outputs on, the outputs are accumulated across outputs, not as dot products */
 #define AXPY_OUTPUTS 3
 
-static inline void states_block(long nb, long m, long n_in, const double *restrict coef,
-                                const double *restrict x, double *restrict e, double *restrict ec) {
-    const double *d_re = coef, *d_im = coef + m, *g = coef + 2 * m;
-    const long gs = n_in * m; /* stride between the four input-weight arrays */
-    long c, k, i, l;
-    for (c = 0; c < m; c += LANES) {
-        double er[LANES], ei[LANES], dr[LANES], di[LANES];
-        double *restrict rows = ec + c * 2 * BLOCK;
-        for (l = 0; l < LANES; ++l) {
-            er[l] = e[c + l];
-            ei[l] = e[m + c + l];
-            dr[l] = d_re[c + l];
-            di[l] = d_im[c + l];
-        }
-        for (k = 0; k < nb; ++k) {
-            const double *xa = x + k * n_in, *xb = xa + n_in;
-            double *restrict row = rows + k * 2 * LANES;
-            double ur[LANES], ui[LANES];
-            for (l = 0; l < LANES; ++l) {
-                ur[l] = 0.0;
-                ui[l] = 0.0;
-            }
-            for (i = 0; i < n_in; ++i) {
-                const double a = xa[i], b = xb[i];
-                const double *g0r = g + i * m + c, *g0i = g0r + gs, *g1r = g0i + gs;
-                const double *g1i = g1r + gs;
-                for (l = 0; l < LANES; ++l) {
-                    ur[l] += g0r[l] * a + g1r[l] * b;
-                    ui[l] += g0i[l] * a + g1i[l] * b;
-                }
-            }
-            for (l = 0; l < LANES; ++l) {
-                const double inc_re = dr[l] * er[l] - di[l] * ei[l] + ur[l];
-                const double inc_im = dr[l] * ei[l] + di[l] * er[l] + ui[l];
-                er[l] += inc_re;
-                ei[l] += inc_im;
-                row[l] = er[l];
-                row[LANES + l] = ei[l];
-            }
-        }
-        for (l = 0; l < LANES; ++l) {
-            e[c + l] = er[l];
-            e[m + c + l] = ei[l];
-        }
-    }
-}
-
-/* y[k][o] = sum over the chunks and parts of row . wt[o] (LANES partial sums) */
-static void outputs_dot(long nb, long m, long n_out, int im_out, const double *restrict wt,
-                        const double *restrict ec, double *restrict y) {
-    long k, o, c, l;
-    for (k = 0; k < nb; ++k)
-        for (o = 0; o < n_out; ++o) {
-            const double *wo = wt + o * 2 * m;
-            double acc[LANES], s[LANES / 2];
-            for (l = 0; l < LANES; ++l)
-                acc[l] = 0.0;
-            for (c = 0; c < m; c += LANES) {
-                const double *row = ec + c * 2 * BLOCK + k * 2 * LANES;
-                for (l = 0; l < LANES; ++l)
-                    acc[l] += row[l] * wo[c + l];
-                if (im_out)
-                    for (l = 0; l < LANES; ++l)
-                        acc[l] += row[LANES + l] * wo[m + c + l];
-            }
-            for (l = 0; l < LANES / 2; ++l)
-                s[l] = acc[l] + acc[LANES / 2 + l];
-            for (l = 0; l < LANES / 4; ++l)
-                s[l] = s[l] + s[LANES / 4 + l];
-            y[k * n_out + o] = (s[0] + s[2]) + (s[1] + s[3]);
-        }
-}
-
-/* y[k][:] += e * w[p][:] over the state parts p in order, four at a time (w: 2m x n_out) */
-static void outputs_axpy(long nb, long m, long n_out, int im_out, const double *restrict w,
-                         const double *restrict ec, double *restrict y) {
-    const long parts = im_out ? 2 : 1;
-    long k, o, c, h, l;
-    for (k = 0; k < nb; ++k) {
-        double *restrict yk = y + k * n_out;
-        for (o = 0; o < n_out; ++o)
-            yk[o] = 0.0;
-        for (c = 0; c < m; c += LANES)
-            for (h = 0; h < parts; ++h) {
-                const double *row = ec + c * 2 * BLOCK + k * 2 * LANES + h * LANES;
-                const double *wc = w + (h * m + c) * n_out;
-                for (l = 0; l < LANES; l += 4) {
-                    const double e0 = row[l], e1 = row[l + 1], e2 = row[l + 2];
-                    const double e3 = row[l + 3];
-                    const double *w0 = wc + l * n_out, *w1 = w0 + n_out, *w2 = w1 + n_out;
-                    const double *w3 = w2 + n_out;
-                    for (o = 0; o < n_out; ++o)
-                        yk[o] = yk[o] + e0 * w0[o] + e1 * w1[o] + e2 * w2[o] + e3 * w3[o];
-                }
-            }
-    }
-}
-
 /* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
    the definitions below against the ctypes bindings in generated/c_api.py */
 int dtdyn_set_stop(int value);
-int dtdyn_modal_filters_lanes(void);
+int dtdyn_modal_filters_lanes(long m);
 long dtdyn_modal_filters_work(long m, long n_out);
 int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
                         const double *restrict coef, const double *restrict wt,
@@ -154,8 +58,380 @@ int dtdyn_set_stop(int value) {
     return 0;
 }
 
-int dtdyn_modal_filters_lanes(void) {
-    return LANES;
+static inline void states_block_4(long nb, long m, long n_in, const double *restrict coef,
+                                  const double *restrict x, double *restrict e,
+                                  double *restrict ec) {
+    const double *d_re = coef, *d_im = coef + m, *g = coef + 2 * m;
+    const long gs = n_in * m; /* stride between the four input-weight arrays */
+    long c, k, i, l;
+    for (c = 0; c < m; c += 4) {
+        double er[4], ei[4], dr[4], di[4];
+        double *restrict rows = ec + c * 2 * BLOCK;
+        for (l = 0; l < 4; ++l) {
+            er[l] = e[c + l];
+            ei[l] = e[m + c + l];
+            dr[l] = d_re[c + l];
+            di[l] = d_im[c + l];
+        }
+        for (k = 0; k < nb; ++k) {
+            const double *xa = x + k * n_in, *xb = xa + n_in;
+            double *restrict row = rows + k * 2 * 4;
+            double ur[4], ui[4];
+            for (l = 0; l < 4; ++l) {
+                ur[l] = 0.0;
+                ui[l] = 0.0;
+            }
+            for (i = 0; i < n_in; ++i) {
+                const double a = xa[i], b = xb[i];
+                const double *g0r = g + i * m + c, *g0i = g0r + gs, *g1r = g0i + gs;
+                const double *g1i = g1r + gs;
+                for (l = 0; l < 4; ++l) {
+                    ur[l] += g0r[l] * a + g1r[l] * b;
+                    ui[l] += g0i[l] * a + g1i[l] * b;
+                }
+            }
+            for (l = 0; l < 4; ++l) {
+                const double inc_re = dr[l] * er[l] - di[l] * ei[l] + ur[l];
+                const double inc_im = dr[l] * ei[l] + di[l] * er[l] + ui[l];
+                er[l] += inc_re;
+                ei[l] += inc_im;
+                row[l] = er[l];
+                row[4 + l] = ei[l];
+            }
+        }
+        for (l = 0; l < 4; ++l) {
+            e[c + l] = er[l];
+            e[m + c + l] = ei[l];
+        }
+    }
+}
+
+/* y[k][o] = sum over the chunks and parts of row . wt[o] (4 partial sums) */
+static void outputs_dot_4(long nb, long m, long n_out, int im_out, const double *restrict wt,
+                          const double *restrict ec, double *restrict y) {
+    long k, o, c, l, h;
+    for (k = 0; k < nb; ++k)
+        for (o = 0; o < n_out; ++o) {
+            const double *wo = wt + o * 2 * m;
+            double acc[4], s[4 / 2];
+            for (l = 0; l < 4; ++l)
+                acc[l] = 0.0;
+            for (c = 0; c < m; c += 4) {
+                const double *row = ec + c * 2 * BLOCK + k * 2 * 4;
+                for (l = 0; l < 4; ++l)
+                    acc[l] += row[l] * wo[c + l];
+                if (im_out)
+                    for (l = 0; l < 4; ++l)
+                        acc[l] += row[4 + l] * wo[m + c + l];
+            }
+            for (l = 0; l < 4 / 2; ++l) /* pairwise: halves added until one is left */
+                s[l] = acc[l] + acc[4 / 2 + l];
+            for (h = 4 / 4; h >= 1; h /= 2)
+                for (l = 0; l < h; ++l)
+                    s[l] = s[l] + s[h + l];
+            y[k * n_out + o] = s[0];
+        }
+}
+
+/* y[k][:] += e * w[p][:] over the state parts p in order, four at a time (w: 2m x n_out) */
+static void outputs_axpy_4(long nb, long m, long n_out, int im_out, const double *restrict w,
+                           const double *restrict ec, double *restrict y) {
+    const long parts = im_out ? 2 : 1;
+    long k, o, c, h, l;
+    for (k = 0; k < nb; ++k) {
+        double *restrict yk = y + k * n_out;
+        for (o = 0; o < n_out; ++o)
+            yk[o] = 0.0;
+        for (c = 0; c < m; c += 4)
+            for (h = 0; h < parts; ++h) {
+                const double *row = ec + c * 2 * BLOCK + k * 2 * 4 + h * 4;
+                const double *wc = w + (h * m + c) * n_out;
+                for (l = 0; l < 4; l += 4) {
+                    const double e0 = row[l], e1 = row[l + 1], e2 = row[l + 2];
+                    const double e3 = row[l + 3];
+                    const double *w0 = wc + l * n_out, *w1 = w0 + n_out, *w2 = w1 + n_out;
+                    const double *w3 = w2 + n_out;
+                    for (o = 0; o < n_out; ++o)
+                        yk[o] = yk[o] + e0 * w0[o] + e1 * w1[o] + e2 * w2[o] + e3 * w3[o];
+                }
+            }
+    }
+}
+
+/* dtdyn_modal_filters with chunks of 4 states (out of line: each size its own code) */
+#ifdef __GNUC__
+__attribute__((noinline))
+#endif
+static void
+run_4(long n, long m, long n_in, long n_out, int im_out, const double *restrict coef,
+      const double *restrict wt, const double *restrict x, double *restrict e, double *restrict y,
+      double *restrict ec, const double *restrict w, int axpy) {
+    long b;
+    for (b = 0; b < n; b += BLOCK) {
+        const long nb = (n - b < BLOCK) ? n - b : BLOCK;
+        if (dtdyn_stop_flag)
+            return;
+        if (n_in == 1) /* the common case, with the input loop unrolled */
+            states_block_4(nb, m, 1, coef, x + b, e, ec);
+        else
+            states_block_4(nb, m, n_in, coef, x + b * n_in, e, ec);
+        if (axpy)
+            outputs_axpy_4(nb, m, n_out, im_out, w, ec, y + b * n_out);
+        else
+            outputs_dot_4(nb, m, n_out, im_out, wt, ec, y + b * n_out);
+    }
+}
+
+static inline void states_block_8(long nb, long m, long n_in, const double *restrict coef,
+                                  const double *restrict x, double *restrict e,
+                                  double *restrict ec) {
+    const double *d_re = coef, *d_im = coef + m, *g = coef + 2 * m;
+    const long gs = n_in * m; /* stride between the four input-weight arrays */
+    long c, k, i, l;
+    for (c = 0; c < m; c += 8) {
+        double er[8], ei[8], dr[8], di[8];
+        double *restrict rows = ec + c * 2 * BLOCK;
+        for (l = 0; l < 8; ++l) {
+            er[l] = e[c + l];
+            ei[l] = e[m + c + l];
+            dr[l] = d_re[c + l];
+            di[l] = d_im[c + l];
+        }
+        for (k = 0; k < nb; ++k) {
+            const double *xa = x + k * n_in, *xb = xa + n_in;
+            double *restrict row = rows + k * 2 * 8;
+            double ur[8], ui[8];
+            for (l = 0; l < 8; ++l) {
+                ur[l] = 0.0;
+                ui[l] = 0.0;
+            }
+            for (i = 0; i < n_in; ++i) {
+                const double a = xa[i], b = xb[i];
+                const double *g0r = g + i * m + c, *g0i = g0r + gs, *g1r = g0i + gs;
+                const double *g1i = g1r + gs;
+                for (l = 0; l < 8; ++l) {
+                    ur[l] += g0r[l] * a + g1r[l] * b;
+                    ui[l] += g0i[l] * a + g1i[l] * b;
+                }
+            }
+            for (l = 0; l < 8; ++l) {
+                const double inc_re = dr[l] * er[l] - di[l] * ei[l] + ur[l];
+                const double inc_im = dr[l] * ei[l] + di[l] * er[l] + ui[l];
+                er[l] += inc_re;
+                ei[l] += inc_im;
+                row[l] = er[l];
+                row[8 + l] = ei[l];
+            }
+        }
+        for (l = 0; l < 8; ++l) {
+            e[c + l] = er[l];
+            e[m + c + l] = ei[l];
+        }
+    }
+}
+
+/* y[k][o] = sum over the chunks and parts of row . wt[o] (8 partial sums) */
+static void outputs_dot_8(long nb, long m, long n_out, int im_out, const double *restrict wt,
+                          const double *restrict ec, double *restrict y) {
+    long k, o, c, l, h;
+    for (k = 0; k < nb; ++k)
+        for (o = 0; o < n_out; ++o) {
+            const double *wo = wt + o * 2 * m;
+            double acc[8], s[8 / 2];
+            for (l = 0; l < 8; ++l)
+                acc[l] = 0.0;
+            for (c = 0; c < m; c += 8) {
+                const double *row = ec + c * 2 * BLOCK + k * 2 * 8;
+                for (l = 0; l < 8; ++l)
+                    acc[l] += row[l] * wo[c + l];
+                if (im_out)
+                    for (l = 0; l < 8; ++l)
+                        acc[l] += row[8 + l] * wo[m + c + l];
+            }
+            for (l = 0; l < 8 / 2; ++l) /* pairwise: halves added until one is left */
+                s[l] = acc[l] + acc[8 / 2 + l];
+            for (h = 8 / 4; h >= 1; h /= 2)
+                for (l = 0; l < h; ++l)
+                    s[l] = s[l] + s[h + l];
+            y[k * n_out + o] = s[0];
+        }
+}
+
+/* y[k][:] += e * w[p][:] over the state parts p in order, four at a time (w: 2m x n_out) */
+static void outputs_axpy_8(long nb, long m, long n_out, int im_out, const double *restrict w,
+                           const double *restrict ec, double *restrict y) {
+    const long parts = im_out ? 2 : 1;
+    long k, o, c, h, l;
+    for (k = 0; k < nb; ++k) {
+        double *restrict yk = y + k * n_out;
+        for (o = 0; o < n_out; ++o)
+            yk[o] = 0.0;
+        for (c = 0; c < m; c += 8)
+            for (h = 0; h < parts; ++h) {
+                const double *row = ec + c * 2 * BLOCK + k * 2 * 8 + h * 8;
+                const double *wc = w + (h * m + c) * n_out;
+                for (l = 0; l < 8; l += 4) {
+                    const double e0 = row[l], e1 = row[l + 1], e2 = row[l + 2];
+                    const double e3 = row[l + 3];
+                    const double *w0 = wc + l * n_out, *w1 = w0 + n_out, *w2 = w1 + n_out;
+                    const double *w3 = w2 + n_out;
+                    for (o = 0; o < n_out; ++o)
+                        yk[o] = yk[o] + e0 * w0[o] + e1 * w1[o] + e2 * w2[o] + e3 * w3[o];
+                }
+            }
+    }
+}
+
+/* dtdyn_modal_filters with chunks of 8 states (out of line: each size its own code) */
+#ifdef __GNUC__
+__attribute__((noinline))
+#endif
+static void
+run_8(long n, long m, long n_in, long n_out, int im_out, const double *restrict coef,
+      const double *restrict wt, const double *restrict x, double *restrict e, double *restrict y,
+      double *restrict ec, const double *restrict w, int axpy) {
+    long b;
+    for (b = 0; b < n; b += BLOCK) {
+        const long nb = (n - b < BLOCK) ? n - b : BLOCK;
+        if (dtdyn_stop_flag)
+            return;
+        if (n_in == 1) /* the common case, with the input loop unrolled */
+            states_block_8(nb, m, 1, coef, x + b, e, ec);
+        else
+            states_block_8(nb, m, n_in, coef, x + b * n_in, e, ec);
+        if (axpy)
+            outputs_axpy_8(nb, m, n_out, im_out, w, ec, y + b * n_out);
+        else
+            outputs_dot_8(nb, m, n_out, im_out, wt, ec, y + b * n_out);
+    }
+}
+
+static inline void states_block_16(long nb, long m, long n_in, const double *restrict coef,
+                                   const double *restrict x, double *restrict e,
+                                   double *restrict ec) {
+    const double *d_re = coef, *d_im = coef + m, *g = coef + 2 * m;
+    const long gs = n_in * m; /* stride between the four input-weight arrays */
+    long c, k, i, l;
+    for (c = 0; c < m; c += 16) {
+        double er[16], ei[16], dr[16], di[16];
+        double *restrict rows = ec + c * 2 * BLOCK;
+        for (l = 0; l < 16; ++l) {
+            er[l] = e[c + l];
+            ei[l] = e[m + c + l];
+            dr[l] = d_re[c + l];
+            di[l] = d_im[c + l];
+        }
+        for (k = 0; k < nb; ++k) {
+            const double *xa = x + k * n_in, *xb = xa + n_in;
+            double *restrict row = rows + k * 2 * 16;
+            double ur[16], ui[16];
+            for (l = 0; l < 16; ++l) {
+                ur[l] = 0.0;
+                ui[l] = 0.0;
+            }
+            for (i = 0; i < n_in; ++i) {
+                const double a = xa[i], b = xb[i];
+                const double *g0r = g + i * m + c, *g0i = g0r + gs, *g1r = g0i + gs;
+                const double *g1i = g1r + gs;
+                for (l = 0; l < 16; ++l) {
+                    ur[l] += g0r[l] * a + g1r[l] * b;
+                    ui[l] += g0i[l] * a + g1i[l] * b;
+                }
+            }
+            for (l = 0; l < 16; ++l) {
+                const double inc_re = dr[l] * er[l] - di[l] * ei[l] + ur[l];
+                const double inc_im = dr[l] * ei[l] + di[l] * er[l] + ui[l];
+                er[l] += inc_re;
+                ei[l] += inc_im;
+                row[l] = er[l];
+                row[16 + l] = ei[l];
+            }
+        }
+        for (l = 0; l < 16; ++l) {
+            e[c + l] = er[l];
+            e[m + c + l] = ei[l];
+        }
+    }
+}
+
+/* y[k][o] = sum over the chunks and parts of row . wt[o] (16 partial sums) */
+static void outputs_dot_16(long nb, long m, long n_out, int im_out, const double *restrict wt,
+                           const double *restrict ec, double *restrict y) {
+    long k, o, c, l, h;
+    for (k = 0; k < nb; ++k)
+        for (o = 0; o < n_out; ++o) {
+            const double *wo = wt + o * 2 * m;
+            double acc[16], s[16 / 2];
+            for (l = 0; l < 16; ++l)
+                acc[l] = 0.0;
+            for (c = 0; c < m; c += 16) {
+                const double *row = ec + c * 2 * BLOCK + k * 2 * 16;
+                for (l = 0; l < 16; ++l)
+                    acc[l] += row[l] * wo[c + l];
+                if (im_out)
+                    for (l = 0; l < 16; ++l)
+                        acc[l] += row[16 + l] * wo[m + c + l];
+            }
+            for (l = 0; l < 16 / 2; ++l) /* pairwise: halves added until one is left */
+                s[l] = acc[l] + acc[16 / 2 + l];
+            for (h = 16 / 4; h >= 1; h /= 2)
+                for (l = 0; l < h; ++l)
+                    s[l] = s[l] + s[h + l];
+            y[k * n_out + o] = s[0];
+        }
+}
+
+/* y[k][:] += e * w[p][:] over the state parts p in order, four at a time (w: 2m x n_out) */
+static void outputs_axpy_16(long nb, long m, long n_out, int im_out, const double *restrict w,
+                            const double *restrict ec, double *restrict y) {
+    const long parts = im_out ? 2 : 1;
+    long k, o, c, h, l;
+    for (k = 0; k < nb; ++k) {
+        double *restrict yk = y + k * n_out;
+        for (o = 0; o < n_out; ++o)
+            yk[o] = 0.0;
+        for (c = 0; c < m; c += 16)
+            for (h = 0; h < parts; ++h) {
+                const double *row = ec + c * 2 * BLOCK + k * 2 * 16 + h * 16;
+                const double *wc = w + (h * m + c) * n_out;
+                for (l = 0; l < 16; l += 4) {
+                    const double e0 = row[l], e1 = row[l + 1], e2 = row[l + 2];
+                    const double e3 = row[l + 3];
+                    const double *w0 = wc + l * n_out, *w1 = w0 + n_out, *w2 = w1 + n_out;
+                    const double *w3 = w2 + n_out;
+                    for (o = 0; o < n_out; ++o)
+                        yk[o] = yk[o] + e0 * w0[o] + e1 * w1[o] + e2 * w2[o] + e3 * w3[o];
+                }
+            }
+    }
+}
+
+/* dtdyn_modal_filters with chunks of 16 states (out of line: each size its own code) */
+#ifdef __GNUC__
+__attribute__((noinline))
+#endif
+static void
+run_16(long n, long m, long n_in, long n_out, int im_out, const double *restrict coef,
+       const double *restrict wt, const double *restrict x, double *restrict e, double *restrict y,
+       double *restrict ec, const double *restrict w, int axpy) {
+    long b;
+    for (b = 0; b < n; b += BLOCK) {
+        const long nb = (n - b < BLOCK) ? n - b : BLOCK;
+        if (dtdyn_stop_flag)
+            return;
+        if (n_in == 1) /* the common case, with the input loop unrolled */
+            states_block_16(nb, m, 1, coef, x + b, e, ec);
+        else
+            states_block_16(nb, m, n_in, coef, x + b * n_in, e, ec);
+        if (axpy)
+            outputs_axpy_16(nb, m, n_out, im_out, w, ec, y + b * n_out);
+        else
+            outputs_dot_16(nb, m, n_out, im_out, wt, ec, y + b * n_out);
+    }
+}
+
+int dtdyn_modal_filters_lanes(long m) {
+    return m <= 4 ? 4 : m <= 8 ? 8 : 16;
 }
 
 long dtdyn_modal_filters_work(long m, long n_out) {
@@ -167,26 +443,19 @@ int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
                         const double *restrict x, double *restrict e, double *restrict y,
                         double *restrict work) {
     double *ec = work, *w = work + 2 * m * BLOCK;
-    const int axpy = n_out >= AXPY_OUTPUTS;
-    long b, o, p;
-    if (m % LANES != 0)
+    const int axpy = n_out >= AXPY_OUTPUTS, lanes = dtdyn_modal_filters_lanes(m);
+    long o, p;
+    if (m % lanes != 0)
         return -1;
     if (axpy)
         for (p = 0; p < 2 * m; ++p)
             for (o = 0; o < n_out; ++o)
                 w[p * n_out + o] = wt[o * 2 * m + p];
-    for (b = 0; b < n; b += BLOCK) {
-        const long nb = (n - b < BLOCK) ? n - b : BLOCK;
-        if (dtdyn_stop_flag)
-            return DTDYN_STOPPED;
-        if (n_in == 1) /* the common case, with the input loop unrolled */
-            states_block(nb, m, 1, coef, x + b, e, ec);
-        else
-            states_block(nb, m, n_in, coef, x + b * n_in, e, ec);
-        if (axpy)
-            outputs_axpy(nb, m, n_out, im_out, w, ec, y + b * n_out);
-        else
-            outputs_dot(nb, m, n_out, im_out, wt, ec, y + b * n_out);
-    }
-    return 0;
+    if (lanes == 4)
+        run_4(n, m, n_in, n_out, im_out, coef, wt, x, e, y, ec, w, axpy);
+    else if (lanes == 8)
+        run_8(n, m, n_in, n_out, im_out, coef, wt, x, e, y, ec, w, axpy);
+    else
+        run_16(n, m, n_in, n_out, im_out, coef, wt, x, e, y, ec, w, axpy);
+    return dtdyn_stop_flag ? DTDYN_STOPPED : 0;
 }

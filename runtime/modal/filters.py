@@ -248,7 +248,7 @@ def _c_modes():
     fn = cbuild.bind(lib, "dtdyn_modal_filters")
     cbuild.bind(lib, "dtdyn_modal_filters_work")
     cbuild.bind(lib, "dtdyn_modal_filters_lanes")
-    return fn, lib.dtdyn_modal_filters_lanes(), lib.dtdyn_modal_filters_work, lib
+    return fn, lib.dtdyn_modal_filters_lanes, lib.dtdyn_modal_filters_work, lib
 
 
 def run_bank(sos, in_col, out_col, direct, x, n_out, backend="c"):
@@ -321,7 +321,7 @@ def run_modes(states: ModalStates, x, backend="c", at_rest_under=None):
             y[start:start + xb.shape[1]] = np.concatenate([p.real, p.imag]).T @ w2
     elif m:
         fn, lanes, work_size, lib = c
-        mp = m + (-m % lanes)  # zero states up to a multiple of the kernel's chunk
+        mp = m + (-m % lanes(m))  # zero states up to a multiple of the kernel's chunk
 
         def padded(v):
             out = np.zeros((mp,) + v.shape[1:], complex)
@@ -362,7 +362,8 @@ def choose_method(states: ModalStates, n_sections: int, backend="c") -> str:
     cost = COST_NS["c" if c is not None and _c_bank() is not None else "numpy"]
     n_states = states.n_states
     if c is not None:
-        n_states = -(-n_states // c[1]) * c[1]
+        chunk = c[1](n_states)
+        n_states = -(-n_states // chunk) * chunk
     parts = 2 if np.any(states.weights.imag) else 1
     modes = n_states * (cost["state"] + parts * n_out * cost["product"])
     return "modes" if modes <= cost["section"] * n_sections else "sections"

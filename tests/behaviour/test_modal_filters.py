@@ -15,8 +15,8 @@ from dtdyn.linear.chain import chain_matrices
 from dtdyn.linear.discretize import first_order_form
 from dtdyn.linear.exact import exact_response
 from dtdyn.modal.model import from_poles_residues, modal_model
-from dtdyn.modal.filters import (modal_filter_response, modal_states, run_bank, run_modes,
-                                         sections, to_sos)
+from dtdyn.modal.filters import (_c_modes, modal_filter_response, modal_states, run_bank,
+                                 run_modes, sections, to_sos)
 
 from problems import P2, P3
 
@@ -232,7 +232,8 @@ def _overdamped():
 def test_modes_equal_sections(case, quantity, invariant):
     """The per-mode form (C and lfilter) equals the section bank to round-off, 2,000 samples:
     measured <= 3e-13 except P3 (~2e-12: the bank's rounded a1 = -2 cos(omega T) moves mode 1,
-    omega T = 9.5e-3, by ~ eps / (omega T)^2 relative, see test_long_undamped_record_...)."""
+    omega T = 9.5e-3, by ~ eps / (omega T)^2 relative, see test_long_undamped_record_...). The
+    cases' 2, 15, 4 and 5 states run the C kernel's chunks of 4, 16, 4 and 8 states."""
     if case == "P2":
         (M, C, K), inputs, outputs, fs = _system(P2), [1], [0, 1], 50.0
     elif case.startswith("P3"):
@@ -248,6 +249,8 @@ def test_modes_equal_sections(case, quantity, invariant):
     bank = run_bank(*sections(model, fs, invariant, quantity), f, len(outputs))
     st = modal_states(model, fs, invariant, quantity)
     assert st.n_states == model.n_modes  # rank-one residues: one state per mode
+    chunk = {"P2": 4, "overdamped": 4, "non-proportional, 2 inputs": 8}.get(case, 16)
+    assert _c_modes() is None or _c_modes()[1](st.n_states) == chunk
     scale = np.abs(bank).max()
     for backend in ("c", "numpy"):
         np.testing.assert_allclose(run_modes(st, f, backend), bank, rtol=0, atol=5e-12 * scale)
