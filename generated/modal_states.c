@@ -158,14 +158,10 @@ static void outputs_axpy_4(long nb, long m, long n_out, int im_out, const double
     }
 }
 
-/* dtdyn_modal_filters with chunks of 4 states (out of line: each size its own code) */
-#ifdef __GNUC__
-__attribute__((noinline))
-#endif
-static void
-run_4(long n, long m, long n_in, long n_out, int im_out, const double *restrict coef,
-      const double *restrict wt, const double *restrict x, double *restrict e, double *restrict y,
-      double *restrict ec, const double *restrict w, int axpy) {
+/* dtdyn_modal_filters with chunks of 4 states */
+static void run_4(long n, long m, long n_in, long n_out, int im_out, const double *restrict coef,
+                  const double *restrict wt, const double *restrict x, double *restrict e,
+                  double *restrict y, double *restrict ec, const double *restrict w, int axpy) {
     long b;
     for (b = 0; b < n; b += BLOCK) {
         const long nb = (n - b < BLOCK) ? n - b : BLOCK;
@@ -282,14 +278,10 @@ static void outputs_axpy_8(long nb, long m, long n_out, int im_out, const double
     }
 }
 
-/* dtdyn_modal_filters with chunks of 8 states (out of line: each size its own code) */
-#ifdef __GNUC__
-__attribute__((noinline))
-#endif
-static void
-run_8(long n, long m, long n_in, long n_out, int im_out, const double *restrict coef,
-      const double *restrict wt, const double *restrict x, double *restrict e, double *restrict y,
-      double *restrict ec, const double *restrict w, int axpy) {
+/* dtdyn_modal_filters with chunks of 8 states */
+static void run_8(long n, long m, long n_in, long n_out, int im_out, const double *restrict coef,
+                  const double *restrict wt, const double *restrict x, double *restrict e,
+                  double *restrict y, double *restrict ec, const double *restrict w, int axpy) {
     long b;
     for (b = 0; b < n; b += BLOCK) {
         const long nb = (n - b < BLOCK) ? n - b : BLOCK;
@@ -406,14 +398,10 @@ static void outputs_axpy_16(long nb, long m, long n_out, int im_out, const doubl
     }
 }
 
-/* dtdyn_modal_filters with chunks of 16 states (out of line: each size its own code) */
-#ifdef __GNUC__
-__attribute__((noinline))
-#endif
-static void
-run_16(long n, long m, long n_in, long n_out, int im_out, const double *restrict coef,
-       const double *restrict wt, const double *restrict x, double *restrict e, double *restrict y,
-       double *restrict ec, const double *restrict w, int axpy) {
+/* dtdyn_modal_filters with chunks of 16 states */
+static void run_16(long n, long m, long n_in, long n_out, int im_out, const double *restrict coef,
+                   const double *restrict wt, const double *restrict x, double *restrict e,
+                   double *restrict y, double *restrict ec, const double *restrict w, int axpy) {
     long b;
     for (b = 0; b < n; b += BLOCK) {
         const long nb = (n - b < BLOCK) ? n - b : BLOCK;
