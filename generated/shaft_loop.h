@@ -105,7 +105,7 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
         const long pa = parent[n];
         g[n] = SHAFT_G;
         hDelta[n] = SHAFT_HD;
-        den[n] = SHAFT_DEN;
+        den[n] = 1.0 / (SHAFT_DEN); /* its reciprocal: a product per station and step */
         gq[n] = pa >= 0 ? gu[n] : 0.0;
         ggu[n] = pa >= 0 ? g[n] * gu[n] : 0.0;
         gRg[n] = gR[n] * g[n];
@@ -196,12 +196,13 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
                     RR[pa] += R_L;
             }
         }
-        /* root to leaves: u_n = g gu u_parent + b_n / den_n, then the new states */
+        /* root to leaves: u_n = g gu u_parent + b_n / den_n (den holds 1 / den_n), then the
+           new states */
         uc = 0.0;
         for (lo = 0; lo < N; lo = hi) {
             hi = lo + SHAFT_BLOCK < N ? lo + SHAFT_BLOCK : N;
             for (i = lo; i < hi; ++i)
-                th[i - lo] = b[i] / den[i];
+                th[i - lo] = b[i] * den[i];
             for (n = lo; n < hi; ++n) {
                 if (plain[n]) {
                     if (n + 1 < hi && plain[n + 1]) {
