@@ -51,16 +51,20 @@ def _errors(x, ref):
     return float(np.abs(d).max() / scale), float(np.sqrt(np.mean(d**2)) / scale)
 
 
-def _timed(fn, repeats, key=None):
+def _timed(fn, repeats, key=None, before=None):
     """(result, median run time, build time): first call, then ``repeats`` timed calls
     (``repeats`` = 0: the first call's time, no build time). ``key(result)``: the run time a
     call reports itself (e.g. its C loop's, from ``info``), its median instead of the wall
-    time's; the build time is still the first call's wall time minus the median wall time."""
+    time's; the build time is still the first call's wall time minus the median wall time.
+    ``before()``: run before each timed call, untimed (P4: one linear run, so that the ratio of
+    the two medians sees the same stretch of a shared machine)."""
     t0 = time.perf_counter()
     out = fn()
     first = time.perf_counter() - t0
     times, own = [], []
     for _ in range(repeats):
+        if before is not None:
+            before()
         t0 = time.perf_counter()
         out = fn()
         times.append(time.perf_counter() - t0)
@@ -70,24 +74,6 @@ def _timed(fn, repeats, key=None):
         return out, (first if key is None else key(out)), 0.0
     med = statistics.median(times)
     return out, (med if key is None else statistics.median(own)), max(first - med, 0.0)
-
-
-def _paired(fn, linear, repeats, key):
-    """(result, median run time, build time, median linear time): as `_timed`, with each of the
-    ``repeats`` calls preceded by one of ``linear() -> its time``, so that the ratio of the two
-    medians sees the same stretch of a shared machine."""
-    t0 = time.perf_counter()
-    out = fn()
-    first = time.perf_counter() - t0
-    walls, own, lin = [], [], []
-    for _ in range(repeats):
-        lin.append(linear())
-        t0 = time.perf_counter()
-        out = fn()
-        walls.append(time.perf_counter() - t0)
-        own.append(key(out))
-    return (out, statistics.median(own), max(first - statistics.median(walls), 0.0),
-            statistics.median(lin))
 
 
 def _recorder(runs, log):
@@ -265,15 +251,13 @@ def bench_p4(quick=False, log=print):
         return modal_filter_response(L["M"], L["C"], L["K"], L["force"], L["dt"],
                                      force_dofs=L["force_dofs"], quantities=("x",))
     lin, _, lin_build = _timed(linear, 0)
-    # measured before, between (one before each timed nonlinear run: `_paired`) and after the
+    # measured before, between (one before each timed nonlinear run) and after the
     # nonlinear runs (the machine is shared: each run's ratio uses the linear runs alternating
     # with its own)
     lin_times = [loop_time(linear()) for _ in range(5)]
 
-    def lin_time():
-        t = loop_time(linear())
-        lin_times.append(t)
-        return t
+    def lin_time():  # one more linear run; the last 5 pair with a configuration's 5 runs
+        lin_times.append(loop_time(linear()))
     exact = exact_response(L["M"], L["C"], L["K"], L["force"], L["dt"],
                            force_dofs=L["force_dofs"], quantities=("x",))
     e_lin = _errors(lin.x[:, out], exact.x[:, out])[0]
@@ -282,9 +266,9 @@ def bench_p4(quick=False, log=print):
         levels = {"modal_quintic": (1, 2) if params else (1, 2, 4),
                   "modal_parabolic": (1, 2, 3, 4, 8, 12)}.get(method, (1, 2, 3, 4, 8))
         for S in levels:
-            r, t_run, t_b, t_l = _paired(lambda: nonlinear_response(
-                *args, **kw, scheme=method, substeps=S, quantities=("x",), **params),
-                lin_time, 5, loop_time)
+            r, t_run, t_b = _timed(lambda: nonlinear_response(
+                *args, **kw, scheme=method, substeps=S, quantities=("x",), **params), 5,
+                loop_time, lin_time)
             note = ""
             if method.startswith("modal_"):
                 fl = _modal_flops(method, r, S, len(P["elements"]), 4, 4)
@@ -292,21 +276,21 @@ def bench_p4(quick=False, log=print):
                         f"achieved")
             label = method + "".join(f" {k}={v}" for k, v in params.items() if k == "estimate")
             add(label, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref, t_run, t_b, note,
-                t_l)
+                statistics.median(lin_times[-5:]))
     # accuracy targets: the time sums every run the target needs (their C loops) and the
     # estimates' own work (differences and extrapolations of the records)
     for scheme in ("auto", "modal_parabolic"):
         for target in P4_ACCURACY:
-            r, t_run, t_b, t_l = _paired(lambda: nonlinear_response(
-                *args, **kw, scheme=scheme, accuracy=target, quantities=("x",)), lin_time, 5,
-                lambda r: r.info["run_time"] + r.info["estimate_time"])
+            r, t_run, t_b = _timed(lambda: nonlinear_response(
+                *args, **kw, scheme=scheme, accuracy=target, quantities=("x",)), 5,
+                lambda r: r.info["run_time"] + r.info["estimate_time"], lin_time)
             i = r.info
+            note = (f"{i['scheme']}: estimate {i['error_estimate']:.2e} (x, all 4 DOFs), "
+                    f"{i['substeps']} sub-steps "
+                    f"({'extrapolated from ' if i['extrapolated'] else 'runs '}"
+                    f"{', '.join(map(str, i['estimate_substeps']))})")
             add(f"{scheme} accuracy", "nonlinear (C)", f"accuracy={target:g}", r.x[:, out],
-                ref, t_run, t_b,
-                f"{i['scheme']}: estimate {i['error_estimate']:.2e} (x, all 4 DOFs), "
-                f"{i['substeps']} sub-steps "
-                f"({'extrapolated from ' if i['extrapolated'] else 'runs '}"
-                f"{', '.join(map(str, i['estimate_substeps']))})")
+                ref, t_run, t_b, note, statistics.median(lin_times[-5:]))
     lin_times += [loop_time(linear()) for _ in range(5)]
     t_lin = statistics.median(lin_times)
     log(f"  linear P4L modal filters (ramp)  max {e_lin:9.2e} (vs matrix exponential)  "
