@@ -334,13 +334,13 @@ def render_all() -> dict[str, str]:
            increments=[(k, sp.sstr(v)) for k, v in modal_filters.increment_form().items()])
     render("c/nl_loop.c.jinja", "nl_loop.c", "dtdyn.derive.nonlinear")
     render("markdown/nonlinear.md.jinja", "nonlinear.md", "dtdyn.derive.nonlinear",
-           **_nonlinear_context(), **nonlinear.quintic_context())
+           **_nonlinear_context(), **nonlinear.polynomial_context())
     par = nonlinear.parabola_coefficient()
     render("numpy/nl_modal.py.jinja", "nl_modal.py", "dtdyn.derive.nonlinear.parabola_coefficient",
            closed=sp.sstr(par["closed"]), kernel=sp.sstr(par["kernel"]),
            kernel_py=printing.py(par["kernel"].subs(nonlinear.zz, sp.Symbol("zs"))
                                  .replace(sp.exp, lambda a: sp.Symbol("e"))),
-           series=[repr(float(c)) for c in par["series"]], **nonlinear.quintic_context())
+           series=[repr(float(c)) for c in par["series"]], **nonlinear.polynomial_context())
     render("numpy/stability.py.jinja", "stability.py", "dtdyn.derive.stability",
            **_stability_context())
     names = list(I.SCHEMES)

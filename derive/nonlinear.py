@@ -92,27 +92,49 @@ def parabola_coefficient() -> dict:
     return {"closed": closed, "kernel": kernel, "series": series}
 
 
-# --- polynomial treatment of the element forces of higher degree (method "modal_quintic") ------
+# --- polynomial treatment of the element forces of higher degree ("modal_quintic",
+# "modal_explicit") --------------------------------------------------------------------------------
 #
-# Over the step [t_k, t_k + h] the element forces are the polynomial of degree m through
-# g_{k+1-m}, ..., g_k, g_{k+1} (g_{k+1}: the step's own unknown, as in the ramp and the parabola):
+# Over the step [t_k, t_k + h] the element forces are the polynomial of degree m through m + 1
+# samples g_{k+j}: implicit (modal_quintic), j = 1-m .. 1, g_{k+1} the step's own unknown as in the
+# ramp and the parabola; explicit (modal_explicit), j = -m .. 0, the polynomial through known
+# samples extrapolated over the step (the step's own forces follow from the step's response, one
+# evaluation of the element laws, no Newton solve):
 #
-#     g(t_k + v h) = sum_j l_j(v) g_{k+j},   j = 1-m .. 1,   l_j the Lagrange basis in v = u/h.
+#     g(t_k + v h) = sum_j l_j(v) g_{k+j},   l_j the Lagrange basis on the nodes j, v = u/h.
 #
 # One modal term (unit residue) then receives W_j(s, h) g_{k+j} with
 #
 #     W_j = integral_0^h e^{s(h-u)} l_j(u/h) du = h sum_i c_ji i! phi_{i+1}(z),   z = s h,
 #
 # l_j(v) = sum_i c_ji v^i and phi_n(z) = (e^z - sum_{l<n} z^l / l!) / z^n = sum_k z^k / (k+n)!.
-# m = 1 is the ramp invariant, m = 2 the parabola above. The error of degree m is led by the next
-# Newton term, nabla^{m+1} g_{k+1} prod_j (v - j) / (m+1)!: its response E(s, h) nabla^{m+1}
-# g_{k+1} is the step's local error, carried along by the linear dynamics (the embedded estimate).
+# Implicit m = 1 is the ramp invariant, m = 2 the parabola above. The error of degree m is led by
+# the next Newton term (the node that the polynomial lacks: 1 - (m + 1) implicit, 1 explicit),
+# nabla^{m+1} g_{k+1} prod_j (v - j) / (m+1)!: its response E(s, h) nabla^{m+1} g_{k+1} is the
+# step's local error, carried along by the linear dynamics (the embedded estimate).
 
-#: the degree of "modal_quintic": the polynomial through six samples, order m + 1 = 6 in h
+#: the degree of "modal_quintic": the implicit polynomial through six samples, order m + 1 = 6
 QUINTIC_DEGREE = 5
+#: the degree of "modal_explicit": the polynomial through g_{k-6} .. g_k, order m + 1 = 7 (the
+#: degrees 2, 3, 6 and 7 keep the free mass stable up to mu = 0.94, 1.03, 0.23, 0.12; 4, 5 and 8
+#: grow from mu = 0 on: `polynomial_stability`)
+EXPLICIT_DEGREE = 6
+#: the polynomial methods: degree and explicit
+POLYNOMIAL_METHODS = {"modal_quintic": (QUINTIC_DEGREE, False),
+                      "modal_explicit": (EXPLICIT_DEGREE, True)}
 vv = sp.Symbol("v")  # u / h
 mu = sp.Symbol("mu", positive=True)  # k_t h^2 / m: the element's stiffness seen by one step
 lam_ = sp.Symbol("lambda")
+
+
+def polynomial_nodes(degree: int, explicit: bool = False) -> list:
+    """The nodes j of g_{k+j}, oldest first: 1-m .. 1 (implicit), -m .. 0 (explicit)."""
+    return list(range(-degree, 1)) if explicit else list(range(1 - degree, 2))
+
+
+def lagrange(nodes, j):
+    """The Lagrange basis polynomial l_j(v) on ``nodes``."""
+    return sp.prod([(vv - i) / sp.Integer(j - i) for i in nodes if i != j])
 
 
 def phi_series(n: int, k: int) -> sp.Rational:
@@ -134,28 +156,26 @@ def _kernel_coefficients(poly, n_terms: int) -> dict:
 
 
 @lru_cache(maxsize=None)
-def polynomial_weights(degree: int, n_terms: int = 40) -> dict:
-    """The weights W_j / h (j = 1-degree .. 1) and the estimate's E / h (module comment), each as
-    phi coefficients and a Taylor series in z; the difference stencil of nabla^{degree+1}; the
-    free-mass limits a_j, b_j; and the stability limit (`polynomial_stability`)."""
-    nodes = list(range(1 - degree, 2))
-    weights = {}
-    for j in nodes:
-        ell = sp.prod([(vv - i) / sp.Integer(j - i) for i in nodes if i != j])
-        weights[j] = _kernel_coefficients(ell, n_terms)
+def polynomial_weights(degree: int, explicit: bool = False, n_terms: int = 40) -> dict:
+    """The weights W_j / h (j over `polynomial_nodes`) and the estimate's E / h (module
+    comment), each as phi coefficients and a Taylor series in z; the difference stencil of
+    nabla^{degree+1}; the free-mass limits a_j, b_j; and the stability limit
+    (`polynomial_stability`)."""
+    nodes = polynomial_nodes(degree, explicit)
+    weights = {j: _kernel_coefficients(lagrange(nodes, j), n_terms) for j in nodes}
     omega = sp.prod([vv - i for i in nodes]) / sp.factorial(degree + 1)
     estimate = _kernel_coefficients(omega, n_terms)
     # the polynomial reproduces every polynomial of its degree: sum_j l_j(v) j^q = v^q
     for q in range(degree + 1):
-        assert sp.expand(sum(sp.prod([(vv - i) / sp.Integer(j - i) for i in nodes if i != j])
-                             * sp.Integer(j) ** q for j in nodes) - vv**q) == 0
+        assert sp.expand(sum(lagrange(nodes, j) * sp.Integer(j) ** q for j in nodes)
+                         - vv**q) == 0
     # nabla^{m+1} g_{k+1} = sum_i stencil_i g_{k+1-i}
     stencil = [(-1) ** i * sp.binomial(degree + 1, i) for i in range(degree + 2)]
-    return {"degree": degree, "nodes": nodes, "weights": weights, "estimate": estimate,
-            "stencil": stencil, **polynomial_stability(degree)}
+    return {"degree": degree, "explicit": explicit, "nodes": nodes, "weights": weights,
+            "estimate": estimate, "stencil": stencil, **polynomial_stability(degree, explicit)}
 
 
-def characteristic_polynomial(degree: int) -> sp.Expr:
+def characteristic_polynomial(degree: int, explicit: bool = False) -> sp.Expr:
     """Of the free unit mass y'' = -k_t y stepped with the degree-m force polynomial, exact in
     the linear part (the limit s -> 0 of the modal step, where the element's stiffness matters
     most): with V = h y',
@@ -163,34 +183,35 @@ def characteristic_polynomial(degree: int) -> sp.Expr:
         y_{k+1} = y_k + V_k - mu sum_j a_j y_{k+j},   V_{k+1} = V_k - mu sum_j b_j y_{k+j},
 
     mu = k_t h^2; y_k = lambda^k gives (lambda - 1)^2 + mu ((lambda - 1) A + B) = 0, A and B the
-    generating polynomials of a_j and b_j, times lambda^(m-1)."""
-    nodes = list(range(1 - degree, 2))
-    w = {}
-    for j in nodes:
-        ell = sp.prod([(vv - i) / sp.Integer(j - i) for i in nodes if i != j])
-        w[j] = (sp.integrate((1 - vv) * ell, (vv, 0, 1)), sp.integrate(ell, (vv, 0, 1)))
-    A = sum(w[j][0] * lam_ ** (j + degree - 1) for j in nodes)
-    B = sum(w[j][1] * lam_ ** (j + degree - 1) for j in nodes)
-    return sp.expand((lam_ - 1) ** 2 * lam_ ** (degree - 1) + mu * ((lam_ - 1) * A + B))
+    generating polynomials of a_j and b_j, times lambda^(-j_0), j_0 the oldest node."""
+    nodes = polynomial_nodes(degree, explicit)
+    lo = nodes[0]
+    w = {j: (sp.integrate((1 - vv) * lagrange(nodes, j), (vv, 0, 1)),
+             sp.integrate(lagrange(nodes, j), (vv, 0, 1))) for j in nodes}
+    A = sum(w[j][0] * lam_ ** (j - lo) for j in nodes)
+    B = sum(w[j][1] * lam_ ** (j - lo) for j in nodes)
+    return sp.expand((lam_ - 1) ** 2 * lam_ ** (-lo) + mu * ((lam_ - 1) * A + B))
 
 
 @lru_cache(maxsize=None)
-def polynomial_stability(degree: int) -> dict:
-    """The largest mu (and theta = a_1 mu, a_1 h^2 the weight of the step's own g in y: the
-    theta = |B0 dg/dy| the loops measure) up to which every root of the characteristic
-    polynomial lies in the closed unit disk: the boundary locus mu(phi) = -(lambda - 1)^2
-    lambda^(m-1) / ((lambda - 1) A + B) at lambda = e^{i phi}, its smallest real positive value;
-    found as the smallest mu at which the spectral radius exceeds 1 + 1e-9 (the round-off of the
-    double root at mu = 0). The ramp (m = 1) gives mu = 12, theta = 2; degrees 4 and 5 keep every
-    root inside up to mu = 1.40 and 2.59; the parabola (m = 2) grows from the start, by
-    ~ 0.02 mu^2 per step, so its "limit" is where that reaches 1e-9 (its loops hold it to a
-    chosen theta instead, `THETA_LIMIT`)."""
+def polynomial_stability(degree: int, explicit: bool = False) -> dict:
+    """The largest mu (and theta = a_n mu, a_n h^2 the weight of the newest sample in y: g_{k+1}
+    implicit, whose theta is the |B0 dg/dy| the loops measure; g_k explicit, whose theta is
+    |(Cw Bg) dg/dy|, its weight in the next step's y) up to which every root of the
+    characteristic polynomial lies in the closed unit disk: the boundary locus
+    mu(phi) = -(lambda - 1)^2 lambda^(-j_0) / ((lambda - 1) A + B) at lambda = e^{i phi}, its
+    smallest real positive value; found as the smallest mu at which the spectral radius exceeds
+    1 + 1e-9 (the round-off of the double root at mu = 0). The ramp (implicit m = 1) gives
+    mu = 12, theta = 2; implicit degrees 4 and 5 keep every root inside up to mu = 1.40 and 2.59,
+    explicit degree 6 up to 0.228; the parabola (m = 2) grows from the start, by ~ 0.02 mu^2
+    per step, so its "limit" is where that reaches 1e-9 (its loops hold it to a chosen theta
+    instead, `THETA_LIMIT`)."""
     import numpy as np
     from scipy.optimize import brentq
 
-    poly = characteristic_polynomial(degree)
-    a1 = sp.integrate((1 - vv) * sp.prod([(vv - i) / sp.Integer(1 - i)
-                                          for i in range(1 - degree, 1)]), (vv, 0, 1))
+    poly = characteristic_polynomial(degree, explicit)
+    nodes = polynomial_nodes(degree, explicit)
+    a_new = sp.integrate((1 - vv) * lagrange(nodes, nodes[-1]), (vv, 0, 1))
     coeffs = [sp.Poly(poly, lam_).coeff_monomial(lam_**k) for k in range(sp.degree(poly, lam_),
                                                                           -1, -1)]
     fc = [sp.lambdify(mu, c, "numpy") for c in coeffs]
@@ -204,26 +225,30 @@ def polynomial_stability(degree: int) -> dict:
     if bad and bad[0] > grid[0]:
         k = int(np.searchsorted(grid, bad[0]))
         limit = float(brentq(lambda m: growth(m) - tiny, grid[k - 1], grid[k], xtol=1e-14))
-    return {"a1": a1, "mu_limit": limit, "theta_limit": float(a1) * limit}
+    return {"a1": a_new, "mu_limit": limit, "theta_limit": float(a_new) * limit}
 
 
-def quintic_context() -> dict:
-    """What generated/nl_modal.py carries of "modal_quintic" (`polynomial_weights`), as text."""
-    pw = polynomial_weights(QUINTIC_DEGREE)
-
+def polynomial_context() -> dict:
+    """What generated/nl_modal.py and nonlinear.md carry of the polynomial methods
+    (`polynomial_weights`), as text: one entry per method of POLYNOMIAL_METHODS."""
     def table(k):
         return {"phi": [repr(float(c)) for c in k["phi"]],
                 "series": [repr(float(c)) for c in k["series"]], "a": sp.sstr(k["a"]),
                 "b": sp.sstr(k["b"])}
-    return {"quintic_degree": pw["degree"], "quintic_nodes": pw["nodes"],
-            "quintic_weights": [(j, table(pw["weights"][j])) for j in pw["nodes"]],
-            "quintic_estimate": table(pw["estimate"]),
-            "quintic_stencil": [int(c) for c in pw["stencil"]],
-            "quintic_a1": sp.sstr(pw["a1"]), "quintic_mu_limit": repr(pw["mu_limit"]),
-            "quintic_theta_limit": repr(pw["theta_limit"]),
-            "quintic_charpoly": sp.sstr(characteristic_polynomial(QUINTIC_DEGREE)),
-            "quintic_latex": [(j, [sp.latex(c) for c in pw["weights"][j]["phi"]],
-                               sp.latex(pw["weights"][j]["a"]), sp.latex(pw["weights"][j]["b"]))
-                              for j in pw["nodes"]],
-            "quintic_estimate_latex": [sp.latex(c) for c in pw["estimate"]["phi"]],
-            "quintic_charpoly_latex": sp.latex(characteristic_polynomial(QUINTIC_DEGREE))}
+    out = []
+    for name, (degree, explicit) in POLYNOMIAL_METHODS.items():
+        pw = polynomial_weights(degree, explicit)
+        cp = characteristic_polynomial(degree, explicit)
+        out.append({
+            "method": name, "prefix": name.removeprefix("modal_").upper(), "degree": degree,
+            "explicit": explicit, "nodes": pw["nodes"],
+            "weights": [(j, table(pw["weights"][j])) for j in pw["nodes"]],
+            "estimate": table(pw["estimate"]), "stencil": [int(c) for c in pw["stencil"]],
+            "a1": sp.sstr(pw["a1"]), "mu_limit": repr(pw["mu_limit"]),
+            "theta_limit": repr(pw["theta_limit"]), "charpoly": sp.sstr(cp),
+            "latex": [(j, [sp.latex(c) for c in pw["weights"][j]["phi"]],
+                       sp.latex(pw["weights"][j]["a"]), sp.latex(pw["weights"][j]["b"]))
+                      for j in pw["nodes"]],
+            "estimate_latex": [sp.latex(c) for c in pw["estimate"]["phi"]],
+            "charpoly_latex": sp.latex(cp), "a1_latex": sp.latex(pw["a1"])})
+    return {"polynomials": out}

@@ -546,6 +546,61 @@ static void estimate_block(long nb, long k0, long S, const double *const *mats,
         copy(ne, Gb + (nb + k) * ne, Gb + k * ne);
 }
 
+/*
+ * The explicit force polynomial (NL_EXPLICIT, modal_explicit): Dwg = 0, so w_k = Q_k. Its
+ * stability measure is the weight of g_k on the next step's displacements, theta =
+ * |(Cw Bg) dg/dy|_inf (y rows and columns; generated/nonlinear.md): theta_limit beyond it is
+ * failure 3 (stats[3] theta), and stats[4] keeps the largest.
+ */
+static inline int explicit_theta(const double *restrict Gu, const double *restrict CB,
+                                 double theta_limit, double *stats) {
+    double th = 0.0;
+    int i, k, l;
+    for (i = 0; i < NL_NE; ++i) {
+        double row = 0.0;
+        for (k = 0; k < NL_NE; ++k) {
+            double s = 0.0;
+            for (l = 0; l < NL_NE; ++l)
+                s += CB[l * NL_NW + i] * Gu[k * NL_NE + l];
+            row += fabs(s);
+        }
+        th = row > th ? row : th;
+    }
+    if (th > stats[4])
+        stats[4] = th;
+    if (th > theta_limit) {
+        stats[3] = th;
+        return 3;
+    }
+    return 0;
+}
+
+#if defined(NL_EXPLICIT) && NL_NZ == 0
+/*
+ * One step of the explicit polynomial without internal states: u = Q_k exactly, the element
+ * laws evaluated once (no Newton solve, no iterations counted). Returns 1 when the element
+ * forces are not finite (stats[3] the largest |g|), 3 (explicit_theta), else 0.
+ */
+static inline int explicit_step(double *restrict u, const double *restrict Q,
+                                const double *restrict g, const double *restrict Gu,
+                                const double *restrict CB, const double **arg, double **res,
+                                nl_int *iw, double *w, double theta_limit, double *stats) {
+    double m = 0.0;
+    int i;
+    copy(NL_NW, Q, u);
+    nl_residual(arg, res, iw, w, 0);
+    for (i = 0; i < NL_NE; ++i) {
+        const double a = fabs(g[i]);
+        m = (a > m || a != a) ? a : m;
+    }
+    if (!(m < INFINITY)) {
+        stats[3] = m;
+        return 1;
+    }
+    return explicit_theta(Gu, CB, theta_limit, stats);
+}
+#endif
+
 static int modal_run(const long *dims, const double *const *mats, const double *restrict force,
                      double *restrict x, double *restrict u, double *restrict g,
                      double *restrict rate, double *restrict out, double tol, double theta_limit,
@@ -626,6 +681,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                     b += CB[c * nw + i] * gq[c];
                 Q[i] = (a + CL[i]) + b;
             }
+#if !defined(NL_EXPLICIT) || NL_NZ > 0
             /* the linear predictor u = [Q + Dwg g_{k-1}; z_{k-1} + h z'_{k-1}] */
             for (i = 0; i < nw; ++i) {
                 double b = 0.0;
@@ -637,6 +693,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             copy(nz, rate, rold);
             for (i = 0; i < nz; ++i)
                 u[nw + i] = zold[i] + h * rold[i];
+#endif
             /* the next step's linear part: L_{k+1} = T eta_k + [H Bf] [hist; f_k], Cw L_{k+1} */
             vmatvec(NMV, nh + nf, HB, xin, Lx, 0);
             {
@@ -648,8 +705,17 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             for (i = 0; i < nw; ++i)
                 CL[i] = vdot(NMV, CwT + i * NMP, Lx);
             /* Newton under the shared acceptance rule (newton_solve), scale fixed per step */
+#if defined(NL_EXPLICIT) && NL_NZ == 0
+            rc = explicit_step(u, Q, g, Gu, CB, arg, res, iwork, cw, theta_limit, stats);
+#elif defined(NL_EXPLICIT) /* Newton for the internal states only (w = Q) */
+            rc = solve_step(u, r, J, Q, &scale, &scale_u, tol, max_iter, arg, res, iwork, cw,
+                            INFINITY, stats);
+            if (!rc)
+                rc = explicit_theta(Gu, CB, theta_limit, stats);
+#else
             rc = solve_step(u, r, J, Q, &scale, &scale_u, tol, max_iter, arg, res, iwork, cw,
                             theta_limit, stats);
+#endif
             if (rc) {
                 fail[0] = n * S + j;
                 return rc;

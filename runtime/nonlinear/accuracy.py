@@ -76,14 +76,17 @@ def check_accuracy(accuracy):
 
 
 def scheme_order(method, params) -> int:
-    """The order p in h of ``method`` with these parameters (modal_ramp 2, modal_parabolic 3, a
-    one-step scheme its table order; Newmark with gamma != 1/2 is first order)."""
+    """The order p in h of ``method`` with these parameters (modal_ramp 2, modal_parabolic 3,
+    modal_quintic 6, modal_explicit 7, a one-step scheme its table order; Newmark with
+    gamma != 1/2 is first order)."""
     if method == "modal_ramp":
         return 2
     if method == "modal_parabolic":
         return 3
     if method == "modal_quintic":
         return 6
+    if method == "modal_explicit":
+        return 7
     if method not in TABLE:
         raise ValueError(f"scheme {method!r} has no known order; accuracy and estimate "
                          f"need modal_ramp, modal_parabolic or a scheme of {', '.join(TABLE)}")

@@ -22,6 +22,12 @@ generated/nonlinear.md). Schemes:
   theta = 0.222), with an embedded error estimate: the next term of the polynomial,
   nabla^6 g_{k+1}, is the local error of each step; the linear modal dynamics carry it along
   (dtdyn's addition).
+- "modal_explicit": the same filters with the element forces extrapolated over the step by the
+  polynomial of degree 6 through g_{k-6}, ..., g_k (seventh order in h): the step's response does
+  not depend on its own element forces (Dwg = 0), so each step evaluates the element laws once,
+  with no Newton solve (internal states still solve their own update); stable up to
+  theta = |(Cw Bg) dg/dy| = 0.264 (Omega_t = 0.48), with the same embedded estimate as
+  modal_quintic (dtdyn's addition).
 - any one-step scheme of the integrator library on M, C, K ("newmark", "average_acceleration",
   "hht", "generalized_alpha", ...): the effective nonlinear system of the scheme; HHT and
   generalized-alpha evaluate the nonlinear forces like the external ones, averaged between
@@ -34,11 +40,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from dtdyn._engine import validate
-from dtdyn.generated.nl_modal import QUINTIC_THETA_LIMIT
+from dtdyn.generated.nl_modal import EXPLICIT_THETA_LIMIT, QUINTIC_THETA_LIMIT
 from dtdyn.generated.scheme_table import TABLE
 
 MULTISTEP = tuple(name for name, row in TABLE.items() if row["startup_steps"])
-MODAL = ("modal_ramp", "modal_parabolic", "modal_quintic")
+MODAL = ("modal_ramp", "modal_parabolic", "modal_quintic", "modal_explicit")
+#: the modal methods whose force polynomial has its own tables (generated/nl_modal.py)
+POLYNOMIAL = ("modal_quintic", "modal_explicit")
+#: the modal methods whose step does not depend on its own element forces (Dwg = 0)
+EXPLICIT = ("modal_explicit",)
 
 #: largest theta = |B0 dg/dy|_inf (the elements' tangent stiffness k_t as seen by the step; y
 #: rows and columns only: velocity terms and internal states are not counted) a
@@ -48,8 +58,11 @@ MODAL = ("modal_ramp", "modal_parabolic", "modal_quintic")
 #: theta = 0.03 without damping (docs/nonlinear.md), so it is held to theta <= 0.01.
 #: The quintic keeps every root of the free mass stepped with it in the unit disk up to
 #: theta = QUINTIC_THETA_LIMIT = 0.222 (Omega_t = 1.61; derived: generated/nl_modal.py).
+#: The explicit modal_explicit has no B0: its theta is |(Cw Bg) dg/dy|, the weight of g_k on the
+#: next step's y, stable up to EXPLICIT_THETA_LIMIT (Omega_t = 0.48).
 #: The implicit schemes (average acceleration, HHT, generalized-alpha) have no such limit.
-THETA_LIMIT = {"modal_ramp": 2.0, "modal_parabolic": 0.01, "modal_quintic": QUINTIC_THETA_LIMIT}
+THETA_LIMIT = {"modal_ramp": 2.0, "modal_parabolic": 0.01, "modal_quintic": QUINTIC_THETA_LIMIT,
+               "modal_explicit": EXPLICIT_THETA_LIMIT}
 
 
 @dataclass
@@ -99,17 +112,18 @@ def _shifted(Phi, G0, G1, S, Z0, Zx, Zv, L, out, need_v, nf, h, direct=None) -> 
                       c(Zv))
 
 
-def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False,
+def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, forces=False,
                 estimate=True) -> LinearStep:
     """Ramp-invariant modal model: eta_k = lam eta_{k-1} + N0 p_k + N1 p_{k-1}, p = X_f U u.
 
     Displacement q = sum_r w_r Re(psi_r eta_r) (w = 2 for a conjugate pair, 1 for a real pole),
     velocity with psi_r s_r, acceleration with psi_r s_r^2 plus the direct term
-    sum_r w_r Re(s_r R_r) u (= M^-1 with all modes). ``parabolic="parabolic"`` adds
+    sum_r w_r Re(s_r R_r) u (= M^-1 with all modes). ``forces="parabolic"`` adds
     N2 X_f U_g (g_k - 2 g_{k-1} + g_{k-2}) (generated/nl_modal.py), the state then carrying
-    g_{k-1} (g_{-1} = g_0 at rest); ``parabolic="quintic"`` weighs g_{k-4} .. g_k by W_j
-    (generated/nl_modal.py, quintic_coefficients), the state carrying g_{k-1} .. g_{k-4}, and
-    adds the estimate's input E X_f U_g (step.modal["Eg"]; ``estimate=False``: none).
+    g_{k-1} (g_{-1} = g_0 at rest); ``forces`` = a method of POLYNOMIAL weighs its nodes
+    g_{k+j} by W_j (generated/nl_modal.py, polynomial_coefficients; modal_quintic g_{k-4} ..
+    g_{k+1}, modal_explicit g_{k-6} .. g_k), the state carrying the past ones g_{k-1}, g_{k-2},
+    ..., and adds the estimate's input E X_f U_g (step.modal["Eg"]; ``estimate=False``: none).
     """
     from scipy.linalg import block_diag
 
@@ -127,11 +141,12 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False,
         idx, osc = idx[sel], osc[sel]
     s = np.where(osc, s_all[idx], s_all[idx].real)
     N1, N0 = forced_coefficients("ramp", s, np.ones_like(s), h)  # old input, new input
-    N2 = parabola_coefficient(s, h) if parabolic == "parabolic" else np.zeros_like(s)
-    if parabolic == "quintic":  # W_j of g_{k+j}, j = -4 .. 1, and the estimate's E
-        from dtdyn.generated.nl_modal import QUINTIC_NODES, quintic_coefficients
-        W, E = quintic_coefficients(s, h)
-        past = [j for j in QUINTIC_NODES if j < 0][::-1]  # g_{k-1}, g_{k-2}, ...
+    N2 = parabola_coefficient(s, h) if forces == "parabolic" else np.zeros_like(s)
+    polynomial = forces in POLYNOMIAL
+    if polynomial:  # W_j of g_{k+j} and the estimate's E
+        from dtdyn.generated.nl_modal import POLYNOMIALS, polynomial_coefficients
+        W, E = polynomial_coefficients(forces, s, h)
+        past = [j for j in POLYNOMIALS[forces][0] if j < 0][::-1]  # g_{k-1}, g_{k-2}, ...
     lam = np.exp(s * h)
     P = X_f[idx] @ U
     ne, nu = L.shape[0], U.shape[1]
@@ -144,9 +159,9 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False,
         g0[nf:] -= 2.0 * g2
         g1[nf:] += g2
         e = np.zeros(ne, dtype=complex)
-        if parabolic == "quintic":  # G2: the weights of g_{k-1}, g_{k-2}, ... side by side
+        if polynomial:  # G2: the weights of g_{k-1}, g_{k-2}, ... side by side
             g0[nf:] = W[0][r] * P[r, nf:]
-            g1[nf:] = W[1][r] * P[r, nf:]
+            g1[nf:] = W[1][r] * P[r, nf:] if 1 in W else 0.0
             g2 = np.concatenate([W[j][r] * P[r, nf:] for j in past])
             e = E[r] * P[r, nf:]
         parts = {"G0": g0, "G1": g1, "G2": g2, "S": Sc[:, r], "Zx": X_x[idx[r]],
@@ -165,7 +180,7 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False,
     S = S.T
     Z0 = np.zeros_like(G1)
     nm = Phi.shape[0]
-    if parabolic:  # state [eta; g_{k-1}; ...; g_{k-n_past}], shifted by ne each step
+    if forces:  # state [eta; g_{k-1}; ...; g_{k-n_past}], shifted by ne each step
         nh = G2.shape[1]
         E_g = np.hstack([np.zeros((ne, nf)), np.eye(ne)])
         shift = np.zeros((nh, nm + nh))
@@ -177,9 +192,8 @@ def _modal_step(M, C, K, h, U, L, out, modes, need_v, nf, parabolic=False,
         Z0 = np.vstack([Z0, np.tile(E_g, (nh // ne, 1))])
         Zx, Zv = (np.vstack([Z, np.zeros((nh, Z.shape[1]))]) for Z in (Zx, Zv))
     step = _shifted(Phi, G0, G1, S, Z0, Zx, Zv, L, out, need_v, nf, h, direct)
-    if parabolic == "quintic" and estimate:
-        from dtdyn.generated.nl_modal import QUINTIC_STENCIL
-        step.modal = modal_structure(step, nm, Eg, QUINTIC_STENCIL)
+    if polynomial and estimate:
+        step.modal = modal_structure(step, nm, Eg, POLYNOMIALS[forces][5])
     else:
         step.modal = modal_structure(step, nm, np.zeros((nm, ne)), np.zeros(0))
     return step
@@ -248,16 +262,16 @@ def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearSte
 def linear_step(method, M, C, K, h, force_dofs, L, outputs, modes=None, need_v=False,
                 estimate=True, **scheme_params) -> LinearStep:
     """The shifted linear model of one step h for ``method`` (module docstring); ``estimate``:
-    modal_quintic's embedded estimate (False: its loop skips it)."""
+    the polynomial methods' embedded estimate (False: their loop skips it)."""
     n = M.shape[0]
     U = np.hstack([np.eye(n)[:, force_dofs], -L.T])  # DOF forces of u = [f; g]
     if method in MODAL:
         if scheme_params:
             raise ValueError(f"scheme {method!r} takes no scheme parameters, got "
                              f"{', '.join(sorted(scheme_params))}")
+        forces = {"modal_ramp": False, "modal_parabolic": "parabolic"}.get(method, method)
         return _modal_step(M, C, K, h, U, L, outputs, modes, need_v, len(force_dofs),
-                           parabolic={"modal_ramp": False, "modal_parabolic": "parabolic",
-                                      "modal_quintic": "quintic"}[method], estimate=estimate)
+                           forces=forces, estimate=estimate)
     if modes is not None:
         raise ValueError(f"modes selects modal filters; scheme {method!r} integrates all DOFs")
     return _scheme_step(M, C, K, h, U, L, outputs, method, scheme_params, need_v,

@@ -45,7 +45,7 @@ from dtdyn._engine.stepping import check_quantities
 from dtdyn._engine.result import Response
 from dtdyn._engine.errors import DtdynStepStabilityError, NewtonError
 from dtdyn._engine.extras import require
-from dtdyn.nonlinear.linear_step import THETA_LIMIT, LinearStep, linear_step
+from dtdyn.nonlinear.linear_step import EXPLICIT, POLYNOMIAL, THETA_LIMIT, LinearStep, linear_step
 
 # ----------------------------------------------------------------------------------------------
 # the per-step residual of the elements (CasADi SX), shared by both backends
@@ -120,16 +120,18 @@ def _forces_at_rest(elements, sz: _Sizes, y=None, yd=None):
 
 
 @lru_cache(maxsize=32)
-def _c_runner(elements, dims):
+def _c_runner(elements, dims, explicit=False):
     """(runner or None, construct time, compile time) for these elements and sizes (ns, nf, ne,
-    nw, nz, no[, nm, nh, nst, np]: the modal path of the loop, whose residual function also
-    gives dg/du); cached, so a second run pays neither."""
+    nw, nz, no[, nm, nh, nst]: the modal path of the loop, whose residual function also
+    gives dg/du; ``explicit``: modal_explicit's step, NL_EXPLICIT); cached, so a second run pays
+    neither."""
     t0 = time.perf_counter()
     sz = _sizes(elements)
     fn = _residual_function(elements, sz, tangent=len(dims) > 6)
     sizes = "".join(f"#define NL_{k} {int(v)}\n" for k, v in zip(("NS", "NF", "NE", "NW", "NZ",
                                                                      "NO", "NM", "NH", "NST"),
                                                                     dims))
+    sizes += "#define NL_EXPLICIT 1\n" if explicit else ""
     loop = resources.files("dtdyn.generated").joinpath("nl_loop.c").read_text()
     source = sizes + loop + "\n" + _c_source(fn)
     t1 = time.perf_counter()
@@ -234,10 +236,10 @@ _RECORDS: dict = {}
 
 
 def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_iter, compiled,
-                   with_theta, nzo=0):
+                   with_theta, nzo=0, explicit=False):
     """F(x_aug, [f_n; f_{n+1}] columns) -> (x_aug', out columns, check columns), check =
     [|r| per sub-step; rho = min(|r| / s_r, |J^-1 r| / s_u) per sub-step; theta per sub-step
-    (``with_theta`` only)].
+    (``with_theta`` only; ``explicit``: modal_explicit's, |(Cw Bg) dg/dy|)].
 
     x_aug = [x; u; g; z'; s_r; s_u] (state, last solution, forces, rates, scales of the
     acceptance rule); one column per sample, the
@@ -251,7 +253,8 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, step.Co, step.Dof, step.Dog]
     digest = hashlib.sha256(b"".join(np.ascontiguousarray(m).tobytes() for m in mats)
                             + repr([m.shape for m in mats] + [step.h]).encode()).hexdigest()
-    key = (elements, digest, S, n_blocks, solver, tol, max_iter, compiled, with_theta, nzo)
+    key = (elements, digest, S, n_blocks, solver, tol, max_iter, compiled, with_theta, nzo,
+           explicit)
     if key in _RECORDS:
         return _RECORDS[key][0], 0.0, 0.0
     t0 = time.perf_counter()
@@ -271,8 +274,13 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
             "show_eval_warnings": False, **({"line_search": False} if solver == "newton" else {})}
     rf = ca.rootfinder("rf", solver, {"x": e["u"], "p": p, "g": e["r"] / sr_}, opts)
     J = ca.densify(ca.jacobian(e["r"], e["u"]))
-    # theta = |J_yy - I|_inf = |B0 dg/dy|_inf, as the C loop measures it
-    J_yy = J[:sz.ne, :sz.ne] - ca.SX.eye(sz.ne)
+    # theta = |J_yy - I|_inf = |B0 dg/dy|_inf, as the C loop measures it; the explicit
+    # polynomial (no B0): |(Cw Bg) dg/dy|_inf
+    if explicit:
+        dgdy = ca.densify(ca.jacobian(e["g"], e["u"]))[:, :sz.ne]
+        J_yy = ca.mtimes(ca.DM((step.Cw @ step.Bg)[:sz.ne]), dgdy)
+    else:
+        J_yy = J[:sz.ne, :sz.ne] - ca.SX.eye(sz.ne)
     post = ca.Function("post", [e["u"], e["Q"], e["zold"], e["rold"], e["par"]],
                        [e["r"], J, e["g"], e["rate"], ca.mmax(ca.sum2(ca.fabs(J_yy)))])
     MX = ca.MX
@@ -359,7 +367,8 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, m
     with_theta = method in THETA_LIMIT
     limit = THETA_LIMIT.get(method, np.inf)
     record, t_build, t_compile = _casadi_record(elements, step, S, n_blocks, solver, tol,
-                                                max_iter, compiled, with_theta, nzo)
+                                                max_iter, compiled, with_theta, nzo,
+                                                method in EXPLICIT)
     out = np.empty((n, step.Co.shape[0] + nzo))
     worst, theta, t_run = 0.0, -np.inf, 0.0
     last_step = (n - 1) * S  # the last sample runs one step, as in the C loop
@@ -593,7 +602,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                 **scheme_params)
         if S0 > cap and target is not None:
             raise ValueError(f"substeps ({S0}) must be <= max_substeps ({cap}) with accuracy")
-        if scheme == "modal_quintic" and backend == "c":  # its runs estimate themselves
+        if scheme in POLYNOMIAL and backend == "c":  # its runs estimate themselves
             if target is None:
                 return run(S0)
             then = (partial(run, method=acc.AUTO_THEN), acc.AUTO_THEN, {}) if auto else None
@@ -680,7 +689,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         dims = (step.A.shape[0], f.shape[1], sz.ne, sz.nw, sz.nz, step.Co.shape[0])
         if step.modal is not None:
             dims += (step.modal["nm"], step.modal["nh"], step.modal["stencil"].size)
-        runner, t_build, t_compile = _c_runner(elements, dims)
+        runner, t_build, t_compile = _c_runner(elements, dims, method in EXPLICIT)
         used = "c" if runner is not None else "casadi"
     if used == "c":
         t2 = time.perf_counter()
@@ -692,7 +701,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         if rc == 3:
             _stability_error(method, fail, S, fs, stats[3])
         if rc:
-            _newton_error(fail, S, fs, stats[3], max_iter)
+            _newton_error(fail, S, fs, stats[3], max_iter, method in EXPLICIT and not sz.nz)
         iters = {"max": int(stats[0]), "mean": stats[1] / ((f.shape[0] - 1) * S + 1)}
         worst, theta = float(stats[2]), float(stats[4])
         if step.modal is not None and step.modal["stencil"].size:
@@ -746,15 +755,21 @@ def _stability_error(method, k, S, fs, theta):
     where = f"sample {n}" + (f", sub-step {j} of {S}" if S > 1 else "")
     limit = THETA_LIMIT[method]
     more = int(np.ceil(S * np.sqrt(theta / limit)))
+    measure = "|(Cw Bg) dg/dy|" if method in EXPLICIT else "|B0 dg/dy|"
     raise DtdynStepStabilityError(
         f"scheme {method!r} is unstable at step {k} ({where}, t = {k / (fs * S):.6g} s): the "
-        f"elements' tangent stiffness gives theta = |B0 dg/dy| = {theta:.3g} > {limit:g}; use "
+        f"elements' tangent stiffness gives theta = {measure} = {theta:.3g} > {limit:g}; use "
         f"substeps >= {more} or an unconditionally stable scheme (scheme='newmark')")
 
 
-def _newton_error(k, S, fs, resid, max_iter):
+def _newton_error(k, S, fs, resid, max_iter, evaluated=False):
+    """NewtonError at step k; ``evaluated``: the step had no Newton solve (modal_explicit
+    without internal states), its element forces were not finite (resid: their largest |g|)."""
     n, j = divmod(k, S)
     where = f"sample {n}" + (f", sub-step {j} of {S}" if S > 1 else "")
+    if evaluated:
+        raise NewtonError(f"the element forces are not finite at step {k} ({where}, "
+                          f"t = {k / (fs * S):.6g} s): |g| = {resid:.3g}; try more substeps")
     raise NewtonError(f"Newton did not converge at step {k} ({where}, t = {k / (fs * S):.6g} s): "
                       f"residual {resid:.3g} after at most {max_iter} iterations; try more "
                       "substeps (or smoothing for a Gap)")

@@ -528,18 +528,22 @@ def _lagrange(j, v, nodes):
     return out
 
 
+@pytest.mark.parametrize("method, nodes", [("modal_quintic", range(-4, 2)),
+                                           ("modal_explicit", range(-6, 1))])
 @pytest.mark.parametrize("pole", [-0.5 + 100j, -30 + 3000j, -100 + 1900j, -1e4 + 0j, -2e3 + 0j,
                                   -900 + 1700j])
-def test_quintic_weights_against_quadrature(pole):
+def test_polynomial_weights_against_quadrature(pole, method, nodes):
     """W_j = integral_0^h e^{s(h-u)} l_j(u/h) du and the estimate's E (the polynomial
-    prod (v - j) / 6!) by numerical quadrature, on both sides of the series/closed-form switch
-    (|s h| = 2)."""
+    prod (v - j) / (m + 1)!) by numerical quadrature, on both sides of the series/closed-form
+    switch (|s h| = 2), for the implicit quintic and the explicit sextic."""
+    from math import factorial
+
     from scipy.integrate import quad
 
-    from dtdyn.generated.nl_modal import quintic_coefficients
+    from dtdyn.generated.nl_modal import polynomial_coefficients
     h = 1e-3
-    nodes = range(-4, 2)
-    W, E = quintic_coefficients(np.array([pole]), h)
+    W, E = polynomial_coefficients(method, np.array([pole]), h)
+    assert sorted(W) == list(nodes)
 
     def integral(fn):
         re = quad(lambda u: (np.exp(pole * (h - u)) * fn(u / h)).real, 0, h, epsabs=0,
@@ -550,32 +554,35 @@ def test_quintic_weights_against_quadrature(pole):
     for j in nodes:
         want = integral(lambda v: _lagrange(j, v, nodes))
         assert abs(W[j][0] - want) <= 1e-11 * abs(want), j
-    want = integral(lambda v: np.prod([v - i for i in nodes]) / 720.0)
+    want = integral(lambda v: np.prod([v - i for i in nodes]) / factorial(len(nodes)))
     assert abs(E[0] - want) <= 1e-11 * abs(want)
 
 
-def test_quintic_stability_limit_is_the_runtime_step_s():
+@pytest.mark.parametrize("method, degree, explicit", [("modal_quintic", 5, False),
+                                                      ("modal_explicit", 6, True)])
+def test_polynomial_stability_limit_is_the_runtime_step_s(method, degree, explicit):
     """The derived limit (the free mass's characteristic polynomial) against the runtime's own
     step: one mode (omega h = 0.01, undamped) with a linear element k_t, the closed loop
     A + Bg k_t (1 - Dwg k_t)^-1 Cw: every eigenvalue in the unit disk at 0.95 of the limit,
-    one outside at 1.05; the ramp's derived limit is its theta = 2 (Omega_t = sqrt 12)."""
-    from dtdyn.generated.nl_modal import QUINTIC_THETA_LIMIT
+    one outside at 1.05; theta = |B0 k_t| with B0 = Dwg (implicit) or Cw Bg (explicit: Dwg = 0),
+    as the loops measure it. The ramp's derived limit is its theta = 2 (Omega_t = sqrt 12)."""
     from dtdyn.nonlinear.linear_step import THETA_LIMIT, linear_step
     assert DN.polynomial_stability(1)["theta_limit"] == pytest.approx(2.0, rel=1e-9)
-    assert THETA_LIMIT["modal_quintic"] == QUINTIC_THETA_LIMIT
-    assert QUINTIC_THETA_LIMIT == pytest.approx(DN.polynomial_stability(5)["theta_limit"])
+    limit = THETA_LIMIT[method]
+    assert limit == pytest.approx(DN.polynomial_stability(degree, explicit)["theta_limit"])
     h, L = 0.01, np.eye(1)
-    step = linear_step("modal_quintic", np.eye(1), np.zeros((1, 1)), np.eye(1), h, [0], L,
+    step = linear_step(method, np.eye(1), np.zeros((1, 1)), np.eye(1), h, [0], L,
                        np.array([0]))
-    B0 = -step.Dwg[0, 0]
+    assert (step.Dwg[0, 0] == 0) == explicit
+    B0 = -(step.Cw @ step.Bg)[0, 0] if explicit else -step.Dwg[0, 0]
 
     def radius(theta):
         kt = theta / B0
         A = step.A + step.Bg * kt @ np.linalg.inv(np.eye(1) - step.Dwg * kt) @ step.Cw
         return np.abs(np.linalg.eigvals(A)).max()
-    assert radius(0.5 * QUINTIC_THETA_LIMIT) <= 1 + 1e-9
-    assert radius(0.95 * QUINTIC_THETA_LIMIT) <= 1 + 1e-9
-    assert radius(1.05 * QUINTIC_THETA_LIMIT) > 1 + 1e-6
+    assert radius(0.5 * limit) <= 1 + 1e-9
+    assert radius(0.95 * limit) <= 1 + 1e-9
+    assert radius(1.05 * limit) > 1 + 1e-6
 
 
 def test_quintic_embedded_estimate_is_its_recursion(P4):
