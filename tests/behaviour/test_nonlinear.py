@@ -661,10 +661,14 @@ def test_modal_path_with_real_poles_agrees_with_casadi(method):
         assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max(), q
 
 
-def test_modal_path_compiles_cleanly(tmp_path):
+@pytest.mark.parametrize("variant", [[], ["-DNL_EXPLICIT=1"], ["-DNL_EXPLICIT=1", "-DNL_NZ=0"],
+                                     ["-mavx", "-mfma"],
+                                     ["-mavx", "-mfma", "-DNL_EXPLICIT=1", "-DNL_NZ=0"]])
+def test_modal_path_compiles_cleanly(tmp_path, variant):
     """nl_loop.c with the modal path compiled in (its vectors of 4 are GCC/Clang vector
     extensions) as C99 with -Wall -Wextra -Werror -pedantic, as the general path is checked in
-    tests/generated_code."""
+    tests/generated_code: implicit and explicit (NL_EXPLICIT, with and without internal states),
+    with and without the fused multiply-add intrinsics (VFMA)."""
     import shutil
     import subprocess
 
@@ -674,12 +678,18 @@ def test_modal_path_compiles_cleanly(tmp_path):
         pytest.skip("no C compiler on this machine")
     src = tmp_path / "nl_loop.c"
     src.write_text(cbuild.generated_source("nl_loop.c"))
-    sizes = ["-DNL_NS=10", "-DNL_NF=1", "-DNL_NE=2", "-DNL_NW=4", "-DNL_NZ=1", "-DNL_NO=5",
-             "-DNL_NM=6", "-DNL_NH=4", "-DNL_NST=7"]
-    proc = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *sizes,
+    sizes = {"NS": 10, "NF": 1, "NE": 2, "NW": 4, "NZ": 1, "NO": 5, "NM": 6, "NH": 4, "NST": 7}
+    for flag in variant:
+        if flag.startswith("-DNL_N"):
+            key, value = flag[5:].split("=")
+            sizes[key] = int(value)
+    defines = [f"-DNL_{k}={v}" for k, v in sizes.items()]
+    defines += [f for f in variant if not f.startswith("-DNL_N")]
+    proc = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *defines,
                            "-c", str(src), "-o", str(tmp_path / "k.o")],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
+
 
 def test_p4_quintic_convergence_order(P4, P4_ref):
     """Sixth order: the error falls by 2^6.4 from 1 to 2 sub-steps and by 2^6.3 from 2 to 4
