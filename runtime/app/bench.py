@@ -173,7 +173,8 @@ def bench_p3(quick=False, log=print):
 
 # --- P4: nonlinear ------------------------------------------------------------------------------
 
-P4_METHODS = [("modal_quintic", {}), ("modal_quintic", {"estimate": False}),
+P4_METHODS = [("modal_explicit", {}), ("modal_explicit", {"estimate": False}),
+              ("modal_quintic", {}), ("modal_quintic", {"estimate": False}),
               ("modal_parabolic", {}), ("modal_ramp", {}), ("newmark", {}),
               ("hht", {"alpha": -0.05}), ("generalized_alpha", {"rho_inf": 0.8})]
 
@@ -185,20 +186,26 @@ def _modal_flops(method, r, S, ne, n_modes, no):
     """Floating-point operations per sample of the modal loop (nl_loop.c, modal_run; a
     multiply-add counted as 2): per sub-step eta = L + Bg g, Q = (Cw L + Dwf f) + (Cw Bg) g, the
     predictor, each Newton iteration (the two cubic laws' residual and Jacobian, ~24, and the
-    2 x 2 solve, ~12, at mean iterations + 1 evaluations), the next linear part
+    2 x 2 solve, ~12, at mean iterations + 1 evaluations; modal_explicit: no predictor, one
+    evaluation of the laws and their tangent, ~12, and its theta |(Cw Bg) dg/dy|, ~4 ne^3),
+    the next linear part
     [H Bf] [hist; f] + T eta (dia y + off y[partner]) and Cw of it; modal_quintic's estimate,
     evaluated a block at a time after the Newton solves (the difference stencil, the gain
     K = dg/du J^-1 [I; 0] from the 2 x 2 inverse, (Cw T) e + (Cw Eg) dn + (Cw Bs) dg, K of it,
     T e + Eg dn + Bs dg); per sample the outputs (x of all DOFs, [Co Dof Dog]) and the
     estimate's (Co e + Dog dg)."""
     nm, nf, nw = 2 * n_modes, 1, ne
-    nh = {"modal_ramp": 0, "modal_parabolic": 1, "modal_quintic": 4}[method] * ne
-    evals = r.info["newton_iterations"]["mean"] + 1
-    sub = 2 * nm * ne + 2 * (nw * nf + nw * ne) + nw + 2 * nw * ne + evals * 36 \
-        + 2 * nm * (nh + nf) + 3 * nm + 2 * nw * nm
+    nh = {"modal_ramp": 0, "modal_parabolic": 1, "modal_quintic": 4,
+          "modal_explicit": 6}[method] * ne
+    if method == "modal_explicit":
+        step = 12 + 4 * ne**3
+    else:
+        step = nw + 2 * nw * ne + (r.info["newton_iterations"]["mean"] + 1) * 36
+    sub = 2 * nm * ne + 2 * (nw * nf + nw * ne) + step + 2 * nm * (nh + nf) + 3 * nm + 2 * nw * nm
     per_sample = 2 * no * (nm + nf + ne)
-    if "error_estimate" in r.info:  # modal_quintic's embedded estimate
-        sub += (2 * 7 * ne + 8 + 2 * ne * nw * nw + 2 * nw * nm + 4 * nw * ne + 2 * ne * nw
+    if "error_estimate" in r.info:  # the polynomial methods' embedded estimate
+        nst = {"modal_quintic": 7, "modal_explicit": 8}[method]
+        sub += (2 * nst * ne + 8 + 2 * ne * nw * nw + 2 * nw * nm + 4 * nw * ne + 2 * ne * nw
                 + 3 * nm + 4 * nm * ne)
         per_sample += 2 * no * (nm + ne)
     return S * sub + per_sample
@@ -264,6 +271,7 @@ def bench_p4(quick=False, log=print):
 
     for method, params in P4_METHODS:
         levels = {"modal_quintic": (1, 2) if params else (1, 2, 4),
+                  "modal_explicit": (1, 2) if params else (1, 2, 4),
                   "modal_parabolic": (1, 2, 3, 4, 8, 12)}.get(method, (1, 2, 3, 4, 8))
         for S in levels:
             r, t_run, t_b = _timed(lambda: nonlinear_response(

@@ -184,13 +184,16 @@ def estimate_only(run, substeps, method, params):
     return mine
 
 
-def reach(run, accuracy, substeps, max_substeps, method, params):
+def reach(run, accuracy, substeps, max_substeps, method, params, observed=False):
     """Run S_0 = ``substeps``, 2 S_0, 4 S_0, ... until an estimate <= ``accuracy``.
 
     After each run k >= 1: the estimate of the finest run, |d_k| / (2^p_e - 1), p_e = p (k = 1)
     or min(p, p_obs) (k >= 2); from k >= 3, when |p_obs - p| <= P_SLACK at the last two levels
     and q_obs >= p + 0.5, also that of the extrapolation R_k (module docstring). The first estimate <= accuracy returns its solution
-    (R_k when both qualify: the smaller error). A run that fails (NewtonError, a modal step
+    (R_k when both qualify: the smaller error); with ``observed`` only from k >= 2, where the
+    order the runs show bounds the estimate (the polynomial methods' sequence after their
+    embedded estimate was refused: their nominal order, 6 or 7, is far from what a kink or a
+    start at the stability limit shows, and a two-run estimate would assume it). A run that fails (NewtonError, a modal step
     beyond its stability limit) restarts the sequence at twice its sub-steps. Beyond
     ``max_substeps``: a DtdynAccuracyWarning naming the target, the estimate reached and the
     sub-steps, and the best solution with its estimate (inf when no run had a neighbour to be
@@ -251,10 +254,10 @@ def reach(run, accuracy, substeps, max_substeps, method, params):
                 dR.clear()
             log.append((S, min(c[0] for c in cands), None))
             est, sol, is_R = min(cands, key=lambda c: c[0])
-            if best is None or est < best[0]:
+            if (k >= 2 or not observed) and (best is None or est < best[0]):
                 best = (est, sol, is_R, S, p_obs, list(levels))
             spent[0] += time.perf_counter() - t_est
-            if est <= accuracy:
+            if est <= accuracy and (k >= 2 or not observed):
                 return _finish(best, accuracy, True, all_runs, p, log, spent[0], method)
         else:
             log.append((S, None, None))
@@ -337,7 +340,8 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=N
         prev, prev_S = r, S
         S = max(2 * S if est <= accuracy else S + 1, math.ceil(S * grow))
     run_r, method_r, params_r = then or (run, method, params)
-    out = reach(run_r, accuracy, substeps, max_substeps, method_r, params_r)
+    out = reach(run_r, accuracy, substeps, max_substeps, method_r, params_r,
+                observed=then is None)
     out.info["accuracy_log"] = _log(log, method) + out.info["accuracy_log"]
     out.info.update(_timing(runs + [out]))
     return out

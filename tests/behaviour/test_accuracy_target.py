@@ -431,25 +431,31 @@ def test_lazy_extrapolation_builds_only_what_is_compared(monkeypatch):
 
 # --- modal_quintic: the embedded estimate ------------------------------------------------------
 
+@pytest.mark.parametrize("scheme", ["modal_quintic", "modal_explicit"])
 @pytest.mark.parametrize("substeps", [1, 2])
-def test_p4_quintic_embedded_estimate_within_3x(P4, substeps):
-    """Every C run of modal_quintic estimates its own error (the next term of the force
-    polynomial carried by the dynamics linearized with the elements' tangent stiffness): within
-    3x of the true error on P4 (0.98x and 0.97x measured at 1 and 2 sub-steps; 0.6-0.7x when
-    the local errors were carried by the linear modes alone)."""
-    r = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_quintic", substeps=substeps)
+def test_p4_polynomial_embedded_estimate_within_3x(P4, scheme, substeps):
+    """Every C run of modal_quintic and modal_explicit estimates its own error (the next term of
+    the force polynomial carried by the dynamics linearized with the elements' tangent
+    stiffness): within 3x of the true error on P4 (quintic 0.98x and 0.97x measured at 1 and 2
+    sub-steps, 0.6-0.7x when the local errors were carried by the linear modes alone; explicit
+    1.02x and 1.01x, true errors 4.8e-5 and 3.8e-7)."""
+    r = nonlinear_response(*P4["args"], **P4["kw"], scheme=scheme, substeps=substeps)
     e, est = error(r, P4["ref"]), r.info["error_estimate"]
     assert r.info["error_estimate_kind"] == "embedded"
     assert e / 3 <= est <= 3 * e, (e, est)
 
 
+@pytest.mark.parametrize("scheme, substeps", [("modal_quintic", {1e-3: 2, 1e-6: 2}),
+                                              ("modal_explicit", {1e-3: 2, 1e-6: 3})])
 @pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
-def test_p4_quintic_accuracy(P4, accuracy):
-    """accuracy= with modal_quintic: the 1-sub-step run's estimate sets the next S, whose run
-    confirms it (their difference within 3x of it); both targets end at 2 sub-steps."""
-    r = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_quintic", accuracy=accuracy)
+def test_p4_polynomial_accuracy(P4, accuracy, scheme, substeps):
+    """accuracy= with modal_quintic or modal_explicit: the 1-sub-step run's estimate sets the
+    next S, whose run confirms it (their difference within 3x of it): quintic at 2 sub-steps
+    for both targets, explicit at 2 (1e-3, 3.8e-7 true) and 3 (1e-6, 2.4e-8 true)."""
+    r = nonlinear_response(*P4["args"], **P4["kw"], scheme=scheme, accuracy=accuracy)
     check(r, P4["ref"], accuracy)
-    assert r.info["substeps"] == 2 and r.info["estimate_substeps"] == [1, 2]
+    S = substeps[accuracy]
+    assert r.info["substeps"] == S and r.info["estimate_substeps"] == [1, S]
 
 
 @pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
@@ -463,12 +469,24 @@ def test_duffing_quintic(duffing, accuracy):
 
 
 @pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
-def test_bouc_wen_quintic(bouc_wen, accuracy):
+def test_duffing_explicit(duffing, accuracy):
+    """modal_explicit released from x0, v0: the 1-sub-step run is beyond its stability limit
+    (theta 0.35 > 0.264), so its own Richardson sequence runs, trusted only from three levels
+    (the order they show): 1e-3 at 8 sub-steps (3.0e-6 true, estimate 1.26x), 1e-6 at 16
+    (2.3e-8, 1.26x)."""
+    run, ref = duffing
+    check(run(scheme="modal_explicit", accuracy=accuracy), ref, accuracy, "xv")
+
+
+@pytest.mark.parametrize("scheme", ["modal_quintic", "modal_explicit"])
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_bouc_wen_polynomial(bouc_wen, accuracy, scheme):
     """Bouc-Wen's kinks (sign(y'), |z|) and its trapezoidal z: the embedded estimate is not
     confirmed, the Richardson sequence reaches the target (32 and 1024 sub-steps, estimate
-    0.94x and 0.98x the true error measured)."""
+    0.94x and 0.98x the true error measured, with either method; modal_explicit solves only
+    z there, w = Q)."""
     run, ref = bouc_wen
-    r = run(scheme="modal_quintic", accuracy=accuracy, max_substeps=4096)
+    r = run(scheme=scheme, accuracy=accuracy, max_substeps=4096)
     check(r, ref, accuracy)
 
 
@@ -479,6 +497,23 @@ def test_impact_smoothed_quintic(accuracy):
     targets (estimate 1.6x and 1.4x the true error measured)."""
     run, ref = _gap(1e-3)
     check(run(scheme="modal_quintic", accuracy=accuracy, max_substeps=4096), ref, accuracy)
+
+
+@pytest.mark.parametrize("accuracy", [1e-3, 1e-6])
+def test_impact_smoothed_explicit(accuracy):
+    """The smoothed contact with modal_explicit: every run below 32 sub-steps exceeds its
+    stability limit (theta 106 at 1 sub-step, 0.33 at 16), so its own Richardson sequence runs
+    from 32, trusted only from three levels. 1e-6: 256 sub-steps, 9.7e-8 true, estimate 0.87x.
+    1e-3: 128 sub-steps, 9.5e-6 true, estimate 5.6x on the safe side (the runs' observed order
+    between 32, 64 and 128 is below the smooth 7); with two levels the estimate had assumed
+    order 7 and returned 64 sub-steps at 1.05e-3, 0.17x."""
+    run, ref = _gap(1e-3)
+    r = run(scheme="modal_explicit", accuracy=accuracy, max_substeps=4096)
+    if accuracy < 1e-4:
+        check(r, ref, accuracy)
+        return
+    e, est = error(r, ref), r.info["error_estimate"]
+    assert r.info["accuracy_met"] and e <= est <= min(accuracy, 6 * e), (e, est)
 
 
 # --- scheme "auto": the method picked for the target ---------------------------------------------
