@@ -39,10 +39,11 @@ min(p, p_obs) (never an order the runs do not show), and the extrapolation is us
 contact, Bouc-Wen's sign(y')) break the expansion, and the estimate is then only as good as p_obs
 says.
 
-scheme="auto" (`nonlinear_response` without a scheme, with a target): modal_quintic, whose runs
-carry an embedded estimate (`reach_embedded`), and when a run's estimate is not confirmed by the
-next one or a run fails, the Richardson sequence of modal_ramp (`AUTO_THEN`): sixth order where
-the element forces are smooth, the second-order ramp invariant where they are not.
+scheme="auto" (`nonlinear_response` without a scheme, with a target): modal_explicit, then
+modal_quintic, whose runs carry an embedded estimate (`reach_embedded`), and when a run's
+estimate is not confirmed by the next one or a run fails, the Richardson sequence of modal_ramp
+(`AUTO_THEN`): seventh or sixth order where the element forces are smooth, the second-order ramp
+invariant where they are not.
 """
 from __future__ import annotations
 
@@ -293,13 +294,17 @@ def _finish(best, accuracy, met, all_runs, p, log, estimate_time, method):
     return sol
 
 
-#: scheme="auto": the sixth-order modal method whose runs estimate themselves, then (its
-#: estimate not confirmed, or a run that fails) the ramp invariant's Richardson sequence, robust
-#: on kinks and hysteresis; a one-step scheme when the mass matrix is singular (no modal model)
-AUTO, AUTO_THEN, AUTO_SINGULAR_M = "modal_quintic", "modal_ramp", "average_acceleration"
+#: scheme="auto": the modal methods whose runs estimate themselves, the explicit seventh-order
+#: one (no Newton solve, the cheapest step) and then the implicit sixth-order one (stable for
+#: ten times the elements' stiffness), then (an estimate not confirmed, or a run that fails) the
+#: ramp invariant's Richardson sequence, robust on kinks and hysteresis; a one-step scheme when
+#: the mass matrix is singular (no modal model)
+AUTO, AUTO_NEXT = "modal_explicit", "modal_quintic"
+AUTO_THEN, AUTO_SINGULAR_M = "modal_ramp", "average_acceleration"
 
 
-def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=None):
+def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=None,
+                   after=None):
     """``accuracy`` for a method whose every run reports an embedded estimate (modal_quintic on
     the C backend). Run S; when its estimate exceeds the target the next S follows from the order
     p, S (estimate / accuracy)^(1/p) * 1.2 rounded up (at least 2 S when the estimate already
@@ -310,17 +315,20 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=N
     `reach` takes over from ``substeps``. A run that fails (NewtonError, a modal step beyond its stability
     limit) hands over to `reach` too, as does a run without an embedded estimate. ``then``:
     (run, method, params) of that Richardson sequence when it is not this method's (scheme
-    "auto": `AUTO_THEN`); its result's info["scheme"] names the method that ran."""
+    "auto": `AUTO_THEN`); ``after``: (run, method) of another method with an embedded estimate
+    tried the same way before it (scheme "auto": `AUTO_NEXT` after `AUTO`). The result's
+    info["scheme"] names the method that ran."""
     p = scheme_order(method, params)
     S, runs, log, prev = substeps, [], [], None
+    successor = after[1] if after is not None else "the Richardson sequence"
     while S <= max_substeps:
         try:
             r = run(S)
         except (NewtonError, DtdynStepStabilityError) as exc:
-            log.append((S, None, f"{type(exc).__name__}: the Richardson sequence takes over"))
+            log.append((S, None, f"{type(exc).__name__}: {successor} takes over"))
             break
         if r.info.get("error_estimate_kind") != "embedded":
-            log.append((S, None, "no embedded estimate: the Richardson sequence takes over"))
+            log.append((S, None, f"no embedded estimate: {successor} takes over"))
             break
         runs.append(r)
         est = r.info["error_estimate"]
@@ -339,9 +347,12 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=N
         grow = (est / accuracy) ** (1.0 / p) * 1.2 if math.isfinite(est) else 2.0
         prev, prev_S = r, S
         S = max(2 * S if est <= accuracy else S + 1, math.ceil(S * grow))
-    run_r, method_r, params_r = then or (run, method, params)
-    out = reach(run_r, accuracy, substeps, max_substeps, method_r, params_r,
-                observed=then is None)
+    if after is not None:
+        out = reach_embedded(after[0], accuracy, substeps, max_substeps, after[1], {}, then)
+    else:
+        run_r, method_r, params_r = then or (run, method, params)
+        out = reach(run_r, accuracy, substeps, max_substeps, method_r, params_r,
+                    observed=then is None)
     out.info["accuracy_log"] = _log(log, method) + out.info["accuracy_log"]
     out.info.update(_timing(runs + [out]))
     return out

@@ -441,13 +441,18 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         embedded error estimate in ``info["error_estimate"]`` with every run of the C
         backend: the next term of the polynomial carried by the dynamics linearized with the
         elements' tangent stiffness, relative to the largest |value| of each stored x, v, a),
-        or a one-step scheme of the integrator library ("newmark", "average_acceleration",
-        "hht", "generalized_alpha", "wilson", ...); its parameters as keywords.
-        Default: "modal_ramp", or with ``accuracy`` "auto": modal_quintic driven by its
-        embedded estimate; when that estimate is not confirmed by the next run (kinks,
-        hysteresis, a start far from the asymptotic range) or a run fails, the Richardson
-        sequence of modal_ramp from ``substeps``; "average_acceleration" when M is singular,
-        and modal_ramp's sequence on the casadi backend (no embedded estimate there).
+        "modal_explicit" (the element forces extrapolated over the step by the polynomial of
+        degree 6 through the last seven samples: seventh order, one evaluation of the element
+        laws per step and no Newton solve, stable up to theta = |(Cw Bg) dg/dy| = 0.264, about
+        a tenth of the quintic's stiffness; the same embedded estimate), or a one-step scheme
+        of the integrator library ("newmark", "average_acceleration", "hht",
+        "generalized_alpha", "wilson", ...); its parameters as keywords.
+        Default: "modal_ramp", or with ``accuracy`` "auto": modal_explicit, then modal_quintic,
+        driven by their embedded estimates; when an estimate is not confirmed by the next run
+        (kinks, hysteresis, a start far from the asymptotic range) or a run fails (the explicit
+        method beyond its stability limit), the next of them, then the Richardson sequence of
+        modal_ramp from ``substeps``; "average_acceleration" when M is singular, and
+        modal_ramp's sequence on the casadi backend (no embedded estimate there).
         ``info["scheme"]`` names the method that ran (docs/accuracy.md).
     substeps : int
         Steps per sample (h = dt / substeps); the force is interpolated linearly.
@@ -474,9 +479,10 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
 
     accuracy : float, optional
         A target for the relative error instead of a sub-step count (distinct from ``tol``,
-        the Newton tolerance of each step). With "modal_quintic" (C backend) each run's embedded
-        estimate decides: S_0 = ``substeps``, then S (estimate / accuracy)^(1/6) * 1.2 rounded
-        up until the estimate is <= ``accuracy`` (`accuracy.reach_embedded`). Otherwise the
+        the Newton tolerance of each step). With "modal_quintic" or "modal_explicit" (C
+        backend) each run's embedded estimate decides: S_0 = ``substeps``, then
+        S (estimate / accuracy)^(1/p) * 1.2 rounded up (p = 6, 7) until the estimate is
+        <= ``accuracy`` (`accuracy.reach_embedded`). Otherwise the
         record is run at S_0 = ``substeps``, 2 S_0,
         4 S_0, ... and the first solution whose error estimate is <= ``accuracy`` is returned.
         With p the scheme's order (modal_ramp 2, modal_parabolic 3, a one-step scheme its
@@ -504,9 +510,9 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         True without a target: also run ``substeps`` / 2 (``substeps`` even) or 2 ``substeps``
         (odd) and report the estimate of this run's error in ``info["error_estimate"]`` (a
         number); when the ``substeps`` / 2 run fails (NewtonError, a modal step beyond its
-        stability limit) the 2 ``substeps`` one is used. modal_quintic on the C backend
-        estimates within its own run (embedded) unless ``estimate=False``, which skips that
-        work (about a quarter of its loop on P4). With ``accuracy`` the estimate is always
+        stability limit) the 2 ``substeps`` one is used. modal_quintic and modal_explicit on
+        the C backend estimate within their own run (embedded) unless ``estimate=False``,
+        which skips that work (a quarter to a third of their loop on P4). With ``accuracy`` the estimate is always
         reported (``estimate=True`` adds nothing; False is an error).
     max_substeps : int, optional
         ``accuracy`` only: the most sub-steps tried (default: as many as keep DOFs x
@@ -516,9 +522,9 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     x0, v0 : (N,) array_like, optional
         Displacement and velocity at t_0 (rest when None); the elements start from the
         deformations they give, their internal states z from 0. The force polynomials of
-        modal_parabolic and modal_quintic then take the element forces before t_0 from the
-        motion's smooth continuation (`dtdyn.nonlinear.startup`), so that they keep their
-        order from the first step.
+        modal_parabolic, modal_quintic and modal_explicit then take the element forces before
+        t_0 from the motion's smooth continuation (`dtdyn.nonlinear.startup`), so that they
+        keep their order from the first step.
     ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
@@ -606,7 +612,8 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
             if target is None:
                 return run(S0)
             then = (partial(run, method=acc.AUTO_THEN), acc.AUTO_THEN, {}) if auto else None
-            return acc.reach_embedded(run, target, S0, cap, scheme, scheme_params, then)
+            after = (partial(run, method=acc.AUTO_NEXT), acc.AUTO_NEXT) if auto else None
+            return acc.reach_embedded(run, target, S0, cap, scheme, scheme_params, then, after)
         if target is None:
             return acc.estimate_only(run, S0, scheme, scheme_params)
         return acc.reach(run, target, S0, cap, scheme, scheme_params)

@@ -1,8 +1,10 @@
-r"""The element forces before t_0 for the force polynomials of modal_parabolic and modal_quintic.
+r"""The element forces before t_0 for the force polynomials of modal_parabolic, modal_quintic and
+modal_explicit.
 
 Over the step [t_k, t_k + h] those methods take the element forces as the polynomial through
 g_{k+1}, g_k, ..., g_{k+1-m} (m = 2: the parabola; m = 5: the quintic, whose embedded estimate
-also needs nabla^6 g, back to g_{k-5}). At the first steps the polynomial reaches before t_0.
+also needs nabla^6 g, back to g_{k-5}), or through g_k, ..., g_{k-6} (modal_explicit, its
+estimate back to g_{k-7}). At the first steps the polynomial reaches before t_0.
 A structure at rest before t_0 has g_{-j} = g_0 there. A structure released at t_0 from
 x_0, v_0 != 0 has no such past, and a constant one leaves the polynomial an O(h) error at the
 first steps: a second-order part in the result of a third- or sixth-order method.

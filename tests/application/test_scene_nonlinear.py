@@ -324,7 +324,7 @@ def test_cli_prints_nonlinear_statistics(tmp_path, capsys):
 
 def test_accuracy_scene_equals_the_direct_call(tmp_path, capsys):
     """[nonlinear] accuracy without a [scheme]: nonlinear_response(accuracy=...) with the method
-    it picks ("auto": modal_quintic on P4), bit for bit; the report and `dtdyn simulate` give
+    it picks ("auto": modal_explicit on P4), bit for bit; the report and `dtdyn simulate` give
     the method that ran, the estimate and whether the target was met."""
     path = write_scene(tmp_path, nonlinear="[nonlinear]\naccuracy = 1e-6\n")
     sc = load_scene(path)
@@ -336,20 +336,20 @@ def test_accuracy_scene_equals_the_direct_call(tmp_path, capsys):
                                 quantities=("x", "a"), accuracy=1e-6)
     assert_array_equal(response.x, direct.x)
     assert_array_equal(response.a, direct.a)
-    assert report["scheme"] == direct.info["scheme"] == "modal_quintic"
+    assert report["scheme"] == direct.info["scheme"] == "modal_explicit"
     assert report["accuracy"] == 1e-6 and report["accuracy_met"]
     assert report["error_estimate"] == direct.info["error_estimate"] <= 1e-6
     assert main(["simulate", str(path)]) == 0
     text = capsys.readouterr().out
     assert "scheme auto (accuracy 1e-06, backend c)" in text
     assert "all the runs the target took" in text
-    assert (f"error estimate: {report['error_estimate']:.3g} (relative; ran modal_quintic, "
+    assert (f"error estimate: {report['error_estimate']:.3g} (relative; ran modal_explicit, "
             f"{report['substeps']} substep(s) per sample; accuracy 1e-06 met)") in text
     out = tmp_path / "r.npz"
     assert main(["simulate", str(path), "--out", str(out)]) == 0
     from dtdyn import load_result
     run = load_result(out).meta["run"]
-    assert run["scheme"] == "modal_quintic" and run["accuracy_met"] and run["accuracy"] == 1e-6
+    assert run["scheme"] == "modal_explicit" and run["accuracy_met"] and run["accuracy"] == 1e-6
 
 
 def test_accuracy_scene_not_met_says_so(tmp_path, capsys):

@@ -87,9 +87,10 @@ Nonlinear elements (dtdyn.nonlinear.elements) join the model, chain or matrices;
     j = 1                               # optional, default: ground; y = q_i - q_j (y = q_i)
     k3 = 2e7                            # and that kind's fields (below)
     [scheme]                            # optional, default "modal_ramp" ("auto" with accuracy)
-    name = "modal_parabolic"            # "modal_ramp", "modal_parabolic", "modal_quintic" or a
-                                        #   one-step scheme name (not houbolt, park) with its
-                                        #   parameters; "auto" with accuracy
+    name = "modal_parabolic"            # "modal_ramp", "modal_parabolic", "modal_quintic",
+                                        #   "modal_explicit" or a one-step scheme name (not
+                                        #   houbolt, park) with its parameters; "auto" with
+                                        #   accuracy
     [nonlinear]                         # optional
     substeps = 1                        # optional: steps per sample, h = dt / substeps (with
                                         #   accuracy: the first run's)
