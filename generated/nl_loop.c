@@ -347,7 +347,8 @@ static inline int solve_step(double *restrict u, double *restrict r, double *res
  * T = [dia; off] (2 NMP), [H Bf] (NMP x (NH + NF)), Eg (NMP x NE), the stencil
  * (NST), Bg (NMP x NE), Bs (NMP x NE), Cw^T (NMP x NW), Cw Bg (NW x NE), [Co Dof Dog]
  * (NOP x (NM + NF + NE)), (Cw T)^T (NMP x NW), Cw Eg (NW x NE), Cw Bs (NW x NE), the forces
- * before t_0 ((NST - 1) x NE: g_{1-NST} .. g_{-1}, for the first steps' differences). res[4] of
+ * before t_0 ((NST - 1) x NE: g_{1-NST} .. g_{-1}, for the first steps' differences), |Cw Bg|
+ * on the y rows (NE x NE, explicit_theta). res[4] of
  * nl_residual: dg/du (NE x (NW + NZ)). dims[13], dims[14]: the estimate's block (offset in
  * work, EB steps): J (EB NU^2), dg/du (EB NE NU), g ((EB + NST - 1) NE), K (EB NE NW),
  * nabla^{NST-1} g (EB NE), [e; dg] (EB (NMP + NE)).
@@ -365,20 +366,22 @@ typedef double v4 __attribute__((vector_size(32), aligned(8))); /* 4 rows, loads
 #define VSPLAT(x) ((v4){(x), (x), (x), (x)})
 enum { NMV = (NL_NM + 3) / 4, NMP = 4 * NMV, NOV = (NL_NO + 3) / 4, NOP = 4 * NOV };
 
-/* y (+)= sum_c A_c x_c over nc padded columns of nv vectors each: the columns summed into four
-   partial sums (c mod 4), then pairwise, so that no long chain of dependent additions forms */
+/* y (+)= sum_c A_c x_c over nc padded columns of nv vectors each, as fused multiply-adds: one
+   chain onto y for up to 3 columns, two partial sums (even and odd columns) beyond */
 static inline void vmatvec(int nv, int nc, const double *restrict A, const double *restrict x,
                            v4 *restrict y, int add) {
+    const v4 z = {0.0, 0.0, 0.0, 0.0};
     int v, c;
     for (v = 0; v < nv; ++v) {
-        const v4 z = {0.0, 0.0, 0.0, 0.0};
-        v4 s[4] = {z, z, z, z}, t;
-        for (c = 0; c < nc && c < 4; ++c)
-            s[c] = *(const v4 *)(A + (c * nv + v) * 4) * x[c];
-        for (c = 4; c < nc; ++c)
-            s[c & 3] = VFMA(*(const v4 *)(A + (c * nv + v) * 4), VSPLAT(x[c]), s[c & 3]);
-        t = nc > 2 ? (s[0] + s[1]) + (nc > 3 ? s[2] + s[3] : s[2]) : nc > 1 ? s[0] + s[1] : s[0];
-        y[v] = add ? y[v] + t : t;
+        v4 s0 = add ? y[v] : z, s1 = z;
+        for (c = 0; c < nc; ++c) {
+            const v4 a = *(const v4 *)(A + (c * nv + v) * 4);
+            if (nc <= 3 || (c & 1) == 0)
+                s0 = VFMA(a, VSPLAT(x[c]), s0);
+            else
+                s1 = VFMA(a, VSPLAT(x[c]), s1);
+        }
+        y[v] = nc <= 3 ? s0 : s0 + s1;
     }
 }
 
@@ -564,51 +567,69 @@ static void estimate_block(long nb, long k0, long S, const double *const *mats,
 /*
  * The explicit force polynomial (NL_EXPLICIT, modal_explicit): Dwg = 0, so w_k = Q_k. Its
  * stability measure is the weight of g_k on the next step's displacements, theta =
- * |(Cw Bg) dg/dy|_inf (y rows and columns; generated/nonlinear.md): *th_max keeps the largest,
- * and theta beyond theta_limit (or not a number) is failure 3 (stats[3] theta).
+ * |(Cw Bg) dg/dy|_inf (y rows and columns; generated/nonlinear.md). Each element's force depends
+ * on its own deformation only, so dg/dy is diagonal and theta = max_i sum_k |Cw Bg|_ik |g_k'|
+ * (CBa = |Cw Bg| on the y rows, ne x ne); NaN when a g_k' is not a number.
  */
-static inline int explicit_theta(const double *restrict Gu, const double *restrict CB,
-                                 double theta_limit, double *th_max, double *stats) {
-    double th = 0.0;
-    int i, k, l;
-    for (i = 0; i < NL_NE; ++i) {
-        double row = 0.0;
-        for (k = 0; k < NL_NE; ++k) {
-            double s = 0.0;
-            for (l = 0; l < NL_NE; ++l)
-                s += CB[l * NL_NW + i] * Gu[k * NL_NE + l];
-            row += fabs(s);
-        }
-        th = row > th || row != row ? row : th;
+static inline double explicit_theta(const double *restrict Gu, const double *restrict CBa) {
+    double row[NL_NE], th, sum;
+    int i, k;
+    for (i = 0; i < NL_NE; ++i)
+        row[i] = CBa[i] * fabs(Gu[0]);
+    for (k = 1; k < NL_NE; ++k) {
+        const double gk = fabs(Gu[k * NL_NE + k]);
+        for (i = 0; i < NL_NE; ++i)
+            row[i] += CBa[k * NL_NE + i] * gk;
     }
-    *th_max = th > *th_max ? th : *th_max;
-    if (!(th <= theta_limit)) {
-        stats[3] = th;
-        return 3;
+    th = sum = row[0];
+    for (i = 1; i < NL_NE; ++i) {
+        th = row[i] > th ? row[i] : th;
+        sum += row[i];
     }
-    return 0;
+    return th + 0.0 * sum; /* 0 * sum: NaN when a row is not finite, else 0 */
 }
 
 #if defined(NL_EXPLICIT) && NL_NZ == 0
 /*
- * One step of the explicit polynomial without internal states: u = Q_k exactly (arg[0] is Q),
- * the element laws evaluated once (no Newton solve, no iterations counted). Returns 1 when the
- * element forces are not finite (stats[3] the largest |g|), 3 (explicit_theta), else 0.
+ * The explicit polynomial without internal states takes no Newton solve: u = Q_k exactly (arg[0]
+ * is Q) and the element laws are evaluated once a step (no iterations counted). Its checks do not
+ * branch at every step: each step stores its theta in a block of TB steps (NaN when its element
+ * forces are not finite: 0 * g is 0 or NaN) and raises the block's largest (a NaN stays); at the
+ * block's end `explicit_block` looks for the first step beyond theta_limit, so that a failure is
+ * found within TB steps and reported at its own step (the steps after it are discarded with the
+ * run).
  */
-static inline int explicit_step(const double *restrict g, const double *restrict Gu,
-                                const double *restrict CB, const double **arg, double **res,
-                                nl_int *iw, double *w, double theta_limit, double *th_max,
-                                double *stats) {
-    double t = 0.0;
+enum { TB = 256 };
+
+static inline void explicit_step(const double *restrict g, const double *restrict Gu,
+                                 const double *restrict CBa, const double **arg, double **res,
+                                 nl_int *iw, double *w, double theta_limit, double *restrict tb,
+                                 int *bad) {
+    double t, th;
     int i;
     nl_residual(arg, res, iw, w, 0);
-    for (i = 0; i < NL_NE; ++i) /* 0 when every g is finite, else NaN */
+    t = g[0] * 0.0;
+    for (i = 1; i < NL_NE; ++i) /* 0 when every g is finite, else NaN */
         t += g[i] * 0.0;
-    if (t != t) {
-        stats[3] = norm_inf(NL_NE, g);
-        return 1;
-    }
-    return explicit_theta(Gu, CB, theta_limit, th_max, stats);
+    th = explicit_theta(Gu, CBa) + t;
+    *tb = th;
+    *bad |= !(th <= theta_limit);
+}
+
+/* The block's check (explicit_step): 0 with *th_max raised to the block's largest theta, or the
+   failure of its first step beyond theta_limit (1: element forces not finite, stats[3] inf;
+   3: stats[3] theta), fail[0] its step index */
+static int explicit_block(long nb, long first, const double *restrict tb, int bad,
+                          double theta_limit, double *th_max, double *stats, long *fail) {
+    long k;
+    for (k = 0; k < nb && tb[k] <= theta_limit; ++k)
+        *th_max = tb[k] > *th_max ? tb[k] : *th_max;
+    if (!bad)
+        return 0;
+    fail[0] = first + k;
+    stats[3] = tb[k] == tb[k] ? tb[k] : INFINITY;
+    stats[4] = stats[4] > *th_max ? stats[4] : *th_max;
+    return tb[k] == tb[k] ? 3 : 1;
 }
 #endif
 
@@ -624,11 +645,14 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     const double *Tb = mats[10], *HB = mats[11];
     const double *Bgm = mats[14], *CwT = mats[16], *CB = mats[17];
     const double *Cout = mats[18];
+#ifdef NL_EXPLICIT
+    const double *CBa = mats[23];
+#endif
     const double h = par[nw * ne];
     double f[nf + 1], Q[nw + 1], zold[nz + 1], rold[nz + 1], r[nu + 1], J[nu * nu + 1];
     double Gu[ne * nu + 1]; /* dg/du at the accepted u (the estimate's) */
     v4 eta[NMV], Lx[NMV], ov[NOV], e[NMV], mx[NOV];
-    double cin[nm + nf + ne + 1], gq[ne], gp[ne], dg[ne], CL[nw + 1];
+    double dg[ne], CL[nw + 1];
     /* the force history g_{k-1}, ..., g_{k-NH/NE} (the columns H of [H Bf]) as a ring: g_k is
        written at ring + ih and ring + ih + nh, so ring + ih always holds the history in order */
     double ring[2 * nh + 1];
@@ -644,6 +668,11 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     double *res[5];
     double scale = 0.0, scale_u = 0.0;
     double th_max = 0.0; /* the explicit polynomial's largest theta (explicit_theta) */
+#if defined(NL_EXPLICIT) && NL_NZ == 0
+    double tb[TB]; /* the theta of the steps not checked yet (explicit_step) */
+    long kt = 0;
+    int bad = 0;
+#endif
 
     long n, j, i, k, c;
     int rc;
@@ -668,12 +697,14 @@ static int modal_run(const long *dims, const double *const *mats, const double *
 #endif
     for (i = 0; i < 5 + no; ++i)
         stats[i] = 0.0;
-    /* L_0 = eta_0 with g_{-1} counted as 0 in it (gq); the linear predictor's g_{-1} is g */
+    /* L_0 = eta_0 - Bg g_{-1}, g_{-1} = g (the forces given): every step then reads g_{k-1}
+       where the element laws left it, in g (also the linear predictor's) */
     for (v4 *p = Lx; p < Lx + NMV; ++p)
         *p = (v4){0.0, 0.0, 0.0, 0.0};
     copy(nm, x, (double *)Lx);
-    zero(ne, gq);
-    copy(ne, g, gp);
+    for (i = 0; i < NMV; ++i)
+        for (c = 0; c < ne; ++c)
+            Lx[i] -= *(const v4 *)(Bgm + (c * NMV + i) * 4) * g[c];
     copy(nh, x + nm, ring);
     copy(nh, x + nm, ring + nh);
     for (i = 0; i < nw; ++i)
@@ -702,13 +733,13 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             /* eta_k = L_k + Bg g_{k-1}; Q_k = (Cw L_k + Dwf f_k) + (Cw Bg) g_{k-1} */
             for (i = 0; i < NMV; ++i)
                 eta[i] = Lx[i];
-            vmatvec(NMV, ne, Bgm, gq, eta, 1);
-            for (i = 0; i < nw; ++i) {
-                double a = 0.0, b = 0.0;
-                for (c = 0; c < nf; ++c)
+            vmatvec(NMV, ne, Bgm, g, eta, 1);
+            for (i = 0; i < nw; ++i) { /* sums started from their first terms (no 0 + x) */
+                double a = nf > 0 ? Dwf[i] * f[0] : 0.0, b = CB[i] * g[0];
+                for (c = 1; c < nf; ++c)
                     a += Dwf[c * nw + i] * f[c];
-                for (c = 0; c < ne; ++c)
-                    b += CB[c * nw + i] * gq[c];
+                for (c = 1; c < ne; ++c)
+                    b += CB[c * nw + i] * g[c];
                 Q[i] = (a + CL[i]) + b;
             }
 #if !defined(NL_EXPLICIT) || NL_NZ > 0
@@ -716,7 +747,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             for (i = 0; i < nw; ++i) {
                 double b = 0.0;
                 for (c = 0; c < ne; ++c)
-                    b += Dwg[c * nw + i] * gp[c];
+                    b += Dwg[c * nw + i] * g[c];
                 u[i] = Q[i] + b;
             }
             copy(nz, u + nw, zold);
@@ -726,11 +757,10 @@ static int modal_run(const long *dims, const double *const *mats, const double *
 #endif
             /* the next step's linear part: L_{k+1} = T eta_k + [H Bf] [history; f_k], Cw L_{k+1};
                f_k and the older history first, g_{k-1} (known last) added to them */
-            vmatvec(NMV, nf, HB + nh * NMP, f, Lx, 0);
-            if (NL_NH > NL_NE)
-                vmatvec(NMV, nh - ne, HB + ne * NMP, ring + ih + ne, Lx, 1);
+            vmatvec(NMV, nh - ne, HB + ne * NMP, ring + ih + ne, Lx, 0);
+            vmatvec(NMV, nf, HB + nh * NMP, f, Lx, NL_NH > NL_NE);
             if (nh > 0)
-                vmatvec(NMV, ne, HB, ring + ih, Lx, 1);
+                vmatvec(NMV, ne, HB, ring + ih, Lx, 1); /* g_{k-1} (the smooth past at k = 0) */
             {
                 v4 t[NMV];
                 vblock(Tb, eta, t);
@@ -741,12 +771,26 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                 CL[i] = vdot(NMV, CwT + i * NMP, Lx);
             /* Newton under the shared acceptance rule (newton_solve), scale fixed per step */
 #if defined(NL_EXPLICIT) && NL_NZ == 0
-            rc = explicit_step(g, Gu, CB, arg, res, iwork, cw, theta_limit, &th_max, stats);
+            explicit_step(g, Gu, CBa, arg, res, iwork, cw, theta_limit, tb + kt, &bad);
+            rc = 0;
+            if (++kt == TB) {
+                rc = explicit_block(kt, n * S + j + 1 - kt, tb, bad, theta_limit, &th_max, stats,
+                                    fail);
+                if (rc)
+                    return rc;
+                kt = 0;
+            }
 #elif defined(NL_EXPLICIT) /* Newton for the internal states only (w = Q) */
             rc = solve_step(u, r, J, Q, &scale, &scale_u, tol, max_iter, arg, res, iwork, cw,
                             INFINITY, stats);
-            if (!rc)
-                rc = explicit_theta(Gu, CB, theta_limit, &th_max, stats);
+            if (!rc) {
+                const double th = explicit_theta(Gu, CBa);
+                th_max = th > th_max ? th : th_max;
+                if (!(th <= theta_limit)) {
+                    stats[3] = th;
+                    rc = 3;
+                }
+            }
 #else
             rc = solve_step(u, r, J, Q, &scale, &scale_u, tol, max_iter, arg, res, iwork, cw,
                             theta_limit, stats);
@@ -772,10 +816,9 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             }
             if (j == 0) { /* Co eta + Dof f + Dog g */
                 double *o = out + n * (no + nzo);
-                copy(nm, (const double *)eta, cin);
-                copy(nf, f, cin + nm);
-                copy(ne, g, cin + nm + nf);
-                vmatvec(NOV, nm + nf + ne, Cout, cin, ov, 0);
+                vmatvec(NOV, nm, Cout, (const double *)eta, ov, 0);
+                vmatvec(NOV, nf, Cout + nm * NOP, f, ov, 1);
+                vmatvec(NOV, ne, Cout + (nm + nf) * NOP, g, ov, 1);
                 for (i = 0; i < no; ++i)
                     o[i] = ov[i / 4][i % 4];
                 copy(nzo, u + nw, o + no);
@@ -786,12 +829,14 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                 copy(ne, g, ring + ih);
                 copy(ne, g, ring + ih + nh);
             }
-            copy(ne, g, gq);
-#if !defined(NL_EXPLICIT) || NL_NZ > 0
-            copy(ne, g, gp);
-#endif
         }
     }
+#if defined(NL_EXPLICIT) && NL_NZ == 0
+    rc = explicit_block(kt, (n_samples - 1) * S + 1 - kt, tb, bad, theta_limit, &th_max, stats,
+                        fail);
+    if (rc)
+        return rc;
+#endif
     stats[4] = stats[4] > th_max ? stats[4] : th_max;
     if (nst > 0) {
         if (kb > 0)

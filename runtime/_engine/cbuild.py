@@ -21,6 +21,7 @@ import shlex
 import shutil
 import subprocess
 import sysconfig
+import time
 import tempfile
 import threading
 import warnings
@@ -371,12 +372,22 @@ def bind(lib, kernel: str, symbol: str | None = None):
 INTERRUPTIBLE_WORK = 1 << 22
 
 
-def interruptible(lib, call, work: float):
+def interruptible(lib, call, work: float, timing: list | None = None):
     """``call()`` (one ctypes call into ``lib``, whose loop polls the flag of dtdyn_set_stop)
     such that Ctrl-C stops it within a second: in the main thread and for ``work`` above
     INTERRUPTIBLE_WORK, the call runs in a worker thread while this thread waits; on
     KeyboardInterrupt the flag is set, the loop returns at its next check and the interrupt is
-    raised again. Returns what ``call()`` returns."""
+    raised again. Returns what ``call()`` returns; ``timing``: a list that receives the call's
+    own duration in seconds (the kernel's run time, without the worker thread's start)."""
+    if timing is not None:
+        untimed = call
+
+        def call():
+            t0 = time.perf_counter()
+            try:
+                return untimed()
+            finally:
+                timing.append(time.perf_counter() - t0)
     if work < INTERRUPTIBLE_WORK or threading.current_thread() is not threading.main_thread():
         return call()
     stop = bind(lib, "dtdyn_set_stop")

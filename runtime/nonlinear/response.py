@@ -158,8 +158,9 @@ def _modal_mats(step: LinearStep, md, past) -> list:
     """The modal path's matrices (nl_loop.c, modal_run): the modal rows in the order ``perm``
     (T's 2 x 2 blocks first) and padded, as the output rows, to a multiple of 4: [dia off], [H Bf],
     Eg, the stencil, Bg, Bs = Bg + sum_i H_i (g's weights summed: the estimate's), Cw^T, Cw Bg,
-    [Co Dof Dog]; the estimate's Cw e_k from e_{k-1}: (Cw T)^T, Cw Eg, Cw Bs; and its forces
-    before t_0, oldest first (``past``: g_{-1}, g_{-2}, ... as rows)."""
+    [Co Dof Dog]; the estimate's Cw e_k from e_{k-1}: (Cw T)^T, Cw Eg, Cw Bs; its forces
+    before t_0, oldest first (``past``: g_{-1}, g_{-2}, ... as rows); and |Cw Bg| on the y rows
+    (ne x ne: modal_explicit's theta)."""
     nm, nh, ne, p = md["nm"], md["nh"], step.Bg.shape[1], md["perm"]
     Bg, Cw = step.Bg[:nm][p], step.Cw[:, :nm][:, p]
     H, Eg = md["H"][p], md["Eg"][p]
@@ -173,7 +174,8 @@ def _modal_mats(step: LinearStep, md, past) -> list:
             _pad_rows(Cw.T), Cw @ Bg,
             _pad_rows(np.hstack([step.Co[:, :nm][:, p], step.Dof, step.Dog])),
             _pad_rows((Cw @ T).T), Cw @ Eg, Cw @ Bs,
-            np.append(past[md["stencil"].size - 2::-1] if md["stencil"].size else [], 0.0)]
+            np.append(past[md["stencil"].size - 2::-1] if md["stencil"].size else [], 0.0),
+            np.abs(Cw @ Bg)[:ne]]
 
 
 #: steps per block of the modal loop's embedded estimate (nl_loop.c, estimate_block)
@@ -215,11 +217,13 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
     args = (_p(dims), ctypes.cast(ptrs, ctypes.c_void_p), _p(force), _p(x), _p(u), _p(g),
             _p(rate), _p(out), tol, theta_limit, _p(stats), _p(fail), _p(work), _p(iwork))
-    rc = cbuild.interruptible(lib, lambda: run(*args), work=n_samples * S * (ns + sz.nw) ** 2)
+    kernel = []  # the C loop's own run time
+    rc = cbuild.interruptible(lib, lambda: run(*args), work=n_samples * S * (ns + sz.nw) ** 2,
+                              timing=kernel)
     if md is not None:
         xa[md["perm"]] = x[:md["nm"]]
         xa[md["nm"]:] = x[md["nm"]:]
-    return rc, out, stats, int(fail[0])
+    return rc, out, stats, int(fail[0]), kernel[0]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -691,7 +695,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     u = np.concatenate([y0] + ([yd0] if sz.need_v else []) + [np.zeros(sz.nz)])
     t1 = time.perf_counter()
 
-    used, embedded = backend, None
+    used, embedded, t_around = backend, None, 0.0
     if backend == "c":
         dims = (step.A.shape[0], f.shape[1], sz.ne, sz.nw, sz.nz, step.Co.shape[0])
         if step.modal is not None:
@@ -700,9 +704,10 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         used = "c" if runner is not None else "casadi"
     if used == "c":
         t2 = time.perf_counter()
-        rc, out, stats, fail = _run_c(runner, step, sz, f, S, tol, max_iter, x, u, g0.copy(),
-                                      rate0.copy(), THETA_LIMIT.get(method, np.inf), nzo, past)
-        t_run = time.perf_counter() - t2
+        rc, out, stats, fail, t_run = _run_c(runner, step, sz, f, S, tol, max_iter, x, u,
+                                             g0.copy(), rate0.copy(),
+                                             THETA_LIMIT.get(method, np.inf), nzo, past)
+        t_around = time.perf_counter() - t2 - t_run  # the Python around the loop: setup
         if rc == 2:
             raise RuntimeError(f"dtdyn_nl_run was compiled for other sizes than {dims}")
         if rc == 3:
@@ -736,7 +741,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                     info={"scheme": method, "substeps": S, "backend": used, "dt": dt,
                           "n_steps": f.shape[0] - 1,
                           "elements": [el.describe() for el in elements],
-                          "setup_time": t1 - t0, "construct_time": t_build,
+                          "setup_time": t1 - t0 + t_around, "construct_time": t_build,
                           "compile_time": t_compile, "run_time": t_run,
                           "newton_iterations": iters, "max_residual": worst,
                           "max_theta": theta, **estimate_info,
