@@ -394,6 +394,28 @@ static inline double vdot(int nv, const double *restrict a, const v4 *restrict b
     return (s[0] + s[1]) + (s[2] + s[3]);
 }
 
+/* y_i = vdot of the rows A + i NMP (NMP doubles each) with x, for i < n, two rows at a time: their
+   lanes summed pairwise together, (s0 + s1) + (s2 + s3) per row as in vdot */
+static inline void vdots(int n, const double *restrict A, const v4 *restrict x,
+                         double *restrict y) {
+    int i, v;
+    for (i = 0; i + 1 < n; i += 2) {
+        const double *a = A + i * NMP, *b = a + NMP;
+        v4 s = *(const v4 *)a * x[0], t = *(const v4 *)b * x[0], lo, hi;
+        for (v = 1; v < NMV; ++v) {
+            s = VFMA(*(const v4 *)(a + 4 * v), x[v], s);
+            t = VFMA(*(const v4 *)(b + 4 * v), x[v], t);
+        }
+        lo = (v4){s[0], t[0], s[2], t[2]};
+        hi = (v4){s[1], t[1], s[3], t[3]};
+        lo += hi;
+        y[i] = lo[0] + lo[2];
+        y[i + 1] = lo[1] + lo[3];
+    }
+    if (i < n)
+        y[i] = vdot(NMV, A + i * NMP, x);
+}
+
 /* T y = dia y + off y[partner]: the 2 x 2 blocks come first, so a row's partner is the other
    lane of its pair (lanes 0-1, 2-3); off = 0 on the real poles' rows */
 static inline void vblock(const double *restrict T, const v4 *restrict y, v4 *restrict out) {
@@ -492,9 +514,16 @@ static void estimate_block(long nb, long k0, long S, const double *const *mats,
     for (v = 0; v < NMV; ++v)
         e[v] = e_io[v];
     copy(ne, dg_io, dg);
-    /* the gains K_k and the differences nabla^{NST-1} g_k (g_k at row k + NST - 1 of Gb) */
+    /* the gains K_k and the differences nabla^{NST-1} g_k (g_k at row k + NST - 1 of Gb); the
+       explicit polynomial without internal states has J = I, so K_k = dg/du itself */
+#if defined(NL_EXPLICIT) && NL_NZ == 0
+    const double *Ks = Gub;
+    (void)Jb, (void)Kb;
+#else
+    const double *Ks = Kb;
     for (k = 0; k < nb; ++k)
         tangent_gain(Jb + k * nu * nu, Gub + k * ne * nu, Kb + k * ne * nw);
+#endif
     for (k = 0; k < nb * ne; ++k) { /* over step and element at once */
         double s = stencil[0] * Gb[k + (nst - 1) * ne];
         for (c = 1; c < nst; ++c)
@@ -503,7 +532,7 @@ static void estimate_block(long nb, long k0, long S, const double *const *mats,
     }
     /* the recursion, Cw e_k from e_{k-1}: the chain from one dg to the next is short */
     for (k = 0; k < nb; ++k) {
-        const double *dn = Db + k * ne, *K = Kb + k * ne * nw;
+        const double *dn = Db + k * ne, *K = Ks + k * ne * nw;
         double ce[nw];
         for (i = 0; i < nw; ++i) { /* Cw e_k = (Cw T) e_{k-1} + (Cw Eg) dn_k + (Cw Bs) dg_{k-1} */
             double a = CE[i] * dn[0], b = CBs[i] * dg[0];
@@ -707,8 +736,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             Lx[i] -= *(const v4 *)(Bgm + (c * NMV + i) * 4) * g[c];
     copy(nh, x + nm, ring);
     copy(nh, x + nm, ring + nh);
-    for (i = 0; i < nw; ++i)
-        CL[i] = vdot(NMV, CwT + i * NMP, Lx);
+    vdots(nw, CwT, Lx, CL);
     for (i = 0; i < NMV; ++i)
         e[i] = (v4){0.0, 0.0, 0.0, 0.0};
     for (i = 0; i < NOV; ++i)
@@ -767,8 +795,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                 for (i = 0; i < NMV; ++i)
                     Lx[i] = t[i] + Lx[i];
             }
-            for (i = 0; i < nw; ++i)
-                CL[i] = vdot(NMV, CwT + i * NMP, Lx);
+            vdots(nw, CwT, Lx, CL);
             /* Newton under the shared acceptance rule (newton_solve), scale fixed per step */
 #if defined(NL_EXPLICIT) && NL_NZ == 0
             explicit_step(g, Gu, CBa, arg, res, iwork, cw, theta_limit, tb + kt, &bad);
@@ -801,7 +828,9 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                 return rc;
             }
             if (nst > 0) { /* the estimate, a block at a time: J, dg/du and g of the step */
+#if !defined(NL_EXPLICIT) || NL_NZ > 0
                 copy(nu * nu, J, Jb + kb * nu * nu);
+#endif
                 copy(ne * nu, Gu, Gub + kb * ne * nu);
                 copy(ne, g, Gb + (kb + nst - 1) * ne);
                 if (++kb == eb) {

@@ -367,9 +367,11 @@ def bind(lib, kernel: str, symbol: str | None = None):
     return fn
 
 
-#: below this much work (samples x the loop's size) a call runs in the calling thread: it ends
-#: within a second anyway, and a thread costs tens of microseconds
-INTERRUPTIBLE_WORK = 1 << 22
+#: below this much work (samples x the loop's multiply-adds per sample, ~0.3-1 ns each) a call
+#: runs in the calling thread: it ends within some 50 ms, well before a Ctrl-C needs the worker
+#: thread, which costs tens of microseconds to start and, on P4's 1.7 ms nonlinear loop, another
+#: 0.1 ms of caches warmed on the other core
+INTERRUPTIBLE_WORK = 1 << 26
 
 
 def interruptible(lib, call, work: float, timing: list | None = None):

@@ -218,8 +218,12 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     args = (_p(dims), ctypes.cast(ptrs, ctypes.c_void_p), _p(force), _p(x), _p(u), _p(g),
             _p(rate), _p(out), tol, theta_limit, _p(stats), _p(fail), _p(work), _p(iwork))
     kernel = []  # the C loop's own run time
-    rc = cbuild.interruptible(lib, lambda: run(*args), work=n_samples * S * (ns + sz.nw) ** 2,
-                              timing=kernel)
+    if md is None:  # the dense step's products
+        work = n_samples * S * (ns + sz.nw) ** 2
+    else:  # the modal rows' products with the history, inputs, forces and Cw; the outputs
+        work = (n_samples * S * md["nm"] * (md["nh"] + nf + 2 * sz.ne + sz.nw)
+                + n_samples * no * (md["nm"] + nf + sz.ne))
+    rc = cbuild.interruptible(lib, lambda: run(*args), work=work, timing=kernel)
     if md is not None:
         xa[md["perm"]] = x[:md["nm"]]
         xa[md["nm"]:] = x[md["nm"]:]
