@@ -109,7 +109,8 @@ def main():
                          + " |")
         lines.append("")
     lines += ["theta = B0 k_t = Omega_t^2 B0 / h^2 (modal_explicit's B0 column: Cw Bg, the "
-              "weight of the newest element force on the next step's y); both backends stop with "
+              "weight of the newest element force on the next step's y); both backends stop "
+              "with "
               "DtdynStepStabilityError above theta = "
               + ", ".join(f"{k:.3g} for {m}" for m, k in NL.THETA_LIMIT.items()) + ".", ""]
     ref, w_ref, runs, g_of = bouc_wen()

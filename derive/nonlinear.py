@@ -93,7 +93,7 @@ def parabola_coefficient() -> dict:
 
 
 # --- polynomial treatment of the element forces of higher degree ("modal_quintic",
-# "modal_explicit") --------------------------------------------------------------------------------
+# "modal_explicit") ------------------------------------------------------------------------------
 #
 # Over the step [t_k, t_k + h] the element forces are the polynomial of degree m through m + 1
 # samples g_{k+j}: implicit (modal_quintic), j = 1-m .. 1, g_{k+1} the step's own unknown as in the
@@ -115,9 +115,9 @@ def parabola_coefficient() -> dict:
 
 #: the degree of "modal_quintic": the implicit polynomial through six samples, order m + 1 = 6
 QUINTIC_DEGREE = 5
-#: the degree of "modal_explicit": the polynomial through g_{k-6} .. g_k, order m + 1 = 7 (the
-#: degrees 2, 3, 6 and 7 keep the free mass stable up to mu = 0.94, 1.03, 0.23, 0.12; 4, 5 and 8
-#: grow from mu = 0 on: `polynomial_stability`)
+#: the degree of "modal_explicit": the polynomial through g_{k-6} .. g_k, order m + 1 = 7 (its
+#: stability limit mu = 0.228, `polynomial_stability`: explicit degrees 4 and 5 grow slowly from
+#: small mu on, as the parabola does, and 7 halves the limit)
 EXPLICIT_DEGREE = 6
 #: the polynomial methods: degree and explicit
 POLYNOMIAL_METHODS = {"modal_quintic": (QUINTIC_DEGREE, False),

@@ -323,10 +323,15 @@ static inline int solve_step(double *restrict u, double *restrict r, double *res
  * vectors of 4 (rows padded with zeros to NMP, outputs to NOP), in an order that puts T's 2 x 2
  * blocks first, so that T y = dia y + off y[partner] with the partner in the same vector.
  *
- * The embedded estimate (NST > 0, modal_quintic) carries the local error of the force
- * polynomial, Eg nabla^{NST-1} g_k (nabla^{NST-1} g_k = sum_i stencil_i g_{k-i}), through the
- * dynamics linearized at the solution: with e_k the error of eta_k, Q_k errs by Cw e_k, u_k by
- * J^-1 [Cw e_k; 0] (J = dr/du, the Newton Jacobian at the accepted u) and g_k by
+ * With NL_EXPLICIT (modal_explicit) the force polynomial is extrapolated from g_{k-1}, ...,
+ * so Dwg = 0 and w_k = Q_k: without internal states a step evaluates the element laws once at
+ * u = Q_k (explicit_step), with them Newton solves z only; theta is |(Cw Bg) dg/dy|
+ * (explicit_theta).
+ *
+ * The embedded estimate (NST > 0, modal_quintic and modal_explicit) carries the local error of
+ * the force polynomial, Eg nabla^{NST-1} g_k (nabla^{NST-1} g_k = sum_i stencil_i g_{k-i}),
+ * through the dynamics linearized at the solution: with e_k the error of eta_k, Q_k errs by
+ * Cw e_k, u_k by J^-1 [Cw e_k; 0] (J = dr/du, the Newton Jacobian at the accepted u) and g_k by
  * dg_k = K_k Cw e_k, K_k = dg/du J^-1 [I; 0] (the elements' tangent stiffness), so that
  *
  *     e_k = T e_{k-1} + Bs dg_{k-1} + Eg nabla^{NST-1} g_k,     Bs = Bg + sum_i H_i
@@ -623,10 +628,10 @@ static inline double explicit_theta(const double *restrict Gu, const double *res
  * The explicit polynomial without internal states takes no Newton solve: u = Q_k exactly (arg[0]
  * is Q) and the element laws are evaluated once a step (no iterations counted). Its checks do not
  * branch at every step: each step stores its theta in a block of TB steps (NaN when its element
- * forces are not finite: 0 * g is 0 or NaN) and raises the block's largest (a NaN stays); at the
- * block's end `explicit_block` looks for the first step beyond theta_limit, so that a failure is
- * found within TB steps and reported at its own step (the steps after it are discarded with the
- * run).
+ * forces are not finite: 0 * g is 0 or NaN) and flags the block when it is beyond theta_limit or
+ * not a number; at the block's end `explicit_block` finds the first such step, so that a failure
+ * is found within TB steps and reported at its own step (the steps after it are discarded with
+ * the run).
  */
 enum { TB = 256 };
 
@@ -702,7 +707,6 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     long kt = 0;
     int bad = 0;
 #endif
-
     long n, j, i, k, c;
     int rc;
     arg[0] = u;

@@ -189,8 +189,8 @@ def _modal_flops(method, r, S, ne, n_modes, no):
     2 x 2 solve, ~12, at mean iterations + 1 evaluations; modal_explicit: no predictor, one
     evaluation of the laws and their tangent, ~12, and its theta |(Cw Bg) dg/dy|, ~4 ne^3),
     the next linear part
-    [H Bf] [hist; f] + T eta (dia y + off y[partner]) and Cw of it; modal_quintic's estimate,
-    evaluated a block at a time after the Newton solves (the difference stencil, the gain
+    [H Bf] [hist; f] + T eta (dia y + off y[partner]) and Cw of it; the polynomial methods'
+    estimate, evaluated a block at a time after the Newton solves (the difference stencil, the gain
     K = dg/du J^-1 [I; 0] from the 2 x 2 inverse, (Cw T) e + (Cw Eg) dn + (Cw Bs) dg, K of it,
     T e + Eg dn + Bs dg); per sample the outputs (x of all DOFs, [Co Dof Dog]) and the
     estimate's (Co e + Dog dg)."""

@@ -190,11 +190,12 @@ def reach(run, accuracy, substeps, max_substeps, method, params, observed=False)
 
     After each run k >= 1: the estimate of the finest run, |d_k| / (2^p_e - 1), p_e = p (k = 1)
     or min(p, p_obs) (k >= 2); from k >= 3, when |p_obs - p| <= P_SLACK at the last two levels
-    and q_obs >= p + 0.5, also that of the extrapolation R_k (module docstring). The first estimate <= accuracy returns its solution
-    (R_k when both qualify: the smaller error); with ``observed`` only from k >= 2, where the
-    order the runs show bounds the estimate (the polynomial methods' sequence after their
-    embedded estimate was refused: their nominal order, 6 or 7, is far from what a kink or a
-    start at the stability limit shows, and a two-run estimate would assume it). A run that fails (NewtonError, a modal step
+    and q_obs >= p + 0.5, also that of the extrapolation R_k (module docstring). The first
+    estimate <= accuracy returns its solution (R_k when both qualify: the smaller error); with
+    ``observed`` only from k >= 2, where the order the runs show bounds the estimate (the
+    polynomial methods' sequence after their embedded estimate was refused: their nominal
+    order, 6 or 7, is far from what a kink or a start at the stability limit shows, and a
+    two-run estimate would assume it). A run that fails (NewtonError, a modal step
     beyond its stability limit) restarts the sequence at twice its sub-steps. Beyond
     ``max_substeps``: a DtdynAccuracyWarning naming the target, the estimate reached and the
     sub-steps, and the best solution with its estimate (inf when no run had a neighbour to be
@@ -305,19 +306,20 @@ AUTO_THEN, AUTO_SINGULAR_M = "modal_ramp", "average_acceleration"
 
 def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=None,
                    after=None):
-    """``accuracy`` for a method whose every run reports an embedded estimate (modal_quintic on
-    the C backend). Run S; when its estimate exceeds the target the next S follows from the order
-    p, S (estimate / accuracy)^(1/p) * 1.2 rounded up (at least 2 S when the estimate already
-    meets it: the confirmation). A run's estimate is trusted only when the next run confirms
-    it: the difference of the two runs (~ the coarser one's error) within a factor 3 of the
-    coarser run's estimate. Unconfirmed (a kink, a hysteresis, a run far from the asymptotic
-    range: the force polynomial's error is then not its next term), the Richardson sequence
-    `reach` takes over from ``substeps``. A run that fails (NewtonError, a modal step beyond its stability
-    limit) hands over to `reach` too, as does a run without an embedded estimate. ``then``:
-    (run, method, params) of that Richardson sequence when it is not this method's (scheme
-    "auto": `AUTO_THEN`); ``after``: (run, method) of another method with an embedded estimate
-    tried the same way before it (scheme "auto": `AUTO_NEXT` after `AUTO`). The result's
-    info["scheme"] names the method that ran."""
+    """``accuracy`` for a method whose every run reports an embedded estimate (modal_quintic and
+    modal_explicit on the C backend). Run S; when its estimate exceeds the target the next S
+    follows from the order p, S (estimate / accuracy)^(1/p) * 1.2 rounded up (at least 2 S when
+    the estimate already meets it: the confirmation). A run's estimate is trusted only when the
+    next run confirms it: the difference of the two runs (~ the coarser one's error) within a
+    factor 3 of the coarser run's estimate. Unconfirmed (a kink, a hysteresis, a run far from
+    the asymptotic range: the force polynomial's error is then not its next term), the
+    Richardson sequence `reach` takes over from ``substeps`` (trusted from three levels when it
+    is this method's: ``observed``). A run that fails (NewtonError, a modal step beyond its
+    stability limit) hands over to `reach` too, as does a run without an embedded estimate.
+    ``then``: (run, method, params) of that Richardson sequence when it is not this method's
+    (scheme "auto": `AUTO_THEN`); ``after``: (run, method) of another method with an embedded
+    estimate tried the same way before it (scheme "auto": `AUTO_NEXT` after `AUTO`). The
+    result's info["scheme"] names the method that ran."""
     p = scheme_order(method, params)
     S, runs, log, prev = substeps, [], [], None
     successor = after[1] if after is not None else "the Richardson sequence"

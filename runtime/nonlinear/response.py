@@ -520,8 +520,8 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         number); when the ``substeps`` / 2 run fails (NewtonError, a modal step beyond its
         stability limit) the 2 ``substeps`` one is used. modal_quintic and modal_explicit on
         the C backend estimate within their own run (embedded) unless ``estimate=False``,
-        which skips that work (a quarter to a third of their loop on P4). With ``accuracy`` the estimate is always
-        reported (``estimate=True`` adds nothing; False is an error).
+        which skips that work (30 % to 40 % of their run on P4). With ``accuracy`` the
+        estimate is always reported (``estimate=True`` adds nothing; False is an error).
     max_substeps : int, optional
         ``accuracy`` only: the most sub-steps tried (default: as many as keep DOFs x
         sub-steps x samples within 10^8, at least 256); beyond them a DtdynAccuracyWarning
