@@ -194,9 +194,10 @@ def _modal_flops(method, r, S, ne, n_modes, no):
     K = dg/du J^-1 [I; 0] from the 2 x 2 inverse, (Cw T) e + (Cw Eg) dn + (Cw Bs) dg, K of it,
     T e + Eg dn + Bs dg); per sample the outputs (x of all DOFs, [Co Dof Dog]) and the
     estimate's (Co e + Dog dg)."""
+    from dtdyn.generated.nl_modal import POLYNOMIALS
     nm, nf, nw = 2 * n_modes, 1, ne
-    nh = {"modal_ramp": 0, "modal_parabolic": 1, "modal_quintic": 4,
-          "modal_explicit": 6}[method] * ne
+    nodes, *_, stencil = POLYNOMIALS.get(method, ((), None, None, None, None, ()))
+    nh = {"modal_ramp": 0, "modal_parabolic": 1}.get(method, sum(j < 0 for j in nodes)) * ne
     if method == "modal_explicit":
         step = 12 + 4 * ne**3
     else:
@@ -204,8 +205,7 @@ def _modal_flops(method, r, S, ne, n_modes, no):
     sub = 2 * nm * ne + 2 * (nw * nf + nw * ne) + step + 2 * nm * (nh + nf) + 3 * nm + 2 * nw * nm
     per_sample = 2 * no * (nm + nf + ne)
     if "error_estimate" in r.info:  # the polynomial methods' embedded estimate
-        nst = {"modal_quintic": 7, "modal_explicit": 8}[method]
-        sub += (2 * nst * ne + 8 + 2 * ne * nw * nw + 2 * nw * nm + 4 * nw * ne + 2 * ne * nw
+        sub += (2 * len(stencil) * ne + 8 + 2 * ne * nw * nw + 2 * nw * nm + 4 * nw * ne + 2 * ne * nw
                 + 3 * nm + 4 * nm * ne)
         per_sample += 2 * no * (nm + ne)
     return S * sub + per_sample
