@@ -160,7 +160,7 @@ def _modal_mats(step: LinearStep, md, past) -> list:
     Eg, the stencil, Bg, Bs = Bg + sum_i H_i (g's weights summed: the estimate's), Cw^T, Cw Bg,
     [Co Dof Dog]; the estimate's Cw e_k from e_{k-1}: (Cw T)^T, Cw Eg, Cw Bs; its forces
     before t_0, oldest first (``past``: g_{-1}, g_{-2}, ... as rows); and |Cw Bg| on the y rows
-    (ne x ne: modal_explicit's theta)."""
+    (ne x ne, its rows padded to a multiple of 4: modal_explicit's theta)."""
     nm, nh, ne, p = md["nm"], md["nh"], step.Bg.shape[1], md["perm"]
     Bg, Cw = step.Bg[:nm][p], step.Cw[:, :nm][:, p]
     H, Eg = md["H"][p], md["Eg"][p]
@@ -175,7 +175,7 @@ def _modal_mats(step: LinearStep, md, past) -> list:
             _pad_rows(np.hstack([step.Co[:, :nm][:, p], step.Dof, step.Dog])),
             _pad_rows((Cw @ T).T), Cw @ Eg, Cw @ Bs,
             np.append(past[md["stencil"].size - 2::-1] if md["stencil"].size else [], 0.0),
-            np.abs(Cw @ Bg)[:ne]]
+            _pad_rows(np.abs(Cw @ Bg)[:ne])]
 
 
 #: steps per block of the modal loop's embedded estimate (nl_loop.c, estimate_block)
