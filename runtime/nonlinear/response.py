@@ -323,6 +323,8 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
         rr = ca.norm_inf(r) / sr
         rho.append(ca.if_else(rr <= tol, rr,
                               ca.fmin(rr, ca.norm_inf(ca.solve(Jv, r, "qr")) / su)))
+        if explicit and not sz.nz:  # no Newton: a force that is not finite fails the step
+            rho[-1] = ca.if_else(ca.sum1(ca.fabs(g)) < np.inf, rho[-1], np.nan)
         thetas.append(theta)
         scale_u = grow(scale_u, ca.norm_inf(u))
         scale = ca.fmax(scale, scale_u)
@@ -401,7 +403,9 @@ def _run_casadi(elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, m
         if unstable.size and (not bad.size or unstable[0] < bad[0]):
             _stability_error(method, k0 + int(unstable[0]), S, fs, float(thetas[unstable[0]]))
         if bad.size:
-            _newton_error(k0 + int(bad[0]), S, fs, float(resid[bad[0]]), max_iter)
+            evaluated = method in EXPLICIT and not sz.nz  # as the C loop: |g| is not finite
+            _newton_error(k0 + int(bad[0]), S, fs,
+                          np.inf if evaluated else float(resid[bad[0]]), max_iter, evaluated)
         worst = max(worst, float(resid.max()))
         if thetas.size:
             theta = max(theta, float(thetas.max()))

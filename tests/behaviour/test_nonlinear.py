@@ -750,6 +750,38 @@ def test_explicit_beyond_its_stability_limit_names_the_step(backend):
         _impact("modal_explicit", 1, backend=backend)
 
 
+@pytest.mark.parametrize("level", [10.0, 1e3, 1e150])
+def test_explicit_checks_agree_with_casadi_mid_record(level):
+    """modal_explicit's C loop checks theta and the forces' finiteness for a block of 256 steps
+    at once (nl_loop.c, explicit_block), CasADi step by step: a Duffing oscillator (k = 1e4,
+    k3 = 1e8, 4 sub-steps of 2.5 ms) under a small sine, then a force step at sample 700 (step
+    2800, inside the eleventh block). Within the limit (10 N), both report the same largest theta;
+    beyond it (1e3 N: theta = 0.52 > 0.264 at the step itself) and with forces that overflow
+    (1e150 N: k3 y^3 = inf three steps before, the polynomial's extrapolation of the step), both
+    name the same step, by the same error."""
+    M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
+    f = np.zeros((900, 1))
+    f[:700, 0] = np.sin(0.3 * np.arange(700))
+    f[700:] = level
+    runs = {}
+    for backend in ("c", "casadi"):
+        try:
+            runs[backend] = NL.nonlinear_response(M, C, K, f, 0.01, force_dofs=[0],
+                                                  elements=[Cubic(0, k3=1e8)],
+                                                  scheme="modal_explicit", substeps=4,
+                                                  backend=backend)
+        except (NL.NewtonError, NL.DtdynStepStabilityError) as exc:
+            runs[backend] = f"{type(exc).__name__}: {exc}"
+    if level == 10.0:
+        assert runs["c"].info["max_theta"] == pytest.approx(runs["casadi"].info["max_theta"],
+                                                            rel=1e-12)
+        return
+    assert runs["c"] == runs["casadi"]
+    expected = ("DtdynStepStabilityError", "step 2800 ") if level == 1e3 else \
+        ("NewtonError: the element forces are not finite", "step 2797 ")
+    assert all(part in runs["c"] for part in expected), runs["c"]
+
+
 def test_p4_quintic_convergence_order(P4, P4_ref):
     """Sixth order: the error falls by 2^6.4 from 1 to 2 sub-steps and by 2^6.3 from 2 to 4
     (measured): the finest pair's slope is the asymptotic claim (6 - 0.25 .. 6 + 0.35, as for
