@@ -321,7 +321,7 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=N
     estimate tried the same way before it (scheme "auto": `AUTO_NEXT` after `AUTO`). The
     result's info["scheme"] names the method that ran."""
     p = scheme_order(method, params)
-    S, runs, log, prev = substeps, [], [], None
+    S, runs, log, prev, prev_S = substeps, [], [], None, None
     successor = after[1] if after is not None else "the Richardson sequence"
     while S <= max_substeps:
         try:
