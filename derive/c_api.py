@@ -58,6 +58,8 @@ KERNELS = {
         "long N", "const double *restrict k", "const double *restrict kg",
         "const double *restrict m", "double pivmin", "long n_lam", "const double *restrict lam",
         "long *restrict counts", "double *restrict G", "double *restrict H")),
+    # csrc/fma_peak.c: the multiply-add peak that `dtdyn bench` measures the loops against
+    "dtdyn_fma_peak": ("double", ("long rounds",)),
     "dtdyn_modal_filters_lanes": ("int", ("long m",)),
     "dtdyn_modal_filters_work": ("long", ("long m", "long n_out")),
     "dtdyn_modal_filters": ("int", (
@@ -86,6 +88,7 @@ SOURCES = {
     "ss_response.c": ("dtdyn_ss_states",),
     "filter_bank.c": ("dtdyn_set_stop", "dtdyn_filter_bank"),
     "sturm.c": ("dtdyn_sturm_counts", "dtdyn_sturm_laguerre"),
+    "fma_peak.c": ("dtdyn_fma_peak",),
     "mck_loop.c": ("dtdyn_set_stop", "dtdyn_mck_loop"),
     "block_chain.c": ("dtdyn_set_stop", "dtdyn_block_chain_factor", "dtdyn_block_chain_solve",
                       "dtdyn_block_chain_loop"),

@@ -325,6 +325,8 @@ def render_all() -> dict[str, str]:
            csource="filter_bank.c", with_stop=True)
     render("c/verbatim.c.jinja", "sturm.c", "derive/csrc/sturm.c (hand-written)",
            csource="sturm.c", with_stop=False)
+    render("c/verbatim.c.jinja", "fma_peak.c", "derive/csrc/fma_peak.c (hand-written)",
+           csource="fma_peak.c", with_stop=False)
     render("c/verbatim.c.jinja", "mck_loop.c", "derive/csrc/mck_loop.c (hand-written)",
            csource="mck_loop.c", with_stop=True)
     render("c/verbatim.c.jinja", "block_chain.c", "derive/csrc/block_chain.c (hand-written)",

@@ -163,6 +163,7 @@ SIGNATURES = {
             "c_void_p",
         ),
     ),
+    "dtdyn_fma_peak": ("c_double", ("c_long",)),
     "dtdyn_modal_filters_lanes": ("c_int", ("c_long",)),
     "dtdyn_modal_filters_work": ("c_long", ("c_long", "c_long")),
     "dtdyn_modal_filters": (

@@ -187,7 +187,8 @@ def _modal_flops(method, r, S, ne, n_modes, no):
     multiply-add counted as 2): per sub-step eta = L + Bg g, Q = (Cw L + Dwf f) + (Cw Bg) g, the
     predictor, each Newton iteration (the two cubic laws' residual and Jacobian, ~24, and the
     2 x 2 solve, ~12, at mean iterations + 1 evaluations; modal_explicit: no predictor, one
-    evaluation of the laws and their tangent, ~12, and its theta |(Cw Bg) dg/dy|, ~4 ne^3),
+    evaluation of the laws and their tangent, ~12, and the rows of its theta |(Cw Bg) dg/dy|,
+    |Cw Bg| |g'| + 0 g, 2 ne^2 + ne),
     the next linear part
     [H Bf] [hist; f] + T eta (dia y + off y[partner]) and Cw of it; the polynomial methods'
     estimate, evaluated a block at a time after the Newton solves (the difference stencil, the gain
@@ -199,7 +200,7 @@ def _modal_flops(method, r, S, ne, n_modes, no):
     nodes, *_, stencil = POLYNOMIALS.get(method, ((), None, None, None, None, ()))
     nh = {"modal_ramp": 0, "modal_parabolic": 1}.get(method, sum(j < 0 for j in nodes)) * ne
     if method == "modal_explicit":
-        step = 12 + 4 * ne**3
+        step = 12 + 2 * ne**2 + ne
     else:
         step = nw + 2 * nw * ne + (r.info["newton_iterations"]["mean"] + 1) * 36
     sub = 2 * nm * ne + 2 * (nw * nf + nw * ne) + step + 2 * nm * (nh + nf) + 3 * nm + 2 * nw * nm
@@ -209,6 +210,26 @@ def _modal_flops(method, r, S, ne, n_modes, no):
                 + 3 * nm + 4 * nm * ne)
         per_sample += 2 * no * (nm + ne)
     return S * sub + per_sample
+
+
+def _fma_peak(rounds=2_000_000, repeats=5):
+    """GFLOP/s of this core's multiply-add peak for the loops' 4-lane vectors
+    (generated/fma_peak.c: 96 flops a round), the best of ``repeats``; None without a C
+    compiler."""
+    from importlib import resources
+
+    from dtdyn._engine import cbuild
+    lib = cbuild.load_library(resources.files("dtdyn.generated").joinpath("fma_peak.c")
+                              .read_text(), "fma_peak")
+    if lib is None:
+        return None
+    peak = cbuild.bind(lib, "dtdyn_fma_peak")
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        peak(rounds)
+        best = min(best, time.perf_counter() - t0)
+    return 96 * rounds / best / 1e9
 
 
 def _steady_allocator():
@@ -258,6 +279,7 @@ def bench_p4(quick=False, log=print):
         return modal_filter_response(L["M"], L["C"], L["K"], L["force"], L["dt"],
                                      force_dofs=L["force_dofs"], quantities=("x",))
     lin, _, lin_build = _timed(linear, 0)
+    peak = _fma_peak()
     # measured before, between (one before each timed nonlinear run) and after the
     # nonlinear runs (the machine is shared: each run's ratio uses the linear runs alternating
     # with its own)
@@ -280,8 +302,9 @@ def bench_p4(quick=False, log=print):
             note = ""
             if method.startswith("modal_"):
                 fl = _modal_flops(method, r, S, len(P["elements"]), 4, 4)
-                note = (f"{fl:.0f} flop/sample, {fl * (n - 1) / t_run / 1e9:.2f} GFLOP/s "
-                        f"achieved")
+                rate = fl * (n - 1) / t_run / 1e9
+                note = (f"{fl:.0f} flop/sample, {rate:.2f} GFLOP/s achieved"
+                        + (f" ({rate / peak:.0%} of the peak)" if peak else ""))
             label = method + "".join(f" {k}={v}" for k, v in params.items() if k == "estimate")
             add(label, "nonlinear (C)", f"substeps={S}", r.x[:, out], ref, t_run, t_b, note,
                 statistics.median(lin_times[-5:]))
@@ -340,7 +363,10 @@ def bench_p4(quick=False, log=print):
     meta = {"problem": "P4", "description": f"nonlinear 4-DOF chain, {n} samples at 1 kHz; error "
             "of x at DOF 3 against solve_ivp DOP853 rtol 1e-12 restarted at every sample "
             f"(reference {'from the disk cache' if ref_r.info.get('cached') else f'{t_ref:.0f} s'}"
-            f"; DOP853 vs Radau on 300 samples: {radau:.1e})", "targets": [1e-3, 1e-6],
+            f"; DOP853 vs Radau on 300 samples: {radau:.1e})"
+            + (f"; the peak of the flop rates: {peak:.1f} GFLOP/s, one core's multiply-adds on "
+               "4-lane vectors (generated/fma_peak.c), measured in the same run" if peak else ""),
+            "targets": [1e-3, 1e-6], "peak_gflops": peak,
             "linear_time": t_lin, "linear_build": lin_build, "linear_error": e_lin,
             "linear": "modal filter response (ramp invariant, C) of P4L, P4 without its cubic "
                       f"springs, on the same record ({len(lin_times)} runs: 5 before, one before "
