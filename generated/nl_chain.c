@@ -54,8 +54,10 @@ int dtdyn_set_stop(int value) {
 
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
 #include <float.h>
-/* Solve J d = -r in place (J column-major n x n, from CasADi) by LU with partial pivoting. */
-static int lu_solve(long n, double *restrict J, double *restrict r) {
+/* LU with partial pivoting of J (column-major n x n) in place: the multipliers below the
+   diagonal, U on and above it, the row swapped into row k at step k in piv[k]. 1 when J is
+   singular (a zero pivot column), else 0. */
+static int lu_factor(long n, double *restrict J, long *restrict piv) {
     long i, j, k, p;
     for (k = 0; k < n; ++k) {
         double best = fabs(J[k * n + k]);
@@ -67,6 +69,7 @@ static int lu_solve(long n, double *restrict J, double *restrict r) {
             }
         if (!(best > 0.0))
             return 1;
+        piv[k] = p;
         if (p != k) {
             double t;
             for (j = 0; j < n; ++j) {
@@ -74,18 +77,32 @@ static int lu_solve(long n, double *restrict J, double *restrict r) {
                 J[j * n + k] = J[j * n + p];
                 J[j * n + p] = t;
             }
-            t = r[k];
-            r[k] = r[p];
-            r[p] = t;
         }
         for (i = k + 1; i < n; ++i) {
             const double l = J[k * n + i] / J[k * n + k];
             J[k * n + i] = l;
             for (j = k + 1; j < n; ++j)
                 J[j * n + i] -= l * J[j * n + k];
-            r[i] -= l * r[k];
         }
     }
+    return 0;
+}
+
+/* d = -J^-1 r in place on r, from lu_factor's J and piv: the row swaps, then L and U (each
+   value of r meets the same operations in the same order as in an elimination that carries r
+   along: the swaps move a value together with its multipliers) */
+static void lu_apply(long n, const double *restrict J, const long *restrict piv,
+                     double *restrict r) {
+    long i, j, k;
+    for (k = 0; k < n; ++k)
+        if (piv[k] != k) {
+            const double t = r[k];
+            r[k] = r[piv[k]];
+            r[piv[k]] = t;
+        }
+    for (k = 0; k < n; ++k)
+        for (i = k + 1; i < n; ++i)
+            r[i] -= J[k * n + i] * r[k];
     for (i = n - 1; i >= 0; --i) {
         double s = r[i];
         for (j = i + 1; j < n; ++j)
@@ -94,6 +111,15 @@ static int lu_solve(long n, double *restrict J, double *restrict r) {
     }
     for (i = 0; i < n; ++i)
         r[i] = -r[i];
+}
+
+/* Solve J d = -r in place (J column-major n x n, from CasADi, overwritten by its factors) by LU
+   with partial pivoting; 1 when J is singular. */
+static int lu_solve(long n, double *restrict J, double *restrict r) {
+    long piv[n > 0 ? n : 1];
+    if (lu_factor(n, J, piv))
+        return 1;
+    lu_apply(n, J, piv, r);
     return 0;
 }
 

@@ -72,8 +72,10 @@ static inline void matvec_add(long rows, long cols, const double *restrict A,
 
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
 #include <float.h>
-/* Solve J d = -r in place (J column-major n x n, from CasADi) by LU with partial pivoting. */
-static int lu_solve(long n, double *restrict J, double *restrict r) {
+/* LU with partial pivoting of J (column-major n x n) in place: the multipliers below the
+   diagonal, U on and above it, the row swapped into row k at step k in piv[k]. 1 when J is
+   singular (a zero pivot column), else 0. */
+static int lu_factor(long n, double *restrict J, long *restrict piv) {
     long i, j, k, p;
     for (k = 0; k < n; ++k) {
         double best = fabs(J[k * n + k]);
@@ -85,6 +87,7 @@ static int lu_solve(long n, double *restrict J, double *restrict r) {
             }
         if (!(best > 0.0))
             return 1;
+        piv[k] = p;
         if (p != k) {
             double t;
             for (j = 0; j < n; ++j) {
@@ -92,18 +95,32 @@ static int lu_solve(long n, double *restrict J, double *restrict r) {
                 J[j * n + k] = J[j * n + p];
                 J[j * n + p] = t;
             }
-            t = r[k];
-            r[k] = r[p];
-            r[p] = t;
         }
         for (i = k + 1; i < n; ++i) {
             const double l = J[k * n + i] / J[k * n + k];
             J[k * n + i] = l;
             for (j = k + 1; j < n; ++j)
                 J[j * n + i] -= l * J[j * n + k];
-            r[i] -= l * r[k];
         }
     }
+    return 0;
+}
+
+/* d = -J^-1 r in place on r, from lu_factor's J and piv: the row swaps, then L and U (each
+   value of r meets the same operations in the same order as in an elimination that carries r
+   along: the swaps move a value together with its multipliers) */
+static void lu_apply(long n, const double *restrict J, const long *restrict piv,
+                     double *restrict r) {
+    long i, j, k;
+    for (k = 0; k < n; ++k)
+        if (piv[k] != k) {
+            const double t = r[k];
+            r[k] = r[piv[k]];
+            r[piv[k]] = t;
+        }
+    for (k = 0; k < n; ++k)
+        for (i = k + 1; i < n; ++i)
+            r[i] -= J[k * n + i] * r[k];
     for (i = n - 1; i >= 0; --i) {
         double s = r[i];
         for (j = i + 1; j < n; ++j)
@@ -112,6 +129,15 @@ static int lu_solve(long n, double *restrict J, double *restrict r) {
     }
     for (i = 0; i < n; ++i)
         r[i] = -r[i];
+}
+
+/* Solve J d = -r in place (J column-major n x n, from CasADi, overwritten by its factors) by LU
+   with partial pivoting; 1 when J is singular. */
+static int lu_solve(long n, double *restrict J, double *restrict r) {
+    long piv[n > 0 ? n : 1];
+    if (lu_factor(n, J, piv))
+        return 1;
+    lu_apply(n, J, piv, r);
     return 0;
 }
 
@@ -193,22 +219,62 @@ static long newton_solve(long nu, long ne, double *restrict u, double *restrict 
 
 /*
  * newton_solve at the compile-time sizes of this loop (NL_NW + NL_NZ unknowns, NL_NE
- * elements): the same iterates, tests and results; the small loops unrolled, the LU without
- * calls. Returns the iterations or -1 (as newton_solve).
+ * elements): the same tests and results; the small loops unrolled, the LU without calls.
+ * Returns the iterations or -1 (as newton_solve).
+ *
+ * Up to 2 unknowns each iteration solves with J at its iterate in closed form (newton_solve's
+ * iterates). Above, the LU of J costs ~NU^3 / 3 multiply-adds against ~NU^2 for a solve with its
+ * factors, so the factors are kept from iteration to iteration and from step to step (lu_keep):
+ * modified Newton, u <- u - J_f^-1 r(u), J_f the Jacobian where they were formed. They are formed
+ * anew at the current iterate when the iteration does not contract (|d_i| > CONTRACT |d_{i-1}|)
+ * and at every iteration from REUSE_ITERS on (plain Newton from there, so that a step plain
+ * Newton solves within max_iter is not refused). The residual test is the rule's; the step test
+ * |J_f^-1 r| <= tol s_u accepts with factors formed at this iterate (the rule's), or after an
+ * iteration that contracted by CONTRACT (the remaining error is then below |d| / (1 - CONTRACT)):
+ * never on the first iteration with older factors, whose Jacobian may belong to another state of
+ * the elements (a contact that has opened since). lu->formed counts the factorizations.
  */
-enum { NU_ = NL_NW + NL_NZ, NE_ = NL_NE };
+#ifndef NL_LU_REUSE
+#define NL_LU_REUSE 0
+#endif
+enum { NU_ = NL_NW + NL_NZ, NE_ = NL_NE, REUSE_ITERS = NL_LU_REUSE ? 4 : 0 };
+#define CONTRACT 0.25
+
+typedef struct {
+    double f[NU_ > 2 ? NU_ *NU_ : 1];
+    long piv[NU_ > 2 ? NU_ : 1];
+    int have;
+    double formed;
+} lu_keep;
+
+/* d = -J_f^-1 r into d (lu_apply), after forming the factors at J when asked to (fresh) or
+   when there are none; 1 when J is singular. *fresh: the factors are J's */
+static inline int lu_step(lu_keep *restrict lu, const double *restrict J, const double *restrict r,
+                          double *restrict d, int *fresh) {
+    if (*fresh || !lu->have) {
+        copy(NU_ * NU_, J, lu->f);
+        lu->have = 0;
+        if (lu_factor(NU_, lu->f, lu->piv))
+            return 1;
+        lu->have = 1;
+        lu->formed += 1.0;
+        *fresh = 1;
+    }
+    copy(NU_, r, d);
+    lu_apply(NU_, lu->f, lu->piv, d);
+    return 0;
+}
 
 static inline long newton_fixed(double *restrict u, double *restrict r, double *restrict J,
                                 double scale_r, double scale_u, double tol, long max_iter,
                                 const double **arg, double **res, nl_int *iw, double *w, double *rn,
-                                double *theta) {
+                                double *theta, lu_keep *restrict lu) {
     /* as fmax(scale, DBL_MIN), without the library call */
     const double lim_r = tol * (scale_r > DBL_MIN ? scale_r : DBL_MIN);
     const double lim_u = tol * (scale_u > DBL_MIN ? scale_u : DBL_MIN);
     long it;
     int i, k;
-    double Jf[NU_ > 2 ? NU_ * NU_ : 1];
-    (void)Jf;
+    double dprev = INFINITY;
     for (it = 0;; ++it) {
         double m = 0.0, th = 0.0, d = 0.0;
         nl_residual(arg, res, iw, w, 0);
@@ -255,21 +321,37 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
                 u[i] += r[i];
             continue;
         }
-        /* J d = -r by lu_solve (inlined at the constant NU_) on a copy: J stays the Jacobian
-           at u (the modal loop's estimate uses it) */
-        copy(NU_ * NU_, J, Jf);
-        if (lu_solve(NU_, Jf, r))
-            return -1;
-        for (i = 0; i < NU_; ++i) {
-            const double a = fabs(r[i]);
-            d = (a > d || a != a) ? a : d;
+        {
+            /* J_f d = -r with the kept factors (J stays the Jacobian at u: the modal loop's
+               estimate uses it); formed anew when the iteration does not contract */
+            double dv[NU_];
+            int fresh = it >= REUSE_ITERS, ok;
+            if (lu_step(lu, J, r, dv, &fresh))
+                return -1;
+            for (i = 0; i < NU_; ++i) {
+                const double a = fabs(dv[i]);
+                d = (a > d || a != a) ? a : d;
+            }
+            if (!fresh && it > 0 && !(d <= CONTRACT * dprev)) {
+                fresh = 1;
+                d = 0.0;
+                if (lu_step(lu, J, r, dv, &fresh))
+                    return -1;
+                for (i = 0; i < NU_; ++i) {
+                    const double a = fabs(dv[i]);
+                    d = (a > d || a != a) ? a : d;
+                }
+            }
+            ok = fresh || it > 0; /* older factors: accepted after a contracting iteration */
+            copy(NU_, dv, r);
+            if (ok && d <= lim_u)
+                return it;
+            if (it == max_iter)
+                return -1;
+            for (i = 0; i < NU_; ++i)
+                u[i] += r[i];
+            dprev = d;
         }
-        if (d <= lim_u)
-            return it;
-        if (it == max_iter)
-            return -1;
-        for (i = 0; i < NU_; ++i)
-            u[i] += r[i];
     }
 }
 /*
@@ -282,11 +364,11 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
 static inline int solve_step(double *restrict u, double *restrict r, double *restrict J,
                              const double *restrict Q, double *scale, double *scale_u, double tol,
                              long max_iter, const double **arg, double **res, nl_int *iw, double *w,
-                             double theta_limit, double *stats) {
+                             double theta_limit, double *stats, lu_keep *restrict lu) {
     double rn = INFINITY, theta = 0.0;
     long it;
     *scale = grow(*scale, norm_inf(NL_NW, Q));
-    it = newton_fixed(u, r, J, *scale, *scale_u, tol, max_iter, arg, res, iw, w, &rn, &theta);
+    it = newton_fixed(u, r, J, *scale, *scale_u, tol, max_iter, arg, res, iw, w, &rn, &theta, lu);
     if (it < 0 || !(norm_inf(NL_NE, res[2]) < INFINITY) || !(norm_inf(NL_NZ, res[3]) < INFINITY)) {
         stats[3] = rn;
         return 1;
@@ -732,6 +814,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     long kb = 0, k0 = 0;
     const double *arg[5];
     double *res[5];
+    lu_keep lu; /* the kept LU factors (newton_fixed), their count in stats[5 + no] */
     double scale = 0.0, scale_u = 0.0;
     double th_max = 0.0; /* the explicit polynomial's largest theta (explicit_theta) */
 #if defined(NL_EXPLICIT) && NL_NZ == 0
@@ -761,8 +844,10 @@ static int modal_run(const long *dims, const double *const *mats, const double *
         J[i] = i % (nu + 1) == 0 ? 1.0 : 0.0;
     (void)Dwg, (void)h, (void)tol, (void)max_iter, (void)scale, (void)scale_u;
 #endif
-    for (i = 0; i < 5 + no; ++i)
+    for (i = 0; i < 6 + no; ++i)
         stats[i] = 0.0;
+    lu.have = 0;
+    lu.formed = 0.0;
     /* L_0 = eta_0 - Bg g_{-1}, g_{-1} = g (the forces given): every step then reads g_{k-1}
        where the element laws left it, in g (also the linear predictor's) */
     for (v4 *p = Lx; p < Lx + NMV; ++p)
@@ -852,7 +937,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             }
 #elif defined(NL_EXPLICIT) /* Newton for the internal states only (w = Q) */
             rc = solve_step(u, r, J, Q, &scale, &scale_u, tol, max_iter, arg, res, iwork, cw,
-                            INFINITY, stats);
+                            INFINITY, stats, &lu);
             if (!rc) {
                 v4 rows[NEV];
                 double th;
@@ -866,7 +951,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             }
 #else
             rc = solve_step(u, r, J, Q, &scale, &scale_u, tol, max_iter, arg, res, iwork, cw,
-                            theta_limit, stats);
+                            theta_limit, stats, &lu);
 #endif
             if (rc) {
                 fail[0] = n * S + j;
@@ -922,6 +1007,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
 #if defined(NL_EXPLICIT) && NL_NZ == 0
     copy(nw, Q, u);
 #endif
+    stats[5 + no] = lu.formed;
     /* the state at the last sample */
     copy(nm, (const double *)eta, x);
     copy(nh, ring + ih, x + nm);
@@ -939,8 +1025,9 @@ static int modal_run(const long *dims, const double *const *mats, const double *
  * path's, see modal_run).
  * state: x (ns), u (nw + nz: last solution), g (ne), rate (nz); all updated in place.
  * stats: [max iterations, total iterations, max final residual, failing residual or theta,
- * max theta] (then the modal estimate's). Returns 3 when theta = |B0 dg/dy|_inf (displacement
- * rows and columns) exceeds theta_limit (the method's stability limit for the elements' tangent
+ * max theta] (then the modal estimate's, no values), then the LU factorizations formed
+ * (newton_fixed). Returns 3 when theta = |B0 dg/dy|_inf (displacement rows and columns) exceeds
+ * theta_limit (the method's stability limit for the elements' tangent
  * stiffness) at step fail[0].
  */
 int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
@@ -958,6 +1045,7 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     double *cw = work; /* CasADi work */
     const double *arg[5];
     double *res[5];
+    lu_keep lu;
     double scale = 0.0, scale_u = 0.0;
     long n, j, i;
     int rc;
@@ -972,7 +1060,9 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     res[3] = rate;
     res[4] = 0;
     (void)newton_solve; /* newton.c's general solver: nl_chain.c's; this loop has newton_fixed */
-    stats[0] = stats[1] = stats[2] = stats[3] = stats[4] = 0.0;
+    stats[0] = stats[1] = stats[2] = stats[3] = stats[4] = stats[5 + no] = 0.0;
+    lu.have = 0;
+    lu.formed = 0.0;
     if (dims[0] != ns || dims[1] != nf || dims[2] != ne || dims[3] != nw || dims[4] != nz ||
         dims[5] != no)
         return 2; /* compiled for other sizes */
@@ -1005,7 +1095,7 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
                 u[nw + i] = zold[i] + par[nw * ne] * rold[i];
             /* Newton under the shared acceptance rule (newton_solve), scale fixed per step */
             rc = solve_step(u, r, J, Q, &scale, &scale_u, tol, max_iter, arg, res, iwork, cw,
-                            theta_limit, stats);
+                            theta_limit, stats, &lu);
             if (rc) {
                 fail[0] = n * S + j;
                 return rc;
@@ -1027,5 +1117,6 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
             }
         }
     }
+    stats[5 + no] = lu.formed;
     return 0;
 }

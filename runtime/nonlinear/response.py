@@ -119,12 +119,19 @@ def _forces_at_rest(elements, sz: _Sizes, y=None, yd=None):
 # backend "c": generated loop + CasADi-generated residual
 
 
+#: the C loops keep the LU factors of the Newton Jacobian from step to step (modified Newton,
+#: nl_loop.c's newton_fixed) from this many unknowns u = [w; z] on, where the factorization
+#: (~nu^3 / 3) outweighs the evaluation and the solve; below, every iteration solves with the
+#: Jacobian at its iterate (the CasADi backend's steps). False: never (benchmarks/newton_reuse.py)
+LU_REUSE_MIN: int | bool = 12
+
+
 @lru_cache(maxsize=32)
-def _c_runner(elements, dims, explicit=False):
+def _c_runner(elements, dims, explicit=False, reuse=False):
     """(runner or None, construct time, compile time) for these elements and sizes (ns, nf, ne,
     nw, nz, no[, nm, nh, nst]: the modal path of the loop, whose residual function also
-    gives dg/du; ``explicit``: modal_explicit's step, NL_EXPLICIT); cached, so a second run pays
-    neither."""
+    gives dg/du; ``explicit``: modal_explicit's step, NL_EXPLICIT; ``reuse``: the Newton
+    Jacobian's LU factors kept, NL_LU_REUSE); cached, so a second run pays neither."""
     t0 = time.perf_counter()
     sz = _sizes(elements)
     fn = _residual_function(elements, sz, tangent=len(dims) > 6)
@@ -132,6 +139,7 @@ def _c_runner(elements, dims, explicit=False):
                                                                      "NO", "NM", "NH", "NST"),
                                                                     dims))
     sizes += "#define NL_EXPLICIT 1\n" if explicit else ""
+    sizes += "#define NL_LU_REUSE 1\n" if reuse else ""
     loop = resources.files("dtdyn.generated").joinpath("nl_loop.c").read_text()
     source = sizes + loop + "\n" + _c_source(fn)
     t1 = time.perf_counter()
@@ -211,7 +219,7 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
         x[:md["nm"]] = xa[md["perm"]]
     ptrs = (ctypes.c_void_p * len(mats))(*[m.ctypes.data for m in mats])
     out = np.empty((n_samples, no + nzo))
-    stats = np.zeros(5 + no)  # then the estimate's largest |error| per output row
+    stats = np.zeros(6 + no)  # then the estimate's largest |error| per output row, the LUs
     fail = np.zeros(1, dtype=np.int64)
     work = np.zeros(n_w + 1 + (_estimate_work(sz, nst, md["nm"]) if nst else 0))
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
@@ -710,7 +718,8 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         dims = (step.A.shape[0], f.shape[1], sz.ne, sz.nw, sz.nz, step.Co.shape[0])
         if step.modal is not None:
             dims += (step.modal["nm"], step.modal["nh"], step.modal["stencil"].size)
-        runner, t_build, t_compile = _c_runner(elements, dims, method in EXPLICIT)
+        reuse = LU_REUSE_MIN is not False and sz.nw + sz.nz >= LU_REUSE_MIN
+        runner, t_build, t_compile = _c_runner(elements, dims, method in EXPLICIT, reuse)
         used = "c" if runner is not None else "casadi"
     if used == "c":
         t2 = time.perf_counter()
@@ -724,10 +733,11 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
             _stability_error(method, fail, S, fs, stats[3])
         if rc:
             _newton_error(fail, S, fs, stats[3], max_iter, method in EXPLICIT and not sz.nz)
-        iters = {"max": int(stats[0]), "mean": stats[1] / ((f.shape[0] - 1) * S + 1)}
+        iters = {"max": int(stats[0]), "mean": stats[1] / ((f.shape[0] - 1) * S + 1),
+                 "factorizations": int(stats[-1])}
         worst, theta = float(stats[2]), float(stats[4])
         if step.modal is not None and step.modal["stencil"].size:
-            embedded = stats[5:]
+            embedded = stats[5:-1]
     else:
         xa = np.concatenate([x, u, g0, rate0, [0.0, 0.0]])
         out, worst, theta, t_build, t_compile, t_run = _run_casadi(

@@ -9,7 +9,7 @@ import pytest
 import sympy as sp
 
 from dtdyn.derive import nonlinear as DN
-from dtdyn import exact_response
+from dtdyn import chain_matrices, exact_response
 from dtdyn import load_result, simulate_mck
 from dtdyn.nonlinear import response as NL
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
@@ -780,6 +780,47 @@ def test_explicit_checks_agree_with_casadi_mid_record(level):
     expected = ("DtdynStepStabilityError", "step 2800 ") if level == 1e3 else \
         ("NewtonError: the element forces are not finite", "step 2797 ")
     assert all(part in runs["c"] for part in expected), runs["c"]
+
+
+def _many_elements(kind):
+    """A 24-DOF chain with 12 elements on its first stations (36 unknowns for Bouc-Wen: y, y', z;
+    12 for a smoothed gap: y), 4000 steps of white noise on the top mass."""
+    N = 24
+    M, C, K = chain_matrices(np.ones(N), np.full(N, 1e4), np.full(N, 2.0), sparse=False)
+    f = 30.0 * np.random.default_rng(0).standard_normal(4000)
+    if kind == "boucwen":
+        els = [BoucWen(i, i - 1 if i else None, stiffness=5e3, alpha=0.1, beta=50.0, gamma=50.0)
+               for i in range(12)]
+    else:
+        els = [Gap(i, i - 1 if i else None, gap=2e-3, stiffness=1e7, smoothing=1e-4)
+               for i in range(12)]
+    return M, C, K, f, els
+
+
+@pytest.mark.parametrize("kind, scheme, factorizations", [("boucwen", "newmark", 10),
+                                                          ("boucwen", "modal_ramp", 10),
+                                                          ("gap", "newmark", 4000)])
+def test_kept_lu_converges_to_plain_newton(kind, scheme, factorizations, monkeypatch):
+    """From LU_REUSE_MIN = 12 unknowns the C loop keeps the LU factors of the Newton Jacobian
+    from step to step (nl_loop.c, newton_fixed: modified Newton, formed anew where it does not
+    contract). Plain Newton and it accept every step within tol s_u, so they converge to the same
+    discrete solution as tol falls: their difference shrinks with tol (Bouc-Wen, 36 unknowns:
+    2.8e-8 at tol = 1e-10, 4.8e-10 at 1e-12; the gap, 12 unknowns, whose contacts change the
+    Jacobian: 9.9e-7 and 2.6e-8; measured), held to a factor 10 for a factor 100 of tol. Bouc-Wen
+    forms one LU for the 4000 steps (measured 1), the gap one at most steps (3047)."""
+    M, C, K, f, els = _many_elements(kind)
+    diff = []
+    for tol in (1e-10, 1e-12):
+        runs = {}
+        for reuse in (False, 12):
+            monkeypatch.setattr(NL, "LU_REUSE_MIN", reuse)
+            runs[reuse] = NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[23], elements=els,
+                                                scheme=scheme, tol=tol, quantities=("x",))
+        peak = np.abs(runs[False].x).max()
+        diff.append(np.abs(runs[12].x - runs[False].x).max() / peak)
+        assert runs[12].info["newton_iterations"]["factorizations"] <= factorizations
+        assert runs[False].info["newton_iterations"]["factorizations"] > 4000
+    assert diff[1] <= diff[0] / 10, diff
 
 
 def test_p4_quintic_convergence_order(P4, P4_ref):
