@@ -130,7 +130,9 @@ def _simulate_nonlinear(args, sc) -> int:
     print(f"run time: {report['run_time_s'] * 1e3:.2f} ms ({report['backend']} backend, {per})")
     iters = report["newton_iterations"]
     its = ("not counted (casadi backend)" if iters is None
-           else f"max {iters['max']}, mean {iters['mean']:.3f}")
+           else f"max {iters['max']}, mean {iters['mean']:.3f}"
+           + (f", {iters['factorizations']} LU factorizations" if "factorizations" in iters
+              else ""))
     print(f"Newton iterations per step: {its}; max residual: {report['max_residual']:.3e}")
     if report["error_estimate"] is not None:
         met = ("" if target is None else

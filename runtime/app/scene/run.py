@@ -144,10 +144,10 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
         A nonlinear scene (``form``, ``sweep``, ``max_rel_error`` None; ``backend`` the one used)
         adds ``substeps, elements`` (descriptions), ``setup_time_s,
         construct_time_s, compile_time_s`` (``run_time_s`` is the stepping loop alone,
-        ``total_time_s`` the whole call), ``newton_iterations`` (``{"max", "mean"}`` per step;
-        None for backend "casadi"), ``max_residual`` and ``max_theta`` (``Response.info``),
-        ``accuracy``, ``accuracy_met`` and ``error_estimate`` (None when not asked or not
-        estimated); ``scheme`` is the method that ran (the one "auto" picked).
+        ``total_time_s`` the whole call), ``newton_iterations`` (``{"max", "mean"}`` per step,
+        and the C loop's LU ``factorizations``; None for backend "casadi"), ``max_residual``
+        and ``max_theta`` (``Response.info``), ``accuracy``, ``accuracy_met`` and
+        ``error_estimate`` (None when not asked or not estimated); ``scheme`` is the method that ran (the one "auto" picked).
 
     Raises
     ------
