@@ -113,6 +113,33 @@ static void lu_apply(long n, const double *restrict J, const long *restrict piv,
         r[i] = -r[i];
 }
 
+/* d = -J^-T r in place on r, from lu_factor's J and piv (P J = L U, so J^T = U^T L^T P):
+   U^T, then L^T, then the row swaps in reverse order */
+static void lu_apply_t(long n, const double *restrict J, const long *restrict piv,
+                       double *restrict r) {
+    long i, j, k;
+    for (i = 0; i < n; ++i) {
+        double s = r[i];
+        for (j = 0; j < i; ++j)
+            s -= J[i * n + j] * r[j];
+        r[i] = s / J[i * n + i];
+    }
+    for (i = n - 1; i >= 0; --i) {
+        double s = r[i];
+        for (j = i + 1; j < n; ++j)
+            s -= J[i * n + j] * r[j];
+        r[i] = s;
+    }
+    for (k = n - 1; k >= 0; --k)
+        if (piv[k] != k) {
+            const double t = r[k];
+            r[k] = r[piv[k]];
+            r[piv[k]] = t;
+        }
+    for (i = 0; i < n; ++i)
+        r[i] = -r[i];
+}
+
 /* Solve J d = -r in place (J column-major n x n, from CasADi, overwritten by its factors) by LU
    with partial pivoting; 1 when J is singular. */
 static int lu_solve(long n, double *restrict J, double *restrict r) {
@@ -241,6 +268,7 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
     res[1] = J;
     res[2] = gn;
     res[3] = rn_;
+    (void)lu_apply_t; /* newton.c's transposed solve: nl_loop.c's estimate */
     stats[0] = stats[1] = stats[2] = stats[3] = 0.0;
     for (n = 0; n < n_samples; ++n) {
         const double *f0 = force + n * nf, *f1 = f0 + nf;

@@ -131,6 +131,33 @@ static void lu_apply(long n, const double *restrict J, const long *restrict piv,
         r[i] = -r[i];
 }
 
+/* d = -J^-T r in place on r, from lu_factor's J and piv (P J = L U, so J^T = U^T L^T P):
+   U^T, then L^T, then the row swaps in reverse order */
+static void lu_apply_t(long n, const double *restrict J, const long *restrict piv,
+                       double *restrict r) {
+    long i, j, k;
+    for (i = 0; i < n; ++i) {
+        double s = r[i];
+        for (j = 0; j < i; ++j)
+            s -= J[i * n + j] * r[j];
+        r[i] = s / J[i * n + i];
+    }
+    for (i = n - 1; i >= 0; --i) {
+        double s = r[i];
+        for (j = i + 1; j < n; ++j)
+            s -= J[i * n + j] * r[j];
+        r[i] = s;
+    }
+    for (k = n - 1; k >= 0; --k)
+        if (piv[k] != k) {
+            const double t = r[k];
+            r[k] = r[piv[k]];
+            r[piv[k]] = t;
+        }
+    for (i = 0; i < n; ++i)
+        r[i] = -r[i];
+}
+
 /* Solve J d = -r in place (J column-major n x n, from CasADi, overwritten by its factors) by LU
    with partial pivoting; 1 when J is singular. */
 static int lu_solve(long n, double *restrict J, double *restrict r) {
@@ -525,39 +552,48 @@ static inline void vmax_abs(v4 *restrict mx, const v4 *restrict a) {
 
 /*
  * K = dg/du J^-1 [I; 0] (NE x NW, column-major) from J (NU x NU) and dg/du (NE x NU): J^-1 in
- * closed form up to NU = 2, else by LU with partial pivoting on a copy of J.
+ * closed form up to NU = 2, else from one LU with partial pivoting of a copy of J, K^T solved
+ * with its transpose (NE solves of NU^2 against NW solves and the product).
  */
 static inline void tangent_gain(const double *restrict J, const double *restrict Gu,
                                 double *restrict K) {
     enum { nu = NL_NW + NL_NZ, ne = NL_NE, nw = NL_NW };
-    double Ji[nu * nw]; /* the first NW columns of J^-1, column-major */
     int i, c, r;
-    if (nu == 1) {
-        Ji[0] = 1.0 / J[0];
-    } else if (nu == 2) {
-        const double inv = 1.0 / (J[0] * J[nu + 1] - J[nu] * J[1]);
-        Ji[0] = J[nu + 1] * inv;
-        Ji[1] = -J[1] * inv;
-        if (nw == 2) {
-            Ji[nu] = -J[nu] * inv;
-            Ji[nu + 1] = J[0] * inv;
-        }
-    } else {
-        double Jf[nu * nu];
-        for (r = 0; r < nw; ++r) {
-            copy(nu * nu, J, Jf);
-            zero(nu, Ji + r * nu);
-            Ji[r * nu + r] = -1.0; /* lu_solve solves J d = -rhs */
-            lu_solve(nu, Jf, Ji + r * nu);
-        }
-    }
-    for (r = 0; r < nw; ++r)
+    if (nu > 2) { /* K^T = [I 0] J^-T (dg/du)^T: one LU, NE transposed solves */
+        double Jf[nu > 2 ? nu * nu : 1], y[nu];
+        long piv[nu];
+        copy(nu * nu, J, Jf);
+        lu_factor(nu, Jf, piv);
         for (i = 0; i < ne; ++i) {
-            double s = 0.0;
             for (c = 0; c < nu; ++c)
-                s += Gu[c * ne + i] * Ji[r * nu + c];
-            K[r * ne + i] = s;
+                y[c] = -Gu[c * ne + i]; /* lu_apply_t solves J^T d = -rhs */
+            lu_apply_t(nu, Jf, piv, y);
+            for (r = 0; r < nw; ++r)
+                K[r * ne + i] = y[r];
         }
+        return;
+    }
+    {
+        double Ji[nu * nw]; /* the first NW columns of J^-1, column-major */
+        if (nu == 1) {
+            Ji[0] = 1.0 / J[0];
+        } else {
+            const double inv = 1.0 / (J[0] * J[nu + 1] - J[nu] * J[1]);
+            Ji[0] = J[nu + 1] * inv;
+            Ji[1] = -J[1] * inv;
+            if (nw == 2) {
+                Ji[nu] = -J[nu] * inv;
+                Ji[nu + 1] = J[0] * inv;
+            }
+        }
+        for (r = 0; r < nw; ++r)
+            for (i = 0; i < ne; ++i) {
+                double s = 0.0;
+                for (c = 0; c < nu; ++c)
+                    s += Gu[c * ne + i] * Ji[r * nu + c];
+                K[r * ne + i] = s;
+            }
+    }
 }
 
 /*
@@ -1060,6 +1096,7 @@ int dtdyn_nl_run(const long *dims, const double *const *mats, const double *rest
     res[3] = rate;
     res[4] = 0;
     (void)newton_solve; /* newton.c's general solver: nl_chain.c's; this loop has newton_fixed */
+    (void)lu_apply_t;   /* the modal path's estimate (tangent_gain) */
     stats[0] = stats[1] = stats[2] = stats[3] = stats[4] = stats[5 + no] = 0.0;
     lu.have = 0;
     lu.formed = 0.0;
