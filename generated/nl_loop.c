@@ -355,19 +355,12 @@ static inline long newton_fixed(double *restrict u, double *restrict r, double *
             int fresh = it >= REUSE_ITERS, ok;
             if (lu_step(lu, J, r, dv, &fresh))
                 return -1;
-            for (i = 0; i < NU_; ++i) {
-                const double a = fabs(dv[i]);
-                d = (a > d || a != a) ? a : d;
-            }
+            d = norm_inf(NU_, dv);
             if (!fresh && it > 0 && !(d <= CONTRACT * dprev)) {
                 fresh = 1;
-                d = 0.0;
                 if (lu_step(lu, J, r, dv, &fresh))
                     return -1;
-                for (i = 0; i < NU_; ++i) {
-                    const double a = fabs(dv[i]);
-                    d = (a > d || a != a) ? a : d;
-                }
+                d = norm_inf(NU_, dv);
             }
             ok = fresh || it > 0; /* older factors: accepted after a contracting iteration */
             copy(NU_, dv, r);
