@@ -212,18 +212,23 @@ def _modal_flops(method, r, S, ne, n_modes, no):
     return S * sub + per_sample
 
 
-def _fma_peak(rounds=2_000_000, repeats=5):
-    """GFLOP/s of this core's multiply-add peak for the loops' 4-lane vectors
-    (generated/fma_peak.c: 96 flops a round), the best of ``repeats``; None without a C
-    compiler."""
+def _fma_peak_kernel():
+    """dtdyn_fma_peak(rounds) of generated/fma_peak.c (12 chains of 4-lane multiply-adds, 96
+    flops a round; returns their sum), or None without a C compiler."""
     from importlib import resources
 
     from dtdyn._engine import cbuild
     lib = cbuild.load_library(resources.files("dtdyn.generated").joinpath("fma_peak.c")
                               .read_text(), "fma_peak")
-    if lib is None:
+    return None if lib is None else cbuild.bind(lib, "dtdyn_fma_peak")
+
+
+def _fma_peak(rounds=2_000_000, repeats=5):
+    """GFLOP/s of this core's multiply-add peak for the loops' 4-lane vectors
+    (`_fma_peak_kernel`), the best of ``repeats``; None without a C compiler."""
+    peak = _fma_peak_kernel()
+    if peak is None:
         return None
-    peak = cbuild.bind(lib, "dtdyn_fma_peak")
     best = np.inf
     for _ in range(repeats):
         t0 = time.perf_counter()

@@ -122,8 +122,8 @@ def _forces_at_rest(elements, sz: _Sizes, y=None, yd=None):
 #: the C loops keep the LU factors of the Newton Jacobian from step to step (modified Newton,
 #: nl_loop.c's newton_fixed) from this many unknowns u = [w; z] on, where the factorization
 #: (~nu^3 / 3) outweighs the evaluation and the solve; below, every iteration solves with the
-#: Jacobian at its iterate (the CasADi backend's steps). False: never (benchmarks/newton_reuse.py)
-LU_REUSE_MIN: int | bool = 12
+#: Jacobian at its iterate (the CasADi backend's steps). None: never (benchmarks/newton_reuse.py)
+LU_REUSE_MIN: int | None = 12
 
 
 @lru_cache(maxsize=32)
@@ -718,7 +718,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         dims = (step.A.shape[0], f.shape[1], sz.ne, sz.nw, sz.nz, step.Co.shape[0])
         if step.modal is not None:
             dims += (step.modal["nm"], step.modal["nh"], step.modal["stencil"].size)
-        reuse = LU_REUSE_MIN is not False and sz.nw + sz.nz >= LU_REUSE_MIN
+        reuse = LU_REUSE_MIN is not None and sz.nw + sz.nz >= LU_REUSE_MIN
         runner, t_build, t_compile = _c_runner(elements, dims, method in EXPLICIT, reuse)
         used = "c" if runner is not None else "casadi"
     if used == "c":

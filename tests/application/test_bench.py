@@ -78,12 +78,8 @@ def test_fma_peak_kernel_does_the_work_it_counts():
     same recurrence run in NumPy (one rounding per multiply-add there, two in NumPy: after 1000
     rounds of a contraction by ~1 - 1e-6 the two differ by a few ulps of the sum, 1e-12 held),
     so no chain was dropped or folded; the peak is a positive rate."""
-    from importlib import resources
-
-    from dtdyn._engine import cbuild
-    lib = cbuild.load_library(resources.files("dtdyn.generated").joinpath("fma_peak.c")
-                              .read_text(), "fma_peak")
-    if lib is None:
+    kernel = bench._fma_peak_kernel()
+    if kernel is None:
         pytest.skip("no C compiler")
     rounds = 1000
     x = np.array([0.999999, 0.9999991, 0.9999992, 0.9999993])
@@ -91,6 +87,6 @@ def test_fma_peak_kernel_does_the_work_it_counts():
     a = np.arange(12)[:, None] + np.array([0.0, 0.25, 0.5, 0.75])
     for _ in range(rounds):
         a = a * x + y
-    total = cbuild.bind(lib, "dtdyn_fma_peak")(rounds)
+    total = kernel(rounds)
     assert total == pytest.approx(a.sum(), rel=1e-12)
     assert 0 < bench._fma_peak(rounds=10_000, repeats=2) < np.inf

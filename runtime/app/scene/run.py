@@ -147,7 +147,8 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
         ``total_time_s`` the whole call), ``newton_iterations`` (``{"max", "mean"}`` per step,
         and the C loop's LU ``factorizations``; None for backend "casadi"), ``max_residual``
         and ``max_theta`` (``Response.info``), ``accuracy``, ``accuracy_met`` and
-        ``error_estimate`` (None when not asked or not estimated); ``scheme`` is the method that ran (the one "auto" picked).
+        ``error_estimate`` (None when not asked or not estimated); ``scheme`` is the method
+        that ran (the one "auto" picked).
 
     Raises
     ------
