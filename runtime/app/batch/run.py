@@ -131,11 +131,13 @@ def _in_memory(layout, n, blocks_by_start, meta_vars, case_coords, attrs):
 
 
 def _task_failed(specs, exc: BaseException) -> list[dict]:
-    """The metadata of the cases of a task that did not return (its worker died, ...)."""
+    """The metadata of the cases of a task that did not return, run alone (its worker died,
+    ...)."""
     try:
         message = f"{type(exc).__name__}: {exc}"
     except Exception:  # noqa: BLE001 - an exception whose str() fails
         message = f"{type(exc).__name__}: {exc!r}"
+    message += " (run alone, its task did not return: its worker died or lost the scenes)"
     return [{"index": s.index, "status": "failed", "message": message, "backend": "",
              "worker": "", "run_time": np.nan, "max_rel_error": np.nan, "max_residual": np.nan,
              "error_estimate": np.nan, "seed": s.seed} for s in specs]
@@ -187,8 +189,9 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
     worker compiles or loads its C kernels once (a warm-up before the tasks) and a worker
     without a C compiler stops the batch with an error instead of falling back to NumPy. A case
     that fails (`NewtonError`, `DtdynUnstableError`, a ValueError of the scene parser, any other
-    exception, a non-finite stored value, a task whose worker died) is recorded with its
-    message and the batch goes on.
+    exception, a non-finite stored value, a case that kills its worker) is recorded with its
+    message and the batch goes on. A task that does not return (its worker died) runs again,
+    then its cases one at a time, each alone: only a case that fails alone is failed.
 
     Parameters
     ----------
@@ -326,36 +329,70 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         if out_path is not None:
             tmp = store.temporary_path(out_path)
             store.create(tmp, layout, n, size, case_coords)
-        starts = list(range(0, n, size))
-        futures = [client.submit(worker.run_chunk, shared_f, specs[a:a + size], reducers, check,
-                                 layout, None if tmp is None else str(tmp), a, pure=False)
-                   for a in starts]
-        start_of = {fut.key: a for fut, a in zip(futures, starts)}
+        tasks = [(a, min(size, n - a)) for a in range(0, n, size)]
         metas: list[dict | None] = [None] * n
         blocks_by_start = {}
         failed = 0
-        with tqdm(total=n, unit="case", disable=not progress, file=sys.stderr,
-                  desc="batch") as bar:
+
+        def submit(shared_f, a, k):
+            return client.submit(worker.run_chunk, shared_f, specs[a:a + k], reducers, check,
+                                 layout, None if tmp is None else str(tmp), a, pure=False)
+
+        def record(got, blocks):
+            nonlocal failed
+            for m in got:
+                metas[m["index"]] = m
+                failed += m["status"] != "done"
+            if blocks is not None:
+                blocks_by_start[got[0]["index"]] = blocks
+            bar.update(len(got))
+            bar.set_postfix(failed=failed)
+
+        def run_round(shared_f, round_tasks):
+            """Run tasks concurrently; record those that return; the others with their error."""
+            nonlocal futures
+            futures = [submit(shared_f, a, k) for a, k in round_tasks]
+            task_of = {fut.key: t for fut, t in zip(futures, round_tasks)}
+            lost = []
             for fut in as_completed(futures):
                 try:
-                    got, blocks = fut.result()
+                    record(*fut.result())
                 except CBackendError:
                     raise
-                except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker: its cases fail
-                    a = start_of[fut.key]
-                    got, blocks = _task_failed(specs[a:a + size], exc), None
-                for m in got:
-                    metas[m["index"]] = m
-                    failed += m["status"] != "done"
-                if blocks is not None:
-                    blocks_by_start[got[0]["index"]] = blocks
-                bar.update(len(got))
-                bar.set_postfix(failed=failed)
+                except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
+                    lost.append((task_of[fut.key], exc))
+            return sorted(lost, key=lambda t: t[0])
+
+        with tqdm(total=n, unit="case", disable=not progress, file=sys.stderr,
+                  desc="batch") as bar:
+            lost = run_round(shared_f, tasks)
+            # A task that did not return died with its worker, or lost the scattered scenes
+            # when every worker holding them died: maybe beside the case that killed them.
+            # Its tasks run again with the scenes scattered anew, concurrently when there are
+            # several; the cases of those failing again, one at a time, each alone on the
+            # cluster: only a case that fails alone is failed.
+            if len(lost) > 1:
+                shared_f = client.scatter(shared, broadcast=True, hash=False)
+                lost = run_round(shared_f, [t for t, _ in lost])
+            fresh = False
+            for (a, k), _ in lost:
+                for i in range(a, a + k):
+                    if not fresh:
+                        shared_f = client.scatter(shared, broadcast=True, hash=False)
+                    futures = [submit(shared_f, i, 1)]
+                    try:
+                        record(*futures[0].result())
+                        fresh = True
+                    except CBackendError:
+                        raise
+                    except Exception as exc:  # noqa: BLE001 - it fails alone: it is failed
+                        record(_task_failed(specs[i:i + 1], exc), None)
+                        fresh = False
         wall = time.perf_counter() - start
         summary = {"cases": n, "done": n - failed, "failed": failed, "wall_time_s": wall,
                    "cases_per_s": n / wall if wall > 0 else float("inf"),
                    "cluster_start_s": cluster_time if own else None, "warm_up_s": warm,
-                   "workers": len(addresses), "tasks": len(starts), "chunk": size}
+                   "workers": len(addresses), "tasks": len(tasks), "chunk": size}
         attrs = {"summary": summary, "scenes": shared.sources, "root_seed": seed,
                  "reducers": [reducer_name(r) for r in reducers], "check": check,
                  "versions": _versions()}
