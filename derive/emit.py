@@ -118,7 +118,7 @@ def _scheme_context(name: str) -> dict:
             "form": form,
             "temps": [(str(t), printing.c(e)) for t, e in temps],
             "rows": [(n, printing.c(e)) for n, e in reduced],
-            "g": cc(sw.g), "S": cc(sw.S_expr), "den": cc(sw.den), "hD": cc(sw.hD),
+            "g": cc(sw.g), "S": cc(sw.S_expr), "den": cc(sw.den),
             "error_step": [(n, cc(e)) for n, e in sw.error_step.items()],
             "plain": _plain_entries(sw.T, cc, "{}[n]"),
             **{n: _lin(n, fs.hist_terms[n]) for n in ("q", "s", "b")},
@@ -147,7 +147,7 @@ def _dttmm_context() -> dict:
            "S_expr": str(sw.S_expr), "g": str(sw.g), "h": str(sw.h), "a_fwd": str(sw.a_fwd),
            "b_fwd": str(sw.b_fwd), "hD": str(sw.hD), "den": str(sw.den),
            "g_py": scalar(sw.g), "S_py": scalar(sw.S_expr),
-           "den_py": scalar(sw.den), "hD_py": scalar(sw.hD),
+           "den_py": scalar(sw.den),
            "error_step": [(n, scalar(e)) for n, e in sw.error_step.items()],
            "error_step_doc": [(n, str(e)) for n, e in sw.error_step.items()],
            "random_spread": repr(float(dttmm.RANDOM_SPREAD))}

@@ -83,7 +83,6 @@
 #define CHAIN_G kp / (-SR[n] + kp + mu)
 #define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define CHAIN_DEN -SR[n] + kp + mu
-#define CHAIN_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define CHAIN_ERROR_STEP \
     hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
     hb[n] = kp / (SR[n] - kp - mu); \
@@ -106,6 +105,8 @@
 #define CHAIN_Q q_x0 *x0[i]
 #define CHAIN_SV s_v0 *v0[i]
 #define CHAIN_B b_v0 *v0[i] + b_a0 *a0[i]
+/* m b (without reading m where b = 0) */
+#define CHAIN_MB m[i] * (CHAIN_B)
 #define CHAIN_EQ q_x0 *ex0[i]
 #define CHAIN_ES s_v0 *ev0[i]
 #define CHAIN_EB b_v0 *ev0[i] + b_a0 *ea0[i]
@@ -181,7 +182,6 @@
 #define CHAIN_G kp / (-SR[n] + kp + mu)
 #define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define CHAIN_DEN -SR[n] + kp + mu
-#define CHAIN_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define CHAIN_ERROR_STEP \
     hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
     hb[n] = kp / (SR[n] - kp - mu); \
@@ -204,6 +204,8 @@
 #define CHAIN_Q q_x0 *x0[i] + q_v0 *v0[i] + q_a0 *a0[i]
 #define CHAIN_SV s_v0 *v0[i] + s_a0 *a0[i]
 #define CHAIN_B 0.0
+/* m b (without reading m where b = 0) */
+#define CHAIN_MB 0.0
 #define CHAIN_EQ q_x0 *ex0[i] + q_v0 *ev0[i] + q_a0 *ea0[i]
 #define CHAIN_ES s_v0 *ev0[i] + s_a0 *ea0[i]
 #define CHAIN_EB zero2

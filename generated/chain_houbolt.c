@@ -91,7 +91,6 @@
 #define CHAIN_G kp / (-SR[n] + kp + mu)
 #define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define CHAIN_DEN -SR[n] + kp + mu
-#define CHAIN_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define CHAIN_ERROR_STEP \
     hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
     hb[n] = kp / (SR[n] - kp - mu); \
@@ -114,6 +113,8 @@
 #define CHAIN_Q q_x0 *x0[i]
 #define CHAIN_SV s_dx0 *(x0[i] - xm1[i]) + s_dxm1 *(xm1[i] - xm2[i])
 #define CHAIN_B b_dx0 *(x0[i] - xm1[i]) + b_dxm1 *(xm1[i] - xm2[i])
+/* m b (without reading m where b = 0) */
+#define CHAIN_MB m[i] * (CHAIN_B)
 #define CHAIN_EQ q_x0 *ex0[i]
 #define CHAIN_ES s_dx0 *(ex0[i] - exm1[i]) + s_dxm1 *(exm1[i] - exm2[i])
 #define CHAIN_EB b_dx0 *(ex0[i] - exm1[i]) + b_dxm1 *(exm1[i] - exm2[i])
@@ -203,7 +204,6 @@
 #define CHAIN_G kp / (-SR[n] + kp + mu)
 #define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define CHAIN_DEN -SR[n] + kp + mu
-#define CHAIN_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define CHAIN_ERROR_STEP \
     hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
     hb[n] = kp / (SR[n] - kp - mu); \
@@ -226,6 +226,8 @@
 #define CHAIN_Q q_x0 *x0[i] + q_xm1 *xm1[i] + q_xm2 *xm2[i]
 #define CHAIN_SV s_x0 *x0[i] + s_xm1 *xm1[i] + s_xm2 *xm2[i]
 #define CHAIN_B 0.0
+/* m b (without reading m where b = 0) */
+#define CHAIN_MB 0.0
 #define CHAIN_EQ q_x0 *ex0[i] + q_xm1 *exm1[i] + q_xm2 *exm2[i]
 #define CHAIN_ES s_x0 *ex0[i] + s_xm1 *exm1[i] + s_xm2 *exm2[i]
 #define CHAIN_EB zero2

@@ -84,8 +84,8 @@ static double step_sign(uint64_t j)
    (then mu = m alpha and beta = m b, as many operations as a plain chain needs) */
 #define GROUNDED_MU(n) (kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u)
 
-/* the stable sweep's terms of station t (in block lo..): h = hD Delta + g (F - beta) in th,
-   (F - beta) - Delta in tw; GROUND: the station has a spring-damper to the ground (kg, cg),
+/* the stable sweep's terms of station t (in block lo..): h = Delta + g w in th and
+   w = (F - beta) - Delta in tw; GROUND: the station has a spring-damper to the ground (kg, cg),
    LEFT: it has a mass to its left (t > 0); FE: read its external force (0: none, where a few
    masses are loaded the loop skips the force row and redoes those masses). Written out per
    case, so that the block loop is a plain vector loop. */
@@ -96,7 +96,7 @@ static double step_sign(uint64_t j)
             const long i = t; \
             qn = CHAIN_Q; \
             sn = CHAIN_SV; \
-            Fb = m[i] * (CHAIN_B); /* beta = m a + k_g x + c_g v */ \
+            Fb = CHAIN_MB; /* beta = m a + k_g x + c_g v */ \
         } \
         if (LEFT) { \
             const long i = t - 1; \
@@ -107,8 +107,8 @@ static double step_sign(uint64_t j)
             Fb += kg[t] * qn + cg[t] * sn; \
         Fb = ((FE) ? Fe[t] : 0.0) - Fb; \
         Dn = k[t] * (qn - qm) + c[t] * (sn - sm); \
-        th[t - lo] = hDelta[t] * Dn + g[t] * Fb; \
         tw[t - lo] = Fb - Dn; \
+        th[t - lo] = fma(g[t], Fb - Dn, Dn); \
     }
 
 static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const double *k,
@@ -123,7 +123,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     CHAIN_CONSTANTS /* the scheme's parameters and coefficients at this dt */
     CHAIN_HISTORY   /* its history rows (and their error histories) */
     double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
-    double *SR = work + 5 * N, *g = work + 6 * N, *hDelta = work + 7 * N, *R = work + 8 * N;
+    double *SR = work + 5 * N, *g = work + 6 * N, *R = work + 8 * N;  /* row 7: free */
     double *u = work + 9 * N, *Pu = work + 10 * N, *den = work + 11 * N;
     /* plain sweep only: the error histories' unknown, terms and Riccati R (pairs); the
        coefficients of the zero-force step; the station matrix entries per run and per step
@@ -137,7 +137,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     int few = 0;
     double th[CHAIN_BLOCK], tw[CHAIN_BLOCK];
     (void)dt; (void)params; (void)alpha_u; (void)q; (void)b; (void)R; (void)Pu; (void)SR; (void)g;
-    (void)hDelta; (void)den;
+    (void)den;
     (void)eu; (void)eb; (void)eDl; (void)eR;
     CHAIN_PLAIN_VOIDS
     if (!reuse) {   /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
@@ -148,7 +148,6 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
             SR[n] = S_R;
             g[n] = CHAIN_G;
             S_L = CHAIN_S_L;
-            hDelta[n] = CHAIN_HD;
             den[n] = 1.0 / (CHAIN_DEN); /* its reciprocal: a product per station and step */
             if (sweep) {
                 CHAIN_ERROR_STEP
@@ -197,7 +196,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
         if (sweep == 0) {
             /* the stable sweep in two passes over the stations (header of dtdyn.derive.dttmm),
                block by block (CHAIN_BLOCK stations, temporaries in L1): back,
-               R_L = g R_R + (hD Delta + g (F - beta)), keeping R_R + ((F - beta) - Delta) in b;
+               R_L = g R_R + (Delta + g w), keeping R_R + w in b (w = (F - beta) - Delta);
                forward, u_n = g u_{n-1} + b_n / den_n (den holds 1 / den_n), and the stations'
                new states. The terms before and the update after the recurrences are vector
                loops; each recurrence takes four stations a round, x_{n-4} = (g_{n-4} .. g_{n-1})
@@ -278,7 +277,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
             for (i = 0; i < N; ++i) {
                 q[i] = CHAIN_Q;
                 s[i] = CHAIN_SV;
-                b[i] = m[i] * (CHAIN_B);  /* beta = m a + k_g x + c_g v */
+                b[i] = CHAIN_MB;  /* beta = m a + k_g x + c_g v */
             }
             if (kg)
                 for (i = 0; i < N; ++i)
@@ -364,7 +363,6 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
 #undef CHAIN_G
 #undef CHAIN_S_L
 #undef CHAIN_DEN
-#undef CHAIN_HD
 #undef CHAIN_ERROR_STEP
 #undef CHAIN_PLAIN_RUN
 #undef CHAIN_PLAIN_STEP
@@ -377,6 +375,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
 #undef CHAIN_Q
 #undef CHAIN_SV
 #undef CHAIN_B
+#undef CHAIN_MB
 #undef CHAIN_EQ
 #undef CHAIN_ES
 #undef CHAIN_EB

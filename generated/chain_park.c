@@ -104,7 +104,6 @@
 #define CHAIN_G kp / (-SR[n] + kp + mu)
 #define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define CHAIN_DEN -SR[n] + kp + mu
-#define CHAIN_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define CHAIN_ERROR_STEP \
     hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
     hb[n] = kp / (SR[n] - kp - mu); \
@@ -129,6 +128,8 @@
 #define CHAIN_B \
     b_dx0 *(x0[i] - xm1[i]) + b_v0 *v0[i] + b_dxm1 *(xm1[i] - xm2[i]) + b_vm1 *vm1[i] + \
         b_vm2 *vm2[i]
+/* m b (without reading m where b = 0) */
+#define CHAIN_MB m[i] * (CHAIN_B)
 #define CHAIN_EQ q_x0 *ex0[i]
 #define CHAIN_ES s_dx0 *(ex0[i] - exm1[i]) + s_dxm1 *(exm1[i] - exm2[i])
 #define CHAIN_EB \
@@ -236,7 +237,6 @@
 #define CHAIN_G kp / (-SR[n] + kp + mu)
 #define CHAIN_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define CHAIN_DEN -SR[n] + kp + mu
-#define CHAIN_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define CHAIN_ERROR_STEP \
     hD[n] = (SR[n] - mu) / (SR[n] - kp - mu); \
     hb[n] = kp / (SR[n] - kp - mu); \
@@ -260,6 +260,8 @@
     q_x0 *x0[i] + q_v0 *v0[i] + q_xm1 *xm1[i] + q_xm2 *xm2[i] + q_vm1 *vm1[i] + q_vm2 *vm2[i]
 #define CHAIN_SV s_v0 *v0[i] + s_vm1 *vm1[i] + s_vm2 *vm2[i]
 #define CHAIN_B 0.0
+/* m b (without reading m where b = 0) */
+#define CHAIN_MB 0.0
 #define CHAIN_EQ \
     q_x0 *ex0[i] + q_v0 *ev0[i] + q_xm1 *exm1[i] + q_xm2 *exm2[i] + q_vm1 *evm1[i] + q_vm2 *evm2[i]
 #define CHAIN_ES s_v0 *ev0[i] + s_vm1 *evm1[i] + s_vm2 *evm2[i]

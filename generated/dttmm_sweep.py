@@ -10,8 +10,9 @@ with mu = m alpha_u + k_g p + c_g r and beta_n = m b + k_g q + c_g s (the mass a
 damper to the ground: m a + k_g x + c_g v = mu u + beta_n).
 Stable sweep (Riccati): S_L = kappa*(S_R - mu)/(-S_R + kappa + mu);  R_L = g R_R + h,  g = kappa/(-S_R + kappa + mu),
 h = (Delta*S_R - Delta*mu - F_n*kappa + beta_n*kappa)/(S_R - kappa - mu);  forward u_n = a u_{n-1} + b,  a = -kappa/(S_R - kappa - mu),  b = (Delta - F_n - R_R + beta_n)/(S_R - kappa - mu).
-Evaluated (both backends) as R_L = g R_R + (hD Delta + g (F - beta)), hD = (S_R - mu)/(S_R - kappa - mu), and
-u_n = g u_{n-1} + (R_R + ((F - beta) - Delta)) / den, den = -S_R + kappa + mu (a = g); the C kernel
+Evaluated (both backends) with w = (F - beta) - Delta as R_L = g R_R + (Delta + g w) (h = hD Delta
++ g (F - beta) with hD = (S_R - mu)/(S_R - kappa - mu) = 1 - g) and u_n = g u_{n-1} + (R_R + w) / den,
+den = -S_R + kappa + mu (a = g); the C kernel
 advances both recurrences four stations a round and multiplies by 1 / den, so the backends agree
 to rounding.
 The time loop runs in Python but every station loop is a vector operation or one LAPACK
@@ -166,7 +167,6 @@ def run_chain(
     # Riccati factors: the stable sweep, and the plain sweep's error estimate
     SR = np.empty(N)
     g = np.empty(N)
-    hDelta = np.empty(N)  # the stable sweep's coefficient of Delta in R
     den = np.empty(N)
     es = np.empty((5, N))  # the error step's hD, hb, fR, fD, fb (plain sweep)
     S_R = 0.0
@@ -175,7 +175,6 @@ def run_chain(
         SR[n] = S_R
         g[n] = kp / (-S_R + kp + mu)
         S_L = kp * (S_R - mu) / (-S_R + kp + mu)
-        hDelta[n] = (S_R - mu) / (S_R - kp - mu)
         den[n] = -S_R + kp + mu
         if sweep == "plain":
             es[:, n] = (
@@ -236,12 +235,12 @@ def run_chain(
             b += kg * q + cg * s
         Dl = k * np.diff(q, prepend=0.0) + c * np.diff(s, prepend=0.0)
         if sweep == "stable":
-            # R_L = g R_R + (hD Delta + g (F - beta)), u_n = g u_{n-1} + (R_R + ((F - beta)
-            # - Delta)) / den: the C kernel's terms in its order
-            Fb = Fe - b
-            R, info = dtbtrs(upper, (hDelta * Dl + g * Fb)[:, None], uplo="U", diag="U")
+            # w = (F - beta) - Delta, R_L = g R_R + (Delta + g w), u_n = g u_{n-1} + (R_R + w)
+            # / den: the C kernel's terms in its order
+            w = (Fe - b) - Dl
+            R, info = dtbtrs(upper, (Dl + g * w)[:, None], uplo="U", diag="U")
             R_R = np.append(R[1:, 0], 0.0)
-            u, info = dtbtrs(lower, ((R_R + (Fb - Dl)) / den)[:, None], uplo="L", diag="U")
+            u, info = dtbtrs(lower, ((R_R + w) / den)[:, None], uplo="L", diag="U")
             u = u[:, 0]
         else:
             u = np.empty(N)

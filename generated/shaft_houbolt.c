@@ -54,10 +54,11 @@
 #define SHAFT_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define SHAFT_G kp / (-SR[n] + kp + mu)
 #define SHAFT_DEN -SR[n] + kp + mu
-#define SHAFT_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define SHAFT_Q q_x0 *x0[i]
 #define SHAFT_SV s_dx0 *(x0[i] - xm1[i]) + s_dxm1 *(xm1[i] - xm2[i])
 #define SHAFT_B b_dx0 *(x0[i] - xm1[i]) + b_dxm1 *(xm1[i] - xm2[i])
+/* m b (without reading m where b = 0) */
+#define SHAFT_MB m[i] * (SHAFT_B)
 #define SHAFT_UPDATE \
     const double x1 = x1_x0 * x0[i] + x1_u * un; \
     const double v1 = v1_dx0 * (x0[i] - xm1[i]) + v1_dxm1 * (xm1[i] - xm2[i]) + v1_u * un; \
@@ -107,10 +108,11 @@
 #define SHAFT_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define SHAFT_G kp / (-SR[n] + kp + mu)
 #define SHAFT_DEN -SR[n] + kp + mu
-#define SHAFT_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define SHAFT_Q q_x0 *x0[i] + q_xm1 *xm1[i] + q_xm2 *xm2[i]
 #define SHAFT_SV s_x0 *x0[i] + s_xm1 *xm1[i] + s_xm2 *xm2[i]
 #define SHAFT_B 0.0
+/* m b (without reading m where b = 0) */
+#define SHAFT_MB 0.0
 #define SHAFT_UPDATE \
     const double x1 = x1_x0 * x0[i] + x1_xm1 * xm1[i] + x1_xm2 * xm2[i] + x1_u * un; \
     const double v1 = v1_x0 * x0[i] + v1_xm1 * xm1[i] + v1_xm2 * xm2[i] + v1_u * un; \

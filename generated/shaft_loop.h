@@ -45,8 +45,7 @@ static long dtdyn_sorted_loads(long n, const long *loaded, long *out)
 #define SHAFT_BLOCK 256
 #endif
 
-/* the terms of station t (block lo..): gR (hD Delta + g (F - beta)) in th, (F - beta) - Delta
-   in tw; PA: the index of the parent (a root: its own, with GQ = 0), GQ the gear factor of
+/* the terms of station t (block lo..): gR (Delta + g w) in th, w = (F - beta) - Delta in tw; PA: the index of the parent (a root: its own, with GQ = 0), GQ the gear factor of
    q, s from the parent, GR of R to it; GROUND: spring-dampers to the ground present. Written
    per case, so that the plain stations' loop is a plain vector loop. */
 #define SHAFT_TERMS(GROUND, PA, GQ, GR, FE) \
@@ -56,7 +55,7 @@ static long dtdyn_sorted_loads(long n, const long *loaded, long *out)
             const long i = t; \
             qn = SHAFT_Q; \
             sn = SHAFT_SV; \
-            Fb = m[i] * (SHAFT_B); /* beta = m a + k_g x + c_g v */ \
+            Fb = SHAFT_MB; /* beta = m a + k_g x + c_g v */ \
         } \
         { \
             const long i = PA; \
@@ -67,8 +66,8 @@ static long dtdyn_sorted_loads(long n, const long *loaded, long *out)
             Fb += kg[t] * qn + cg[t] * sn; \
         Fb = ((FE) ? Fe[t] : 0.0) - Fb; \
         Dn = k[t] * (qn - qp) + c[t] * (sn - sp); \
-        th[t - lo] = (GR) * (hDelta[t] * Dn + g[t] * Fb); \
         tw[t - lo] = Fb - Dn; \
+        th[t - lo] = (GR) * fma(g[t], Fb - Dn, Dn); \
     }
 
 static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
@@ -81,7 +80,7 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
     SHAFT_CONSTANTS /* the scheme's parameters and coefficients at this dt */
     SHAFT_HISTORY   /* its history rows */
     double *Fe = work, *b = work + N, *RR = work + 2 * N, *u = work + 3 * N;
-    double *SR = work + 4 * N, *g = work + 5 * N, *hDelta = work + 6 * N, *den = work + 7 * N;
+    double *SR = work + 4 * N, *g = work + 5 * N, *den = work + 7 * N;  /* row 6: free */
     /* per station once per run: gq = gu (0 at a root), ggu = g gu, gRg = gR g; jf = 1 where a
        child other than station n + 1 hangs (its R arrives through RR, its u is read from u);
        lone: the stations that are not plain line stations (a plain station hangs on station
@@ -104,7 +103,6 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
         const double S_L = SHAFT_S_L;
         const long pa = parent[n];
         g[n] = SHAFT_G;
-        hDelta[n] = SHAFT_HD;
         den[n] = 1.0 / (SHAFT_DEN); /* its reciprocal: a product per station and step */
         gq[n] = pa >= 0 ? gu[n] : 0.0;
         ggu[n] = pa >= 0 ? g[n] * gu[n] : 0.0;
@@ -128,7 +126,7 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
         /* leaves to root, block by block (SHAFT_BLOCK stations, temporaries in L1): the terms
-           gR (hD Delta + g (F - beta)) and (F - beta) - Delta, a vector loop as for plain
+           gR (Delta + g w) and w = (F - beta) - Delta, a vector loop as for plain
            stations and the lone ones redone; then R_L = gR g R_R + gR h, R_R the sum of the
            children's R_L: the child n + 1 hands its term over in a register (Rc), the others
            through RR (cleared once read); b keeps R_R + ((F - beta) - Delta) for the forward
@@ -244,8 +242,8 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
 #undef SHAFT_S_L
 #undef SHAFT_G
 #undef SHAFT_DEN
-#undef SHAFT_HD
 #undef SHAFT_Q
 #undef SHAFT_SV
 #undef SHAFT_B
+#undef SHAFT_MB
 #undef SHAFT_UPDATE

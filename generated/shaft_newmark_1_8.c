@@ -51,10 +51,11 @@
 #define SHAFT_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define SHAFT_G kp / (-SR[n] + kp + mu)
 #define SHAFT_DEN -SR[n] + kp + mu
-#define SHAFT_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define SHAFT_Q q_x0 *x0[i]
 #define SHAFT_SV s_v0 *v0[i] + s_a0 *a0[i]
 #define SHAFT_B b_v0 *v0[i] + b_a0 *a0[i]
+/* m b (without reading m where b = 0) */
+#define SHAFT_MB m[i] * (SHAFT_B)
 #define SHAFT_UPDATE \
     const double x1 = x1_x0 * x0[i] + x1_u * un; \
     const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * un; \
@@ -96,10 +97,11 @@
 #define SHAFT_S_L kp *(SR[n] - mu) / (-SR[n] + kp + mu)
 #define SHAFT_G kp / (-SR[n] + kp + mu)
 #define SHAFT_DEN -SR[n] + kp + mu
-#define SHAFT_HD (SR[n] - mu) / (SR[n] - kp - mu)
 #define SHAFT_Q q_x0 *x0[i] + q_v0 *v0[i] + q_a0 *a0[i]
 #define SHAFT_SV s_v0 *v0[i] + s_a0 *a0[i]
 #define SHAFT_B 0.0
+/* m b (without reading m where b = 0) */
+#define SHAFT_MB 0.0
 #define SHAFT_UPDATE \
     const double x1 = x1_x0 * x0[i] + x1_v0 * v0[i] + x1_a0 * a0[i] + x1_u * un; \
     const double v1 = v1_v0 * v0[i] + v1_a0 * a0[i] + v1_u * un; \
