@@ -6,8 +6,14 @@
    dt = 1e-4.
 2. Cost per step of the C kernel for N = 1e2 .. 1e5 masses: the fitted slope of log(time) over
    log(N) should be 1 (O(N) per step).
-3. C against NumPy backends: largest relative difference (should be <= 1e-12; both form the
-   same terms in the same order, the C recurrences take four masses a round).
+3. C against NumPy backends: largest relative difference (should be <= 1e-12, or the scheme's own
+   rounding sensitivity where that is larger: NumPy against `simulate_mck` on the assembled
+   matrices; both backends form the same terms in the same order, the C recurrences take four
+   masses a round).
+4. Memory traffic at N = 1e5, where the 9 rows the sweep touches each step (7.2 MB) no longer
+   fit in a core's L2 (2 MiB here): the doubles the stable sweep moves per mass-step, the rate that makes, and
+   the rate of a peer that only streams (NumPy's x += y over a working set of the same size),
+   measured in the same run; the peer's rate bounds the time per mass-step from below.
 
 Times: minimum of repeats after one warm-up run (compilation excluded and reported apart).
 Usage: python benchmarks/chain_speed.py [--quick]
@@ -84,21 +90,57 @@ def main(quick=False):
     print("3) C against NumPy (1,000 masses, 1,000 steps of 1e-4, random force on 3 masses)")
     m, k, c = chain(1000)
     F = np.random.default_rng(0).standard_normal((1001, 3))
-    worst = {"displacement": (0.0, ""), "acceleration": (0.0, "")}
+    M, C, K = chain_matrices(m, k, c, sparse=True)
+    worst = {"displacement": (0.0, "", 0.0), "acceleration": (0.0, "", 0.0)}
     from dtdyn.generated import SCHEMES
     for scheme in SCHEMES:
         forms = ("acceleration",) if scheme == "central_difference" else tuple(worst)
+        ref = None
         for form in forms:
             kw = dict(force_dofs=[10, 500, 999], scheme=scheme, form=form, quantities=("x",))
             a = simulate_chain(m, k, c, F, 1e-4, backend="c", **kw)
             b = simulate_chain(m, k, c, F, 1e-4, backend="numpy", **kw)
             d = np.max(np.abs(a.x - b.x)) / np.max(np.abs(b.x))
             if d > worst[form][0]:
-                worst[form] = (d, scheme)
-    for form, (d, scheme) in worst.items():
-        print(f"   {form} form, largest relative difference: {d:.1e} ({scheme}) (target <= 1e-12)")
+                if ref is None:
+                    ref = simulate_mck(M, C, K, F, 1e-4, force_dofs=[10, 500, 999],
+                                       scheme=scheme, quantities=("x",))
+                e = np.max(np.abs(b.x - ref.x)) / np.max(np.abs(ref.x))
+                worst[form] = (d, scheme, e)
+    for form, (d, scheme, e) in worst.items():
+        print(f"   {form} form, largest relative difference: {d:.1e} ({scheme}; NumPy against "
+              f"simulate_mck, same scheme: {e:.1e}) (target <= max(1e-12, that))")
     print("   (both evaluate the same generated expressions in the same order; the C kernel's\n"
-          "    recurrences take four masses a round, so the backends agree to rounding)")
+          "    recurrences take four masses a round, so the backends agree to rounding, as closely\n"
+          "    as the scheme's rounding lets two solvers of it agree: simulate_mck's sparse LU)\n")
+    memory_traffic(Ns[-1], per[-1])
+
+
+#: doubles the stable sweep moves per mass-step (displacement form, no ground elements, a few
+#: loaded masses), each row once: the back pass reads x, v, a, m, k, c, mu - S_R and 1 / den and
+#: writes b (a write that misses the cache reads the line first); the forward pass reads b and
+#: g and reads and writes x, v and a
+SWEEP_TRAFFIC = {"back pass": 8 + 2, "forward pass": 2 + 6}
+
+
+def memory_traffic(N, t_step, rows=9):
+    """Section 4: the sweep's bytes per second at N masses against NumPy's x += y (reads x
+    and y, writes x: 3 doubles per element, no write miss) over rows * N doubles."""
+    doubles = sum(SWEEP_TRAFFIC.values())
+    x = np.ones(rows * N // 2)
+    y = np.ones_like(x)
+    t_peer, _ = best_of(lambda: np.add(x, y, out=x), 50)
+    peer = 3 * 8 * x.size / t_peer
+    rate = doubles * 8 * N / t_step
+    print(f"4) memory traffic at N = {N} (the {rows} rows the sweep touches each step: "
+          f"{rows * N * 8 / 1e6:.1f} MB)")
+    print(f"   stable sweep: {doubles} doubles per mass-step ("
+          + ", ".join(f"{k} {v}" for k, v in SWEEP_TRAFFIC.items())
+          + f"): {rate / 1e9:.1f} GB/s at {t_step / N * 1e9:.2f} ns per mass-step")
+    print(f"   peer, NumPy x += y over {2 * x.size * 8 / 1e6:.1f} MB: {peer / 1e9:.1f} GB/s; the "
+          f"sweep streams at {rate / peer:.0%} of it")
+    print(f"   at the peer's rate, {doubles} doubles take at least "
+          f"{doubles * 8 / peer * 1e9:.2f} ns per mass-step")
 
 
 if __name__ == "__main__":

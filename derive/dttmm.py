@@ -151,12 +151,14 @@ class Sweeps:
     Stable (Riccati), per station n from N down to 1 (time-invariant part computed once):
         S_L = S_expr(S_R);  den = T22 - S_R T12;  R_L = g R_R + h
     then forward, n = 1..N:  u_n = a_fwd u_{n-1} + b_fwd   with b_fwd in R_R (= R_L of n + 1).
-    The kernels evaluate them as (identities checked in derive_sweeps; a_fwd = g, hD = 1 - g)
-        w = (F - beta) - Delta,  R_L = g R_R + (Delta + g w),  u_n = g u_{n-1} + (R_R + w)/den
-    with g and den per station once per run: per station and step, F - beta, Delta and w are
-    formed once and nothing is divided but the forward term. (hD Delta + g (F - beta), the
-    same h, would read one more coefficient per station and step: the sweep at N = 1e5 is
-    bound by memory traffic.)
+    The kernels evaluate them as (identities checked in derive_sweeps; a_fwd = g)
+        R_L = g R_R + h,  h = ((mu - S_R) Delta + kappa (F - beta)) / den,  g = kappa / den,
+        u_n = g u_{n-1} + (R_R + ((F - beta) - Delta)) / den
+    with mu - S_R (= hD den) and 1 / den per station once per run: per station and step,
+    F - beta, Delta and kappa are formed once, every division is a product with 1 / den, and
+    the back pass, which also scales R_R + ((F - beta) - Delta) by 1 / den, reads no g row
+    (the sweep at N = 1e5 is bound by memory traffic). h is not Delta + g ((F - beta) - Delta),
+    equal but cancelling where g is close to 1 (stiff stations, large dt).
     Plain: z_n = T z_{n-1}: u_n = T11 u + T12 f + T13, f_{n+1} = T21 u + T22 f + T23; its error
     estimate runs the stable recurrences with F = 0 (error_step) on the error history.
     """
@@ -206,8 +208,8 @@ def derive_sweeps() -> Sweeps:
     hD = es["hD"]  # the error step's coefficient of Delta is the stable step's (F enters apart)
     assert sp.simplify(a_fwd - g) == 0
     assert sp.simplify(h - (hD * Delta + g * (F_n - beta))) == 0
-    assert sp.simplify(hD - (1 - g)) == 0  # so h = Delta + g ((F - beta) - Delta)
-    assert sp.simplify(h - (Delta + g * ((F_n - beta) - Delta))) == 0
+    assert sp.simplify(den_s - (kappa + mu - S_R)) == 0 and sp.simplify(g * den_s - kappa) == 0
+    assert sp.simplify(h * den_s - ((mu - S_R) * Delta + kappa * (F_n - beta))) == 0
     assert sp.simplify(b_fwd - (R_R + (F_n - beta) - Delta) / den_s) == 0
     return Sweeps(T, S_expr, g, h, a_fwd, b_fwd, den_s, h_num, b_num, hD, error_step)
 

@@ -118,7 +118,7 @@ def _scheme_context(name: str) -> dict:
             "form": form,
             "temps": [(str(t), printing.c(e)) for t, e in temps],
             "rows": [(n, printing.c(e)) for n, e in reduced],
-            "g": cc(sw.g), "S": cc(sw.S_expr), "den": cc(sw.den),
+            "g": cc(sw.g), "S": cc(sw.S_expr), "den": cc(sw.den), "hD": cc(sw.hD),
             "error_step": [(n, cc(e)) for n, e in sw.error_step.items()],
             "plain": _plain_entries(sw.T, cc, "{}[n]"),
             **{n: _lin(n, fs.hist_terms[n]) for n in ("q", "s", "b")},

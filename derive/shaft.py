@@ -261,7 +261,7 @@ def c_context(scheme_ctx: dict, chain_macros: dict) -> dict:
     forms = []
     for f in chain_macros["forms"]:
         forms.append({"form": f["form"], "constants": f["constants"], "g": f["g"], "S": f["S"],
-                      "den": f["den"],
+                      "den": f["den"], "hD": f["hD"],
                       "q": f["q"], "s": f["s"], "b": f["b"],
                       "update_lines": ["const double x1 = " + f["x1"] + ";",
                                  "const double v1 = " + f["v1"] + ";",

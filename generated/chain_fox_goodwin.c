@@ -246,11 +246,14 @@ int dtdyn_chain_fox_goodwin(int form, int sweep, long N, long n_steps, const dou
                             const double *force, double *hist, long n_out, const long *out_idx,
                             double *xo, double *vo, double *ao, double *work, double *ehist,
                             double *err) {
+    const unsigned long long mode = dtdyn_flush_on(); /* subnormals flushed (chain_loop.h) */
+    int rc = -1;
     if (form == 0)
-        return run_displacement(sweep, N, n_steps, m, k, c, kg, cg, dt, params, n_loaded, loaded,
-                                force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err);
+        rc = run_displacement(sweep, N, n_steps, m, k, c, kg, cg, dt, params, n_loaded, loaded,
+                              force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err);
     if (form == 1)
-        return run_acceleration(sweep, N, n_steps, m, k, c, kg, cg, dt, params, n_loaded, loaded,
-                                force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err);
-    return -1;
+        rc = run_acceleration(sweep, N, n_steps, m, k, c, kg, cg, dt, params, n_loaded, loaded,
+                              force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err);
+    dtdyn_flush_off(mode);
+    return rc;
 }

@@ -66,6 +66,34 @@ static long dtdyn_sorted_loads(long n, const long *loaded, long *out)
             out[m++] = out[j];
     return m;
 }
+/* Subnormal results flushed to zero, and subnormal operands read as zero, while a kernel runs
+   (x86: MXCSR's FTZ and DAZ bits; AArch64: FPCR's FZ bit), the caller's mode restored on return.
+   A response that decays or a wave entering a system at rest passes through the subnormal range
+   (|x| < 2.2e-308) on its way to zero, where each operation can cost about a hundred cycles;
+   flushed, such values become 0 (a flushed recursion may instead settle into a limit cycle just
+   above 2.2e-308: the results change only near the underflow threshold). */
+#if defined(__x86_64__) || defined(__i386__)
+#include <xmmintrin.h>
+static inline unsigned long long dtdyn_flush_on(void)
+{
+    const unsigned int mode = _mm_getcsr();
+    _mm_setcsr(mode | 0x8040u);
+    return mode;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) { _mm_setcsr((unsigned int)mode); }
+#elif defined(__aarch64__)
+static inline unsigned long long dtdyn_flush_on(void)
+{
+    unsigned long long mode;
+    __asm__ volatile("mrs %0, fpcr" : "=r"(mode));
+    __asm__ volatile("msr fpcr, %0" : : "r"(mode | (1ull << 24)));
+    return mode;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) { __asm__ volatile("msr fpcr, %0" : : "r"(mode)); }
+#else
+static inline unsigned long long dtdyn_flush_on(void) { return 0; }
+static inline void dtdyn_flush_off(unsigned long long mode) { (void)mode; }
+#endif
 
 /* +1 or -1 from the step index j (the top bit of splitmix64 of j) */
 static double step_sign(uint64_t j)
@@ -84,8 +112,9 @@ static double step_sign(uint64_t j)
    (then mu = m alpha and beta = m b, as many operations as a plain chain needs) */
 #define GROUNDED_MU(n) (kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u)
 
-/* the stable sweep's terms of station t (in block lo..): h = Delta + g w in th and
-   w = (F - beta) - Delta in tw; GROUND: the station has a spring-damper to the ground (kg, cg),
+/* the stable sweep's terms of station t (in block lo..): h = ((mu - S_R) Delta + kappa (F - beta))
+   / den in th, g = kappa / den in tg (from kappa = k p + c r and the rows hm = mu - S_R and
+   1 / den: the back pass reads no g row) and (F - beta) - Delta in tw; GROUND: the station has a spring-damper to the ground (kg, cg),
    LEFT: it has a mass to its left (t > 0); FE: read its external force (0: none, where a few
    masses are loaded the loop skips the force row and redoes those masses). Written out per
    case, so that the block loop is a plain vector loop. */
@@ -107,8 +136,12 @@ static double step_sign(uint64_t j)
             Fb += kg[t] * qn + cg[t] * sn; \
         Fb = ((FE) ? Fe[t] : 0.0) - Fb; \
         Dn = k[t] * (qn - qm) + c[t] * (sn - sm); \
+        { \
+            const double kp = k[t] * p + c[t] * r; \
+            th[t - lo] = den[t] * (hm[t] * Dn + kp * Fb); \
+            tg[t - lo] = kp * den[t]; \
+        } \
         tw[t - lo] = Fb - Dn; \
-        th[t - lo] = fma(g[t], Fb - Dn, Dn); \
     }
 
 static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const double *k,
@@ -123,7 +156,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     CHAIN_CONSTANTS /* the scheme's parameters and coefficients at this dt */
     CHAIN_HISTORY   /* its history rows (and their error histories) */
     double *Fe = work, *q = work + N, *s = work + 2 * N, *b = work + 3 * N, *Dl = work + 4 * N;
-    double *SR = work + 5 * N, *g = work + 6 * N, *R = work + 8 * N;  /* row 7: free */
+    double *SR = work + 5 * N, *g = work + 6 * N, *hm = work + 7 * N, *R = work + 8 * N;
     double *u = work + 9 * N, *Pu = work + 10 * N, *den = work + 11 * N;
     /* plain sweep only: the error histories' unknown, terms and Riccati R (pairs); the
        coefficients of the zero-force step; the station matrix entries per run and per step
@@ -135,9 +168,9 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     uint64_t jstep = sweep ? (uint64_t)err[2] : 0u;
     long n, i, j, step, n_byidx = 0, *byidx = (long *)q;
     int few = 0;
-    double th[CHAIN_BLOCK], tw[CHAIN_BLOCK];
+    double th[CHAIN_BLOCK], tw[CHAIN_BLOCK], tg[CHAIN_BLOCK];
     (void)dt; (void)params; (void)alpha_u; (void)q; (void)b; (void)R; (void)Pu; (void)SR; (void)g;
-    (void)den;
+    (void)hm; (void)den; (void)tg;
     (void)eu; (void)eb; (void)eDl; (void)eR;
     CHAIN_PLAIN_VOIDS
     if (!reuse) {   /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
@@ -149,6 +182,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
             g[n] = CHAIN_G;
             S_L = CHAIN_S_L;
             den[n] = 1.0 / (CHAIN_DEN); /* its reciprocal: a product per station and step */
+            hm[n] = mu - S_R;           /* = hD den (dtdyn.derive.dttmm) */
             if (sweep) {
                 CHAIN_ERROR_STEP
             }
@@ -196,9 +230,10 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
         if (sweep == 0) {
             /* the stable sweep in two passes over the stations (header of dtdyn.derive.dttmm),
                block by block (CHAIN_BLOCK stations, temporaries in L1): back,
-               R_L = g R_R + (Delta + g w), keeping R_R + w in b (w = (F - beta) - Delta);
-               forward, u_n = g u_{n-1} + b_n / den_n (den holds 1 / den_n), and the stations'
-               new states. The terms before and the update after the recurrences are vector
+               R_L = g R_R + h, keeping (R_R + ((F - beta) - Delta)) / den in b (den holds
+               1 / den_n: it is read in this pass, with hm, for h and g); forward,
+               u_n = g u_{n-1} + b_n, and the stations' new states. Each pass reads each row
+               once: the sweep at N = 1e5 is bound by memory traffic. The terms before and the update after the recurrences are vector
                loops; each recurrence takes four stations a round, x_{n-4} = (g_{n-4} .. g_{n-1})
                x_n + (the same recurrence from 0 over the four), each station's x one fma from
                the round's x_n (back; forward alike), so that one fma latency is paid per four
@@ -236,26 +271,25 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
                         CHAIN_TERMS(0, 1, 1)
                 }
                 for (n = hi - 1; n - 3 >= lo; n -= 4) {   /* four stations a round (above) */
-                    const double *gg = g + n - 3, *hh = th + n - 3 - lo, *ww = tw + n - 3 - lo;
+                    const double *gg = tg + n - 3 - lo, *hh = th + n - 3 - lo;
+                    const double *ww = tw + n - 3 - lo, *dd = den + n - 3;
                     const double R_in = R_R, g2 = gg[2] * gg[3], g1 = gg[1] * g2;
                     const double c2 = fma(gg[2], hh[3], hh[2]), c1 = fma(gg[1], c2, hh[1]);
-                    b[n] = R_in + ww[3];
-                    b[n - 1] = fma(gg[3], R_in, hh[3]) + ww[2];
-                    b[n - 2] = fma(g2, R_in, c2) + ww[1];
-                    b[n - 3] = fma(g1, R_in, c1) + ww[0];
+                    b[n] = (R_in + ww[3]) * dd[3];
+                    b[n - 1] = (fma(gg[3], R_in, hh[3]) + ww[2]) * dd[2];
+                    b[n - 2] = (fma(g2, R_in, c2) + ww[1]) * dd[1];
+                    b[n - 3] = (fma(g1, R_in, c1) + ww[0]) * dd[0];
                     R_R = fma(gg[0] * g1, R_in, fma(gg[0], c1, hh[0]));
                 }
                 for (; n >= lo; --n) {
-                    b[n] = R_R + tw[n - lo];
-                    R_R = fma(g[n], R_R, th[n - lo]);
+                    b[n] = (R_R + tw[n - lo]) * den[n];
+                    R_R = fma(tg[n - lo], R_R, th[n - lo]);
                 }
             }
             for (lo = 0; lo < N; lo = hi) {
                 hi = lo + CHAIN_BLOCK < N ? lo + CHAIN_BLOCK : N;
-                for (i = lo; i < hi; ++i)
-                    th[i - lo] = b[i] * den[i];
                 for (n = lo; n + 3 < hi; n += 4) {
-                    const double *gg = g + n, *hh = th + n - lo;
+                    const double *gg = g + n, *hh = b + n;
                     double *uu = tw + n - lo;
                     const double u_in = un, g1 = gg[0] * gg[1], g2 = g1 * gg[2];
                     const double c1 = fma(gg[1], hh[0], hh[1]), c2 = fma(gg[2], c1, hh[2]);
@@ -265,7 +299,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
                     un = uu[3] = fma(g2 * gg[3], u_in, fma(gg[3], c2, hh[3]));
                 }
                 for (; n < hi; ++n) {
-                    un = fma(g[n], un, th[n - lo]);
+                    un = fma(g[n], un, b[n]);
                     tw[n - lo] = un;
                 }
                 for (i = lo; i < hi; ++i) {

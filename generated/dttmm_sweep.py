@@ -10,11 +10,12 @@ with mu = m alpha_u + k_g p + c_g r and beta_n = m b + k_g q + c_g s (the mass a
 damper to the ground: m a + k_g x + c_g v = mu u + beta_n).
 Stable sweep (Riccati): S_L = kappa*(S_R - mu)/(-S_R + kappa + mu);  R_L = g R_R + h,  g = kappa/(-S_R + kappa + mu),
 h = (Delta*S_R - Delta*mu - F_n*kappa + beta_n*kappa)/(S_R - kappa - mu);  forward u_n = a u_{n-1} + b,  a = -kappa/(S_R - kappa - mu),  b = (Delta - F_n - R_R + beta_n)/(S_R - kappa - mu).
-Evaluated (both backends) with w = (F - beta) - Delta as R_L = g R_R + (Delta + g w) (h = hD Delta
-+ g (F - beta) with hD = (S_R - mu)/(S_R - kappa - mu) = 1 - g) and u_n = g u_{n-1} + (R_R + w) / den,
-den = -S_R + kappa + mu (a = g); the C kernel
-advances both recurrences four stations a round and multiplies by 1 / den, so the backends agree
-to rounding.
+Evaluated (both backends), with den = -S_R + kappa + mu (a = g), as
+    R_L = g R_R + h,  h = ((mu - S_R) Delta + kappa (F - beta)) / den,  g = kappa / den,
+    u_n = g u_{n-1} + (R_R + ((F - beta) - Delta)) / den,
+every division a product with 1 / den, stored once per run beside mu - S_R (= hD den,
+hD = (S_R - mu)/(S_R - kappa - mu)): the back pass reads these two rows and no g. The C kernel advances both
+recurrences four stations a round, so the backends agree to rounding.
 The time loop runs in Python but every station loop is a vector operation or one LAPACK
 triangular banded solve (dtbtrs), so a step costs O(N).
 
@@ -187,6 +188,11 @@ def run_chain(
         S_R = S_L
     upper = np.ones((2, N))
     upper[0, 1:] = -g[:-1]
+    # the stable sweep: products with 1 / den, g = kappa / den, mu - S_R = hD den (as the C kernel)
+    rden = 1.0 / den
+    hm = mu_all - SR
+    upper_h = np.ones((2, N))
+    upper_h[0, 1:] = -(kappa * rden)[:-1]
     lower = np.ones((2, N))
     lower[1, :-1] = -g[1:]  # the forward factor equals g (dtdyn.derive.dttmm)
 
@@ -235,12 +241,13 @@ def run_chain(
             b += kg * q + cg * s
         Dl = k * np.diff(q, prepend=0.0) + c * np.diff(s, prepend=0.0)
         if sweep == "stable":
-            # w = (F - beta) - Delta, R_L = g R_R + (Delta + g w), u_n = g u_{n-1} + (R_R + w)
-            # / den: the C kernel's terms in its order
-            w = (Fe - b) - Dl
-            R, info = dtbtrs(upper, (Dl + g * w)[:, None], uplo="U", diag="U")
+            # R_L = g R_R + h, h = ((mu - S_R) Delta + kappa (F - beta)) / den and g = kappa / den
+            # as products with 1 / den; u_n = g u_{n-1} + (R_R + ((F - beta) - Delta)) / den:
+            # the C kernel's terms in its order
+            Fb = Fe - b
+            R, info = dtbtrs(upper_h, (rden * (hm * Dl + kappa * Fb))[:, None], uplo="U", diag="U")
             R_R = np.append(R[1:, 0], 0.0)
-            u, info = dtbtrs(lower, ((R_R + w) / den)[:, None], uplo="L", diag="U")
+            u, info = dtbtrs(lower, ((R_R + (Fb - Dl)) * rden)[:, None], uplo="L", diag="U")
             u = u[:, 0]
         else:
             u = np.empty(N)

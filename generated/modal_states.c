@@ -64,6 +64,40 @@ int dtdyn_set_stop(int value) {
     dtdyn_stop_flag = value;
     return 0;
 }
+/* Subnormal results flushed to zero, and subnormal operands read as zero, while a kernel runs
+   (x86: MXCSR's FTZ and DAZ bits; AArch64: FPCR's FZ bit), the caller's mode restored on return.
+   A response that decays or a wave entering a system at rest passes through the subnormal range
+   (|x| < 2.2e-308) on its way to zero, where each operation can cost about a hundred cycles;
+   flushed, such values become 0 (a flushed recursion may instead settle into a limit cycle just
+   above 2.2e-308: the results change only near the underflow threshold). */
+#if defined(__x86_64__) || defined(__i386__)
+#include <xmmintrin.h>
+static inline unsigned long long dtdyn_flush_on(void) {
+    const unsigned int mode = _mm_getcsr();
+    _mm_setcsr(mode | 0x8040u);
+    return mode;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) {
+    _mm_setcsr((unsigned int)mode);
+}
+#elif defined(__aarch64__)
+static inline unsigned long long dtdyn_flush_on(void) {
+    unsigned long long mode;
+    __asm__ volatile("mrs %0, fpcr" : "=r"(mode));
+    __asm__ volatile("msr fpcr, %0" : : "r"(mode | (1ull << 24)));
+    return mode;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) {
+    __asm__ volatile("msr fpcr, %0" : : "r"(mode));
+}
+#else
+static inline unsigned long long dtdyn_flush_on(void) {
+    return 0;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) {
+    (void)mode;
+}
+#endif
 
 static inline void states_block_4(long nb, long m, long n_in, const double *restrict coef,
                                   const double *restrict x, double *restrict e,
@@ -439,10 +473,10 @@ long dtdyn_modal_filters_work(long m, long n_out) {
     return 2 * m * BLOCK + 2 * m * n_out;
 }
 
-int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
-                        const double *restrict coef, const double *restrict wt,
-                        const double *restrict x, double *restrict e, double *restrict y,
-                        double *restrict work) {
+static int modal_filters_run(long n, long m, long n_in, long n_out, int im_out,
+                             const double *restrict coef, const double *restrict wt,
+                             const double *restrict x, double *restrict e, double *restrict y,
+                             double *restrict work) {
     double *ec = work, *w = work + 2 * m * BLOCK;
     const int axpy = n_out >= AXPY_OUTPUTS, lanes = dtdyn_modal_filters_lanes(m);
     long o, p;
@@ -459,4 +493,15 @@ int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
     else
         run_16(n, m, n_in, n_out, im_out, coef, wt, x, e, y, ec, w, axpy);
     return dtdyn_stop_flag ? DTDYN_STOPPED : 0;
+}
+
+/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
+int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
+                        const double *restrict coef, const double *restrict wt,
+                        const double *restrict x, double *restrict e, double *restrict y,
+                        double *restrict work) {
+    const unsigned long long mode = dtdyn_flush_on();
+    const int rc = modal_filters_run(n, m, n_in, n_out, im_out, coef, wt, x, e, y, work);
+    dtdyn_flush_off(mode);
+    return rc;
 }

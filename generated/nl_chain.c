@@ -51,6 +51,40 @@ int dtdyn_set_stop(int value) {
     dtdyn_stop_flag = value;
     return 0;
 }
+/* Subnormal results flushed to zero, and subnormal operands read as zero, while a kernel runs
+   (x86: MXCSR's FTZ and DAZ bits; AArch64: FPCR's FZ bit), the caller's mode restored on return.
+   A response that decays or a wave entering a system at rest passes through the subnormal range
+   (|x| < 2.2e-308) on its way to zero, where each operation can cost about a hundred cycles;
+   flushed, such values become 0 (a flushed recursion may instead settle into a limit cycle just
+   above 2.2e-308: the results change only near the underflow threshold). */
+#if defined(__x86_64__) || defined(__i386__)
+#include <xmmintrin.h>
+static inline unsigned long long dtdyn_flush_on(void) {
+    const unsigned int mode = _mm_getcsr();
+    _mm_setcsr(mode | 0x8040u);
+    return mode;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) {
+    _mm_setcsr((unsigned int)mode);
+}
+#elif defined(__aarch64__)
+static inline unsigned long long dtdyn_flush_on(void) {
+    unsigned long long mode;
+    __asm__ volatile("mrs %0, fpcr" : "=r"(mode));
+    __asm__ volatile("msr fpcr, %0" : : "r"(mode | (1ull << 24)));
+    return mode;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) {
+    __asm__ volatile("msr fpcr, %0" : : "r"(mode));
+}
+#else
+static inline unsigned long long dtdyn_flush_on(void) {
+    return 0;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) {
+    (void)mode;
+}
+#endif
 
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
 #include <float.h>
@@ -238,11 +272,11 @@ static long newton_solve(long nu, long ne, double *restrict u, double *restrict 
  * total iterations, max final residual, failing residual]. work: 12 N (chain kernel) + 2 n_loaded +
  * nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz, then the CasADi work.
  */
-int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
-                   const double *const *mats, double *restrict H, double *restrict u,
-                   double *restrict g, double *restrict rate, double *const *out, double h,
-                   double tol, double *stats, long *fail, double *restrict work,
-                   nl_int *restrict iwork) {
+static int nl_chain_run(const long *dims, chain_fn sweep, const long *const *idx,
+                        const double *const *mats, double *restrict H, double *restrict u,
+                        double *restrict g, double *restrict rate, double *const *out, double h,
+                        double tol, double *stats, long *fail, double *restrict work,
+                        nl_int *restrict iwork) {
     const long N = dims[0], nh = dims[1], nl = dims[2], nf = dims[3], ne = dims[4];
     const long nw = dims[5], nz = dims[6], no = dims[7], n_samples = dims[8], S = dims[9];
     const long max_iter = dims[10], ix = dims[12], iv = dims[13], ia = dims[14];
@@ -343,4 +377,17 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
         }
     }
     return 0;
+}
+
+/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
+int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
+                   const double *const *mats, double *restrict H, double *restrict u,
+                   double *restrict g, double *restrict rate, double *const *out, double h,
+                   double tol, double *stats, long *fail, double *restrict work,
+                   nl_int *restrict iwork) {
+    const unsigned long long mode = dtdyn_flush_on();
+    const int rc =
+        nl_chain_run(dims, sweep, idx, mats, H, u, g, rate, out, h, tol, stats, fail, work, iwork);
+    dtdyn_flush_off(mode);
+    return rc;
 }

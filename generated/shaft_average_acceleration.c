@@ -51,6 +51,7 @@
 #define SHAFT_Q q_x0 *x0[i]
 #define SHAFT_SV s_v0 *v0[i]
 #define SHAFT_B b_v0 *v0[i] + b_a0 *a0[i]
+#define SHAFT_HD (SR[n] - mu) / (SR[n] - kp - mu)
 /* m b (without reading m where b = 0) */
 #define SHAFT_MB m[i] * (SHAFT_B)
 #define SHAFT_UPDATE \
@@ -95,6 +96,7 @@
 #define SHAFT_Q q_x0 *x0[i] + q_v0 *v0[i] + q_a0 *a0[i]
 #define SHAFT_SV s_v0 *v0[i] + s_a0 *a0[i]
 #define SHAFT_B 0.0
+#define SHAFT_HD (SR[n] - mu) / (SR[n] - kp - mu)
 /* m b (without reading m where b = 0) */
 #define SHAFT_MB 0.0
 #define SHAFT_UPDATE \
@@ -123,11 +125,14 @@ int dtdyn_shaft_average_acceleration(int form, long N, long n_steps, const long 
                                      const double *force, double *hist, long n_out,
                                      const long *out_idx, double *xo, double *vo, double *ao,
                                      double *work) {
+    const unsigned long long mode = dtdyn_flush_on(); /* subnormals flushed (shaft_loop.h) */
+    int rc = -1;
     if (form == 0)
-        return run_displacement(N, n_steps, parent, gu, gS, gR, m, k, c, kg, cg, dt, params,
-                                n_loaded, loaded, force, hist, n_out, out_idx, xo, vo, ao, work);
+        rc = run_displacement(N, n_steps, parent, gu, gS, gR, m, k, c, kg, cg, dt, params, n_loaded,
+                              loaded, force, hist, n_out, out_idx, xo, vo, ao, work);
     if (form == 1)
-        return run_acceleration(N, n_steps, parent, gu, gS, gR, m, k, c, kg, cg, dt, params,
-                                n_loaded, loaded, force, hist, n_out, out_idx, xo, vo, ao, work);
-    return -1;
+        rc = run_acceleration(N, n_steps, parent, gu, gS, gR, m, k, c, kg, cg, dt, params, n_loaded,
+                              loaded, force, hist, n_out, out_idx, xo, vo, ao, work);
+    dtdyn_flush_off(mode);
+    return rc;
 }

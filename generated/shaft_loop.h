@@ -38,6 +38,34 @@ static long dtdyn_sorted_loads(long n, const long *loaded, long *out)
             out[m++] = out[j];
     return m;
 }
+/* Subnormal results flushed to zero, and subnormal operands read as zero, while a kernel runs
+   (x86: MXCSR's FTZ and DAZ bits; AArch64: FPCR's FZ bit), the caller's mode restored on return.
+   A response that decays or a wave entering a system at rest passes through the subnormal range
+   (|x| < 2.2e-308) on its way to zero, where each operation can cost about a hundred cycles;
+   flushed, such values become 0 (a flushed recursion may instead settle into a limit cycle just
+   above 2.2e-308: the results change only near the underflow threshold). */
+#if defined(__x86_64__) || defined(__i386__)
+#include <xmmintrin.h>
+static inline unsigned long long dtdyn_flush_on(void)
+{
+    const unsigned int mode = _mm_getcsr();
+    _mm_setcsr(mode | 0x8040u);
+    return mode;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) { _mm_setcsr((unsigned int)mode); }
+#elif defined(__aarch64__)
+static inline unsigned long long dtdyn_flush_on(void)
+{
+    unsigned long long mode;
+    __asm__ volatile("mrs %0, fpcr" : "=r"(mode));
+    __asm__ volatile("msr fpcr, %0" : : "r"(mode | (1ull << 24)));
+    return mode;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) { __asm__ volatile("msr fpcr, %0" : : "r"(mode)); }
+#else
+static inline unsigned long long dtdyn_flush_on(void) { return 0; }
+static inline void dtdyn_flush_off(unsigned long long mode) { (void)mode; }
+#endif
 #endif
 
 #ifndef SHAFT_BLOCK
@@ -45,7 +73,8 @@ static long dtdyn_sorted_loads(long n, const long *loaded, long *out)
 #define SHAFT_BLOCK 256
 #endif
 
-/* the terms of station t (block lo..): gR (Delta + g w) in th, w = (F - beta) - Delta in tw; PA: the index of the parent (a root: its own, with GQ = 0), GQ the gear factor of
+/* the terms of station t (block lo..): gR (hD Delta + g (F - beta)) in th, (F - beta) - Delta
+   in tw; PA: the index of the parent (a root: its own, with GQ = 0), GQ the gear factor of
    q, s from the parent, GR of R to it; GROUND: spring-dampers to the ground present. Written
    per case, so that the plain stations' loop is a plain vector loop. */
 #define SHAFT_TERMS(GROUND, PA, GQ, GR, FE) \
@@ -66,8 +95,8 @@ static long dtdyn_sorted_loads(long n, const long *loaded, long *out)
             Fb += kg[t] * qn + cg[t] * sn; \
         Fb = ((FE) ? Fe[t] : 0.0) - Fb; \
         Dn = k[t] * (qn - qp) + c[t] * (sn - sp); \
+        th[t - lo] = (GR) * (hDelta[t] * Dn + g[t] * Fb); \
         tw[t - lo] = Fb - Dn; \
-        th[t - lo] = (GR) * fma(g[t], Fb - Dn, Dn); \
     }
 
 static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
@@ -80,7 +109,7 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
     SHAFT_CONSTANTS /* the scheme's parameters and coefficients at this dt */
     SHAFT_HISTORY   /* its history rows */
     double *Fe = work, *b = work + N, *RR = work + 2 * N, *u = work + 3 * N;
-    double *SR = work + 4 * N, *g = work + 5 * N, *den = work + 7 * N;  /* row 6: free */
+    double *SR = work + 4 * N, *g = work + 5 * N, *hDelta = work + 6 * N, *den = work + 7 * N;
     /* per station once per run: gq = gu (0 at a root), ggu = g gu, gRg = gR g; jf = 1 where a
        child other than station n + 1 hangs (its R arrives through RR, its u is read from u);
        lone: the stations that are not plain line stations (a plain station hangs on station
@@ -103,6 +132,7 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
         const double S_L = SHAFT_S_L;
         const long pa = parent[n];
         g[n] = SHAFT_G;
+        hDelta[n] = SHAFT_HD;
         den[n] = 1.0 / (SHAFT_DEN); /* its reciprocal: a product per station and step */
         gq[n] = pa >= 0 ? gu[n] : 0.0;
         ggu[n] = pa >= 0 ? g[n] * gu[n] : 0.0;
@@ -126,7 +156,7 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
         for (j = 0; j < n_loaded; ++j)
             Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
         /* leaves to root, block by block (SHAFT_BLOCK stations, temporaries in L1): the terms
-           gR (Delta + g w) and w = (F - beta) - Delta, a vector loop as for plain
+           gR (hD Delta + g (F - beta)) and (F - beta) - Delta, a vector loop as for plain
            stations and the lone ones redone; then R_L = gR g R_R + gR h, R_R the sum of the
            children's R_L: the child n + 1 hands its term over in a register (Rc), the others
            through RR (cleared once read); b keeps R_R + ((F - beta) - Delta) for the forward
@@ -246,4 +276,5 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
 #undef SHAFT_SV
 #undef SHAFT_B
 #undef SHAFT_MB
+#undef SHAFT_HD
 #undef SHAFT_UPDATE

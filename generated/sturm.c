@@ -10,6 +10,40 @@ int dtdyn_sturm_laguerre(long N, const double *restrict k, const double *restric
                          const double *restrict m, double pivmin, long n_lam,
                          const double *restrict lam, long *restrict counts, double *restrict G,
                          double *restrict H);
+/* Subnormal results flushed to zero, and subnormal operands read as zero, while a kernel runs
+   (x86: MXCSR's FTZ and DAZ bits; AArch64: FPCR's FZ bit), the caller's mode restored on return.
+   A response that decays or a wave entering a system at rest passes through the subnormal range
+   (|x| < 2.2e-308) on its way to zero, where each operation can cost about a hundred cycles;
+   flushed, such values become 0 (a flushed recursion may instead settle into a limit cycle just
+   above 2.2e-308: the results change only near the underflow threshold). */
+#if defined(__x86_64__) || defined(__i386__)
+#include <xmmintrin.h>
+static inline unsigned long long dtdyn_flush_on(void) {
+    const unsigned int mode = _mm_getcsr();
+    _mm_setcsr(mode | 0x8040u);
+    return mode;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) {
+    _mm_setcsr((unsigned int)mode);
+}
+#elif defined(__aarch64__)
+static inline unsigned long long dtdyn_flush_on(void) {
+    unsigned long long mode;
+    __asm__ volatile("mrs %0, fpcr" : "=r"(mode));
+    __asm__ volatile("msr fpcr, %0" : : "r"(mode | (1ull << 24)));
+    return mode;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) {
+    __asm__ volatile("msr fpcr, %0" : : "r"(mode));
+}
+#else
+static inline unsigned long long dtdyn_flush_on(void) {
+    return 0;
+}
+static inline void dtdyn_flush_off(unsigned long long mode) {
+    (void)mode;
+}
+#endif
 /*
  * Wittrick-Williams count for a chain: the number of eigenvalues of K phi = lambda M phi below
  * each trial lambda, from the signs of the pivots of K - lambda M (Sylvester's law of inertia).

@@ -139,13 +139,13 @@ static void sparse_solve(long n, const long *const *idx, const double *const *va
         b[i] = z[perm_c[i]];
 }
 
-int dtdyn_mck_loop(int solver, long n, long n_hist, long n_steps, long n_loaded, const long *restrict loaded,
-                   const double *restrict force, const long *const *idx,
-                   const double *const *val, const double *restrict L,
-                   const double *restrict c_u, double w0, double w1, long n_shift,
-                   const long *restrict shift, const long *restrict rows, double *restrict H,
-                   long n_out, const long *restrict out_idx, double *restrict xo,
-                   double *restrict vo, double *restrict ao, double *restrict work)
+static int mck_loop_run(int solver, long n, long n_hist, long n_steps, long n_loaded, const long *restrict loaded,
+                        const double *restrict force, const long *const *idx,
+                        const double *const *val, const double *restrict L,
+                        const double *restrict c_u, double w0, double w1, long n_shift,
+                        const long *restrict shift, const long *restrict rows, double *restrict H,
+                        long n_out, const long *restrict out_idx, double *restrict xo,
+                        double *restrict vo, double *restrict ao, double *restrict work)
 {
     double *q = work, *s = work + n, *rhs = work + 2 * n, *upd = work + 3 * n;
     double *z = work + 6 * n, *bm = work + 7 * n;
@@ -220,4 +220,21 @@ int dtdyn_mck_loop(int solver, long n, long n_hist, long n_steps, long n_loaded,
                 ao[(k + 1) * n_out + j] = upd[2 * n + out_idx[j]];
     }
     return 0;
+}
+
+/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
+int dtdyn_mck_loop(int solver, long n, long n_hist, long n_steps, long n_loaded,
+                   const long *restrict loaded, const double *restrict force,
+                   const long *const *idx, const double *const *val, const double *restrict L,
+                   const double *restrict c_u, double w0, double w1, long n_shift,
+                   const long *restrict shift, const long *restrict rows, double *restrict H,
+                   long n_out, const long *restrict out_idx, double *restrict xo,
+                   double *restrict vo, double *restrict ao, double *restrict work)
+{
+    const unsigned long long mode = dtdyn_flush_on();
+    const int rc = mck_loop_run(solver, n, n_hist, n_steps, n_loaded, loaded, force, idx, val, L,
+                                c_u, w0, w1, n_shift, shift, rows, H, n_out, out_idx, xo, vo, ao,
+                                work);
+    dtdyn_flush_off(mode);
+    return rc;
 }

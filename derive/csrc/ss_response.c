@@ -8,8 +8,8 @@
  */
 #include <stddef.h>
 
-int dtdyn_ss_states(long ns, long n_steps, const double *restrict At, const double *restrict w,
-                    double *restrict X)
+static int ss_states_run(long ns, long n_steps, const double *restrict At, const double *restrict w,
+                         double *restrict X)
 {
     long n, i, j;
     for (n = 0; n < n_steps; ++n) {
@@ -32,4 +32,14 @@ int dtdyn_ss_states(long ns, long n_steps, const double *restrict At, const doub
         }
     }
     return 0;
+}
+
+/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
+int dtdyn_ss_states(long ns, long n_steps, const double *restrict At, const double *restrict w,
+                    double *restrict X)
+{
+    const unsigned long long mode = dtdyn_flush_on();
+    const int rc = ss_states_run(ns, n_steps, At, w, X);
+    dtdyn_flush_off(mode);
+    return rc;
 }
