@@ -10,7 +10,7 @@
    rounding sensitivity where that is larger: NumPy against `simulate_mck` on the assembled
    matrices; both backends form the same terms in the same order, the C recurrences take four
    masses a round).
-4. Memory traffic at N = 1e5, where the 9 rows the sweep touches each step (7.2 MB) no longer
+4. Memory traffic at N = 1e5, where the 10 rows the sweep touches each step (8 MB) no longer
    fit in a core's L2 (2 MiB here): the doubles the stable sweep moves per mass-step, the rate that makes, and
    the rate of a peer that only streams (NumPy's x += y over a working set of the same size),
    measured in the same run; the peer's rate bounds the time per mass-step from below.
@@ -123,7 +123,7 @@ def main(quick=False):
 SWEEP_TRAFFIC = {"back pass": 8 + 2, "forward pass": 2 + 6}
 
 
-def memory_traffic(N, t_step, rows=9):
+def memory_traffic(N, t_step, rows=10):
     """Section 4: the sweep's bytes per second at N masses against NumPy's x += y (reads x
     and y, writes x: 3 doubles per element, no write miss) over rows * N doubles."""
     doubles = sum(SWEEP_TRAFFIC.values())
