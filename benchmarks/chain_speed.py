@@ -4,14 +4,15 @@
    its NumPy loop (scipy.sparse products, a SuperLU factorization) and its C loop (SuperLU's
    factors applied in C); uniform chain of 1,000 masses (m = 1, k = 1e4, c = 1), 10,000 steps of
    dt = 1e-4.
-2. Cost per step of the C kernel for N = 1e2 .. 1e5 masses: the fitted slope of log(time) over
-   log(N) should be 1 (O(N) per step).
+2. Cost per step of the C kernel for N = 1e2 .. 1e5 masses, on one thread and with the default
+   `workers` (two threads, the chain split in two parts, from `SPLIT_MASSES` masses on): the
+   fitted slope of log(time) over log(N) should be 1 (O(N) per step).
 3. C against NumPy backends: largest relative difference (should be <= 1e-12, or the scheme's own
    rounding sensitivity where that is larger: NumPy against `simulate_mck` on the assembled
    matrices; both backends form the same terms in the same order, the C recurrences take four
    masses a round).
-4. Memory traffic at N = 1e5, where the 10 rows the sweep touches each step (8 MB) no longer
-   fit in a core's L2 (2 MiB here): the doubles the stable sweep moves per mass-step, the rate that makes, and
+4. Memory traffic of one thread at N = 1e5, where the 10 rows the sweep touches each step
+   (8 MB) no longer fit in a core's L2 (2 MiB here): the doubles the stable sweep moves per mass-step, the rate that makes, and
    the rate of a peer that only streams (NumPy's x += y over a working set of the same size),
    measured in the same run; the peer's rate bounds the time per mass-step from below.
 
@@ -27,7 +28,7 @@ import numpy as np
 
 from dtdyn._engine import cbuild
 from dtdyn._engine import kernels
-from dtdyn.linear.chain import chain_matrices, simulate_chain
+from dtdyn.linear.chain import SPLIT_MASSES, chain_matrices, simulate_chain
 from dtdyn.linear.mck import simulate_mck
 
 
@@ -71,21 +72,31 @@ def main(quick=False):
     print(f"   speed-up {t_mck / t_c:.1f}x against the scipy.sparse loop (target >= 5x), "
           f"{t_mc / t_c:.1f}x against the C loop (SuperLU); max relative difference {diff:.1e}\n")
 
-    print("2) C kernel cost per step against N (1,000 steps, outputs: last mass)")
+    print("2) C kernel cost per step against N (1,000 steps, outputs: last mass), on one thread\n"
+          f"   and with the default workers (two threads from SPLIT_MASSES = {SPLIT_MASSES} masses on)")
     Ns = [100, 1000, 10_000, 30_000, 100_000]
-    per = []
+    per, one = [], []
     for N in Ns:
         m, k, c = chain(N)
         s = 1000
         F = np.ones((s + 1, 1))
-        t, _ = best_of(lambda: simulate_chain(m, k, c, F, dt, force_dofs=[N - 1], outputs=[N - 1],
-                                              quantities=("x",)), 3)
-        per.append(t / s)
-        print(f"   N = {N:>7d}: {t / s * 1e6:10.2f} us/step  {t / s / N * 1e9:7.2f} ns per mass-step")
+        times = []
+        for workers in (1, None):
+            t, r = best_of(lambda: simulate_chain(m, k, c, F, dt, force_dofs=[N - 1],
+                                                  outputs=[N - 1], quantities=("x",),
+                                                  workers=workers), 3)
+            times.append(t / s)
+        one.append(times[0])
+        per.append(times[1])
+        print(f"   N = {N:>7d}: one thread {times[0] / N * 1e9:5.2f}, default ({r.info['workers']} "
+              f"thread{'s' if r.info['workers'] > 1 else ''}) {times[1] / N * 1e9:5.2f} ns per "
+              f"mass-step ({times[1] * 1e6:.2f} us/step)")
     slope = np.polyfit(np.log(Ns), np.log(per), 1)[0]
-    print(f"   fitted slope of log(time/step) over log(N): {slope:.3f} (1 = linear)")
+    print(f"   fitted slope of log(time/step) over log(N), default: {slope:.3f} (1 = linear)")
     worst = max(t / N for t, N in zip(per, Ns) if N >= 10_000) * 1e9
-    print(f"   N = 1e4 .. 1e5: at most {worst:.2f} ns per mass-step (target <= 3)\n")
+    worst1 = max(t / N for t, N in zip(one, Ns) if N >= 10_000) * 1e9
+    print(f"   N = 1e4 .. 1e5: at most {worst:.2f} ns per mass-step with the default workers "
+          f"(target <= 3); one thread: at most {worst1:.2f}\n")
 
     print("3) C against NumPy (1,000 masses, 1,000 steps of 1e-4, random force on 3 masses)")
     m, k, c = chain(1000)
@@ -113,7 +124,7 @@ def main(quick=False):
     print("   (both evaluate the same generated expressions in the same order; the C kernel's\n"
           "    recurrences take four masses a round, so the backends agree to rounding, as closely\n"
           "    as the scheme's rounding lets two solvers of it agree: simulate_mck's sparse LU)\n")
-    memory_traffic(Ns[-1], per[-1])
+    memory_traffic(Ns[-1], one[-1])
 
 
 #: doubles the stable sweep moves per mass-step (displacement form, no ground elements, a few
@@ -132,8 +143,8 @@ def memory_traffic(N, t_step, rows=10):
     t_peer, _ = best_of(lambda: np.add(x, y, out=x), 50)
     peer = 3 * 8 * x.size / t_peer
     rate = doubles * 8 * N / t_step
-    print(f"4) memory traffic at N = {N} (the {rows} rows the sweep touches each step: "
-          f"{rows * N * 8 / 1e6:.1f} MB)")
+    print(f"4) memory traffic of one thread at N = {N} (the {rows} rows the sweep touches each "
+          f"step: {rows * N * 8 / 1e6:.1f} MB)")
     print(f"   stable sweep: {doubles} doubles per mass-step ("
           + ", ".join(f"{k} {v}" for k, v in SWEEP_TRAFFIC.items())
           + f"): {rate / 1e9:.1f} GB/s at {t_step / N * 1e9:.2f} ns per mass-step")

@@ -11,7 +11,7 @@ KERNELS = {
         "const double *c", "const double *kg", "const double *cg", "double dt", "const double *params", "long n_loaded",
         "const long *loaded", "const double *force", "double *hist", "long n_out",
         "const long *out_idx", "double *xo", "double *vo", "double *ao", "double *work",
-        "double *ehist", "double *err")),
+        "double *ehist", "double *err", "int threads")),
     # every dtdyn_shaft_<scheme> (derive/shaft.py): the DT-TMM loop of a torsional tree
     "dtdyn_shaft": ("int", (
         "int form", "long N", "long n_steps", "const long *parent", "const double *gu",

@@ -291,10 +291,10 @@ def _chain_macros(ctx) -> dict:
             "plain_run_lines": [f"{n}[n] = {e};" for n, e in f["plain"]["run"]],
             "plain_step_lines": [f"{n}[n] = {e};" for n, e in f["plain"]["step"]],
         })
-    lines = [f"double *{h} = hist + {i} * N;" for i, h in enumerate(history)]
-    lines += [f"pair *e{h} = sweep ? (pair *)(ehist + {2 * i} * N) : NULL;"
+    rows = [f"double *{h} = hist + {i} * N;" for i, h in enumerate(history)]
+    errors = [f"pair *e{h} = sweep ? (pair *)(ehist + {2 * i} * N) : NULL;"
               for i, h in enumerate(history)]
-    return {"forms": forms, "history_lines": lines}
+    return {"forms": forms, "history_lines": rows + errors, "state_lines": rows}
 
 
 def render_all() -> dict[str, str]:

@@ -31,6 +31,7 @@ SIGNATURES = {
             "c_void_p",
             "c_void_p",
             "c_void_p",
+            "c_int",
         ),
     ),
     "dtdyn_shaft": (

@@ -11,7 +11,9 @@
  *
  * hist: 5 rows of N doubles (x0, v0, a0, xm1, xm2), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..
- * written (NULL: not stored). work: 12 N doubles (stable sweep).
+ * written (NULL: not stored). work: 12 N doubles (stable sweep). threads: 2 runs the stable
+ * sweep on two threads, the chain split in two parts (chain_loop.h, CHAIN_UPPER_FRACTION), 1 on
+ * the calling thread.
  * Plain sweep only (work: 30 N doubles): ehist, the two error histories E_s (systematic part of
  * the rounding error) and E_r (random part), rows as hist, each entry a pair (E_s, E_r) of
  * adjacent doubles (a GCC/Clang vector: one operation advances both); err = {max_n e_n, max |x|,
@@ -24,8 +26,8 @@
  * The loop itself is chain_loop.h (shared by every scheme); this file defines the scheme's
  * derived expressions for it.
  * The stable sweep forms the same terms in the same order as the NumPy backend; its two
- * recurrences use fma() and advance four stations a round (with the products of their g), and it
- * multiplies by 1 / den where NumPy divides, so the backends agree to rounding, not bitwise.
+ * recurrences use fma() and advance four stations a round (with the products of their g), so
+ * the backends agree to rounding, not bitwise (on two threads, also the split's sums).
  */
 /* displacement form */
 #define CHAIN_RUN run_displacement
@@ -66,6 +68,12 @@
     pair *ea0 = sweep ? (pair *)(ehist + 4 * N) : NULL; \
     pair *exm1 = sweep ? (pair *)(ehist + 6 * N) : NULL; \
     pair *exm2 = sweep ? (pair *)(ehist + 8 * N) : NULL;
+#define CHAIN_STATE \
+    double *x0 = hist + 0 * N; \
+    double *v0 = hist + 1 * N; \
+    double *a0 = hist + 2 * N; \
+    double *xm1 = hist + 3 * N; \
+    double *xm2 = hist + 4 * N;
 #define CHAIN_PLAIN_ROWS \
     double *hD = work + 20 * N; \
     double *hb = work + 21 * N; \
@@ -179,6 +187,12 @@
     pair *ea0 = sweep ? (pair *)(ehist + 4 * N) : NULL; \
     pair *exm1 = sweep ? (pair *)(ehist + 6 * N) : NULL; \
     pair *exm2 = sweep ? (pair *)(ehist + 8 * N) : NULL;
+#define CHAIN_STATE \
+    double *x0 = hist + 0 * N; \
+    double *v0 = hist + 1 * N; \
+    double *a0 = hist + 2 * N; \
+    double *xm1 = hist + 3 * N; \
+    double *xm2 = hist + 4 * N;
 #define CHAIN_PLAIN_ROWS \
     double *hD = work + 20 * N; \
     double *hb = work + 21 * N; \
@@ -260,21 +274,21 @@ int dtdyn_chain_houbolt(int form, int sweep, long N, long n_steps, const double 
                         const double *params, long n_loaded, const long *loaded,
                         const double *force, double *hist, long n_out, const long *out_idx,
                         double *xo, double *vo, double *ao, double *work, double *ehist,
-                        double *err);
+                        double *err, int threads);
 int dtdyn_chain_houbolt(int form, int sweep, long N, long n_steps, const double *m, const double *k,
                         const double *c, const double *kg, const double *cg, double dt,
                         const double *params, long n_loaded, const long *loaded,
                         const double *force, double *hist, long n_out, const long *out_idx,
                         double *xo, double *vo, double *ao, double *work, double *ehist,
-                        double *err) {
+                        double *err, int threads) {
     const unsigned long long mode = dtdyn_flush_on(); /* subnormals flushed (chain_loop.h) */
     int rc = -1;
     if (form == 0)
         rc = run_displacement(sweep, N, n_steps, m, k, c, kg, cg, dt, params, n_loaded, loaded,
-                              force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err);
+                              force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err, threads);
     if (form == 1)
         rc = run_acceleration(sweep, N, n_steps, m, k, c, kg, cg, dt, params, n_loaded, loaded,
-                              force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err);
+                              force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err, threads);
     dtdyn_flush_off(mode);
     return rc;
 }

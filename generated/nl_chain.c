@@ -29,7 +29,7 @@ typedef int (*chain_fn)(int form, int sweep, long N, long n_steps, const double 
                         const double *params, long n_loaded, const long *loaded,
                         const double *force, double *hist, long n_out, const long *out_idx,
                         double *xo, double *vo, double *ao, double *work, double *ehist,
-                        double *err);
+                        double *err, int threads);
 /* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
    the definitions below against the ctypes bindings in generated/c_api.py */
 int dtdyn_set_stop(int value);
@@ -333,7 +333,7 @@ static int nl_chain_run(const long *dims, chain_fn sweep, const long *const *idx
                     frc[pj[e]] += g[e];
             }
             if (sweep(form, (n == 0 && j == 0) ? 0 : 2, N, 1, m, k, c, kg, cg, h, params, nl,
-                      loaded, frc, H, 0, NULL, NULL, NULL, NULL, cwork, NULL, NULL))
+                      loaded, frc, H, 0, NULL, NULL, NULL, NULL, cwork, NULL, NULL, 1))
                 return 4;
             for (e = 0; e < ne; ++e) {
                 Q[e] = H[ix * N + ei[e]] - (ej[e] >= 0 ? H[ix * N + ej[e]] : 0.0);

@@ -56,7 +56,7 @@ CFLAGS: tuple[str, ...] = (
     "-std=c99",
 )
 #: Libraries linked after the source file.
-LIBS: tuple[str, ...] = ("-lm",)
+LIBS: tuple[str, ...] = ("-lm", "-pthread")
 
 _CANDIDATES = ("cc", "gcc", "clang")
 _NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")

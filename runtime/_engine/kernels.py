@@ -90,10 +90,11 @@ def params_array(scheme) -> np.ndarray:
 
 
 def chain_advance(backend, scheme, coeffs, form, sweep, chain, dt, loaded, out_idx,
-                  tracker: PlainSweepError | None = None):
+                  tracker: PlainSweepError | None = None, threads: int = 1):
     """An ``advance(force_rows, H, xo, vo, ao) -> error estimate of the run so far`` for
     stepping.integrate. ``chain``: the checked (m, k, c, kg, cg) arrays (linear.chain.Chain).
-    The plain sweep needs the run's ``tracker`` (0.0 for the stable one)."""
+    The plain sweep needs the run's ``tracker`` (0.0 for the stable one); ``threads`` = 2 runs
+    the C stable sweep on two threads (the chain split in two parts)."""
     if sweep == "plain" and tracker is None:
         raise ValueError("the plain sweep needs a PlainSweepError tracker")
     plain = sweep == "plain"
@@ -125,7 +126,7 @@ def chain_advance(backend, scheme, coeffs, form, sweep, chain, dt, loaded, out_i
                 k.ctypes.data, c.ctypes.data, _p(kg), _p(cg), dt, params.ctypes.data, loaded64.size,
                 loaded64.ctypes.data, force.ctypes.data, H.ctypes.data, out64.size,
                 out64.ctypes.data, _p(xo), _p(vo), _p(ao), work.ctypes.data, _p(E),
-                _p(tracker.err) if plain else None)
+                _p(tracker.err) if plain else None, threads)
         if rc != 0:
             raise RuntimeError(f"C kernel chain_{scheme.name} returned {rc} for form {form!r}")
         if plain:

@@ -22,6 +22,7 @@ import scipy.sparse as sps
 from dtdyn._engine import ground as support
 from dtdyn._engine import kernels
 from dtdyn._engine import stepping
+from dtdyn._engine import threads as cpu
 from dtdyn._engine import validate
 from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
@@ -30,6 +31,19 @@ from dtdyn.linear.stability import chain_highest_frequency, check_dt
 
 #: the plain sweep warns above this estimated relative error
 PLAIN_SWEEP_TOLERANCE = 1e-6
+#: simulate_chain's default workers: the C stable sweep runs on two threads from this many
+#: masses on (benchmarks/chain_speed.py measures both)
+SPLIT_MASSES = 5_000
+
+
+def sweep_threads(workers, n_masses: int) -> int:
+    """Threads of the C stable sweep for ``workers`` (see `simulate_chain`): 1 or 2."""
+    if workers is None:
+        return 2 if n_masses >= SPLIT_MASSES and cpu.available() >= 2 else 1
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise ValueError(f"workers = {workers!r}: must be an integer >= 1 (threads of the "
+                         "stable sweep)")
+    return 2 if workers >= 2 and n_masses >= 2 else 1
 
 
 class Chain(NamedTuple):
@@ -142,7 +156,7 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, ground_stiffness=None
                    ground_damping=None, force_dofs=None, scheme="newmark", form="displacement", sweep="stable", backend="c", outputs=None,
                    quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
                    progress=False, ground_acceleration=None, ground_velocity=None,
-                   ground_displacement=None, influence=None,
+                   ground_displacement=None, influence=None, workers=None,
                    **scheme_params) -> Response:
     """Time history of a chain by the discrete-time transfer matrix method (DT-TMM).
 
@@ -202,6 +216,13 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, ground_stiffness=None
         (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
     influence : (N,) or (N, n_dir) array_like, optional
         r, each DOF's motion per unit support motion (default: ones; a chain on a moving base).
+    workers : int, optional
+        Threads of the C stable sweep: 2 splits the chain at 60 % of its masses and runs
+        the two parts side by side, handing two numbers over per step (a long chain is bound by
+        memory traffic, which two cores share; larger values use 2). Default: 2 from
+        `SPLIT_MASSES` masses on, when this process may use two CPUs (its affinity, capped by
+        the environment variable DTDYN_THREADS), else 1.
+        ``info["workers"]`` says how many ran.
 
     Returns
     -------
@@ -253,10 +274,11 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, ground_stiffness=None
                          "or use an implicit scheme")
 
     tracker = kernels.PlainSweepError(m.size) if sweep == "plain" else None
+    threads = sweep_threads(workers, m.size) if sweep == "stable" and backend == "c" else 1
 
     def make_advance(sch, coeffs):
         return kernels.chain_advance(backend, sch, coeffs, form, sweep, chain, dt, loaded,
-                                     outputs, tracker)
+                                     outputs, tracker, threads)
 
     f0 = np.zeros(m.size)
     f0[loaded] = force[0]
@@ -267,7 +289,8 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, ground_stiffness=None
     res = stepping.integrate(info, form, dt, force, (x0, v0, a0), make_advance, outputs,
                              quantities, progress)
     used = "c" if backend == "c" and kernels.c_chain_function(info.name) else "numpy"
-    res.info.update(method="DT-TMM", sweep=sweep, backend=used)
+    res.info.update(method="DT-TMM", sweep=sweep, backend=used,
+                    workers=threads if used == "c" else 1)
     if sweep == "plain" and res.info["error_estimate"] > PLAIN_SWEEP_TOLERANCE:
         warnings.warn(f"plain DT-TMM sweep on {m.size} masses: estimated relative error "
                       f"{res.info['error_estimate']:.1e} (cancellation in the transfer-matrix "

@@ -94,7 +94,6 @@ digital filters.
 from __future__ import annotations
 
 import math
-import os
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -105,6 +104,7 @@ import numpy as np
 
 from dtdyn.generated import modal_filters as coef
 
+from dtdyn._engine import threads as cpu
 from dtdyn._engine import validate
 from dtdyn._engine.atomic import write_atomic
 from dtdyn._engine.extras import require
@@ -410,7 +410,7 @@ def _block_extremes(e, sos, s1, R, zeta, Te, J_end, j_N, window, exact, backend)
 
 def _workers(workers, n_tasks, work):
     if workers is None:
-        workers = min(os.cpu_count() or 1, 8) if work > 2e7 else 1
+        workers = min(cpu.available(), 8) if work > 2e7 else 1
     return int(max(1, min(workers, n_tasks)))
 
 
@@ -446,8 +446,9 @@ def shock_response_spectrum(accel, dt, freqs, damping=0.05, response="absolute_a
     backend : {"c", "scipy"}
         Filter implementation passed to run_bank.
     workers : int, optional
-        Threads for long runs (the C kernel releases the GIL); default: the CPU count (at most 8)
-        when n_samples x n_freqs > 2e7, else 1.
+        Threads for long runs (the C kernel releases the GIL); default: the CPUs this process
+        may use (capped by the environment variable DTDYN_THREADS; at most 8) when
+        n_samples x n_freqs > 2e7, else 1.
 
     Returns
     -------

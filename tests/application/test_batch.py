@@ -121,7 +121,8 @@ def test_batch_equals_cases_one_by_one_bitwise(client, tmp_path):
 def _worker_settings():
     import dask
     return (dask.config.get("distributed.worker.profile.enabled"),
-            {k: os.environ.get(k) for k in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_")})
+            {k: os.environ.get(k) for k in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_",
+                                            "DTDYN_THREADS")})
 
 
 def test_own_cluster_keeps_glibc_malloc_fast_and_the_profiler_off(tmp_path, monkeypatch):

@@ -236,3 +236,53 @@ def test_stiff_chain_against_extended_precision():
                                quantities=("x",))
             err = np.max(np.abs(r.x - ref)) / np.max(np.abs(ref))
             assert err < 1e-10, (form, backend, err)
+
+
+@pytest.mark.parametrize("scheme", NAMES)
+def test_two_threads_equal_one(scheme):
+    """workers=2 splits the stable sweep in two parts (the lower part's b corrected by the
+    upper part's R, the upper part's forward pass started from the lower part's u): the same
+    solution, only the order of its sums changed. Chains of 2, 7 and 700 masses (the split at
+    every size, a few loaded masses and every mass loaded, with and without ground springs),
+    both forms: at most 1e-11 apart (measured: at most 2.6e-14, but 2.4e-13 for Houbolt, whose
+    recursion amplifies rounding: the two backends differ by 1.1e-12 on it, docs/chain_speed.md),
+    and each within TOL of the assembled solution."""
+    rng = np.random.default_rng(7)
+    forms = ("acceleration",) if scheme == "central_difference" else ("displacement",
+                                                                      "acceleration")
+    for N, all_loaded in ((2, True), (7, False), (700, False), (700, True)):
+        m, k, c = 1 + rng.random(N), 1e4 * (1 + rng.random(N)), 1 + rng.random(N)
+        dofs = list(range(N)) if all_loaded else sorted({0, N // 2, N - 1})
+        F = rng.standard_normal((401, len(dofs)))
+        for kg in (None, 1e2 * rng.random(N)):
+            ref = simulate_mck(*chain_matrices(m, k, c, ground_stiffness=kg), F, 1e-3,
+                               force_dofs=dofs, scheme=scheme)
+            for form in forms:
+                kw = dict(force_dofs=dofs, scheme=scheme, form=form, ground_stiffness=kg)
+                one = simulate_chain(m, k, c, F, 1e-3, workers=1, **kw)
+                two = simulate_chain(m, k, c, F, 1e-3, workers=2, **kw)
+                assert one.info["workers"] == 1 and two.info["workers"] == 2
+                for q in "xva":
+                    a, b = getattr(one, q), getattr(two, q)
+                    assert rel_error(b, a) < 1e-11, (N, form, q, rel_error(b, a))
+                    assert rel_error(b, getattr(ref, q)) < TOL, (N, form, q)
+
+
+def test_workers_default_and_checks(monkeypatch):
+    from dtdyn.linear.chain import SPLIT_MASSES, sweep_threads
+
+    monkeypatch.delenv("DTDYN_THREADS", raising=False)
+    monkeypatch.setattr("os.sched_getaffinity", lambda pid: {0, 1, 2, 3}, raising=False)
+    assert sweep_threads(None, SPLIT_MASSES) == 2 and sweep_threads(None, SPLIT_MASSES - 1) == 1
+    assert sweep_threads(5, 10) == 2 and sweep_threads(1, 10 ** 6) == 1
+    monkeypatch.setenv("DTDYN_THREADS", "1")
+    assert sweep_threads(None, 10 ** 6) == 1
+    monkeypatch.setenv("DTDYN_THREADS", "two")
+    with pytest.raises(ValueError, match="DTDYN_THREADS = 'two'"):
+        sweep_threads(None, 10 ** 6)
+    for bad in (0, 1.5, True, "2"):
+        with pytest.raises(ValueError, match="workers = "):
+            sweep_threads(bad, 10)
+    r = simulate_chain([1.0, 2.0], [10.0, 20.0], [0.1, 0.1], np.ones(11), 0.01, force_dofs=[1],
+                       workers=2, backend="numpy")
+    assert r.info["workers"] == 1   # the NumPy backend runs on one thread

@@ -27,7 +27,8 @@ TASK_BYTES = 64 * 2**20
 PROBE_CASES = 10
 #: failed cases listed by the printed summary (all are in the result's status and message)
 LISTED_FAILURES = 10
-#: glibc malloc settings of the worker processes of the LocalCluster that run_batch starts.
+#: the environment of the worker processes of the LocalCluster that run_batch starts: glibc malloc
+#: settings and the default threads of dtdyn's C loops.
 #: Dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536 (its config
 #: distributed.nanny.pre-spawn-environ), and setting either threshold turns off glibc's dynamic
 #: mmap threshold: every array above 128 KiB a case allocates (a 100,000-sample P4 case: the
@@ -37,8 +38,10 @@ LISTED_FAILURES = 10
 #: threshold, is as slow: the freed heap top goes back at once). These values are glibc's own
 #: dynamic ceilings on 64-bit Linux (mmap above 32 MiB, return the heap's free top above twice
 #: that), fixed: a worker keeps at most 64 MiB of freed heap. Other C libraries ignore them.
+#: DTDYN_THREADS = 1: each worker process runs one task on one core (the C loops that can split
+#: their work, such as simulate_chain's stable sweep, then stay on one thread)
 WORKER_ENVIRON = {"MALLOC_MMAP_THRESHOLD_": str(32 * 2**20),
-                  "MALLOC_TRIM_THRESHOLD_": str(64 * 2**20)}
+                  "MALLOC_TRIM_THRESHOLD_": str(64 * 2**20), "DTDYN_THREADS": "1"}
 #: the Dask config of that LocalCluster: WORKER_ENVIRON before the workers start, and the
 #: worker's statistical profiler (it samples the task thread's stack every 10 ms, for the
 #: dashboard) off
