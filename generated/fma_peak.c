@@ -38,6 +38,11 @@ static inline void dtdyn_flush_off(unsigned long long mode) {
     (void)mode;
 }
 #endif
+
+/* The loop a flushing entry point calls (name_run, called by dtdyn_name): not inlined into it,
+   which keeps GCC's use of the loop's restrict parameters (inlined, the state-space loop of
+   ss_response.c ran 7 % slower). */
+#define DTDYN_LOOP __attribute__((noinline)) static
 /*
  * The multiply-add peak of one core for the 4-lane vectors of the generated loops (nl_loop.c,
  * modal_states.c), which `dtdyn bench` divides each loop's achieved flop rate by: `rounds` rounds

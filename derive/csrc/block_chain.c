@@ -299,14 +299,14 @@ static void sub_product(long P, const double *restrict B, long lo, long m,
         x1 = fma(b10, y0, fma(b11, y1, z1)); \
     }
 
-static int block_chain_loop_run(long N, long n_hist, long n_steps, long n_loaded,
-                                const long *restrict loaded, const double *restrict force,
-                                const double *const *mats, const double *restrict L,
-                                const double *restrict c_u, double w0, double w1, long n_shift,
-                                const long *restrict shift, const long *restrict rows,
-                                double *restrict H, long n_out, const long *restrict out_idx,
-                                double *restrict xo, double *restrict vo, double *restrict ao,
-                                double *restrict work)
+DTDYN_LOOP int block_chain_loop_run(long N, long n_hist, long n_steps, long n_loaded,
+                                    const long *restrict loaded, const double *restrict force,
+                                    const double *const *mats, const double *restrict L,
+                                    const double *restrict c_u, double w0, double w1, long n_shift,
+                                    const long *restrict shift, const long *restrict rows,
+                                    double *restrict H, long n_out, const long *restrict out_idx,
+                                    double *restrict xo, double *restrict vo, double *restrict ao,
+                                    double *restrict work)
 {
     const long P = BC_STRIDE(N);
     const double *K = mats[0], *C = mats[1], *M = mats[2], *fac = mats[3];

@@ -13,9 +13,10 @@
 
 #define BLOCK 2048
 
-static int filter_bank_run(long n, long n_in, long n_out, long n_sec, const double *restrict sos,
-                           const long *restrict in_col, const long *restrict out_col,
-                           const double *restrict xt, double *restrict yt, double *restrict state)
+DTDYN_LOOP int filter_bank_run(long n, long n_in, long n_out, long n_sec,
+                               const double *restrict sos, const long *restrict in_col,
+                               const long *restrict out_col, const double *restrict xt,
+                               double *restrict yt, double *restrict state)
 {
     long b, k, i;
     (void)n_in;

@@ -139,13 +139,14 @@ static void sparse_solve(long n, const long *const *idx, const double *const *va
         b[i] = z[perm_c[i]];
 }
 
-static int mck_loop_run(int solver, long n, long n_hist, long n_steps, long n_loaded, const long *restrict loaded,
-                        const double *restrict force, const long *const *idx,
-                        const double *const *val, const double *restrict L,
-                        const double *restrict c_u, double w0, double w1, long n_shift,
-                        const long *restrict shift, const long *restrict rows, double *restrict H,
-                        long n_out, const long *restrict out_idx, double *restrict xo,
-                        double *restrict vo, double *restrict ao, double *restrict work)
+DTDYN_LOOP int mck_loop_run(int solver, long n, long n_hist, long n_steps, long n_loaded,
+                            const long *restrict loaded, const double *restrict force,
+                            const long *const *idx, const double *const *val,
+                            const double *restrict L, const double *restrict c_u, double w0,
+                            double w1, long n_shift, const long *restrict shift,
+                            const long *restrict rows, double *restrict H, long n_out,
+                            const long *restrict out_idx, double *restrict xo, double *restrict vo,
+                            double *restrict ao, double *restrict work)
 {
     double *q = work, *s = work + n, *rhs = work + 2 * n, *upd = work + 3 * n;
     double *z = work + 6 * n, *bm = work + 7 * n;

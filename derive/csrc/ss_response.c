@@ -8,8 +8,8 @@
  */
 #include <stddef.h>
 
-static int ss_states_run(long ns, long n_steps, const double *restrict At, const double *restrict w,
-                         double *restrict X)
+DTDYN_LOOP int ss_states_run(long ns, long n_steps, const double *restrict At,
+                             const double *restrict w, double *restrict X)
 {
     long n, i, j;
     for (n = 0; n < n_steps; ++n) {
