@@ -112,7 +112,7 @@ static double step_sign(uint64_t j)
     z ^= z >> 31;
     return (z >> 63) ? 1.0 : -1.0;
 }
-/* stations per block of the stable sweep (its temporaries: 2 blocks of doubles, in L1) */
+/* stations per block of the stable sweep (its temporaries: 3 blocks of doubles, in L1) */
 #define CHAIN_BLOCK 256
 
 /* The stable sweep on two threads (threads = 2): the chain splits at station P into a lower part
@@ -170,10 +170,10 @@ typedef struct {
 
 /* the stable sweep's terms of station t (in block lo..): h = ((mu - S_R) Delta + kappa (F - beta))
    / den in th, g = kappa / den in tg (from kappa = k p + c r and the rows hm = mu - S_R and
-   1 / den: the back pass reads no g row) and (F - beta) - Delta in tw; GROUND: the station has a spring-damper to the ground (kg, cg),
-   LEFT: it has a mass to its left (t > 0); FE: read its external force (0: none, where a few
-   masses are loaded the loop skips the force row and redoes those masses). Written out per
-   case, so that the block loop is a plain vector loop. */
+   1 / den: the back pass reads no g row) and (F - beta) - Delta in tw; GROUND: the station has
+   a spring-damper to the ground (kg, cg), LEFT: it has a mass to its left (t > 0); FE: read its
+   external force (0: none, where a few masses are loaded the loop skips the force row and
+   redoes those masses). Written out per case, so that the block loop is a plain vector loop. */
 #define CHAIN_TERMS(GROUND, LEFT, FE) \
     { \
         double qn, sn, qm = 0.0, sm = 0.0, Fb, Dn; \
@@ -243,7 +243,8 @@ static void CHAIN_STABLE(chain_args *A, int part)
         long lo, hi, t, cur = top - 1;
         for (j = 0; j < n_loaded; ++j)
             if (loaded[j] >= plo && loaded[j] < phi)
-                Fe[loaded[j]] = w0 * force[step * n_loaded + j] + w1 * force[(step + 1) * n_loaded + j];
+                Fe[loaded[j]] = w0 * force[step * n_loaded + j]
+                                + w1 * force[(step + 1) * n_loaded + j];
         for (hi = phi; hi > plo; hi = lo) {
             lo = hi - plo > CHAIN_BLOCK ? hi - CHAIN_BLOCK : plo;
             if (lo == 0) {   /* station 0: joined to the ground (q, s of its left: 0) */
