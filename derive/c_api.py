@@ -3,6 +3,8 @@ generated source (so the compiler checks the definition against it) and as the c
 in generated/c_api.py (so the runtime never types argtypes by hand)."""
 from __future__ import annotations
 
+import re
+
 #: kernel -> (return type, parameters as C text); ``dtdyn_chain`` stands for every
 #: ``dtdyn_chain_<scheme>`` (one per scheme, the same signature)
 KERNELS = {
@@ -98,6 +100,13 @@ SOURCES = {
     "nl_chain.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_chain"),
 }
 
+#: kernel -> the loop it runs with subnormals flushed to zero (csrc/flush_subnormals.c): the
+#: generated entry point wraps the source's ``DTDYN_LOOP int <loop>(<same parameters>)``
+FLUSHED = {"dtdyn_ss_states": "ss_states_run", "dtdyn_filter_bank": "filter_bank_run",
+           "dtdyn_mck_loop": "mck_loop_run", "dtdyn_block_chain_loop": "block_chain_loop_run",
+           "dtdyn_modal_filters": "modal_filters_run", "dtdyn_nl_run": "nl_loop_run",
+           "dtdyn_nl_chain": "nl_chain_run"}
+
 _SCALARS = {"int": "c_int", "long": "c_long", "double": "c_double"}
 
 
@@ -119,6 +128,33 @@ def prototypes(source: str) -> str:
              "   the definitions below against the ctypes bindings in generated/c_api.py */"]
     lines += [prototype(k) for k in SOURCES[source]]
     return "\n".join(lines)
+
+
+def _wrapped(head: str, items: list[str], tail: str, width: int = 100) -> list[str]:
+    """``head item, item, ... tail`` in lines of at most ``width``, aligned after ``head``."""
+    lines, line = [], head
+    for i, item in enumerate(items):
+        piece = item + (", " if i < len(items) - 1 else tail)
+        if len(line) + len(piece.rstrip()) > width and line != head:
+            lines.append(line.rstrip())
+            line = " " * len(head)
+        line += piece
+    return lines + [line]
+
+
+def flushed_entries(source: str) -> str:
+    """The entry points of ``source``'s kernels in `FLUSHED`: each calls its loop with
+    subnormals flushed to zero and the caller's mode restored."""
+    out = []
+    for kernel in (k for k in SOURCES[source] if k in FLUSHED):
+        restype, params = KERNELS[kernel]
+        names = [re.findall(r"[A-Za-z_]\w*", p)[-1] for p in params]
+        out += ["", f"/* {FLUSHED[kernel]} with subnormals flushed to zero (flush_subnormals.c) */"]
+        out += _wrapped(f"{restype} {kernel}(", list(params), ")")
+        out += ["{", "    const unsigned long long mode = dtdyn_flush_on();"]
+        out += _wrapped(f"    const {restype} rc = {FLUSHED[kernel]}(", names, ");")
+        out += ["    dtdyn_flush_off(mode);", "    return rc;", "}"]
+    return "\n".join(out)
 
 
 def _ctype(param: str) -> str:

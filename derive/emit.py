@@ -305,6 +305,7 @@ def render_all() -> dict[str, str]:
     def render(template, dest, source, **ctx):
         if dest in c_api.SOURCES:  # the C declarations from the signature spec
             ctx.setdefault("prototypes", c_api.prototypes(dest))
+            ctx.setdefault("flushed_entries", c_api.flushed_entries(dest))
         out[dest] = env.get_template(template).render(template=template, source=source, **ctx)
 
     render("numpy/dttmm.py.jinja", "dttmm_sweep.py", "dtdyn.derive.dttmm", **_dttmm_context())

@@ -513,7 +513,7 @@ DTDYN_LOOP int block_chain_loop_run(long N, long n_hist, long n_steps, long n_lo
     return 0;
 }
 
-/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
+/* block_chain_loop_run with subnormals flushed to zero (flush_subnormals.c) */
 int dtdyn_block_chain_loop(long N, long n_hist, long n_steps, long n_loaded,
                            const long *restrict loaded, const double *restrict force,
                            const double *const *mats, const double *restrict L,

@@ -167,6 +167,8 @@ typedef struct {
 /* mu of mass n: m alpha + k_g p + c_g r; kg and cg are NULL for a chain without ground elements
    (then mu = m alpha and beta = m b, as many operations as a plain chain needs) */
 #define GROUNDED_MU(n) (kg ? m[n] * alpha_u + kg[n] * p + cg[n] * r : m[n] * alpha_u)
+/* kappa of station n: k p + c r */
+#define KAPPA(n) (k[n] * p + c[n] * r)
 
 /* the stable sweep's terms of station t (in block lo..): h = ((mu - S_R) Delta + kappa (F - beta))
    / den in th, g = kappa / den in tg (from kappa = k p + c r and the rows hm = mu - S_R and
@@ -193,7 +195,7 @@ typedef struct {
         Fb = ((FE) ? Fe[t] : 0.0) - Fb; \
         Dn = k[t] * (qn - qm) + c[t] * (sn - sm); \
         { \
-            const double kp = k[t] * p + c[t] * r; \
+            const double kp = KAPPA(t); \
             th[t - lo] = den[t] * (hm[t] * Dn + kp * Fb); \
             tg[t - lo] = kp * den[t]; \
         } \
@@ -235,7 +237,7 @@ static void CHAIN_STABLE(chain_args *A, int part)
         double G = 1.0;
         for (n = P - 1; n >= 0; --n) {
             Gd[n] = den[n] * G;
-            G *= (k[n] * p + c[n] * r) * den[n];
+            G *= KAPPA(n) * den[n];
         }
     }
     for (step = 0; step < n_steps; ++step) {
@@ -375,7 +377,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     if (!reuse) {   /* Riccati factors: the stable sweep, and the plain sweep's error estimate */
         double S_R = 0.0;
         for (n = N - 1; n >= 0; --n) {
-            const double mu = GROUNDED_MU(n), kp = k[n] * p + c[n] * r;
+            const double mu = GROUNDED_MU(n), kp = KAPPA(n);
             double S_L;
             SR[n] = S_R;
             g[n] = CHAIN_G;
@@ -391,7 +393,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
     if (sweep) {
         double P_u = 0.0, P_f = 1.0;
         for (n = 0; n < N; ++n) {
-            const double mu = GROUNDED_MU(n), kp = k[n] * p + c[n] * r;
+            const double mu = GROUNDED_MU(n), kp = KAPPA(n);
             CHAIN_PLAIN_RUN
             (void)mu; (void)kp;
             const double nu = CHAIN_USE0 * P_u + CHAIN_USE1 * P_f;
@@ -473,7 +475,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
         }
         for (n = 0; n < N; ++n) {
             const long nb = N - 1 - n;
-            const double mu = GROUNDED_MU(n), kp = k[n] * p + c[n] * r;
+            const double mu = GROUNDED_MU(n), kp = KAPPA(n);
             double nu;
             (void)mu; (void)kp;
             CHAIN_PLAIN_STEP
@@ -523,6 +525,7 @@ static int CHAIN_RUN(int sweep, long N, long n_steps, const double *m, const dou
 
 /* the next form defines its own */
 #undef GROUNDED_MU
+#undef KAPPA
 #undef CHAIN_STABLE
 #undef CHAIN_LOWER
 #undef CHAIN_TERMS

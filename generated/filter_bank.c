@@ -104,7 +104,7 @@ DTDYN_LOOP int filter_bank_run(long n, long n_in, long n_out, long n_sec,
     return 0;
 }
 
-/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
+/* filter_bank_run with subnormals flushed to zero (flush_subnormals.c) */
 int dtdyn_filter_bank(long n, long n_in, long n_out, long n_sec, const double *restrict sos,
                       const long *restrict in_col, const long *restrict out_col,
                       const double *restrict xt, double *restrict yt, double *restrict state) {

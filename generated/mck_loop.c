@@ -281,7 +281,7 @@ DTDYN_LOOP int mck_loop_run(int solver, long n, long n_hist, long n_steps, long 
     return 0;
 }
 
-/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
+/* mck_loop_run with subnormals flushed to zero (flush_subnormals.c) */
 int dtdyn_mck_loop(int solver, long n, long n_hist, long n_steps, long n_loaded,
                    const long *restrict loaded, const double *restrict force,
                    const long *const *idx, const double *const *val, const double *restrict L,

@@ -500,7 +500,7 @@ DTDYN_LOOP int modal_filters_run(long n, long m, long n_in, long n_out, int im_o
     return dtdyn_stop_flag ? DTDYN_STOPPED : 0;
 }
 
-/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
+/* modal_filters_run with subnormals flushed to zero (flush_subnormals.c) */
 int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
                         const double *restrict coef, const double *restrict wt,
                         const double *restrict x, double *restrict e, double *restrict y,

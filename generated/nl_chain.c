@@ -384,7 +384,7 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
     return 0;
 }
 
-/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
+/* nl_chain_run with subnormals flushed to zero (flush_subnormals.c) */
 int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                    const double *const *mats, double *restrict H, double *restrict u,
                    double *restrict g, double *restrict rate, double *const *out, double h,

@@ -1191,7 +1191,7 @@ DTDYN_LOOP int nl_loop_run(const long *dims, const double *const *mats,
     return 0;
 }
 
-/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
+/* nl_loop_run with subnormals flushed to zero (flush_subnormals.c) */
 int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
                  double *restrict x, double *restrict u, double *restrict g, double *restrict rate,
                  double *restrict out, double tol, double theta_limit, double *stats, long *fail,

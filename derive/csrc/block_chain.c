@@ -454,21 +454,3 @@ DTDYN_LOOP int block_chain_loop_run(long N, long n_hist, long n_steps, long n_lo
     }
     return 0;
 }
-
-/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
-int dtdyn_block_chain_loop(long N, long n_hist, long n_steps, long n_loaded,
-                           const long *restrict loaded, const double *restrict force,
-                           const double *const *mats, const double *restrict L,
-                           const double *restrict c_u, double w0, double w1, long n_shift,
-                           const long *restrict shift, const long *restrict rows,
-                           double *restrict H, long n_out, const long *restrict out_idx,
-                           double *restrict xo, double *restrict vo, double *restrict ao,
-                           double *restrict work)
-{
-    const unsigned long long mode = dtdyn_flush_on();
-    const int rc = block_chain_loop_run(N, n_hist, n_steps, n_loaded, loaded, force, mats, L, c_u,
-                                        w0, w1, n_shift, shift, rows, H, n_out, out_idx, xo, vo, ao,
-                                        work);
-    dtdyn_flush_off(mode);
-    return rc;
-}

@@ -44,14 +44,3 @@ DTDYN_LOOP int filter_bank_run(long n, long n_in, long n_out, long n_sec,
     }
     return 0;
 }
-
-/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
-int dtdyn_filter_bank(long n, long n_in, long n_out, long n_sec, const double *restrict sos,
-                      const long *restrict in_col, const long *restrict out_col,
-                      const double *restrict xt, double *restrict yt, double *restrict state)
-{
-    const unsigned long long mode = dtdyn_flush_on();
-    const int rc = filter_bank_run(n, n_in, n_out, n_sec, sos, in_col, out_col, xt, yt, state);
-    dtdyn_flush_off(mode);
-    return rc;
-}

@@ -222,20 +222,3 @@ DTDYN_LOOP int mck_loop_run(int solver, long n, long n_hist, long n_steps, long 
     }
     return 0;
 }
-
-/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
-int dtdyn_mck_loop(int solver, long n, long n_hist, long n_steps, long n_loaded,
-                   const long *restrict loaded, const double *restrict force,
-                   const long *const *idx, const double *const *val, const double *restrict L,
-                   const double *restrict c_u, double w0, double w1, long n_shift,
-                   const long *restrict shift, const long *restrict rows, double *restrict H,
-                   long n_out, const long *restrict out_idx, double *restrict xo,
-                   double *restrict vo, double *restrict ao, double *restrict work)
-{
-    const unsigned long long mode = dtdyn_flush_on();
-    const int rc = mck_loop_run(solver, n, n_hist, n_steps, n_loaded, loaded, force, idx, val, L,
-                                c_u, w0, w1, n_shift, shift, rows, H, n_out, out_idx, xo, vo, ao,
-                                work);
-    dtdyn_flush_off(mode);
-    return rc;
-}

@@ -33,13 +33,3 @@ DTDYN_LOOP int ss_states_run(long ns, long n_steps, const double *restrict At,
     }
     return 0;
 }
-
-/* the loop above with subnormals flushed to zero (flush_subnormals.c) */
-int dtdyn_ss_states(long ns, long n_steps, const double *restrict At, const double *restrict w,
-                    double *restrict X)
-{
-    const unsigned long long mode = dtdyn_flush_on();
-    const int rc = ss_states_run(ns, n_steps, At, w, X);
-    dtdyn_flush_off(mode);
-    return rc;
-}

@@ -379,20 +379,15 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
             if len(lost) > 1:
                 shared_f = client.scatter(shared, broadcast=True, hash=False)
                 lost = run_round(shared_f, [t for t, _ in lost])
-            fresh = False
+            fresh = False   # the scenes scattered since the last failure
             for (a, k), _ in lost:
                 for i in range(a, a + k):
                     if not fresh:
                         shared_f = client.scatter(shared, broadcast=True, hash=False)
-                    futures = [submit(shared_f, i, 1)]
-                    try:
-                        record(*futures[0].result())
-                        fresh = True
-                    except CBackendError:
-                        raise
-                    except Exception as exc:  # noqa: BLE001 - it fails alone: it is failed
+                    alone = run_round(shared_f, [(i, 1)])
+                    for _, exc in alone:   # it failed alone: it is failed
                         record(_task_failed(specs[i:i + 1], exc), None)
-                        fresh = False
+                    fresh = not alone
         wall = time.perf_counter() - start
         summary = {"cases": n, "done": n - failed, "failed": failed, "wall_time_s": wall,
                    "cases_per_s": n / wall if wall > 0 else float("inf"),
