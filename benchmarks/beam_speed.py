@@ -5,8 +5,8 @@ Wittrick-Williams frequencies.
    (beta L)^2 sqrt(EI / (rho_A L^4)) (beta L to 15 digits) for 100, 200, 400 elements.
 2. A step-loaded cantilever (tip displacement stored, average acceleration, displacement form
    for the DT-TMM, 400 steps of 1e-4 s) for 1,000 .. 10,000 elements, same run:
-   `simulate_beam` (the block-tridiagonal C kernel, generated/block_chain.c) against
-   `simulate_mck` on the same sparse matrices from `beam_matrices`, its NumPy/scipy.sparse loop
+   `beam_response` (the block-tridiagonal C kernel, generated/block_chain.c) against
+   `mck_response` on the same sparse matrices from `beam_matrices`, its NumPy/scipy.sparse loop
    (Newmark with scipy's sparse LU) and its C loop (SuperLU's factors). Per step: the time loop
    (`info["run_time"]`, factorization included) over the steps; construction (assembly, checks,
    a_0: the rest of the call) apart, in ms; the ratios of the whole calls. The fitted slope of
@@ -63,9 +63,9 @@ def main():
         M, C, K = dd.beam_matrices(beam)
         kw = dict(force_dofs=[tip], outputs=[tip], quantities=("x",),
                   scheme="average_acceleration")
-        runs = {"dttmm": best(lambda: dd.simulate_beam(beam, F, DT, **kw)),
-                "scipy": best(lambda: dd.simulate_mck(M, C, K, F, DT, backend="numpy", **kw)),
-                "superlu": best(lambda: dd.simulate_mck(M, C, K, F, DT, **kw))}
+        runs = {"dttmm": best(lambda: dd.beam_response(beam, F, DT, **kw)),
+                "scipy": best(lambda: dd.mck_response(M, C, K, F, DT, backend="numpy", **kw)),
+                "superlu": best(lambda: dd.mck_response(M, C, K, F, DT, **kw))}
         assert runs["dttmm"][2].info["backend"] == "c", "the C kernel did not run"
         cells = []
         for key, (total, run, _) in runs.items():

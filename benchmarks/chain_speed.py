@@ -1,6 +1,6 @@
 """Speed of the DT-TMM chain kernels, with ratios measured in the same run.
 
-1. C DT-TMM (stable sweep) against `simulate_mck` on the sparse assembled matrices, same scheme:
+1. C DT-TMM (stable sweep) against `mck_response` on the sparse assembled matrices, same scheme:
    its NumPy loop (scipy.sparse products, a SuperLU factorization) and its C loop (SuperLU's
    factors applied in C); uniform chain of 1,000 masses (m = 1, k = 1e4, c = 1), 10,000 steps of
    dt = 1e-4.
@@ -9,7 +9,7 @@
    fitted slope of log(time) over log(N) should be 1 (O(N) per step).
 3. C against NumPy backends, and C on two threads against one: largest relative difference
    (should be <= 1e-12, or the scheme's own rounding sensitivity where that is larger: NumPy
-   against `simulate_mck` on the assembled matrices; both backends form the same terms in the
+   against `mck_response` on the assembled matrices; both backends form the same terms in the
    same order, the C recurrences take four masses a round).
 4. Memory traffic of one thread at N = 1e5, where the 10 rows the sweep touches each step
    (8 MB) no longer fit in a core's L2 (2 MiB here): the doubles the stable sweep moves per
@@ -30,8 +30,8 @@ import numpy as np
 from dtdyn._engine import cbuild
 from dtdyn._engine import kernels
 from dtdyn import DtdynUnstableError
-from dtdyn.linear.chain import SPLIT_MASSES, chain_matrices, simulate_chain
-from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.chain import SPLIT_MASSES, chain_matrices, chain_response
+from dtdyn.linear.mck import mck_response
 
 
 def best_of(fn, repeats):
@@ -59,18 +59,18 @@ def main(quick=False):
     F = np.ones((steps + 1, 1))
     out = [0, n // 2, n - 1]
     M, C, K = chain_matrices(m, k, c, sparse=True)
-    t_c, rc = best_of(lambda: simulate_chain(m, k, c, F, dt, force_dofs=[n - 1], outputs=out,
+    t_c, rc = best_of(lambda: chain_response(m, k, c, F, dt, force_dofs=[n - 1], outputs=out,
                                              backend="c", quantities=("x",)), 5)
-    t_mck, rm = best_of(lambda: simulate_mck(M, C, K, F, dt, force_dofs=[n - 1], outputs=out,
+    t_mck, rm = best_of(lambda: mck_response(M, C, K, F, dt, force_dofs=[n - 1], outputs=out,
                                              quantities=("x",), backend="numpy"),
                         1 if quick else 3)
-    t_mc, _ = best_of(lambda: simulate_mck(M, C, K, F, dt, force_dofs=[n - 1], outputs=out,
+    t_mc, _ = best_of(lambda: mck_response(M, C, K, F, dt, force_dofs=[n - 1], outputs=out,
                                            quantities=("x",)), 1 if quick else 3)
     diff = np.max(np.abs(rc.x - rm.x)) / np.max(np.abs(rm.x))
     print(f"1) {n} masses x {steps} steps, Newmark average acceleration")
     print(f"   C DT-TMM                        {t_c * 1e3:9.2f} ms  ({t_c / steps * 1e6:.2f} us/step)")
-    print(f"   simulate_mck sparse, NumPy loop {t_mck * 1e3:9.2f} ms  ({t_mck / steps * 1e6:.2f} us/step)")
-    print(f"   simulate_mck sparse, C loop     {t_mc * 1e3:9.2f} ms  ({t_mc / steps * 1e6:.2f} us/step)")
+    print(f"   mck_response sparse, NumPy loop {t_mck * 1e3:9.2f} ms  ({t_mck / steps * 1e6:.2f} us/step)")
+    print(f"   mck_response sparse, C loop     {t_mc * 1e3:9.2f} ms  ({t_mc / steps * 1e6:.2f} us/step)")
     print(f"   speed-up {t_mck / t_c:.1f}x against the scipy.sparse loop (target >= 5x), "
           f"{t_mc / t_c:.1f}x against the C loop (SuperLU); max relative difference {diff:.1e}\n")
 
@@ -84,7 +84,7 @@ def main(quick=False):
         F = np.ones((s + 1, 1))
         times = []
         for workers in (1, None):
-            t, r = best_of(lambda: simulate_chain(m, k, c, F, dt, force_dofs=[N - 1],
+            t, r = best_of(lambda: chain_response(m, k, c, F, dt, force_dofs=[N - 1],
                                                   outputs=[N - 1], quantities=("x",),
                                                   workers=workers), 3)
             times.append(t / s)
@@ -112,33 +112,33 @@ def main(quick=False):
         ref = None
         for form in forms:
             kw = dict(force_dofs=[10, 500, 999], scheme=scheme, form=form, quantities=("x",))
-            a = simulate_chain(m, k, c, F, 1e-4, backend="c", **kw)
-            b = simulate_chain(m, k, c, F, 1e-4, backend="numpy", **kw)
+            a = chain_response(m, k, c, F, 1e-4, backend="c", **kw)
+            b = chain_response(m, k, c, F, 1e-4, backend="numpy", **kw)
             d = np.max(np.abs(a.x - b.x)) / np.max(np.abs(b.x))
             # two threads against one, on a stiff chain (k = 1e8, dt = 1e-3: every g near 1, so
             # the lower part's correction reaches far from the cut; unconditionally stable
             # schemes only)
             try:
-                x1, x2 = (simulate_chain(m, 1e4 * k, c, F, 1e-3, workers=w, **kw).x
+                x1, x2 = (chain_response(m, 1e4 * k, c, F, 1e-3, workers=w, **kw).x
                           for w in (1, 2))
             except DtdynUnstableError:
                 continue
             split = max(split, (np.max(np.abs(x2 - x1)) / np.max(np.abs(x1)), scheme, form))
             if d > worst[form][0]:
                 if ref is None:
-                    ref = simulate_mck(M, C, K, F, 1e-4, force_dofs=[10, 500, 999],
+                    ref = mck_response(M, C, K, F, 1e-4, force_dofs=[10, 500, 999],
                                        scheme=scheme, quantities=("x",))
                 e = np.max(np.abs(b.x - ref.x)) / np.max(np.abs(ref.x))
                 worst[form] = (d, scheme, e)
     for form, (d, scheme, e) in worst.items():
         print(f"   {form} form, largest relative difference: {d:.1e} ({scheme}; NumPy against "
-              f"simulate_mck, same scheme: {e:.1e}) (target <= max(1e-12, that))")
+              f"mck_response, same scheme: {e:.1e}) (target <= max(1e-12, that))")
     print(f"   C on two threads against one (k = 1e8, dt = 1e-3, the unconditionally stable schemes): "
           f"largest relative difference "
           f"{split[0]:.1e} ({split[1]}, {split[2]} form; the split reorders two sums)")
     print("   (both evaluate the same generated expressions in the same order; the C kernel's\n"
           "    recurrences take four masses a round, so the backends agree to rounding, as closely\n"
-          "    as the scheme's rounding lets two solvers of it agree: simulate_mck's sparse LU)\n")
+          "    as the scheme's rounding lets two solvers of it agree: mck_response's sparse LU)\n")
     memory_traffic(Ns[-1], one[-1])
 
 

@@ -3,7 +3,7 @@
 For P1, P2, P3 (`dtdyn.p1()` .. `p3()`, unit step on the last mass) and dt = 1e-2 .. 1e-5 (the
 full duration, at most 3,000 steps), every implicit scheme, both forms, C backend: the largest
 max-over-time relative difference of x, v and a (each relative to its max over time and masses)
-against `simulate_mck`, which works in the acceleration form. Writes docs/dttmm_accuracy.md.
+against `mck_response`, which works in the acceleration form. Writes docs/dttmm_accuracy.md.
 Usage: python benchmarks/dttmm_vs_mck.py
 """
 from __future__ import annotations
@@ -14,8 +14,8 @@ import numpy as np
 
 from dtdyn.app import problems
 from dtdyn.generated import SCHEMES
-from dtdyn.linear.chain import chain_matrices, simulate_chain
-from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.chain import chain_matrices, chain_response
+from dtdyn.linear.mck import mck_response
 
 PROBLEMS = {name: (p["mass"], p["stiffness"], p["damping"], p["T"])
             for name, p in (("P1", problems.p1()), ("P2", problems.p2()), ("P3", problems.p3()))}
@@ -34,8 +34,8 @@ def main():
                 for scheme in SCHEMES:
                     if scheme == "central_difference":
                         continue
-                    ref = simulate_mck(M, C, K, F, dt, force_dofs=[len(m) - 1], scheme=scheme)
-                    r = simulate_chain(m, k, c, F, dt, force_dofs=[len(m) - 1], scheme=scheme,
+                    ref = mck_response(M, C, K, F, dt, force_dofs=[len(m) - 1], scheme=scheme)
+                    r = chain_response(m, k, c, F, dt, force_dofs=[len(m) - 1], scheme=scheme,
                                        form=form)
                     for q in "xva":
                         a, b = getattr(r, q), getattr(ref, q)

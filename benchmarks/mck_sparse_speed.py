@@ -1,4 +1,4 @@
-"""simulate_mck on sparse matrices: the C loop against the NumPy/scipy.sparse loop, same run.
+"""mck_response on sparse matrices: the C loop against the NumPy/scipy.sparse loop, same run.
 
 Two sparse models of 10,000 DOFs: a chain (random masses 1..2 kg, springs 1e5..2e5 N/m,
 dampers 0.1..1 N s/m; tridiagonal) and a 100 x 100 grid of masses, each tied to its four
@@ -7,7 +7,7 @@ with bandwidth 100, the sparse LU fills in), Rayleigh damping. A random force on
 average acceleration (Newmark 1/4, 1/2), dt = 1e-3 s; x, v, a of every 100th DOF stored.
 Then a 1,000-DOF chain over ten times the steps, where the per-step cost of Python shows.
 
-Three runs of the same record: simulate_mck with backend="c" (the effective matrix factorized
+Three runs of the same record: mck_response with backend="c" (the effective matrix factorized
 once by SuperLU, least-fill ordering; products and substitutions in C, whole blocks of steps
 per call), backend="numpy" (the same factors, stepped with scipy.sparse products and
 SuperLU's solve), and a lean textbook Newmark loop in NumPy/scipy.sparse with its own
@@ -70,12 +70,12 @@ def run(name, M, C, K, f, dt):
     n = M.shape[0]
     loaded, outputs = [n // 3, n - 1], np.arange(0, n, 100)
     kw = dict(force_dofs=loaded, outputs=outputs, scheme="average_acceleration")
-    dd.simulate_mck(M, C, K, f[:50], dt, **kw)  # compile or load the kernel
+    dd.mck_response(M, C, K, f[:50], dt, **kw)  # compile or load the kernel
     t = time.perf_counter()
-    rc = dd.simulate_mck(M, C, K, f, dt, **kw)
+    rc = dd.mck_response(M, C, K, f, dt, **kw)
     t_c = time.perf_counter() - t
     t = time.perf_counter()
-    rn = dd.simulate_mck(M, C, K, f, dt, backend="numpy", **kw)
+    rn = dd.mck_response(M, C, K, f, dt, backend="numpy", **kw)
     t_np = time.perf_counter() - t
     t = time.perf_counter()
     X = peer(M, C, K, f, dt, loaded, outputs)
@@ -89,8 +89,8 @@ def run(name, M, C, K, f, dt):
     us = 1e6 / n_steps
     print(f"{name}: {n:,} DOFs, nnz(K) = {K.nnz:,}, nnz(L + U) = {lu.L.nnz + lu.U.nnz:,}; "
           f"{n_steps:,} steps, average acceleration, x v a of {outputs.size} DOFs stored")
-    print(f"  simulate_mck, C loop:                {t_c * 1e3:9.1f} ms  ({t_c * us:.1f} us/step)")
-    print(f"  simulate_mck, NumPy/scipy.sparse:    {t_np * 1e3:9.1f} ms  ({t_np * us:.1f} us/step)"
+    print(f"  mck_response, C loop:                {t_c * 1e3:9.1f} ms  ({t_c * us:.1f} us/step)")
+    print(f"  mck_response, NumPy/scipy.sparse:    {t_np * 1e3:9.1f} ms  ({t_np * us:.1f} us/step)"
           f"  {t_np / t_c:.1f}x the C loop; agree to {err_np:.1e} (x, v, a; relative to max)")
     print(f"  lean NumPy/scipy.sparse Newmark:     {t_peer * 1e3:9.1f} ms  "
           f"({t_peer * us:.1f} us/step)  {t_peer / t_c:.1f}x the C loop; agree to "

@@ -1,4 +1,4 @@
-"""simulate_mck's C loop against a lean NumPy loop with a prefactored LU (the peer), same run.
+"""mck_response's C loop against a lean NumPy loop with a prefactored LU (the peer), same run.
 
 A 10-DOF chain (random masses 1..2 kg, springs 1e3..2e3 N/m, dampers 0.1..1 N s/m), a random
 force on two DOFs, 200,000 steps of dt = 1e-3 s, average acceleration (Newmark beta = 1/4,
@@ -44,16 +44,16 @@ def main(n_steps=200_000):
                                 rng.uniform(0.1, 1, n), sparse=False)
     f = rng.standard_normal((n_steps + 1, 2))
     kw = dict(force_dofs=[3, 9], scheme="average_acceleration")
-    dd.simulate_mck(M, C, K, f[:100], 1e-3, **kw)  # compile or load the kernel
+    dd.mck_response(M, C, K, f[:100], 1e-3, **kw)  # compile or load the kernel
     t = time.perf_counter()
-    r = dd.simulate_mck(M, C, K, f, 1e-3, **kw)
+    r = dd.mck_response(M, C, K, f, 1e-3, **kw)
     t_c = time.perf_counter() - t
     t = time.perf_counter()
     X = peer(M, C, K, f, 1e-3, [3, 9])
     t_peer = time.perf_counter() - t
     err = np.abs(r.x - X).max() / np.abs(X).max()
     print(f"{n}-DOF model, {n_steps:,} steps, average acceleration, x v a of every DOF stored")
-    print(f"simulate_mck (C loop):            {t_c * 1e3:9.1f} ms  "
+    print(f"mck_response (C loop):            {t_c * 1e3:9.1f} ms  "
           f"({t_c / n_steps * 1e6:.3f} us per step)")
     print(f"lean NumPy loop, prefactored LU:  {t_peer * 1e3:9.1f} ms  "
           f"({t_peer / n_steps * 1e6:.3f} us per step)")

@@ -18,14 +18,14 @@ f = np.sin(np.arange({n}) * 7e-3)
 kw = dict(force_dofs=[3], outputs=[0], quantities=("x",))
 cubic = [dd.Cubic(0, k3=1e5)]
 runs = {{
-    "chain (C)": lambda f: dd.simulate_chain([1.0] * 4, [1e3] * 4, [0.1] * 4, f, 1e-3, **kw),
-    "simulate_mck (C)": lambda f: dd.simulate_mck(M, C, K, f, 1e-3, **kw),
-    "simulate_mck (NumPy)": lambda f: dd.simulate_mck(M, C, K, f, 1e-3, backend="numpy", **kw),
+    "chain (C)": lambda f: dd.chain_response([1.0] * 4, [1e3] * 4, [0.1] * 4, f, 1e-3, **kw),
+    "mck_response (C)": lambda f: dd.mck_response(M, C, K, f, 1e-3, **kw),
+    "mck_response (NumPy)": lambda f: dd.mck_response(M, C, K, f, 1e-3, backend="numpy", **kw),
     "state space (C)": lambda f: dd.state_space_response(dd.newmark_ss(M, C, K, 1e-3), f, **kw),
     "modal filters (C)": lambda f: dd.modal_filter_response(M, C, K, f, 1e-3, **kw),
-    "nonlinear (C)": lambda f: dd.nonlinear_response(M, C, K, f, 1e-3, elements=cubic,
+    "nonlinear (C)": lambda f: dd.nonlinear_mck_response(M, C, K, f, 1e-3, elements=cubic,
                                                      scheme="modal_parabolic", **kw),
-    "nonlinear (CasADi)": lambda f: dd.nonlinear_response(M, C, K, f, 1e-3, elements=cubic,
+    "nonlinear (CasADi)": lambda f: dd.nonlinear_mck_response(M, C, K, f, 1e-3, elements=cubic,
                                                           scheme="modal_parabolic",
                                                           backend="casadi", **kw),
 }}
@@ -37,7 +37,7 @@ peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 print(f"{{warm:.0f}} {{peak:.0f}} {{r.info.get('run_time', float('nan')):.3f}}")
 """
 
-NAMES = ["chain (C)", "simulate_mck (C)", "simulate_mck (NumPy)", "state space (C)",
+NAMES = ["chain (C)", "mck_response (C)", "mck_response (NumPy)", "state space (C)",
          "modal filters (C)", "nonlinear (C)", "nonlinear (CasADi)"]
 
 

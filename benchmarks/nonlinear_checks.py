@@ -10,7 +10,7 @@ tangent stiffness, and the Bouc-Wen hysteresis loop against the solve_ivp refere
    against the reference (DOP853 rtol 1e-12 restarted at every sample), dissipated energy, loop.
 
 3. DT-TMM chains with nonlinear elements: run time per step of nonlinear_chain_response (two
-   cubic springs) against the linear simulate_chain on the same chain, N = 1e3 .. 1e5 masses,
+   cubic springs) against the linear chain_response on the same chain, N = 1e3 .. 1e5 masses,
    measured in the same run.
 
 Writes docs/nonlinear_checks.md and docs/img/bouc_wen_loop.png.
@@ -62,7 +62,7 @@ def bouc_wen():
     out = []
     for method in ("modal_ramp", "modal_parabolic", "modal_explicit", "newmark"):
         for S in (1, 2, 4, 8):
-            r = NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els,
+            r = NL.nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els,
                                       scheme=method, substeps=S)
             err = np.abs(r.x - ref.x).max() / np.abs(ref.x).max()
             out.append((method, S, err, np.trapezoid(g_of(r), r.x[:, 0]), r))
@@ -72,7 +72,7 @@ def bouc_wen():
 def chain_scaling():
     import time
 
-    from dtdyn import simulate_chain
+    from dtdyn import chain_response
     from dtdyn.nonlinear.elements import Cubic
     from dtdyn.nonlinear.chain import nonlinear_chain_response
     rows = []
@@ -82,7 +82,7 @@ def chain_scaling():
         m, k, c = np.ones(n), np.full(n, 1e4), np.full(n, 1.0)
         els = [Cubic(0, k3=2e7), Cubic(n - 3, n - 2, k3=2e7)]
         times = []
-        for run in (lambda: simulate_chain(m, k, c, f, 1e-3, force_dofs=[n - 1], outputs=[n - 1],
+        for run in (lambda: chain_response(m, k, c, f, 1e-3, force_dofs=[n - 1], outputs=[n - 1],
                                            form="acceleration"),
                     lambda: nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[n - 1],
                                                      elements=els, outputs=[n - 1],
@@ -123,7 +123,7 @@ def main():
     lines += ["", "![Bouc-Wen loop](img/bouc_wen_loop.png)", "",
               "## DT-TMM chains with nonlinear elements", "",
               "Two cubic springs (k3 = 2e7) on a uniform chain, 100 steps, acceleration form; time "
-              "per step:", "", "| masses | simulate_chain (linear) [ms] | nonlinear_chain_response "
+              "per step:", "", "| masses | chain_response (linear) [ms] | nonlinear_chain_response "
               "[ms] | ratio |", "|---|---|---|---|"]
     for n, t_lin, t_nl in chain_scaling():
         lines.append(f"| {n} | {t_lin * 1e3:.3f} | {t_nl * 1e3:.3f} | {t_nl / t_lin:.1f} |")

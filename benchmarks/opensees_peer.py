@@ -13,7 +13,7 @@ C = a0 M + a1 K of 5 % in modes 1 and 3, the same C in both programs. In OpenSee
 storey with an Elastic uniaxial material (``-doRayleigh 1``, or the element adds no
 stiffness-proportional damping), ``rayleigh(a0, a1, 0, 0)``, the record as a ``Path`` time
 series (``-dt``) in a ``UniformExcitation`` pattern, Newmark (gamma 1/2, beta 1/4),
-``algorithm Linear``. dtdyn: ``simulate_mck(M, C, K, None, dt, scheme="average_acceleration",
+``algorithm Linear``. dtdyn: ``mck_response(M, C, K, None, dt, scheme="average_acceleration",
 ground_acceleration=ag)``.
 
 1. Accuracy. Both load the structure with -M r a_g(t_k) and report displacements relative to
@@ -28,7 +28,7 @@ ground_acceleration=ag)``.
    there, and the script exits with status 1 when it is missed.
 2. Speed, same run: OpenSees ``analyze(n_steps, dt)`` in one call with a Node recorder writing
    the displacement of every floor at every step (the fastest of the systems tried below,
-   ``Linear -factorOnce``, a binary recorder file), against ``simulate_mck`` (generated C loop)
+   ``Linear -factorOnce``, a binary recorder file), against ``mck_response`` (generated C loop)
    storing x of every DOF; after a warm-up, the median of repeats. Only the analysis is timed
    in OpenSees (not the model building nor reading the file back); dtdyn's time is the whole
    call (checks, factorization, loop, result).
@@ -119,7 +119,7 @@ def opensees(ops, ag, dt, a0, a1, *, system="BandSPD", factor_once=True, binary=
 
 
 def dtdyn_run(M, C, K, ag, dt, quantities=("x",)):
-    return dd.simulate_mck(M, C, K, None, dt, scheme="average_acceleration",
+    return dd.mck_response(M, C, K, None, dt, scheme="average_acceleration",
                            ground_acceleration=ag, quantities=quantities, backend="c")
 
 

@@ -6,11 +6,11 @@ Writes docs/p3_errors.md. Run from the repository root:
 
 Problem P3 (`dtdyn.p3()`): undamped chain, unit step force on mass 15 (0-based 14)
 from t = 0, zero initial state, T = 0.8 s, dt = 1e-3 (800 steps). Every scheme runs with its
-default parameters through the DT-TMM chain solver (`simulate_chain`, stable Riccati sweep, C
+default parameters through the DT-TMM chain solver (`chain_response`, stable Riccati sweep, C
 backend, displacement form). Central difference is explicit, so it only has the acceleration form,
 and there the DT-TMM spring row divides by c Dv = 0 on an undamped chain (the runtime raises a
 ValueError naming the damping): it is run instead on the assembled matrices with
-`dtdyn.linear.mck.simulate_mck`, the same generated integrator, and marked as such.
+`dtdyn.linear.mck.mck_response`, the same generated integrator, and marked as such.
 
 Error: max over time (and over the 15 masses) of |x - x_exact|, divided by max |x_exact| over
 the same set; x_exact from `exact_response` with the same force samples (exact for them).
@@ -29,9 +29,9 @@ import numpy as np
 
 from dtdyn.app import problems
 from dtdyn.generated import SCHEMES
-from dtdyn.linear.chain import chain_matrices, simulate_chain
+from dtdyn.linear.chain import chain_matrices, chain_response
 from dtdyn.linear.exact import exact_response
-from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.mck import mck_response
 
 MASS, STIFFNESS, DAMPING, LOADED = (problems.p3()[key]
                                     for key in ("mass", "stiffness", "damping", "force_dofs"))
@@ -73,11 +73,11 @@ def main():
     rows = []
     for name in SCHEMES:
         if name == "central_difference":
-            call = lambda: simulate_mck(M, C, K, force, DT, force_dofs=LOADED, scheme=name,
+            call = lambda: mck_response(M, C, K, force, DT, force_dofs=LOADED, scheme=name,
                                         quantities=("x",))
-            how = "assembled M, C, K (`simulate_mck`), acceleration form"
+            how = "assembled M, C, K (`mck_response`), acceleration form"
         else:
-            call = lambda name=name: simulate_chain(MASS, STIFFNESS, DAMPING, force, DT,
+            call = lambda name=name: chain_response(MASS, STIFFNESS, DAMPING, force, DT,
                                                     force_dofs=LOADED, scheme=name,
                                                     form="displacement", sweep="stable",
                                                     backend="c", quantities=("x",))
@@ -92,7 +92,7 @@ def main():
 
     # the DT-TMM acceleration form of central difference on this undamped chain
     try:
-        simulate_chain(MASS, STIFFNESS, DAMPING, force, DT, force_dofs=LOADED,
+        chain_response(MASS, STIFFNESS, DAMPING, force, DT, force_dofs=LOADED,
                        scheme="central_difference", form="acceleration")
         cd_note = "DT-TMM acceleration form ran (unexpected on an undamped chain)."
     except ValueError as exc:
@@ -119,7 +119,7 @@ def main():
     for dt in fg_dts:
         n = int(round(T_END / dt))
         f = np.ones((n + 1, 1))
-        x = simulate_chain(MASS, STIFFNESS, DAMPING, f, dt, force_dofs=LOADED, scheme="fox_goodwin",
+        x = chain_response(MASS, STIFFNESS, DAMPING, f, dt, force_dofs=LOADED, scheme="fox_goodwin",
                            quantities=("x",)).x
         fg_err.append(rel_error(x, exact_response(M, C, K, f, dt, force_dofs=LOADED).x))
     fg_slope = float(np.polyfit(np.log(fg_dts), np.log(fg_err), 1)[0])
@@ -138,10 +138,10 @@ def main():
         "Error = max over time and over the masses of |x - x_exact| / max |x_exact| (all 15 "
         "masses, and mass 15 alone), with x_exact from `exact_response` on the same force "
         "samples (matrix exponential, exact for them). Every scheme runs with its default "
-        "parameters through `simulate_chain` (DT-TMM, stable Riccati sweep, C backend, "
+        "parameters through `chain_response` (DT-TMM, stable Riccati sweep, C backend, "
         "displacement form). Central difference is explicit and P3 is undamped: its DT-TMM "
         "acceleration form divides by c Dv = 0 and raises, so it is run on the assembled "
-        "matrices with `dtdyn.linear.mck.simulate_mck` (same generated integrator). "
+        "matrices with `dtdyn.linear.mck.mck_response` (same generated integrator). "
         "Run time: the whole solver call, minimum of "
         f"{REPEATS} after a warm-up (includes the per-run setup; the exact reference takes "
         f"{t_exact * 1e3:.1f} ms).",

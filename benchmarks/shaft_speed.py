@@ -2,7 +2,7 @@
 
 1. A 10,000-disk shaft (clamped, J = 1, k_t = 1e4, c_t = 1) and a 10,000-station tree (a main
    line with a geared branch at its middle), 2,000 steps of average acceleration at dt = 1e-4,
-   torque step at the far disk: `simulate_shaft` (generated C tree loop) against `simulate_mck`
+   torque step at the far disk: `shaft_response` (generated C tree loop) against `mck_response`
    on the assembled sparse model (`shaft_matrices`), the default C loop (SuperLU factors applied
    in C) and backend="numpy" (scipy.sparse Newmark). Same run, same scheme; the agreement is
    printed.
@@ -46,14 +46,14 @@ def compare(name, shaft, n_steps=2000, dt=1e-4):
     M, C, K = dd.shaft_matrices(shaft)
     f = np.ones(n_steps + 1)
     kw = dict(force_dofs=[n - 1], outputs=[0, n - 1], scheme="average_acceleration")
-    t_tmm, r = best_of(lambda: dd.simulate_shaft(shaft, f, dt, **kw))
-    t_c, rc = best_of(lambda: dd.simulate_mck(M, C, K, f, dt, **kw))
-    t_np, rn = best_of(lambda: dd.simulate_mck(M, C, K, f, dt, backend="numpy", **kw), 1)
+    t_tmm, r = best_of(lambda: dd.shaft_response(shaft, f, dt, **kw))
+    t_c, rc = best_of(lambda: dd.mck_response(M, C, K, f, dt, **kw))
+    t_np, rn = best_of(lambda: dd.mck_response(M, C, K, f, dt, backend="numpy", **kw), 1)
     diff = max(np.abs(r.x - ref.x).max() / np.abs(ref.x).max() for ref in (rc, rn))
     print(f"{name}: {n} stations, {n_steps} steps of dt = {dt:g}")
     print(f"  DT-TMM tree sweep (C)              {t_tmm * 1e3:9.1f} ms")
-    print(f"  simulate_mck sparse, C loop        {t_c * 1e3:9.1f} ms   ratio {t_c / t_tmm:6.1f}x")
-    print(f"  simulate_mck sparse, numpy backend {t_np * 1e3:9.1f} ms   ratio {t_np / t_tmm:6.1f}x"
+    print(f"  mck_response sparse, C loop        {t_c * 1e3:9.1f} ms   ratio {t_c / t_tmm:6.1f}x")
+    print(f"  mck_response sparse, numpy backend {t_np * 1e3:9.1f} ms   ratio {t_np / t_tmm:6.1f}x"
           "   (scipy.sparse Newmark; target >= 10x)")
     print(f"  largest relative difference in x: {diff:.1e}")
 
@@ -63,7 +63,7 @@ def scaling(n_steps=500):
     per = []
     for n in sizes:
         s = tree(n)
-        t, _ = best_of(lambda: dd.simulate_shaft(s, np.ones(n_steps + 1), 1e-4,
+        t, _ = best_of(lambda: dd.shaft_response(s, np.ones(n_steps + 1), 1e-4,
                                                  force_dofs=[n - 1], outputs=[0]))
         per.append(t / n_steps)
         print(f"  N = {n:7d}: {per[-1] * 1e6:9.2f} us per step, "

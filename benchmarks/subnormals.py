@@ -65,7 +65,7 @@ def main(quick=False):
     m, k, c = np.ones(N), np.full(N, 1e4), np.ones(N)
     F = np.ones((steps + 1, 1))
     x0 = 1e-3 * rng.standard_normal(N)
-    t = [best_of(lambda x0=x0: dd.simulate_chain(m, k, c, F, 1e-4, force_dofs=[N - 1],
+    t = [best_of(lambda x0=x0: dd.chain_response(m, k, c, F, 1e-4, force_dofs=[N - 1],
                                                  outputs=[N - 1], quantities=("x",), x0=x0),
                  repeats) for x0 in (None, x0)]
     row(f"DT-TMM chain, {N} masses, from rest", *t, "mass-step", N * steps)

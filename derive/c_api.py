@@ -39,7 +39,7 @@ KERNELS = {
         "const long *restrict shift", "const long *restrict rows", "double *restrict H",
         "long n_out", "const long *restrict out_idx", "double *restrict xo",
         "double *restrict vo", "double *restrict ao", "double *restrict work")),
-    # csrc/block_chain.c: 2 x 2 node-block chains (simulate_beam)
+    # csrc/block_chain.c: 2 x 2 node-block chains (beam_response)
     "dtdyn_block_chain_factor": ("int", (
         "long N", "const double *restrict A", "double *restrict fac")),
     "dtdyn_block_chain_solve": ("int", (

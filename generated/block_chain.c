@@ -67,7 +67,7 @@ static inline void dtdyn_flush_off(unsigned long long mode) {
 #define DTDYN_LOOP __attribute__((noinline)) static
 /*
  * The time loop of a chain of nodes with two DOFs each whose M, C, K are symmetric and block
- * tridiagonal in 2 x 2 node blocks (a beam: [w, psi] per node, simulate_beam), any scheme of
+ * tridiagonal in 2 x 2 node blocks (a beam: [w, psi] per node, beam_response), any scheme of
  * the generated table in either form: the step of mck_loop.c,
  *
  *     F = w0 f_k + w1 f_{k+1}                                   (on the loaded DOFs)
@@ -78,7 +78,7 @@ static inline void dtdyn_flush_off(unsigned long long mode) {
  * a1 over the history rows, dttmm_sweep.expanded; c_u: x1_u, v1_u, a1_u), written for the
  * blocks: no CSR, no indirect indexing. The right side is formed either from q, s, b and
  * K, C, M, or (mats[0] NULL) as F - sum_h B_h H_h with the caller's B_h = L_q[h] K +
- * L_s[h] C + L_b[h] M, which saves the pass for q, s, b (simulate_beam: the one-step
+ * L_s[h] C + L_b[h] M, which saves the pass for q, s, b (beam_response: the one-step
  * schemes, whose terms do not cancel). The effective matrix A = alpha M + r C + p K is solved
  * by the matrix Riccati sweep, condensed from the last node once per run
  * (dtdyn_block_chain_factor):

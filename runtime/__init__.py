@@ -3,7 +3,7 @@
 Everything a user needs is importable from here::
 
     import dtdyn as dd
-    r = dd.simulate_chain(mass, stiffness, damping, force, dt, force_dofs=[14])
+    r = dd.chain_response(mass, stiffness, damping, force, dt, force_dofs=[14])
 
 The package is organized in rooms: `dtdyn.linear` (chains, M/C/K time histories, exact and
 state-space discretizations, TMM, stability), `dtdyn.modal` (modal models, modal digital filters,
@@ -22,17 +22,17 @@ from dtdyn._engine.result_io import load_result
 from dtdyn.app.batch import run_batch
 from dtdyn.app.problems import p1, p2, p3, p4
 from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
-from dtdyn.linear.chain import chain_matrices, rayleigh_chain_damping, simulate_chain
+from dtdyn.linear.chain import chain_matrices, rayleigh_chain_damping, chain_response
 from dtdyn.linear.beam import (Beam, PointMass, Support, beam_frequencies, beam_matrices,
-                               simulate_beam)
+                               beam_response)
 from dtdyn.linear.beam_frequency import beam_frequency_response, beam_modes
 from dtdyn.linear.discrete_model import DiscreteModel
 from dtdyn.linear.discretize import discretize, first_order_form
 from dtdyn.linear.exact import exact_response
 from dtdyn.linear.frequencies import chain_frequencies, chain_poles
-from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.mck import mck_response
 from dtdyn.linear.shaft import (Branch, ContinuousShaft, Shaft, shaft_frequencies, shaft_matrices,
-                                simulate_shaft)
+                                shaft_response)
 from dtdyn.linear.shaft_frequency import shaft_frequency_response, shaft_modes
 from dtdyn.linear.stability import Stability, critical_omega_dt, stability
 from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
@@ -47,22 +47,22 @@ from dtdyn.modal.srs import SRS, load_record, sdof_response, shock_response_spec
 from dtdyn.nonlinear.chain import nonlinear_chain_response
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
 from dtdyn.nonlinear.reference import check_reference, reference_response
-from dtdyn.nonlinear.response import nonlinear_response
+from dtdyn.nonlinear.response import nonlinear_mck_response
 from dtdyn.nonlinear.stations import nonlinear_beam_response, nonlinear_shaft_response
 
 __version__ = "0.1.0"
 
 __all__ = [
     # linear time histories and discrete models
-    "simulate_chain", "chain_matrices", "rayleigh_chain_damping", "Beam", "PointMass", "Support",
-    "beam_matrices", "beam_frequencies", "simulate_beam", "beam_modes",
-    "beam_frequency_response", "simulate_mck", "exact_response",
+    "chain_response", "chain_matrices", "rayleigh_chain_damping", "Beam", "PointMass", "Support",
+    "beam_matrices", "beam_frequencies", "beam_response", "beam_modes",
+    "beam_frequency_response", "mck_response", "exact_response",
     "newmark_ss", "discrete_state_space", "state_space_response",
     "discretize", "first_order_form", "DiscreteModel",
     "frequency_response", "undamped_poles", "chain_frequencies", "chain_poles", "stability", "critical_omega_dt",
     "Stability",
     # torsional shafts and trees
-    "Shaft", "Branch", "ContinuousShaft", "simulate_shaft", "shaft_matrices",
+    "Shaft", "Branch", "ContinuousShaft", "shaft_response", "shaft_matrices",
     "shaft_frequencies", "shaft_modes", "shaft_frequency_response",
     # modal
     "modes", "Modes", "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",
@@ -70,7 +70,7 @@ __all__ = [
     "truncation_error", "shock_response_spectrum", "sdof_response", "SRS", "load_record",
     "response_spectrum", "ResponseSpectrum",
     # nonlinear
-    "nonlinear_response", "nonlinear_chain_response", "nonlinear_shaft_response",
+    "nonlinear_mck_response", "nonlinear_chain_response", "nonlinear_shaft_response",
     "nonlinear_beam_response", "reference_response", "check_reference",
     "Cubic", "Polynomial", "Gap", "Law", "BoucWen",
     # scenes, results, reference problems

@@ -1,5 +1,5 @@
 /*
- * The time loop of simulate_mck and simulate_beam (any one-step or multistep scheme of the
+ * The time loop of mck_response and beam_response (any one-step or multistep scheme of the
  * generated table, either form), for dense and sparse M, C, K alike. Each DOF's x, v, a at the
  * equilibrium point are x = p u + q, v = r u + s, a = alpha u + b in the step's unknown u. Per
  * step, with the history H (n_hist rows of n: x0, v0, a0 and lags) and the scheme's coefficient

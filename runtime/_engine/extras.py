@@ -6,7 +6,7 @@ import importlib
 
 def require(module: str, extra: str | None, what: str):
     """Import ``module`` or raise ImportError naming ``what`` needs it and the extra to install,
-    e.g. ``require("casadi", "nonlinear", "nonlinear_response")`` (``extra`` None: the package
+    e.g. ``require("casadi", "nonlinear", "nonlinear_mck_response")`` (``extra`` None: the package
     itself, ``pip install module``)."""
     try:
         return importlib.import_module(module)

@@ -37,7 +37,7 @@ class Response:
     Examples
     --------
     >>> import numpy as np, dtdyn as dd
-    >>> r = dd.simulate_chain([1.0, 1.0], [4.0, 4.0], [0.1, 0.1], np.ones(11), 0.1,
+    >>> r = dd.chain_response([1.0, 1.0], [4.0, 4.0], [0.1, 0.1], np.ones(11), 0.1,
     ...                       force_dofs=[1], outputs=[1], quantities=("x", "a"))
     >>> r.x.shape, r.v is None, r.column(1)
     ((11, 1), True, 0)

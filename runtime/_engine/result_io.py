@@ -167,7 +167,7 @@ def load_result(path):
     Examples
     --------
     >>> import numpy as np, dtdyn as dd, tempfile, pathlib
-    >>> r = dd.simulate_chain([1.0], [4.0], [0.1], np.ones(11), 0.1, quantities=("x",))
+    >>> r = dd.chain_response([1.0], [4.0], [0.1], np.ones(11), 0.1, quantities=("x",))
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "r.npz"
     >>> _ = r.save(path)
     >>> back = dd.load_result(path)

@@ -1,4 +1,4 @@
-"""The threads dtdyn's splittable C loops use by default (simulate_chain's stable sweep,
+"""The threads dtdyn's splittable C loops use by default (chain_response's stable sweep,
 shock_response_spectrum's filter bank): the CPUs this process may run on, capped by the
 environment variable DTDYN_THREADS (set it to 1 where each process owns one core, e.g. the
 worker processes of a batch; `run_batch`'s own cluster does)."""

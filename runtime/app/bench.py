@@ -9,7 +9,7 @@ sweep rtol. References: the matrix exponential (exact for P3's piecewise-linear 
 solve_ivp DOP853 rtol 1e-12 reference restarted at every sample (P4, cached on disk). solve_ivp
 peers on P4 run on a window of the record and are extrapolated (marked). P4 also reports every
 run's time over that of the linear modal filter response of P4L (P4 without its cubic springs,
-same record, same run): the price of the nonlinearity; and nonlinear_response's accuracy targets
+same record, same run): the price of the nonlinearity; and nonlinear_mck_response's accuracy targets
 (``accuracy=1e-3, 1e-6``), timed over all the runs each needs.
 """
 from __future__ import annotations
@@ -98,7 +98,7 @@ def bench_p3(quick=False, log=print):
     from scipy import signal
     from scipy.integrate import solve_ivp
 
-    from dtdyn.linear.chain import simulate_chain
+    from dtdyn.linear.chain import chain_response
     from dtdyn.linear.discretize import discretize, first_order_form
     from dtdyn.linear.exact import exact_response
     from dtdyn.modal.filters import modal_filter_response
@@ -116,7 +116,7 @@ def bench_p3(quick=False, log=print):
         ref = exact_response(M, C, K, f, dt, force_dofs=[14], outputs=[out]).x[:, 0]
         setting = f"dt={dt:g}"
         for name, params in P3_SCHEMES:
-            r, t_run, t_b = _timed(lambda: simulate_chain(P["mass"], P["stiffness"], P["damping"],
+            r, t_run, t_b = _timed(lambda: chain_response(P["mass"], P["stiffness"], P["damping"],
                                                           f, dt, force_dofs=[14], scheme=name,
                                                           outputs=[out], quantities=("x",),
                                                           **params), reps)
@@ -178,7 +178,7 @@ P4_METHODS = [("modal_explicit", {}), ("modal_explicit", {"estimate": False}),
               ("modal_parabolic", {}), ("modal_ramp", {}), ("newmark", {}),
               ("hht", {"alpha": -0.05}), ("generalized_alpha", {"rho_inf": 0.8})]
 
-#: accuracy targets run on P4 (nonlinear_response's accuracy=: "auto" and modal_parabolic)
+#: accuracy targets run on P4 (nonlinear_mck_response's accuracy=: "auto" and modal_parabolic)
 P4_ACCURACY = (1e-3, 1e-6)
 
 
@@ -257,7 +257,7 @@ def bench_p4(quick=False, log=print):
     from dtdyn.linear.exact import exact_response
     from dtdyn.modal.filters import modal_filter_response
     from dtdyn.nonlinear.reference import check_reference, reference_response
-    from dtdyn.nonlinear.response import nonlinear_response
+    from dtdyn.nonlinear.response import nonlinear_mck_response
     n = 10_000 if quick else 100_000
     _steady_allocator()
     P = problems.p4(n)
@@ -301,7 +301,7 @@ def bench_p4(quick=False, log=print):
                   "modal_explicit": (1, 2) if params else (1, 2, 4),
                   "modal_parabolic": (1, 2, 3, 4, 8, 12)}.get(method, (1, 2, 3, 4, 8))
         for S in levels:
-            r, t_run, t_b = _timed(lambda: nonlinear_response(
+            r, t_run, t_b = _timed(lambda: nonlinear_mck_response(
                 *args, **kw, scheme=method, substeps=S, quantities=("x",), **params), 5,
                 loop_time, lin_time)
             note = ""
@@ -317,7 +317,7 @@ def bench_p4(quick=False, log=print):
     # estimates' own work (differences and extrapolations of the records)
     for scheme in ("auto", "modal_parabolic"):
         for target in P4_ACCURACY:
-            r, t_run, t_b = _timed(lambda: nonlinear_response(
+            r, t_run, t_b = _timed(lambda: nonlinear_mck_response(
                 *args, **kw, scheme=scheme, accuracy=target, quantities=("x",)), 5,
                 lambda r: r.info["run_time"] + r.info["estimate_time"], lin_time)
             i = r.info
@@ -333,7 +333,7 @@ def bench_p4(quick=False, log=print):
         f"{t_lin * 1e3:9.3f} ms  (median of {len(lin_times)}: 5 before, one before each timed "
         "nonlinear run, 5 after)")
     for S in (4, 8):
-        r, t_run, t_b = _timed(lambda: nonlinear_response(
+        r, t_run, t_b = _timed(lambda: nonlinear_mck_response(
             *args, **kw, scheme="newmark", substeps=S, backend="casadi", solver="fast_newton",
             compiled=True, quantities=("x",)), 1)
         add("CasADi newmark (compiled)", "peer", f"substeps={S}", r.x[:, out], ref,

@@ -118,8 +118,8 @@ def _simulate_nonlinear(args, sc) -> int:
         scenes.save_results(args.out, response, sc)
     if args.plot:
         scenes.plot_response(args.plot, response, sc)
-    n_steps = sc.n_steps * report["substeps"] + 1  # as nonlinear_response counts them
-    if report["construct_time_s"] is not None:  # nonlinear_response (matrices and chains)
+    n_steps = sc.n_steps * report["substeps"] + 1  # as nonlinear_mck_response counts them
+    if report["construct_time_s"] is not None:  # nonlinear_mck_response (matrices and chains)
         print(f"construct time: {report['construct_time_s'] * 1e3:.2f} ms, compile or cache "
               f"load: {report['compile_time_s'] * 1e3:.2f} ms, setup: "
               f"{report['setup_time_s'] * 1e3:.2f} ms")

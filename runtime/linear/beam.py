@@ -32,7 +32,7 @@ from dtdyn._engine import cbuild
 from dtdyn._engine import ground as support
 from dtdyn._engine import linalg, validate
 
-__all__ = ["Beam", "PointMass", "Support", "beam_matrices", "beam_frequencies", "simulate_beam"]
+__all__ = ["Beam", "PointMass", "Support", "beam_matrices", "beam_frequencies", "beam_response"]
 
 #: end conditions: which of (w, psi) is held
 BOUNDARIES = {"clamped": (True, True), "pinned": (True, False), "sliding": (False, True),
@@ -389,7 +389,7 @@ def node_system(beam: Beam):
                  for A, unit in ((Mg, 1.0), (Cg, 0.0), (Kg, 1.0)))
 
 
-def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
+def beam_response(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
                   form="displacement", outputs=None, quantities=("x", "v", "a"), x0=None,
                   v0=None, unstable="raise", backend="c", progress=False,
                   ground_acceleration=None, ground_velocity=None, ground_displacement=None,
@@ -401,7 +401,7 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     are then block tridiagonal in 2 x 2 node blocks, and the sweep condenses the beam from the
     free (right) end onto each node, P_i = D_i - E_i P_{i+1}^-1 F_i once per run, the load
     y_i = b_i - E_i P_{i+1}^-1 y_{i+1} every step, then the unknowns forward from the left:
-    O(N) per step, equal to `simulate_mck` on `beam_matrices` (same scheme) to rounding
+    O(N) per step, equal to `mck_response` on `beam_matrices` (same scheme) to rounding
     (docs/beam.md: the kernel and its speed).
 
     Parameters
@@ -413,7 +413,7 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     force_dofs, outputs : sequence of int or DOF names, optional
         Indices into ``beam.dof_names`` or the names themselves ("w200"); default every DOF.
     scheme, form, quantities, x0, v0, unstable, progress
-        As `simulate_chain` (x0, v0 over ``beam.dof_names``; explicit schemes have only the
+        As `chain_response` (x0, v0 over ``beam.dof_names``; explicit schemes have only the
         acceleration form).
     backend : {"c", "numpy"}
         The C kernel of 2 x 2 node-block chains (generated/block_chain.c: the node blocks of
@@ -421,7 +421,7 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
         nodes; NumPy with one warning where no compiler exists), or NumPy with a sparse LU of
         the same effective matrix.
     ground_acceleration, ground_velocity, ground_displacement, influence : optional
-        Support motion as in `simulate_mck` (one record; ``force`` may then be None): the DOFs
+        Support motion as in `mck_response` (one record; ``force`` may then be None): the DOFs
         are relative to the supports, which move together; the default influence r is the
         rigid translation (1 on every w, 0 on every psi).
 
@@ -435,7 +435,7 @@ def simulate_beam(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     --------
     >>> import numpy as np, dtdyn as dd
     >>> beam = dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=100)
-    >>> r = dd.simulate_beam(beam, np.ones(201), 1e-4, force_dofs=[beam.dof("w100")],
+    >>> r = dd.beam_response(beam, np.ones(201), 1e-4, force_dofs=[beam.dof("w100")],
     ...                      outputs=[beam.dof("w100")])
     >>> r.x.shape
     (201, 1)
@@ -668,7 +668,7 @@ def _block_advance(lib, form, sch, K_, stored, nodes, loaded, outputs):
     # the right side of a one-step scheme (history x0, v0, a0) as sum_h B_h H_h with
     # B_h = L_q[h] K + L_s[h] C + L_b[h] M once per run (no pass for q, s, b); a multistep
     # scheme's q, s, b are differences of lags, formed first, so that K, C, M multiply what
-    # is left of the cancellation (as simulate_mck does)
+    # is left of the cancellation (as mck_response does)
     used = np.flatnonzero(np.any(L_qsb != 0.0, axis=0))
     direct = not shifts
     B = [None] * len(names)

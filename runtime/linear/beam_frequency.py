@@ -2,7 +2,7 @@ r"""Mode shapes and frequency responses of beams over the 2 x 2 node blocks.
 
 Both solve :math:`Z(s) u = f` with :math:`Z(s) = K + s C + s^2 M` block tridiagonal in 2 x 2
 node blocks :math:`D_i` (node i with itself) and :math:`E_i` (node i with node i + 1). The
-block Riccati sweep of `simulate_beam`, in the frequency domain, runs from the free (right) end
+block Riccati sweep of `beam_response`, in the frequency domain, runs from the free (right) end
 
 .. math::
 

@@ -31,13 +31,13 @@ from dtdyn.linear.stability import chain_highest_frequency, check_dt
 
 #: the plain sweep warns above this estimated relative error
 PLAIN_SWEEP_TOLERANCE = 1e-6
-#: simulate_chain's default workers: the C stable sweep runs on two threads from this many
+#: chain_response's default workers: the C stable sweep runs on two threads from this many
 #: masses on (benchmarks/chain_speed.py measures both)
 SPLIT_MASSES = 5_000
 
 
 def sweep_threads(workers, n_masses: int) -> int:
-    """Threads of the C stable sweep for ``workers`` (see `simulate_chain`): 1 or 2."""
+    """Threads of the C stable sweep for ``workers`` (see `chain_response`): 1 or 2."""
     if workers is None:
         return 2 if n_masses >= SPLIT_MASSES and cpu.available() >= 2 else 1
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
@@ -85,7 +85,7 @@ def rayleigh_chain_damping(mass, stiffness, rayleigh, ground_stiffness=None):
     Parameters
     ----------
     mass, stiffness : (N,) array_like
-        The chain (as `simulate_chain`).
+        The chain (as `chain_response`).
     rayleigh : (alpha, beta)
         The mass- and stiffness-proportional coefficients, 1/s and s, >= 0. Modal damping
         ratios follow :math:`\zeta_r = \alpha / (2 \omega_r) + \beta \omega_r / 2`.
@@ -152,7 +152,7 @@ def chain_matrices(mass, stiffness, damping, sparse: bool | None = None, *,
     return (M, C, K) if sparse else (M.toarray(), C.toarray(), K.toarray())
 
 
-def simulate_chain(mass, stiffness, damping, force, dt, *, ground_stiffness=None,
+def chain_response(mass, stiffness, damping, force, dt, *, ground_stiffness=None,
                    ground_damping=None, force_dofs=None, scheme="newmark", form="displacement", sweep="stable", backend="c", outputs=None,
                    quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
                    progress=False, ground_acceleration=None, ground_velocity=None,
@@ -232,7 +232,7 @@ def simulate_chain(mass, stiffness, damping, force, dt, *, ground_stiffness=None
     Examples
     --------
     >>> import numpy as np, dtdyn as dd
-    >>> r = dd.simulate_chain([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], np.ones(501), 0.02,
+    >>> r = dd.chain_response([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], np.ones(501), 0.02,
     ...                       force_dofs=[1], scheme="hht", alpha=-0.1)
     >>> r.x.shape
     (501, 2)

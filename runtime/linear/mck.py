@@ -7,7 +7,7 @@ x_e = Dx a_e + Ex, v_e = Dv a_e + Ev from the generated coefficients,
 
 then x, v, a at t_{n+1} from the scheme's update. This is the reference the DT-TMM sweeps must
 equal, and the general-matrix path. `make_advance` also steps the displacement form
-(u = x_e - x_n; simulate_beam), and factors a 2 x 2 node-block matrix by the matrix Riccati
+(u = x_e - x_n; beam_response), and factors a 2 x 2 node-block matrix by the matrix Riccati
 sweep (`block_factors`).
 """
 from __future__ import annotations
@@ -196,7 +196,7 @@ def _c_advance(lib, sch, K_, A, C, K, M, blocks, loaded, outputs, what):
     return advance
 
 
-def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outputs=None,
+def mck_response(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outputs=None,
                  quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
                  progress=False, ground_acceleration=None, ground_velocity=None,
                  ground_displacement=None, influence=None, backend="c",
@@ -216,7 +216,7 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     force_dofs : sequence of int, optional
         0-based DOFs the force columns act on (all DOFs when None).
     scheme : str
-        Any scheme of `simulate_chain`; parameters as keywords.
+        Any scheme of `chain_response`; parameters as keywords.
     outputs : sequence of int, optional
         DOFs whose response is stored (all by default).
     quantities : subset of ("x", "v", "a")
@@ -224,7 +224,7 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     x0, v0 : (N,) array_like, optional
         Initial displacement and velocity (rest when None); a_0 = M^-1 (f_0 - C v0 - K x0).
     unstable : {"raise", "warn"}
-        As `simulate_chain`: a conditionally stable scheme beyond its limit for the highest mode
+        As `chain_response`: a conditionally stable scheme beyond its limit for the highest mode
         (when that can be computed: M nonsingular) is refused before the run, or warned about.
     progress : bool
         Show a progress bar on long runs.
@@ -254,7 +254,7 @@ def simulate_mck(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
     --------
     >>> import numpy as np, dtdyn as dd
     >>> M, C, K = np.diag([2.0, 1.0]), np.zeros((2, 2)), np.array([[30.0, -10], [-10, 10]])
-    >>> r = dd.simulate_mck(M, C, K, np.ones(101), 0.01, force_dofs=[1], scheme="wilson")
+    >>> r = dd.mck_response(M, C, K, np.ones(101), 0.01, force_dofs=[1], scheme="wilson")
     >>> r.x.shape
     (101, 2)
     """

@@ -539,7 +539,7 @@ def check_connections(tree: Tree, info, form: str, dt: float) -> None:
                          "shaft a damper or use an implicit scheme")
 
 
-def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark",
+def shaft_response(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark",
                    form="displacement", backend="c", outputs=None, quantities=("x", "v", "a"),
                    x0=None, v0=None, unstable="raise", progress=False, ground_acceleration=None,
                    ground_velocity=None, ground_displacement=None, influence=None,
@@ -557,11 +557,11 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     force_dofs, outputs : sequence of int or DOF names, optional
         0-based DOF indices or names (`Shaft.dof_names`); all DOFs when None.
     scheme, form, backend, quantities, x0, v0, unstable, progress, **scheme_params
-        As `simulate_chain`: the integrator and its parameters, "displacement" or
+        As `chain_response`: the integrator and its parameters, "displacement" or
         "acceleration" form, "c" (generated C loop) or "numpy", what to store, the initial
         rotations and rates (a_0 consistent), the stability check.
     ground_acceleration, ground_velocity, ground_displacement, influence : optional
-        Support motion (angular, rad/s^2, rad/s, rad) as in `simulate_mck`: the rotations are
+        Support motion (angular, rad/s^2, rad/s, rad) as in `mck_response`: the rotations are
         then relative to the supports, which turn together; the default influence is
         `rigid_rotation` (1 on the main line, -1/n through each gear). ``force`` may be None.
 
@@ -573,14 +573,14 @@ def simulate_shaft(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
 
     Each step carries T = S phi + R from the leaves to the root (S once per call, R every step;
     a junction sums its branches, a gear scales S by 1/n^2 and R by -1/n) and the unknowns back
-    out to the leaves: O(N) per step. It equals `simulate_mck` on `shaft_matrices` (same scheme
+    out to the leaves: O(N) per step. It equals `mck_response` on `shaft_matrices` (same scheme
     and dt) to rounding.
 
     Examples
     --------
     >>> import numpy as np, dtdyn as dd
     >>> s = dd.Shaft([1.0, 2.0, 1.5], [1e4, 2e4, 2e4], [1.0, 1.0, 1.0])
-    >>> r = dd.simulate_shaft(s, np.ones(201), 1e-3, force_dofs=["main.2"])
+    >>> r = dd.shaft_response(s, np.ones(201), 1e-3, force_dofs=["main.2"])
     >>> r.x.shape
     (201, 3)
     """

@@ -54,7 +54,7 @@ def newmark_ss(M, C, K, dt, num_damp=1e-4, M_is_SPD=False) -> DiscreteModel:
     Newmark recursion itself is well defined wherever M + gamma dt C + beta dt^2 K is invertible,
     so newmark_ss then returns that recursion with the same input f_n and output [q_n; q'_n],
     realized with the state [q; q'; q''] of `discrete_state_space` (3n states, Css selects q and
-    q'). It agrees with `simulate_mck` and converges to `exact_response` at second order for
+    q'). It agrees with `mck_response` and converges to `exact_response` at second order for
     num_damp = 0, first order otherwise (gamma > 1/2; tests/test_state_space.py).
 
     Output y_n = Css x_n + Dss f_n = [q_n; q'_n]; input f on every DOF; state
@@ -126,13 +126,13 @@ def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False,
 
     State: the scheme's history per DOF (x, v, a and, for multistep schemes, the lags), shifted
     by the f_{n+1} feedthrough; input f on every DOF; output [q; q'] (and q'' when
-    ``acceleration``). Each step solves, as `simulate_mck` does (acceleration form),
+    ``acceleration``). Each step solves, as `mck_response` does (acceleration form),
 
         (M + Dv C + Dx K) a_e = w0 f_n + w1 f_{n+1} - K Ex(h_n) - C Ev(h_n),
         h_{n+1} = c_u a_e + L h_n,
 
     with the generated coefficients; no inverse of M is formed. For Houbolt and Park this is the
-    main recursion: the start-up steps of `simulate_mck` are not part of the LTI model (their
+    main recursion: the start-up steps of `mck_response` are not part of the LTI model (their
     lags start equal to the initial state).
 
     Examples

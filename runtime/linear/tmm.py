@@ -44,9 +44,9 @@ def frequency_response(mass, stiffness, damping, omega, force_dof: int, output: 
     Parameters
     ----------
     mass, stiffness, damping : (N,) array_like
-        The chain (as `simulate_chain`).
+        The chain (as `chain_response`).
     ground_stiffness, ground_damping : (N,) array_like, optional
-        Springs and dampers from the masses to the ground (as `simulate_chain`).
+        Springs and dampers from the masses to the ground (as `chain_response`).
     omega : array_like
         Circular frequencies, rad/s.
     force_dof, output : int

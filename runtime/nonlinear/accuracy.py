@@ -1,4 +1,4 @@
-r"""An accuracy target for `nonlinear_response`: the sub-steps chosen from an error estimate.
+r"""An accuracy target for `nonlinear_mck_response`: the sub-steps chosen from an error estimate.
 
 A scheme of order p run with S sub-steps (h = dt / S) has, once h is small enough for the leading
 term to dominate, the error
@@ -39,7 +39,7 @@ min(p, p_obs) (never an order the runs do not show), and the extrapolation is us
 contact, Bouc-Wen's sign(y')) break the expansion, and the estimate is then only as good as p_obs
 says.
 
-scheme="auto" (`nonlinear_response` without a scheme, with a target): modal_explicit, then
+scheme="auto" (`nonlinear_mck_response` without a scheme, with a target): modal_explicit, then
 modal_quintic, whose runs carry an embedded estimate (`reach_embedded`), and when a run's
 estimate is not confirmed by the next one or a run fails, the Richardson sequence of modal_ramp
 (`AUTO_THEN`): seventh or sixth order where the element forces are smooth, the second-order ramp

@@ -1,6 +1,6 @@
 """DT-TMM chains with localized nonlinear elements: O(N) per step on long chains.
 
-The linear step of a chain (`simulate_chain`'s stable DT-TMM sweep) is linear in the loads, so
+The linear step of a chain (`chain_response`'s stable DT-TMM sweep) is linear in the loads, so
 with the element forces g as loads -L^T g (runtime/elements.py) the state after a step is
 
     H_{k+1} = H_lin + sum_e g_e U_e,
@@ -48,12 +48,12 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
                              **scheme_params) -> Response:
     """Forced response of a chain with nonlinear elements by the DT-TMM (module docstring).
 
-    Parameters as `simulate_chain` (chain data with ``ground_stiffness``, ``ground_damping``,
+    Parameters as `chain_response` (chain data with ``ground_stiffness``, ``ground_damping``,
     ``force`` of shape (n_steps + 1,
     len(force_dofs)) at t_k = k dt, linear between samples, ``scheme``, ``form``, ``outputs``,
     ``quantities``, ``backend``, ``x0``, ``v0``, ``ground_acceleration``, ``ground_velocity``,
     ``ground_displacement``, ``influence``) and
-    `nonlinear_response` (``elements``, ``substeps``, ``tol``, ``max_iter``, the quantities "g"
+    `nonlinear_mck_response` (``elements``, ``substeps``, ``tol``, ``max_iter``, the quantities "g"
     and "z"). One-step schemes only.
 
     Returns
@@ -85,7 +85,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
     quantities = check_quantities(quantities, QUANTITIES)
     elements = check_elements(elements)
     if not elements:
-        raise ValueError("elements is empty: use simulate_chain for a linear chain")
+        raise ValueError("elements is empty: use chain_response for a linear chain")
     for e, el in enumerate(elements):
         for name, d in (("i", el.i), ("j", el.j)):
             if d is not None and d >= N:

@@ -67,7 +67,7 @@ def _sizes(elements) -> _Sizes:
 
 def _residual_expressions(elements, sz: _Sizes):
     """SX symbols and expressions of r(u; Q, z_old, z'_old, [Dwg; h]) (module docstring)."""
-    ca = require("casadi", "nonlinear", "nonlinear_response")
+    ca = require("casadi", "nonlinear", "nonlinear_mck_response")
     ops = casadi_ops()
     u = ca.SX.sym("u", sz.nw + sz.nz)
     Q = ca.SX.sym("Q", sz.nw)
@@ -94,7 +94,7 @@ def _residual_expressions(elements, sz: _Sizes):
 def _residual_function(elements, sz: _Sizes, tangent: bool = False):
     """nl_residual(u, Q, z_old, z'_old, par) -> (r, dr/du, g, z'[, dg/du]): ``tangent`` adds
     the elements' tangent dg/du (the modal loop's estimate carries its error with it)."""
-    ca = require("casadi", "nonlinear", "nonlinear_response")
+    ca = require("casadi", "nonlinear", "nonlinear_mck_response")
     e = _residual_expressions(elements, sz)
     J = ca.densify(ca.jacobian(e["r"], e["u"]))
     outs = [e["r"], J, e["g"], e["rate"]]
@@ -265,7 +265,7 @@ def _casadi_record(elements, step: LinearStep, S, n_blocks, solver, tol, max_ite
     """
     import hashlib
 
-    ca = require("casadi", "nonlinear", "nonlinear_response")
+    ca = require("casadi", "nonlinear", "nonlinear_mck_response")
     mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, step.Co, step.Dof, step.Dog]
     digest = hashlib.sha256(b"".join(np.ascontiguousarray(m).tobytes() for m in mats)
                             + repr([m.shape for m in mats] + [step.h]).encode()).hexdigest()
@@ -356,7 +356,7 @@ def _compile_casadi(fn):
     """CasADi code generation of ``fn``, compiled through cbuild's cache, loaded as external.
 
     Only the "fast_newton" rootfinder can be code-generated (CasADi's "newton" cannot)."""
-    ca = require("casadi", "nonlinear", "nonlinear_response")
+    ca = require("casadi", "nonlinear", "nonlinear_mck_response")
     lib = cbuild.load_library(_c_source(fn), fn.name())
     if lib is None:
         return fn
@@ -366,7 +366,7 @@ def _compile_casadi(fn):
 def _c_source(fn) -> str:
     """C source of the CasADi Function ``fn`` (no header): compiled alone, or appended to a
     generated loop that calls it (nl_loop.c, nl_chain.c)."""
-    ca = require("casadi", "nonlinear", "nonlinear_response")
+    ca = require("casadi", "nonlinear", "nonlinear_mck_response")
     cg = ca.CodeGenerator(fn.name(), {"with_header": False})
     cg.add(fn)
     return cg.dump()
@@ -432,7 +432,7 @@ QUANTITIES = ("x", "v", "a", "g", "z")
 
 
 
-def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=None,
+def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=None,
                        substeps=1, outputs=None, quantities=("x", "v", "a"), modes=None,
                        backend="c", tol=1e-12, max_iter=30, solver="newton", compiled=False,
                        ground_acceleration=None, ground_velocity=None,
@@ -576,7 +576,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     --------
     >>> import numpy as np, dtdyn as dd
     >>> M, C, K = np.eye(2), 0.1 * np.eye(2), np.array([[2e3, -1e3], [-1e3, 1e3]])
-    >>> r = dd.nonlinear_response(M, C, K, np.ones(2001), 1e-3, force_dofs=[1],
+    >>> r = dd.nonlinear_mck_response(M, C, K, np.ones(2001), 1e-3, force_dofs=[1],
     ...                           elements=[dd.Cubic(0, k3=1e6)], scheme="modal_parabolic")
     >>> r.x.shape
     (2001, 2)
@@ -589,7 +589,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         raise ValueError("estimate=False with accuracy: an accuracy target always estimates "
                          "(drop estimate, or give substeps instead of accuracy)")
     if "error_estimate" in scheme_params:
-        raise TypeError("nonlinear_response: the keyword error_estimate is now estimate "
+        raise TypeError("nonlinear_mck_response: the keyword error_estimate is now estimate "
                         "(info['error_estimate'] is still the number)")
     if scheme is None:
         scheme = "modal_ramp" if accuracy is None else "auto"
@@ -619,7 +619,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
         acc.scheme_order(scheme, scheme_params)
 
         def run(S, method=scheme):
-            return nonlinear_response(
+            return nonlinear_mck_response(
                 M, C, K, force, dt, elements=elements, force_dofs=force_dofs, scheme=method,
                 substeps=S, outputs=outputs, quantities=quantities, modes=modes,
                 backend=backend, tol=tol, max_iter=max_iter, solver=solver, compiled=compiled,
@@ -654,7 +654,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
     quantities = check_quantities(quantities, QUANTITIES)
     elements = check_elements(elements)
     if not elements:
-        raise ValueError("elements is empty: use simulate_mck or modal_filter_response for a "
+        raise ValueError("elements is empty: use mck_response or modal_filter_response for a "
                          "linear model")
     S = validate.step_count("substeps", substeps)
     max_iter = validate.step_count("max_iter", max_iter)
@@ -668,7 +668,7 @@ def nonlinear_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=
                          "its 'newton' rootfinder")
     f = validate.force_record(force, force_dofs.size)
     q0, qd0 = validate.initial_conditions(x0, v0, n)
-    validate.output_size("nonlinear_response", f.shape[0],
+    validate.output_size("nonlinear_mck_response", f.shape[0],
                          len(quantities) * max(outputs.size, len(elements)))
     L = element_matrix(elements, n)
     sz = _sizes(elements)

@@ -1,8 +1,8 @@
 """Shafts and beams with localized nonlinear elements at stations: O(N) per step.
 
 The same condensed per-step problem as the chain (dtdyn.nonlinear.chain, its module docstring),
-around the model's own linear step: the tree sweep of `simulate_shaft` (T = S phi + R from the
-leaves to the root) or the 2 x 2 block Riccati sweep of `simulate_beam` on the whole node system
+around the model's own linear step: the tree sweep of `shaft_response` (T = S phi + R from the
+leaves to the root) or the 2 x 2 block Riccati sweep of `beam_response` on the whole node system
 (held DOFs decoupled). The step is linear in the loads, so with the element forces g as loads
 -L^T g the state after a step is H_lin + sum_e g_e U_e, U_e the step's response to element e's
 unit load pair from rest (one sweep per element, once per run); the element deformations then
@@ -12,7 +12,7 @@ an O(N n_e) update.
 
 Elements address DOFs by index into the model's ``dof_names`` (`Shaft.dof`, `Beam.dof` map a
 name to it: ``dd.Cubic(shaft.dof("main.3"), k3=...)``); a beam's indices are mapped to the node
-system by ``beam.free`` as `simulate_beam` does for its outputs.
+system by ``beam.free`` as `beam_response` does for its outputs.
 """
 from __future__ import annotations
 
@@ -78,8 +78,8 @@ def nonlinear_shaft_response(shaft, force, dt, *, elements, force_dofs=None, sch
                              **scheme_params) -> Response:
     """Forced response of a shaft or tree with nonlinear elements by the DT-TMM tree sweep.
 
-    Each step: one sweep of `simulate_shaft` (O(N)) and the condensed per-step problem in the
-    element unknowns (module docstring); equal to `nonlinear_response` on `shaft_matrices`
+    Each step: one sweep of `shaft_response` (O(N)) and the condensed per-step problem in the
+    element unknowns (module docstring); equal to `nonlinear_mck_response` on `shaft_matrices`
     (same scheme, same substeps) to rounding.
 
     Parameters
@@ -96,14 +96,14 @@ def nonlinear_shaft_response(shaft, force, dt, *, elements, force_dofs=None, sch
         ``shaft.dof_names`` (``shaft.dof("main.3")``); j None: to the ground. A torsional
         element's y is a rotation (rad) and g a torque (N m).
     force_dofs, outputs : sequence of int or DOF names, optional
-        As `simulate_shaft`; all DOFs when None.
+        As `shaft_response`; all DOFs when None.
     scheme, form, substeps, quantities, backend, tol, max_iter, x0, v0, **scheme_params
         As `nonlinear_chain_response`: a one-step scheme and its parameters, "displacement" or
         "acceleration" form, steps per sample, what to store (also "g", "z"), "c" (the
         generated C sweep and compiled residual inside the Python Newton loop) or "numpy",
         Newton's tolerance and iteration limit, initial rotations and rates.
     ground_acceleration, ground_velocity, ground_displacement, influence : optional
-        Support motion as in `simulate_shaft` (default influence `rigid_rotation`): the
+        Support motion as in `shaft_response` (default influence `rigid_rotation`): the
         rotations, and so the elements' y, are relative to the supports.
 
     Returns
@@ -171,8 +171,8 @@ def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, schem
                             **scheme_params) -> Response:
     """Forced response of a `Beam` with nonlinear elements by the matrix Riccati sweep.
 
-    Each step: one 2 x 2 block Riccati sweep of `simulate_beam` (O(N)) and the condensed
-    per-step problem in the element unknowns (module docstring); equal to `nonlinear_response`
+    Each step: one 2 x 2 block Riccati sweep of `beam_response` (O(N)) and the condensed
+    per-step problem in the element unknowns (module docstring); equal to `nonlinear_mck_response`
     on `beam_matrices` (same scheme, same substeps) to rounding.
 
     Parameters
@@ -188,13 +188,13 @@ def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, schem
         ``beam.dof_names`` (``beam.dof("w200")``); j None: to the ground. On a w DOF y is a
         deflection (m) and g a force; on a psi DOF a rotation and a moment.
     force_dofs, outputs : sequence of int or DOF names, optional
-        As `simulate_beam`; all DOFs when None.
+        As `beam_response`; all DOFs when None.
     scheme, form, substeps, quantities, backend, tol, max_iter, x0, v0, **scheme_params
         As `nonlinear_chain_response` (x0, v0 over ``beam.dof_names``); backend "c": the
         generated C loop with the block Riccati sweep and the compiled residual inside the
         Python Newton loop; "numpy": a sparse LU of the same effective matrix.
     ground_acceleration, ground_velocity, ground_displacement, influence : optional
-        Support motion as in `simulate_beam` (default influence: a rigid translation).
+        Support motion as in `beam_response` (default influence: a rigid translation).
 
     Returns
     -------

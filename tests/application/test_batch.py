@@ -1,6 +1,6 @@
 """run_batch and `dtdyn batch` on a LocalCluster (2 worker processes, one thread each),
 against the same cases run one by one in this process (scene files written by hand, not
-through the batch's overrides), simulate_chain directly and numpy's SeedSequence."""
+through the batch's overrides), chain_response directly and numpy's SeedSequence."""
 import json
 import os
 import re
@@ -229,7 +229,7 @@ def test_missing_compiler_is_an_error_and_leaves_nothing(tmp_path):
 def test_cli_on_a_scheduler_address_and_50_ground_motions(cluster, tmp_path, capsys):
     """`dtdyn batch` on 50 generated ground records (2,001 samples) against the building of
     examples/batch, on the LocalCluster by its tcp address: a Zarr store with the peak storey
-    drifts, equal to simulate_chain run here on each record."""
+    drifts, equal to chain_response run here on each record."""
     shutil.copy(EXAMPLE / "building.toml", tmp_path)
     subprocess.run([sys.executable, str(EXAMPLE / "make_records.py"), str(tmp_path)],
                    check=True, capture_output=True)
@@ -245,7 +245,7 @@ def test_cli_on_a_scheduler_address_and_50_ground_motions(cluster, tmp_path, cap
     chain = dd.load_scene(tmp_path / "building.toml")
     for i in (0, 17, 49):
         ag = np.loadtxt(tmp_path / f"records/gm_{i:03d}.csv") * 9.80665
-        r = dd.simulate_chain(**chain.chain, force=None, dt=0.01, ground_acceleration=ag,
+        r = dd.chain_response(**chain.chain, force=None, dt=0.01, ground_acceleration=ag,
                               scheme="average_acceleration", quantities=("x", "a"))
         drift = np.abs(np.diff(np.c_[np.zeros(ag.size), r.x], axis=1)).max(axis=0)
         np.testing.assert_array_equal(ds["peak_drift"].values[i], drift)

@@ -1,4 +1,4 @@
-"""Scenes with kind = "beam": the issue's [model] table, the run against simulate_mck on
+"""Scenes with kind = "beam": the issue's [model] table, the run against mck_response on
 Scene.matrices() (same scheme), `dtdyn modes --json` against the closed-form cantilever
 frequencies, errors that name the field."""
 import json
@@ -30,7 +30,7 @@ def test_beam_scene_runs_like_the_assembled_model():
     M, C, K = scene.matrices()
     assert M.shape == (400, 400)
     response, report = dd.run_scene(scene)
-    ref = dd.simulate_mck(M, C, K, scene.force, scene.dt, force_dofs=scene.loaded,
+    ref = dd.mck_response(M, C, K, scene.force, scene.dt, force_dofs=scene.loaded,
                           outputs=scene.outputs, quantities=("x", "v"))
     # both solve the same steps; each solve rounds at eps cond(A), cond(A) ~ 1 + Omega_max^2 / 4
     # (Omega_max = omega_max dt ~ 1e3), summed over the steps at worst (tests/test_beam.py);
@@ -75,14 +75,14 @@ def test_missing_beam_key_is_named():
 
 
 def test_beam_scene_with_support_motion():
-    """[ground] on a beam: the run equals simulate_beam with the same record (default
+    """[ground] on a beam: the run equals beam_response with the same record (default
     influence: the rigid translation) and stores a_abs."""
     t = np.arange(1001) * 1e-4
     scene = dd.scene_from_dict(SCENE | {
         "ground": {"kind": "sine", "amplitude": 2.0, "frequency": 30.0, "units": "g"}})
     response, _ = dd.run_scene(scene)
     ag = 2.0 * 9.80665 * np.sin(2 * np.pi * 30.0 * t)
-    same = dd.simulate_beam(scene.model, scene.force, scene.dt, force_dofs=scene.loaded,
+    same = dd.beam_response(scene.model, scene.force, scene.dt, force_dofs=scene.loaded,
                             ground_acceleration=ag, outputs=scene.outputs, form="acceleration",
                             quantities=("x", "v"))
     np.testing.assert_allclose(response.x, same.x, rtol=0, atol=1e-12 * np.abs(same.x).max())

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from dtdyn.linear.chain import simulate_chain
-from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.chain import chain_response
+from dtdyn.linear.mck import mck_response
 
 M, K, C = [2.0, 3.0], [20.0, 15.0], [5.0, 6.0]
 F = np.ones((11, 1))
@@ -12,7 +12,7 @@ F = np.ones((11, 1))
 def run(**kw):
     args = dict(mass=M, stiffness=K, damping=C, force=F, dt=0.01, force_dofs=[1])
     args.update(kw)
-    return simulate_chain(**args)
+    return chain_response(**args)
 
 
 @pytest.mark.parametrize("kw, words", [
@@ -55,8 +55,8 @@ def test_chain_errors(kw, words):
 def test_mck_errors():
     Mm, Cm, Km = np.diag(M), np.zeros((2, 2)), np.eye(2)
     with pytest.raises(ValueError, match="M is singular"):
-        simulate_mck(np.zeros((2, 2)), Cm, Km, F, 0.01, force_dofs=[1])
+        mck_response(np.zeros((2, 2)), Cm, Km, F, 0.01, force_dofs=[1])
     with pytest.raises(ValueError, match=r"K has shape \(3, 3\)"):
-        simulate_mck(Mm, Cm, np.eye(3), F, 0.01, force_dofs=[1])
+        mck_response(Mm, Cm, np.eye(3), F, 0.01, force_dofs=[1])
     with pytest.raises(ValueError, match=r"C\[0, 0\] = nan"):
-        simulate_mck(Mm, np.full((2, 2), np.nan), Km, F, 0.01, force_dofs=[1])
+        mck_response(Mm, np.full((2, 2), np.nan), Km, F, 0.01, force_dofs=[1])

@@ -18,7 +18,7 @@ def test_all_names_exist_and_are_not_modules():
 
 
 def test_face_functions_named_in_the_issue():
-    for name in ("discretize", "stability", "simulate_chain", "state_space_response"):
+    for name in ("discretize", "stability", "chain_response", "state_space_response"):
         assert inspect.isfunction(getattr(dtdyn, name)), name
 
 

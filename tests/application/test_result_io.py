@@ -11,7 +11,7 @@ FORMATS = ["npz", "nc", "csv"]
 
 @pytest.fixture(scope="module")
 def chain_result():
-    r = dd.simulate_chain([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], np.ones(201), 0.02,
+    r = dd.chain_response([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], np.ones(201), 0.02,
                           force_dofs=[1], scheme="hht", alpha=-0.1, outputs=[1, 0],
                           quantities=("x", "a"))
     r.meta.update(title="P2", units={"x": "m", "a": "m/s^2"})

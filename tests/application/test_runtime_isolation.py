@@ -9,16 +9,16 @@ sys.modules["sympy"] = None  # any import of SymPy or jinja2 now raises ImportEr
 sys.modules["jinja2"] = None
 import warnings
 import numpy as np
-from dtdyn.linear.chain import simulate_chain
-from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.chain import chain_response
+from dtdyn.linear.mck import mck_response
 from dtdyn.linear.exact import exact_response
 from dtdyn.app import scene
 from dtdyn.linear import tmm
 F = np.ones((101, 1))
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
-    a = simulate_chain([2, 3], [20, 15], [5, 6], F, 0.01, force_dofs=[1], backend="c")
-    b = simulate_chain([2, 3], [20, 15], [5, 6], F, 0.01, force_dofs=[1], backend="c",
+    a = chain_response([2, 3], [20, 15], [5, 6], F, 0.01, force_dofs=[1], backend="c")
+    b = chain_response([2, 3], [20, 15], [5, 6], F, 0.01, force_dofs=[1], backend="c",
                        scheme="houbolt")
 ours = [w for w in caught if "C backend unavailable" in str(w.message)]
 print(a.info["backend"], len(ours), repr(float(a.x[-1, 1])))
@@ -53,11 +53,11 @@ def test_import_dtdyn_needs_only_the_base_dependencies():
         "for name in ('sympy', 'jinja2', 'casadi', 'matplotlib', 'xarray'):\n"
         "    sys.modules[name] = None\n"
         "import numpy as np, dtdyn as dd\n"
-        "dd.simulate_mck(np.eye(2), np.zeros((2, 2)), np.eye(2), np.ones((11, 2)), 0.1)\n"
+        "dd.mck_response(np.eye(2), np.zeros((2, 2)), np.eye(2), np.ones((11, 2)), 0.1)\n"
         "dd.modal_filter_response(np.eye(2), 0.1 * np.eye(2), np.eye(2), np.ones(11), 0.1,\n"
         "                         force_dofs=[1])\n"
         "try:\n"
-        "    dd.nonlinear_response(np.eye(1), np.eye(1), np.eye(1), np.ones(11), 0.1,\n"
+        "    dd.nonlinear_mck_response(np.eye(1), np.eye(1), np.eye(1), np.ones(11), 0.1,\n"
         "                          elements=[dd.Cubic(0, k3=1.0)])\n"
         "except ImportError as exc:\n"
         "    print(exc)\n")

@@ -327,7 +327,7 @@ def test_plot_response_writes_png(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
-# end to end (runs once dtdyn.linear.chain.simulate_chain and exact.exact_response exist)
+# end to end (runs once dtdyn.linear.chain.chain_response and exact.exact_response exist)
 
 def test_run_default_scene_against_exact(tmp_path):
     s = load_scene(None)
@@ -372,7 +372,7 @@ def test_ground_scene_runs_relative_to_the_support(tmp_path):
     response, report = dd.run_scene(scene)
     assert report["check"] == "done" and np.isfinite(report["max_rel_error"])
     ag = scene.ground
-    same = dd.simulate_chain(scene.mass, scene.stiffness, scene.damping, None, 0.01,
+    same = dd.chain_response(scene.mass, scene.stiffness, scene.damping, None, 0.01,
                              ground_acceleration=ag, scheme="average_acceleration")
     np.testing.assert_array_equal(response.x, same.x)
     M, C, K = scene.matrices()   # a 3-mass chain: dense
@@ -390,7 +390,7 @@ def test_ground_scene_runs_relative_to_the_support(tmp_path):
 
 def test_initial_state_scene(tmp_path):
     """[initial] x0, v0: free vibration of a chain with no load but the state at t_0; the run
-    equals simulate_chain with the same x0, v0 and its exact check uses them too."""
+    equals chain_response with the same x0, v0 and its exact check uses them too."""
     import dtdyn as dd
 
     path = tmp_path / "free.toml"
@@ -400,7 +400,7 @@ def test_initial_state_scene(tmp_path):
                     '[scheme]\nname = "average_acceleration"\n[time]\ndt = 1e-4\nduration = 0.5\n')
     scene = dd.load_scene(path)
     response, report = dd.run_scene(scene)
-    same = dd.simulate_chain([1.0, 1.0], [1e4, 1e4], [1.0, 1.0], np.zeros(5001), 1e-4,
+    same = dd.chain_response([1.0, 1.0], [1e4, 1e4], [1.0, 1.0], np.zeros(5001), 1e-4,
                              force_dofs=[1], scheme="average_acceleration", x0=[0.0, 0.01],
                              v0=[0.5, 0.0], quantities=("x",))
     np.testing.assert_array_equal(response.x, same.x)
@@ -456,7 +456,7 @@ def test_ground_scene_displacement_and_velocity_records(tmp_path):
         scene = dd.load_scene(path)
         assert scene.ground_quantity == quantity
         response, report = dd.run_scene(scene)
-        same = dd.simulate_chain(scene.mass, scene.stiffness, scene.damping, None, 0.01,
+        same = dd.chain_response(scene.mass, scene.stiffness, scene.damping, None, 0.01,
                                  scheme="average_acceleration",
                                  **{f"ground_{quantity}": np.loadtxt(tmp_path / name)})
         np.testing.assert_array_equal(response.x, same.x)
@@ -502,7 +502,7 @@ def test_ground_displacement_at_its_own_step_holds_its_last_sample(tmp_path):
 
 def test_chain_scene_with_ground_elements_and_rayleigh(tmp_path):
     """[model] ground_stiffness, ground_damping and rayleigh (chain form of alpha M + beta K):
-    the scene's matrices are the hand assembly, its run equals simulate_chain with the same
+    the scene's matrices are the hand assembly, its run equals chain_response with the same
     keywords, and the exact check passes at the scheme's error."""
     import dtdyn as dd
 
@@ -518,7 +518,7 @@ def test_chain_scene_with_ground_elements_and_rayleigh(tmp_path):
     assert_allclose(K, K_hand, rtol=1e-15)
     assert_allclose(C, C_plain + 0.2 * M + 1e-3 * K_hand, rtol=1e-14)
     response, report = run_scene(scene)
-    same = dd.simulate_chain(**scene.chain, force=scene.force, dt=scene.dt,
+    same = dd.chain_response(**scene.chain, force=scene.force, dt=scene.dt,
                              force_dofs=scene.loaded, scheme="newmark")
     assert_array_equal(response.x, same.x)
     # average acceleration at dt = 0.01 on this model: error ~ (omega dt)^2 / 12 of the response

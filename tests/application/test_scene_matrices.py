@@ -14,7 +14,7 @@ import scipy.sparse as sps
 from numpy.testing import assert_allclose, assert_array_equal
 
 from dtdyn.app.cli import main
-from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.mck import mck_response
 from dtdyn.app.scene import load_scene, plot_response, run_scene, save_results
 
 M2 = np.array([[2.0, 0.5], [0.5, 1.0]])          # consistent-mass-like: not diagonal
@@ -59,7 +59,7 @@ def test_inline_scene_equals_simulate_mck(tmp_path):
     assert_array_equal(s.K, K2)
     assert_array_equal(s.C, C2)
     response, report = run_scene(s)
-    ref = simulate_mck(M2, C2, K2, np.ones((51, 1)), 0.02, force_dofs=[1], scheme="newmark",
+    ref = mck_response(M2, C2, K2, np.ones((51, 1)), 0.02, force_dofs=[1], scheme="newmark",
                        beta=0.3, gamma=0.6)
     for q in "xva":
         assert_array_equal(getattr(response, q), getattr(ref, q))
@@ -190,7 +190,7 @@ def test_named_dofs_in_loads_and_outputs(tmp_path):
     assert_allclose(s.force[:, 1], 1.0 + 2.0 * s.t)
     assert_array_equal(s.outputs, [1, 0])
     response, _ = run_scene(s)
-    ref = simulate_mck(M2, C2, K2, s.force, 0.02, force_dofs=[0, 1], scheme="newmark",
+    ref = mck_response(M2, C2, K2, s.force, 0.02, force_dofs=[0, 1], scheme="newmark",
                        outputs=[1, 0], beta=0.3, gamma=0.6)
     assert_array_equal(response.x, ref.x)
     assert_array_equal(response.v, ref.v)
@@ -389,7 +389,7 @@ def test_two_story_example(tmp_path, capsys):
 
 
 def test_massless_dof_scene_reports_its_error(tmp_path):
-    """A massless DOF with damping: simulate_mck runs it and exact_response reduces it."""
+    """A massless DOF with damping: mck_response runs it and exact_response reduces it."""
     M = np.diag([1.0, 0.0])
     C = np.array([[0.0, 0.0], [0.0, 2.0]])
     s = load_scene(write_scene(tmp_path, inline_model(M=M, C=C),

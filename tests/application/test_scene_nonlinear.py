@@ -1,5 +1,5 @@
 """Scenes with nonlinear elements: [[element]] and [nonlinear] tables, field-naming errors, the
-run through nonlinear_response, `dtdyn simulate` statistics and loud step failures."""
+run through nonlinear_mck_response, `dtdyn simulate` statistics and loud step failures."""
 from __future__ import annotations
 
 import importlib.resources
@@ -16,7 +16,7 @@ from dtdyn.app.cli import main
 from dtdyn.nonlinear.elements import Cubic, Gap, Law
 from dtdyn.nonlinear.reference import reference_response
 from dtdyn._engine.errors import DtdynAccuracyWarning
-from dtdyn.nonlinear.response import DtdynStepStabilityError, NewtonError, nonlinear_response
+from dtdyn.nonlinear.response import DtdynStepStabilityError, NewtonError, nonlinear_mck_response
 from dtdyn.app.scene import load_scene, run_scene
 
 P4_FILE = Path(str(importlib.resources.files("dtdyn.app").joinpath("scenes/p4.toml")))
@@ -103,14 +103,14 @@ def test_packaged_p4_scene_is_reference_problem_p4():
 
 
 # ---------------------------------------------------------------------------------------------
-# the run: exactly nonlinear_response, storing what the scene asks for
+# the run: exactly nonlinear_mck_response, storing what the scene asks for
 
 def test_p4_scene_equals_direct_nonlinear_response(tmp_path):
     sc = load_scene(write_scene(tmp_path))
     assert sc.n_steps == 1999 and sc.force.shape == (2000, 1)
     response, report = run_scene(sc)
     p = problems.p4(2000)
-    direct = nonlinear_response(p["M"], p["C"], p["K"], p["force"], p["dt"],
+    direct = nonlinear_mck_response(p["M"], p["C"], p["K"], p["force"], p["dt"],
                                 force_dofs=p["force_dofs"], elements=p["elements"], outputs=[1, 3],
                                 scheme="modal_ramp", substeps=3)
     assert_array_equal(response.outputs, [1, 3])
@@ -149,7 +149,7 @@ def test_chain_model_with_elements_uses_chain_matrices(tmp_path):
     assert sc.scheme_params == {"beta": 0.3, "gamma": 0.6}
     response, report = run_scene(sc)
     M, C, K = chain_matrices(sc.mass, sc.stiffness, sc.damping, sparse=False)
-    direct = nonlinear_response(M, C, K, sc.force, 0.001, force_dofs=[2],
+    direct = nonlinear_mck_response(M, C, K, sc.force, 0.001, force_dofs=[2],
                                 elements=[Cubic(2, 0, k3=1e7)], scheme="newmark", beta=0.3,
                                 gamma=0.6)
     assert_array_equal(response.x, direct.x)
@@ -160,7 +160,7 @@ def test_modes_are_passed_and_checked(tmp_path):
     nl = NONLINEAR + "modes = [0, 1]\n"
     response, _ = run_scene(load_scene(write_scene(tmp_path, nonlinear=nl)))
     p = problems.p4(2000)
-    direct = nonlinear_response(p["M"], p["C"], p["K"], p["force"], p["dt"],
+    direct = nonlinear_mck_response(p["M"], p["C"], p["K"], p["force"], p["dt"],
                                 force_dofs=p["force_dofs"], elements=p["elements"], outputs=[1, 3],
                                 substeps=3, modes=[0, 1])
     assert_array_equal(response.x, direct.x)
@@ -323,7 +323,7 @@ def test_cli_prints_nonlinear_statistics(tmp_path, capsys):
 
 
 def test_accuracy_scene_equals_the_direct_call(tmp_path, capsys):
-    """[nonlinear] accuracy without a [scheme]: nonlinear_response(accuracy=...) with the method
+    """[nonlinear] accuracy without a [scheme]: nonlinear_mck_response(accuracy=...) with the method
     it picks ("auto": modal_explicit on P4), bit for bit; the report and `dtdyn simulate` give
     the method that ran, the estimate and whether the target was met."""
     path = write_scene(tmp_path, nonlinear="[nonlinear]\naccuracy = 1e-6\n")
@@ -331,7 +331,7 @@ def test_accuracy_scene_equals_the_direct_call(tmp_path, capsys):
     assert sc.scheme == "auto" and sc.nonlinear == {"accuracy": 1e-6}
     response, report = run_scene(sc)
     p = problems.p4(2000)
-    direct = nonlinear_response(p["M"], p["C"], p["K"], p["force"], p["dt"],
+    direct = nonlinear_mck_response(p["M"], p["C"], p["K"], p["force"], p["dt"],
                                 force_dofs=p["force_dofs"], elements=p["elements"], outputs=[1, 3],
                                 quantities=("x", "a"), accuracy=1e-6)
     assert_array_equal(response.x, direct.x)
@@ -428,7 +428,7 @@ def test_gap_element_direct_equivalence(tmp_path):
 
 
 def test_nonlinear_scene_with_an_initial_state(tmp_path):
-    """[initial] in a scene with [[element]]: the run equals nonlinear_response with x0, v0."""
+    """[initial] in a scene with [[element]]: the run equals nonlinear_mck_response with x0, v0."""
     import dtdyn as dd
 
     path = tmp_path / "duffing.toml"
@@ -439,7 +439,7 @@ def test_nonlinear_scene_with_an_initial_state(tmp_path):
                     '[time]\ndt = 1e-3\nduration = 0.5\n')
     scene = dd.load_scene(path)
     response, _ = dd.run_scene(scene)
-    same = dd.nonlinear_response([[1.0]], [[2.0]], [[1e4]], np.zeros(501), 1e-3,
+    same = dd.nonlinear_mck_response([[1.0]], [[2.0]], [[1e4]], np.zeros(501), 1e-3,
                                  elements=[dd.Cubic(0, k3=1e9)], x0=[0.01], v0=[-0.5],
                                  quantities=("x",))
     np.testing.assert_array_equal(response.x, same.x)

@@ -26,7 +26,7 @@ def _scene(scheme: dict) -> dict:
 ])
 def test_scene_and_runtime_give_the_same_verdict(name, key, value, ok):
     force = np.ones(11)
-    calls = (lambda: dd.simulate_chain([1.0, 1.0], [100.0, 100.0], [0.1, 0.1], force, 0.01,
+    calls = (lambda: dd.chain_response([1.0, 1.0], [100.0, 100.0], [0.1, 0.1], force, 0.01,
                                        force_dofs=[1], scheme=name, **{key: value}),
              lambda: dd.scene_from_dict(_scene({"name": name, key: value})))
     for call in calls:

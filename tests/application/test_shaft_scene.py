@@ -1,4 +1,4 @@
-"""Scenes with kind = "shaft": parsing, the run against simulate_mck on Scene.matrices(), the
+"""Scenes with kind = "shaft": parsing, the run against mck_response on Scene.matrices(), the
 modes command, errors that name the field."""
 import json
 import subprocess
@@ -84,7 +84,7 @@ def test_scene_runs_and_equals_simulate_mck():
     assert M.shape == (15, 15) and sc.dof_names[:3] == ("main.0", "main.1", "main.2")
     assert sc.dof_names[5] == "c.0" and sc.dof_names[-2:] == ("b.1.e7", "b.1")  # depth first
     r, report = dd.run_scene(sc)
-    ref = dd.simulate_mck(M, C, K, sc.force, sc.dt, force_dofs=sc.loaded, scheme="hht",
+    ref = dd.mck_response(M, C, K, sc.force, sc.dt, force_dofs=sc.loaded, scheme="hht",
                           alpha=-0.1, outputs=sc.outputs)
     assert np.abs(r.x - ref.x).max() <= 1e-9 * np.abs(ref.x).max()
     assert report["backend"] == "c" and report["check"] == "done"
@@ -137,7 +137,7 @@ def test_continuous_shaft_to_a_clamped_right_end():
     np.testing.assert_array_equal(dd.shaft_frequencies(scene.model, count=5),
                                   dd.shaft_frequencies(direct, count=5))
     response, _ = dd.run_scene(scene)
-    ref = dd.simulate_shaft(direct, scene.force, scene.dt, force_dofs=scene.loaded,
+    ref = dd.shaft_response(direct, scene.force, scene.dt, force_dofs=scene.loaded,
                             outputs=scene.outputs)
     np.testing.assert_array_equal(response.x, ref.x)
     spec["model"]["right_stiffness"] = {"length": 1.0}

@@ -1,6 +1,6 @@
 """[[element]] tables in scenes of kind "shaft" and "beam": the run is nonlinear_shaft_response /
 nonlinear_beam_response on the scene's model (the same numbers as the direct call, bitwise) and
-equals nonlinear_response on Scene.matrices() (the same scheme and substeps) to rounding;
+equals nonlinear_mck_response on Scene.matrices() (the same scheme and substeps) to rounding;
 modal methods, which need matrices, are refused with the field named."""
 import numpy as np
 import pytest
@@ -43,12 +43,12 @@ def _check(spec, direct):
               **scene.scheme_params)
     same = direct(scene.model, scene.force, scene.dt, **kw)
     M, C, K = (A.toarray() for A in scene.matrices())
-    ref = dd.nonlinear_response(M, C, K, scene.force, scene.dt, **kw)
+    ref = dd.nonlinear_mck_response(M, C, K, scene.force, scene.dt, **kw)
     for q in scene.quantities:
         a = getattr(response, q)
         np.testing.assert_array_equal(a, getattr(same, q))
         # the two runs solve the same steps (module docstring of dtdyn.nonlinear.stations:
-        # equal to nonlinear_response to rounding; 1e-9 as the linear station tests)
+        # equal to nonlinear_mck_response to rounding; 1e-9 as the linear station tests)
         assert np.abs(a - getattr(ref, q)).max() <= 1e-9 * np.abs(getattr(ref, q)).max(), q
     return response
 
@@ -73,7 +73,7 @@ def test_modal_methods_are_refused(spec):
 
 @pytest.mark.parametrize("spec", [SHAFT, BEAM])
 def test_accuracy_targets_are_refused(spec):
-    """An accuracy target runs on matrices and chains (nonlinear_response); the station sweep
+    """An accuracy target runs on matrices and chains (nonlinear_mck_response); the station sweep
     runs at a fixed nonlinear.substeps: the field is named."""
     bad = dict(spec, nonlinear={"accuracy": 1e-6})
     with pytest.raises(ValueError, match=r"nonlinear.accuracy = 1e-06: a (shaft|beam) with "

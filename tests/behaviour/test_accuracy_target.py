@@ -1,4 +1,4 @@
-"""The accuracy target of nonlinear_response (runtime/nonlinear/accuracy.py) against independent
+"""The accuracy target of nonlinear_mck_response (runtime/nonlinear/accuracy.py) against independent
 truths: the solve_ivp reference (DOP853, rtol 1e-12, restarted at every sample) for P4, Bouc-Wen
 and the gap, solve_ivp directly for the Duffing oscillator released from x0, v0.
 
@@ -18,7 +18,7 @@ from dtdyn._engine.errors import DtdynAccuracyWarning, DtdynStepStabilityError, 
 from dtdyn.nonlinear import accuracy as acc
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap
 from dtdyn.nonlinear.reference import reference_response
-from dtdyn.nonlinear.response import nonlinear_response
+from dtdyn.nonlinear.response import nonlinear_mck_response
 from problems import p4
 
 #: P4 shortened to 20,000 samples (20 s at 1 kHz) to keep the CasADi backend's runs short
@@ -56,7 +56,7 @@ def test_p4_observed_order_is_the_one_the_estimate_assumes(P4, scheme, order):
     """The Richardson estimate |x_2S - x_S| / (2^p - 1) needs the order p the scheme states:
     measured on P4 against the reference at 2, 4, 8 sub-steps (log2 of successive error ratios:
     2.00, 3.00, 1.97-1.99 measured)."""
-    errs = [error(nonlinear_response(*P4["args"], **P4["kw"], scheme=scheme, substeps=S,
+    errs = [error(nonlinear_mck_response(*P4["args"], **P4["kw"], scheme=scheme, substeps=S,
                                      quantities=("x",)), P4["ref"], "x") for S in (2, 4, 8)]
     orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
     assert np.all(np.abs(orders - order) <= 0.1), orders
@@ -67,7 +67,7 @@ def test_p4_accuracy_1e6(P4, backend):
     """modal_parabolic: runs at 1, 2, 4, 8 sub-steps; the extrapolation of the 4 and 8 runs is
     returned (observed orders 3.0 of the runs, 4 of the extrapolations): 1.1e-8 true, 1.1e-8
     estimated, on both backends."""
-    r = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", accuracy=1e-6,
+    r = nonlinear_mck_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", accuracy=1e-6,
                            backend=backend)
     check(r, P4["ref"], 1e-6)
     assert r.info["backend"] == backend
@@ -80,7 +80,7 @@ def test_p4_accuracy_1e6_second_order_schemes(P4, scheme):
     4 = p + 2; the estimate takes it only when two successive levels show it (newmark: 1.00x
     measured), else q = p + 1 = 3, high by up to (2^4 - 1) / (2^3 - 1) = 2.14 (modal_ramp:
     2.14x measured): inside the factor 3, on the safe side."""
-    r = nonlinear_response(*P4["args"], **P4["kw"], scheme=scheme, accuracy=1e-6)
+    r = nonlinear_mck_response(*P4["args"], **P4["kw"], scheme=scheme, accuracy=1e-6)
     e, est = check(r, P4["ref"], 1e-6)
     assert r.info["extrapolated"] and 0.9 <= est / e <= 2.2
 
@@ -88,10 +88,10 @@ def test_p4_accuracy_1e6_second_order_schemes(P4, scheme):
 def test_p4_accuracy_1e3_is_the_plain_run_at_two_substeps(P4):
     """1e-3: the 2-sub-step run with the estimate from the 1-sub-step run (7.4e-5 estimated,
     7.6e-5 true): the very run substeps=2 gives, bit for bit (tol keeps its meaning)."""
-    r = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", accuracy=1e-3)
+    r = nonlinear_mck_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", accuracy=1e-3)
     check(r, P4["ref"], 1e-3)
     assert r.info["substeps"] == 2 and not r.info["extrapolated"]
-    plain = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", substeps=2)
+    plain = nonlinear_mck_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", substeps=2)
     for q in "xva":
         np.testing.assert_array_equal(getattr(r, q), getattr(plain, q))
     assert r.info["estimate_substeps"] == [1, 2]
@@ -101,7 +101,7 @@ def test_p4_accuracy_1e3_is_the_plain_run_at_two_substeps(P4):
 def test_error_estimate_without_a_target(P4, substeps):
     """estimate=True: the run asked for, with its error estimated from 2 S (S odd: the
     coarse run, |d| 2^p / (2^p - 1)) or S / 2 (S even: the fine run, |d| / (2^p - 1))."""
-    r = nonlinear_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", substeps=substeps,
+    r = nonlinear_mck_response(*P4["args"], **P4["kw"], scheme="modal_parabolic", substeps=substeps,
                            estimate=True)
     assert r.info["substeps"] == substeps
     e, est = error(r, P4["ref"]), r.info["error_estimate"]
@@ -123,7 +123,7 @@ def duffing():
         x, v, a = sol.y[0][:, None], sol.y[1][:, None], None
 
     def run(**kw):
-        return nonlinear_response([[m]], [[c]], [[k]], np.zeros(501), 1e-3,
+        return nonlinear_mck_response([[m]], [[c]], [[k]], np.zeros(501), 1e-3,
                                   elements=[Cubic(0, k3=k3)], x0=[a0], v0=[b0],
                                   quantities=("x", "v"), **kw)
     return run, Ref
@@ -187,7 +187,7 @@ def _gap(smoothing, stiffness=1e6, gap=0.05, c=10.0):
     ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, cache=False)
 
     def run(**kw):
-        return nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, **kw)
+        return nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, **kw)
     return run, ref
 
 
@@ -244,7 +244,7 @@ def bouc_wen():
     ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, cache=False)
 
     def run(**kw):
-        return nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, **kw)
+        return nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, **kw)
     return run, ref
 
 
@@ -277,16 +277,16 @@ def test_bouc_wen_modal_parabolic_runs_at_second_order(bouc_wen):
 def test_bad_accuracy_is_named(P4, bad):
     named = r"^accuracy must be (a number \(a relative error such as 1e-6\)|finite and > 0), got "
     with pytest.raises(ValueError, match=named):
-        nonlinear_response(*P4["args"], **P4["kw"], accuracy=bad)
+        nonlinear_mck_response(*P4["args"], **P4["kw"], accuracy=bad)
 
 
 def test_bad_max_substeps_and_unknown_order(P4):
     with pytest.raises(ValueError, match="max_substeps"):
-        nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-6, max_substeps=0)
+        nonlinear_mck_response(*P4["args"], **P4["kw"], accuracy=1e-6, max_substeps=0)
     with pytest.raises(ValueError, match=r"substeps \(8\) must be <= max_substeps \(4\)"):
-        nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-6, substeps=8, max_substeps=4)
+        nonlinear_mck_response(*P4["args"], **P4["kw"], accuracy=1e-6, substeps=8, max_substeps=4)
     with pytest.raises(ValueError, match="scheme 'nonsense' has no known order"):
-        nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-6, scheme="nonsense")
+        nonlinear_mck_response(*P4["args"], **P4["kw"], accuracy=1e-6, scheme="nonsense")
 
 
 def test_cap_warns_with_target_estimate_and_substeps(P4):
@@ -295,21 +295,21 @@ def test_cap_warns_with_target_estimate_and_substeps(P4):
         with pytest.raises(DtdynAccuracyWarning,
                            match=r"accuracy=1e-12 not reached: the error estimate is "
                                  r"[0-9.e-]+ at 4 sub-steps \(max_substeps=4"):
-            nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-12, max_substeps=4)
+            nonlinear_mck_response(*P4["args"], **P4["kw"], accuracy=1e-12, max_substeps=4)
 
 
 def test_estimate_keyword_is_a_bool_and_the_old_name_is_named(P4):
     with pytest.raises(ValueError, match=r"estimate must be True or False, got 1e-06"):
-        nonlinear_response(*P4["args"], **P4["kw"], estimate=1e-6)
+        nonlinear_mck_response(*P4["args"], **P4["kw"], estimate=1e-6)
     with pytest.raises(TypeError, match="error_estimate is now estimate"):
-        nonlinear_response(*P4["args"], **P4["kw"], error_estimate=True)
+        nonlinear_mck_response(*P4["args"], **P4["kw"], error_estimate=True)
 
 
 def test_accuracy_with_estimate_true_is_the_accuracy_run(P4):
     """accuracy always reports the estimate: estimate=True beside it changes nothing."""
     kw = dict(P4["kw"], scheme="modal_parabolic", accuracy=1e-3)
-    a = nonlinear_response(*P4["args"], **kw)
-    b = nonlinear_response(*P4["args"], **kw, estimate=True)
+    a = nonlinear_mck_response(*P4["args"], **kw)
+    b = nonlinear_mck_response(*P4["args"], **kw, estimate=True)
     for q in "xva":
         np.testing.assert_array_equal(getattr(a, q), getattr(b, q))
     assert a.info["error_estimate"] == b.info["error_estimate"]
@@ -361,7 +361,7 @@ def _stiff_gap(stiffness):
     els = [Gap(0, gap=1e-2, stiffness=stiffness)]
 
     def run(**kw):
-        return nonlinear_response(M, C, K, f, 1e-3, force_dofs=[0], elements=els,
+        return nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[0], elements=els,
                                   scheme="modal_ramp", quantities=("x",), **kw)
     return run
 
@@ -439,7 +439,7 @@ def test_p4_polynomial_embedded_estimate_within_3x(P4, scheme, substeps):
     stiffness): within 3x of the true error on P4 (quintic 0.98x and 0.97x measured at 1 and 2
     sub-steps, 0.6-0.7x when the local errors were carried by the linear modes alone; explicit
     1.02x and 1.01x, true errors 4.8e-5 and 3.8e-7)."""
-    r = nonlinear_response(*P4["args"], **P4["kw"], scheme=scheme, substeps=substeps)
+    r = nonlinear_mck_response(*P4["args"], **P4["kw"], scheme=scheme, substeps=substeps)
     e, est = error(r, P4["ref"]), r.info["error_estimate"]
     assert r.info["error_estimate_kind"] == "embedded"
     assert e / 3 <= est <= 3 * e, (e, est)
@@ -452,7 +452,7 @@ def test_p4_polynomial_accuracy(P4, accuracy, scheme, substeps):
     """accuracy= with modal_quintic or modal_explicit: the 1-sub-step run's estimate sets the
     next S, whose run confirms it (their difference within 3x of it): quintic at 2 sub-steps
     for both targets, explicit at 2 (1e-3, 3.8e-7 true) and 3 (1e-6, 2.4e-8 true)."""
-    r = nonlinear_response(*P4["args"], **P4["kw"], scheme=scheme, accuracy=accuracy)
+    r = nonlinear_mck_response(*P4["args"], **P4["kw"], scheme=scheme, accuracy=accuracy)
     check(r, P4["ref"], accuracy)
     S = substeps[accuracy]
     assert r.info["substeps"] == S and r.info["estimate_substeps"] == [1, S]
@@ -468,7 +468,7 @@ def test_p4_polynomial_accuracy_on_casadi(scheme):
     args, kw = (P["M"], P["C"], P["K"], P["force"], P["dt"]), dict(
         force_dofs=P["force_dofs"], elements=P["elements"])
     ref = reference_response(*args, **kw, cache=False)
-    r = nonlinear_response(*args, **kw, scheme=scheme, accuracy=1e-6, backend="casadi")
+    r = nonlinear_mck_response(*args, **kw, scheme=scheme, accuracy=1e-6, backend="casadi")
     check(r, ref, 1e-6)
     assert r.info["backend"] == "casadi" and r.info["estimate_substeps"][:3] == [1, 2, 4]
 
@@ -538,7 +538,7 @@ def test_auto_p4(P4, accuracy, substeps):
     """Without a scheme, accuracy= picks modal_explicit: its 1-sub-step run's embedded estimate
     (4.9e-5) sets the next run, which confirms it and is returned: 2 sub-steps for 1e-3 (3.8e-7
     true), 3 for 1e-6 (2.4e-8 true), estimates 1.01x."""
-    r = nonlinear_response(*P4["args"], **P4["kw"], accuracy=accuracy)
+    r = nonlinear_mck_response(*P4["args"], **P4["kw"], accuracy=accuracy)
     e, est = check(r, P4["ref"], accuracy)
     assert r.info["scheme"] == "modal_explicit" and r.info["substeps"] == substeps
     assert 0.8 <= est / e <= 1.2
@@ -586,9 +586,9 @@ def test_auto_impact(smoothing, accuracy):
 def test_auto_needs_a_target_and_takes_no_parameters(P4):
     with pytest.raises(ValueError, match=r"scheme 'auto' picks the method for an accuracy "
                                          r"target: it needs accuracy="):
-        nonlinear_response(*P4["args"], **P4["kw"], scheme="auto")
+        nonlinear_mck_response(*P4["args"], **P4["kw"], scheme="auto")
     with pytest.raises(ValueError, match=r"takes no scheme parameters \(got beta\)"):
-        nonlinear_response(*P4["args"], **P4["kw"], scheme="auto", accuracy=1e-3, beta=0.3)
+        nonlinear_mck_response(*P4["args"], **P4["kw"], scheme="auto", accuracy=1e-3, beta=0.3)
 
 
 def test_auto_with_a_singular_mass_matrix_runs_average_acceleration():
@@ -599,9 +599,9 @@ def test_auto_with_a_singular_mass_matrix_runs_average_acceleration():
     M, C, K = np.diag([1.0, 0.0]), np.diag([0.5, 2.0]), np.array([[2e3, -1e3], [-1e3, 1e3]])
     f = (10.0 * np.sin(2 * np.pi * 3 * np.arange(500) / 1000.0))[:, None]
     kw = dict(force_dofs=[0], elements=[Cubic(0, k3=1e7)])
-    r = nonlinear_response(M, C, K, f, 1e-3, **kw, accuracy=1e-6)
+    r = nonlinear_mck_response(M, C, K, f, 1e-3, **kw, accuracy=1e-6)
     assert r.info["scheme"] == "average_acceleration" and r.info["accuracy_met"]
-    a, b = (nonlinear_response(M, C, K, f, 1e-3, **kw, scheme="average_acceleration",
+    a, b = (nonlinear_mck_response(M, C, K, f, 1e-3, **kw, scheme="average_acceleration",
                                substeps=S).x for S in (256, 512))
     truth = b + (b - a) / 3
     assert np.abs(r.x - truth).max() / np.abs(truth).max() <= 1e-6
@@ -611,14 +611,14 @@ def test_quintic_estimate_false_skips_the_embedded_estimate(P4):
     """estimate=False: modal_quintic's loop without its estimate (the solution bit for bit the
     same: the estimate only reads it), no error_estimate in info; with accuracy it is refused."""
     kw = dict(P4["kw"], scheme="modal_quintic", substeps=1)
-    a = nonlinear_response(*P4["args"], **kw)
-    b = nonlinear_response(*P4["args"], **kw, estimate=False)
+    a = nonlinear_mck_response(*P4["args"], **kw)
+    b = nonlinear_mck_response(*P4["args"], **kw, estimate=False)
     for q in "xva":
         np.testing.assert_array_equal(getattr(a, q), getattr(b, q))
     assert "error_estimate" in a.info and "error_estimate" not in b.info
     with pytest.raises(ValueError, match="estimate=False with accuracy: an accuracy target always "
                                          "estimates"):
-        nonlinear_response(*P4["args"], **P4["kw"], accuracy=1e-3, estimate=False)
+        nonlinear_mck_response(*P4["args"], **P4["kw"], accuracy=1e-3, estimate=False)
 
 
 def test_default_cap_is_a_step_budget(monkeypatch):

@@ -3,7 +3,7 @@ count, and the DT-TMM with the matrix Riccati sweep against the assembled-matrix
 
 Truths: the textbook Hermite matrices and the Krylov-function field matrix (hand formulas and
 scipy's expm), the closed-form frequencies of uniform beams, scipy.linalg.eigh of the assembled
-pencil, and simulate_mck on the assembled matrices (the same scheme: the same linear system each
+pencil, and mck_response on the assembled matrices (the same scheme: the same linear system each
 step, so equal to rounding; 1e-9 relative as the issue asks, measured <= 2e-10).
 """
 import numpy as np
@@ -72,15 +72,15 @@ def test_frequencies_equal_the_assembled_eigenproblem(left, right, mass):
 
 
 def _step_at_midspan(beam, form, scheme, backend, n=1500, dt=2e-5, **kw):
-    """A step force at mid-span (a w every support case keeps), against simulate_mck. With
-    backend="numpy" simulate_beam solves the same step by a sparse LU as simulate_mck's NumPy
+    """A step force at mid-span (a w every support case keeps), against mck_response. With
+    backend="numpy" beam_response solves the same step by a sparse LU as mck_response's NumPy
     loop does: that half checks the displacement form's step, the C half the Riccati sweep."""
     tip = f"w{beam.elements // 2}"
     F = np.ones(n + 1)
-    r = dd.simulate_beam(beam, F, dt, force_dofs=[tip], form=form, scheme=scheme,
+    r = dd.beam_response(beam, F, dt, force_dofs=[tip], form=form, scheme=scheme,
                          backend=backend, **kw)
     M, C, K = dd.beam_matrices(beam)
-    ref = dd.simulate_mck(M, C, K, F, dt, force_dofs=[beam.dof(tip)], scheme=scheme, **kw)
+    ref = dd.mck_response(M, C, K, F, dt, force_dofs=[beam.dof(tip)], scheme=scheme, **kw)
     return r, ref
 
 
@@ -103,7 +103,7 @@ def test_step_response_equals_assembled_newmark(scheme, form):
 def test_conditionally_stable_scheme_is_refused():
     beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=LENGTH, elements=60)
     with pytest.raises(dd.DtdynUnstableError, match="fox_goodwin"):
-        dd.simulate_beam(beam, np.ones(11), 2e-5, force_dofs=[0], scheme="fox_goodwin")
+        dd.beam_response(beam, np.ones(11), 2e-5, force_dofs=[0], scheme="fox_goodwin")
 
 
 @pytest.mark.parametrize("left, right", [("pinned", "pinned"), ((1e6, 1e4), (1e6, 1e4)),
@@ -132,9 +132,9 @@ def test_initial_conditions_and_outputs():
     M, C, K = dd.beam_matrices(beam)
     x0 = np.linalg.solve(K.toarray(), np.eye(beam.n_dof)[beam.dof("w20")] * 1e3)
     out = [beam.dof("w20"), beam.dof("psi40")]
-    r = dd.simulate_beam(beam, np.zeros(401), 1e-4, force_dofs=[0], x0=x0, outputs=out,
+    r = dd.beam_response(beam, np.zeros(401), 1e-4, force_dofs=[0], x0=x0, outputs=out,
                          quantities=("x",))
-    ref = dd.simulate_mck(M, C, K, np.zeros(401), 1e-4, force_dofs=[0], x0=x0, outputs=out,
+    ref = dd.mck_response(M, C, K, np.zeros(401), 1e-4, force_dofs=[0], x0=x0, outputs=out,
                           quantities=("x",))
     assert r.v is None and r.dof_names == ("w20", "psi40")
     assert np.abs(r.x - ref.x).max() <= 1e-9 * np.abs(ref.x).max()
@@ -178,10 +178,10 @@ def test_support_motion_equals_the_effective_load_and_converges():
     errors = []
     for dt in (1e-4, 5e-5):
         ag = record(dt)
-        r = dd.simulate_beam(beam, None, dt, ground_acceleration=ag,
+        r = dd.beam_response(beam, None, dt, ground_acceleration=ag,
                              scheme="average_acceleration")
         if dt == 1e-4:
-            ref = dd.simulate_mck(M, C, K, -np.outer(ag, M @ rvec), dt,
+            ref = dd.mck_response(M, C, K, -np.outer(ag, M @ rvec), dt,
                                   scheme="average_acceleration")
             for q in "xva":
                 assert np.abs(getattr(r, q) - getattr(ref, q)).max() \

@@ -1,6 +1,6 @@
-"""The beam's block-tridiagonal C kernel (generated/block_chain.c, simulate_beam backend="c").
+"""The beam's block-tridiagonal C kernel (generated/block_chain.c, beam_response backend="c").
 
-Truths: simulate_mck on the assembled matrices of beam_matrices (the same scheme and dt: the same
+Truths: mck_response on the assembled matrices of beam_matrices (the same scheme and dt: the same
 linear system each step, so equal to rounding), and the previous solver path, the generic C loop
 mck_loop.c with its 2 x 2 block Riccati solve (solver 2) on the node system. Ends with one DOF
 (pinned, sliding), point masses, supports with dampers, Rayleigh damping, several blocks of
@@ -36,7 +36,7 @@ def _beam(elements=40, **kw):
 
 
 def _previous_path(beam, force, dt, force_dofs, form, scheme):
-    """The time history by mck_loop.c's block solve (the kernel simulate_beam used before)."""
+    """The time history by mck_loop.c's block solve (the kernel beam_response used before)."""
     M, C, K = dd.beam_matrices(beam)
     n = beam.n_dof
     loaded = np.array([beam.dof(d) for d in force_dofs])
@@ -83,20 +83,20 @@ def test_block_storage_refuses_other_matrices():
 @pytest.mark.parametrize("scheme", STABLE)
 @pytest.mark.parametrize("form", ["displacement", "acceleration"])
 def test_kernel_equals_assembled_newmark_and_the_previous_path(scheme, form):
-    """x, v, a of every DOF against simulate_mck to 1e-9 (measured <= 3.3e-11) and against the
+    """x, v, a of every DOF against mck_response to 1e-9 (measured <= 3.3e-11) and against the
     mck_loop.c block solve to the same (the two differ from each other by the same rounding
-    as either from simulate_mck)."""
+    as either from mck_response)."""
     beam = _beam()
     dt, n = 2e-5, 600
     F = np.ones(n + 1)
     mid = f"w{beam.elements // 2}"
-    r = dd.simulate_beam(beam, F, dt, force_dofs=[mid], form=form, scheme=scheme)
+    r = dd.beam_response(beam, F, dt, force_dofs=[mid], form=form, scheme=scheme)
     assert r.info["backend"] == "c" and r.info["method"].startswith("DT-TMM")
     M, C, K = dd.beam_matrices(beam)
-    ref = dd.simulate_mck(M, C, K, F, dt, force_dofs=[beam.dof(mid)], scheme=scheme)
+    ref = dd.mck_response(M, C, K, F, dt, force_dofs=[beam.dof(mid)], scheme=scheme)
     old = _previous_path(beam, F, dt, [mid], form, scheme)
     for q in "xva":
-        assert _rel(getattr(r, q), getattr(ref, q)) < 1e-9, (q, "simulate_mck")
+        assert _rel(getattr(r, q), getattr(ref, q)) < 1e-9, (q, "mck_response")
         assert _rel(getattr(r, q), getattr(old, q)) < 1e-9, (q, "mck_loop.c")
 
 
@@ -105,7 +105,7 @@ def test_kernel_equals_assembled_newmark_and_the_previous_path(scheme, form):
 def test_several_blocks_of_nodes(elements, form):
     """515 nodes (blocks of 256, 256 and 3) and 258 nodes (256 and 2): the recurrences cross the
     blocks and end on an odd or even remainder. Every DOF loaded (force_dofs default): forces on
-    the w, moments on the psi. x to 1e-9 of simulate_mck (measured <= 3.0e-10); v and a, which
+    the w, moments on the psi. x to 1e-9 of mck_response (measured <= 3.0e-10); v and a, which
     keep the rounding of the undamped highest modes, to n_steps eps cond(A) as in test_beam.py
     (6e-8 here; measured <= 3.4e-9, scipy's own LU differs from SuperLU's by 1.3e-9)."""
     beam = _beam(elements, left="clamped", right="free", length=0.03 * elements)
@@ -113,9 +113,9 @@ def test_several_blocks_of_nodes(elements, form):
     t = dt * np.arange(steps + 1)
     on_w = np.array([name.startswith("w") for name in beam.dof_names])
     F = np.outer(1.0 + np.sin(200.0 * t), np.where(on_w, 10.0, 0.01))
-    r = dd.simulate_beam(beam, F, dt, form=form)
+    r = dd.beam_response(beam, F, dt, form=form)
     M, C, K = dd.beam_matrices(beam)
-    ref = dd.simulate_mck(M, C, K, F, dt)
+    ref = dd.mck_response(M, C, K, F, dt)
     omega_max = dd.beam_frequencies(beam)[-1]
     bound = steps * np.finfo(float).eps * (1 + (omega_max * dt) ** 2 / 4)
     for q, tol in (("x", 1e-9), ("v", bound), ("a", bound)):
@@ -135,9 +135,9 @@ def test_loads_in_any_order_initial_state_and_outputs():
     x0, v0 = 1e-4 * rng.standard_normal(n), 1e-2 * rng.standard_normal(n)
     out = ["psi30", "w10", "psi1"]
     kw = dict(x0=x0, v0=v0, scheme="hht", outputs=[beam.dof(d) for d in out])
-    r = dd.simulate_beam(beam, F, dt, force_dofs=dofs, **kw)
+    r = dd.beam_response(beam, F, dt, force_dofs=dofs, **kw)
     M, C, K = dd.beam_matrices(beam)
-    ref = dd.simulate_mck(M, C, K, F, dt, force_dofs=[beam.dof(d) for d in dofs], **kw)
+    ref = dd.mck_response(M, C, K, F, dt, force_dofs=[beam.dof(d) for d in dofs], **kw)
     assert r.dof_names == tuple(out)
     for q in "xva":
         assert _rel(getattr(r, q), getattr(ref, q)) < 1e-9, q
@@ -182,8 +182,8 @@ import dtdyn as dd
 beam = dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=30, right="pinned")
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
-    r = dd.simulate_beam(beam, np.ones(201), 1e-4, force_dofs=["w15"], outputs=["w15"])
-    r = dd.simulate_beam(beam, np.ones(201), 1e-4, force_dofs=["w15"], outputs=["w15"])
+    r = dd.beam_response(beam, np.ones(201), 1e-4, force_dofs=["w15"], outputs=["w15"])
+    r = dd.beam_response(beam, np.ones(201), 1e-4, force_dofs=["w15"], outputs=["w15"])
 ours = [w for w in caught if "C backend unavailable" in str(w.message)]
 print(r.info["backend"], len(ours), repr(float(r.x[-1, 0])))
 """
@@ -206,13 +206,13 @@ def test_micro_beam_units_do_not_make_a_pivot_singular(left, right):
     """A silicon micro-beam (100 um long, 10 x 2 um section, dt = 1 ns): stiffnesses of order
     1e-2 N/m and 1e-12 N m/rad next to held DOFs' unit entries. The kernel's singular-pivot test
     is relative to each pivot block's own diagonal, so the run is not refused, and it equals
-    simulate_mck on the assembled matrices (1e-9, as the other beam tests)."""
+    mck_response on the assembled matrices (1e-9, as the other beam tests)."""
     E, rho, b, h, L = 169e9, 2329.0, 10e-6, 2e-6, 100e-6
     beam = dd.Beam(E=E, I=b * h**3 / 12, rho_A=rho * b * h, length=L, elements=100, left=left,
                    right=right)
     M, C, K = dd.beam_matrices(beam)
     f = np.full(201, 1e-9)
-    r = dd.simulate_beam(beam, f, 1e-9, force_dofs=["w50"])
-    ref = dd.simulate_mck(M, C, K, f, 1e-9, force_dofs=[beam.dof("w50")])
+    r = dd.beam_response(beam, f, 1e-9, force_dofs=["w50"])
+    ref = dd.mck_response(M, C, K, f, 1e-9, force_dofs=[beam.dof("w50")])
     assert r.info["backend"] == "c"
     assert np.abs(r.x - ref.x).max() <= 1e-9 * np.abs(ref.x).max()

@@ -31,7 +31,7 @@ def _grounded(n=8, seed=3):
 
 def _reference(m, k, c, kg, cg, F, dt, scheme, **kw):
     M, C, K = dd.chain_matrices(m, k, c, ground_stiffness=kg, ground_damping=cg, sparse=False)
-    return dd.simulate_mck(M, C, K, F, dt, force_dofs=[m.size - 1], scheme=scheme, **kw)
+    return dd.mck_response(M, C, K, F, dt, force_dofs=[m.size - 1], scheme=scheme, **kw)
 
 
 def test_chain_matrices_add_the_ground_elements_on_the_diagonal():
@@ -56,7 +56,7 @@ def test_grounded_chain_equals_assembled(scheme, dt):
     ref = _reference(m, k, c, kg, cg, F, dt, scheme)
     for form in ("displacement", "acceleration"):
         for backend in ("c", "numpy"):
-            r = dd.simulate_chain(m, k, c, F, dt, ground_stiffness=kg, ground_damping=cg,
+            r = dd.chain_response(m, k, c, F, dt, ground_stiffness=kg, ground_damping=cg,
                                   force_dofs=[m.size - 1], scheme=scheme, form=form,
                                   backend=backend)
             for q in "xva":
@@ -70,7 +70,7 @@ def test_central_difference_with_ground_dampers():
     F = np.ones((2001, 1))
     ref = _reference(m, k, c, kg, cg, F, 1e-4, "central_difference")
     for backend in ("c", "numpy"):
-        r = dd.simulate_chain(m, k, c, F, 1e-4, ground_stiffness=kg, ground_damping=cg,
+        r = dd.chain_response(m, k, c, F, 1e-4, ground_stiffness=kg, ground_damping=cg,
                               force_dofs=[m.size - 1], scheme="central_difference",
                               form="acceleration", backend=backend)
         assert rel_error(r.x, ref.x) < TOL
@@ -88,7 +88,7 @@ def test_plain_sweep_and_initial_conditions_with_ground_elements():
     ref = _reference(m, k, c, kg, cg, F, 1e-3, "newmark", x0=x0, v0=v0)
     for sweep in ("stable", "plain"):
         for backend in ("c", "numpy"):
-            r = dd.simulate_chain(m, k, c, F, 1e-3, ground_stiffness=kg, ground_damping=cg,
+            r = dd.chain_response(m, k, c, F, 1e-3, ground_stiffness=kg, ground_damping=cg,
                                   force_dofs=[2], sweep=sweep, backend=backend, x0=x0, v0=v0)
             if sweep == "stable":
                 for q in "xva":
@@ -104,7 +104,7 @@ def test_ground_spring_shifts_the_frequency_of_one_mass():
     m, k, kg, dt = 2.0, 800.0, 1200.0, 1e-3
     omega = np.sqrt((k + kg) / m)
     n = 2000
-    r = dd.simulate_chain([m], [k], [0.0], np.zeros(n + 1), dt, ground_stiffness=[kg],
+    r = dd.chain_response([m], [k], [0.0], np.zeros(n + 1), dt, ground_stiffness=[kg],
                           x0=[0.01], scheme="average_acceleration")
     t = dt * np.arange(n + 1)
     # the exact discrete solution of the trapezoidal rule: cos of the stretched frequency
@@ -131,10 +131,10 @@ def test_rayleigh_p3_time_history_equals_assembled():
     alpha = beta * w1 * w2
     c, cg = dd.rayleigh_chain_damping(P3["mass"], P3["stiffness"], (alpha, beta))
     F = np.ones((801, 1))
-    r = dd.simulate_chain(P3["mass"], P3["stiffness"], c, F, 1e-3, ground_damping=cg,
+    r = dd.chain_response(P3["mass"], P3["stiffness"], c, F, 1e-3, ground_damping=cg,
                           force_dofs=[14])
     M, C, K = dd.chain_matrices(P3["mass"], P3["stiffness"], P3["damping"], sparse=False)
-    ref = dd.simulate_mck(M, alpha * M + beta * K, K, F, 1e-3, force_dofs=[14])
+    ref = dd.mck_response(M, alpha * M + beta * K, K, F, 1e-3, force_dofs=[14])
     assert rel_error(r.x, ref.x) < TOL
 
 
@@ -157,7 +157,7 @@ def test_nonlinear_chain_with_ground_elements_equals_mck_path(backend):
     M, C, K = dd.chain_matrices(m, k, c, ground_stiffness=kg, ground_damping=cg, sparse=False)
     a = dd.nonlinear_chain_response(m, k, c, f, 1e-3, ground_stiffness=kg, ground_damping=cg,
                                     force_dofs=[5], elements=els, backend=backend, substeps=2)
-    b = dd.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[5], elements=els,
+    b = dd.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[5], elements=els,
                               scheme="newmark", substeps=2)
     for q in "xva":
         assert rel_error(getattr(a, q), getattr(b, q)) < 1e-12
@@ -170,7 +170,7 @@ def test_nonlinear_chain_with_ground_elements_equals_mck_path(backend):
 ])
 def test_bad_ground_elements_are_named(field, kw, match):
     with pytest.raises(ValueError, match=match):
-        dd.simulate_chain([1.0, 1.0], [1e3, 1e3], [0.0, 0.0], np.ones(11), 1e-3, **kw)
+        dd.chain_response([1.0, 1.0], [1e3, 1e3], [0.0, 0.0], np.ones(11), 1e-3, **kw)
     with pytest.raises(ValueError, match=match):
         dd.chain_matrices([1.0, 1.0], [1e3, 1e3], [0.0, 0.0], **kw)
 

@@ -1,6 +1,6 @@
 """Convergence order of every integrator (test tier 3 of shared/style.md).
 
-Each scheme runs the DT-TMM chain solver (`simulate_chain`) over a dt sweep; the error against
+Each scheme runs the DT-TMM chain solver (`chain_response`) over a dt sweep; the error against
 `exact_response` is fitted as log(error) = p log(dt) + const and the slope p is compared with the
 scheme's order (the generated module's ORDER: 1 for Fox-Euler, 2 for all others).
 
@@ -40,7 +40,7 @@ import numpy as np
 import pytest
 
 from dtdyn.generated import SCHEMES
-from dtdyn.linear.chain import chain_matrices, simulate_chain
+from dtdyn.linear.chain import chain_matrices, chain_response
 from dtdyn.linear.exact import exact_response
 from dtdyn.app.problems import P3_MASS, P3_STIFFNESS
 
@@ -94,7 +94,7 @@ def p2_sweep(scheme, form, backend="c", sweep="stable", **params):
     dts, ex, ev = [], [], []
     for n in P2_STEPS:
         dt, force = p2_force(n)
-        res = simulate_chain(P2_MASS, P2_STIFF, P2_DAMP, force, dt, force_dofs=P2_LOADED,
+        res = chain_response(P2_MASS, P2_STIFF, P2_DAMP, force, dt, force_dofs=P2_LOADED,
                              scheme=scheme, form=form, sweep=sweep, backend=backend, **params)
         ref = p2_exact(n)
         assert res.x.shape == ref.x.shape == (n + 1, 2)
@@ -188,7 +188,7 @@ def test_acceleration_order_p2(scheme):
     dts, e_plain, e_shift = [], [], []
     for n in P2_STEPS:
         dt, force = p2_force(n)
-        res = simulate_chain(P2_MASS, P2_STIFF, P2_DAMP, force, dt, force_dofs=P2_LOADED,
+        res = chain_response(P2_MASS, P2_STIFF, P2_DAMP, force, dt, force_dofs=P2_LOADED,
                              scheme=scheme, form=form, quantities=("a",))
         ref = p2_exact(n)
         jerk = np.gradient(ref.a, dt, axis=0)  # O(dt^2) accurate, multiplied by lag * dt below
@@ -218,7 +218,7 @@ def test_order_p3_average_acceleration(form):
     for dt in P3_DTS:
         n = int(round(P3_T / dt))
         force = np.ones((n + 1, 1))
-        res = simulate_chain(P3_MASS, P3_STIFF, np.zeros(15), force, dt, force_dofs=[14],
+        res = chain_response(P3_MASS, P3_STIFF, np.zeros(15), force, dt, force_dofs=[14],
                              scheme="average_acceleration", form=form, quantities=("x",))
         ref = exact_response(M, C, K, force, dt, force_dofs=[14])
         assert res.x.shape == ref.x.shape == (n + 1, 15)
@@ -234,5 +234,5 @@ def test_p3_central_difference_acceleration_form_needs_damping():
     # P3 is undamped: the explicit scheme's acceleration-form spring row divides by c Dv = 0
     force = np.ones((11, 1))
     with pytest.raises(ValueError, match="damping"):
-        simulate_chain(P3_MASS, P3_STIFF, np.zeros(15), force, 1e-3, force_dofs=[14],
+        chain_response(P3_MASS, P3_STIFF, np.zeros(15), force, 1e-3, force_dofs=[14],
                        scheme="central_difference", form="acceleration")

@@ -1,7 +1,7 @@
 """DT-TMM chains against the assembled-matrix solution of the same scheme (reference sec. 3).
 
 Both solve the same linear system each step (a tridiagonal one), so they agree to rounding: 1e-10
-relative, both forms, every implicit scheme, dt = 1e-2 .. 1e-5. The reference (`simulate_mck`)
+relative, both forms, every implicit scheme, dt = 1e-2 .. 1e-5. The reference (`mck_response`)
 works in the acceleration form. The displacement form's unknown is the increment
 u = x_e - x_n (dtdyn.derive.dttmm): with x_e itself, a = A x_e + B with A = 1/(beta dt^2) is a
 difference of terms of size |x| / dt^2, and its rounding cost up to 5.7e-10 in x here (P3,
@@ -14,8 +14,8 @@ import warnings
 import numpy as np
 import pytest
 
-from dtdyn.linear.chain import DtdynAccuracyWarning, chain_matrices, simulate_chain
-from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.chain import DtdynAccuracyWarning, chain_matrices, chain_response
+from dtdyn.linear.mck import mck_response
 from dtdyn._engine.schemes import NAMES
 
 from problems import P1, P2, P3, PROBLEMS, rel_error, uniform_chain
@@ -28,10 +28,10 @@ def _run_both(prob, dt, n_steps, scheme, forms=("displacement", "acceleration"),
               backends=("c", "numpy"), **kw):
     F = np.ones((n_steps + 1, 1))
     M, C, K = chain_matrices(prob["mass"], prob["stiffness"], prob["damping"])
-    ref = simulate_mck(M, C, K, F, dt, force_dofs=prob["force_dofs"], scheme=scheme, **kw)
+    ref = mck_response(M, C, K, F, dt, force_dofs=prob["force_dofs"], scheme=scheme, **kw)
     for form in forms:
         for backend in backends:
-            r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, dt,
+            r = chain_response(prob["mass"], prob["stiffness"], prob["damping"], F, dt,
                                force_dofs=prob["force_dofs"], scheme=scheme, form=form, backend=backend,
                                **kw)
             for q in "xva":
@@ -69,11 +69,11 @@ def test_long_uniform_chain(n_mass, backends):
     F = np.ones((n_steps + 1, 1))
     outputs = np.unique(np.r_[0, n_mass // 2, np.arange(n_mass - 50, n_mass)])
     M, C, K = chain_matrices(prob["mass"], prob["stiffness"], prob["damping"], sparse=True)
-    ref = simulate_mck(M, C, K, F, dt, force_dofs=prob["force_dofs"], scheme="newmark", outputs=outputs,
+    ref = mck_response(M, C, K, F, dt, force_dofs=prob["force_dofs"], scheme="newmark", outputs=outputs,
                        quantities=("x",))
     for form in ("displacement", "acceleration"):
         for backend in backends:
-            r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, dt,
+            r = chain_response(prob["mass"], prob["stiffness"], prob["damping"], F, dt,
                                force_dofs=prob["force_dofs"], outputs=outputs, form=form,
                                backend=backend, quantities=("x",))
             assert r.x.shape == (n_steps + 1, outputs.size)
@@ -84,10 +84,10 @@ def test_long_uniform_chain(n_mass, backends):
 def _plain_vs_stable(prob, dt, n_steps):
     F = np.ones((n_steps + 1, 1))
     args = (prob["mass"], prob["stiffness"], prob["damping"], F, dt)
-    stable = simulate_chain(*args, force_dofs=prob["force_dofs"], scheme="average_acceleration")
+    stable = chain_response(*args, force_dofs=prob["force_dofs"], scheme="average_acceleration")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        plain = simulate_chain(*args, force_dofs=prob["force_dofs"], scheme="average_acceleration",
+        plain = chain_response(*args, force_dofs=prob["force_dofs"], scheme="average_acceleration",
                                sweep="plain")
     warned = [w for w in caught if issubclass(w.category, DtdynAccuracyWarning)]
     return rel_error(plain.x, stable.x), plain.info["error_estimate"], warned
@@ -129,7 +129,7 @@ def test_plain_sweep_fails_on_p3():
 
 def test_initial_acceleration_and_startup():
     """A step force at t_0 gives a_0 = F/m; multistep schemes still converge at order 2."""
-    r = simulate_chain(P1["mass"], P1["stiffness"], P1["damping"], np.ones((11, 1)), 0.01,
+    r = chain_response(P1["mass"], P1["stiffness"], P1["damping"], np.ones((11, 1)), 0.01,
                        scheme="houbolt")
     assert r.a[0, 0] == pytest.approx(0.5)
     assert r.x[0, 0] == 0.0 and r.v[0, 0] == 0.0
@@ -138,12 +138,12 @@ def test_initial_acceleration_and_startup():
 def test_only_loaded_columns_and_requested_outputs():
     prob = uniform_chain(50)
     F = np.random.default_rng(1).standard_normal((101, 2))
-    r = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], F, 1e-3,
+    r = chain_response(prob["mass"], prob["stiffness"], prob["damping"], F, 1e-3,
                        force_dofs=[3, 40], outputs=[7], quantities=("v",))
     assert r.v.shape == (101, 1) and r.x is None and r.a is None
     full = np.zeros((101, 50))
     full[:, [3, 40]] = F
-    r2 = simulate_chain(prob["mass"], prob["stiffness"], prob["damping"], full, 1e-3)
+    r2 = chain_response(prob["mass"], prob["stiffness"], prob["damping"], full, 1e-3)
     np.testing.assert_allclose(r.v[:, 0], r2.v[:, 7], rtol=1e-13, atol=1e-300)
 
 
@@ -153,16 +153,16 @@ def test_block_kernel_loads_at_block_edges(force_dofs, grounded):
     """The C stable sweep works in blocks of 256 masses and, when fewer than N / 8 masses are
     loaded, skips the force row and redoes the loaded masses: loads on the first mass, on
     both sides of block edges, in any order, and on every seventh mass (the full force row):
-    equal to simulate_mck on the assembled matrices (the module's TOL)."""
+    equal to mck_response on the assembled matrices (the module's TOL)."""
     rng = np.random.default_rng(11)
     n = 700
     m, k, c = rng.uniform(0.5, 2.0, n), rng.uniform(1e3, 1e5, n), rng.uniform(0.0, 2.0, n)
     kg = rng.uniform(0.0, 1e3, n) if grounded else None
     F = rng.standard_normal((301, len(force_dofs)))
     M, C, K = chain_matrices(m, k, c, ground_stiffness=kg)
-    ref = simulate_mck(M, C, K, F, 1e-3, force_dofs=force_dofs, scheme="hht")
+    ref = mck_response(M, C, K, F, 1e-3, force_dofs=force_dofs, scheme="hht")
     for form in ("displacement", "acceleration"):
-        r = simulate_chain(m, k, c, F, 1e-3, force_dofs=force_dofs, scheme="hht", form=form,
+        r = chain_response(m, k, c, F, 1e-3, force_dofs=force_dofs, scheme="hht", form=form,
                            ground_stiffness=kg)
         for q in "xva":
             assert rel_error(getattr(r, q), getattr(ref, q)) < TOL, (form, q)
@@ -232,7 +232,7 @@ def test_stiff_chain_against_extended_precision():
     ref = _newmark_extended(m, k, c, F, dofs, dt)
     for form in ("displacement", "acceleration"):
         for backend in ("c", "numpy"):
-            r = simulate_chain(m, k, c, F, dt, force_dofs=dofs, form=form, backend=backend,
+            r = chain_response(m, k, c, F, dt, force_dofs=dofs, form=form, backend=backend,
                                quantities=("x",))
             err = np.max(np.abs(r.x - ref)) / np.max(np.abs(ref))
             assert err < 1e-10, (form, backend, err)
@@ -255,12 +255,12 @@ def test_two_threads_equal_one(scheme):
         dofs = list(range(N)) if all_loaded else sorted({0, N // 2, N - 1})
         F = rng.standard_normal((401, len(dofs)))
         for kg in (None, 1e2 * rng.random(N)):
-            ref = simulate_mck(*chain_matrices(m, k, c, ground_stiffness=kg), F, 1e-3,
+            ref = mck_response(*chain_matrices(m, k, c, ground_stiffness=kg), F, 1e-3,
                                force_dofs=dofs, scheme=scheme)
             for form in forms:
                 kw = dict(force_dofs=dofs, scheme=scheme, form=form, ground_stiffness=kg)
-                one = simulate_chain(m, k, c, F, 1e-3, workers=1, **kw)
-                two = simulate_chain(m, k, c, F, 1e-3, workers=2, **kw)
+                one = chain_response(m, k, c, F, 1e-3, workers=1, **kw)
+                two = chain_response(m, k, c, F, 1e-3, workers=2, **kw)
                 assert one.info["workers"] == 1 and two.info["workers"] == 2
                 for q in "xva":
                     a, b = getattr(one, q), getattr(two, q)
@@ -283,6 +283,6 @@ def test_workers_default_and_checks(monkeypatch):
     for bad in (0, 1.5, True, "2"):
         with pytest.raises(ValueError, match="workers = "):
             sweep_threads(bad, 10)
-    r = simulate_chain([1.0, 2.0], [10.0, 20.0], [0.1, 0.1], np.ones(11), 0.01, force_dofs=[1],
+    r = chain_response([1.0, 2.0], [10.0, 20.0], [0.1, 0.1], np.ones(11), 0.01, force_dofs=[1],
                        workers=2, backend="numpy")
     assert r.info["workers"] == 1   # the NumPy backend runs on one thread

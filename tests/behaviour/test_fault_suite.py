@@ -27,7 +27,7 @@ CUBIC = [dd.Cubic(0, k3=1e6)]
 def mck(**kw):
     args = dict(M=M2, C=C2, K=K2, force=F, dt=DT, force_dofs=[1])
     args.update(kw)
-    return lambda: dd.simulate_mck(args.pop("M"), args.pop("C"), args.pop("K"), args.pop("force"),
+    return lambda: dd.mck_response(args.pop("M"), args.pop("C"), args.pop("K"), args.pop("force"),
                                    args.pop("dt"), **args)
 
 
@@ -35,7 +35,7 @@ def chain(**kw):
     args = dict(mass=[1.0, 1.0], stiffness=[1e4, 1e4], damping=[1.0, 1.0], force=F, dt=DT,
                 force_dofs=[1])
     args.update(kw)
-    return lambda: dd.simulate_chain(args.pop("mass"), args.pop("stiffness"),
+    return lambda: dd.chain_response(args.pop("mass"), args.pop("stiffness"),
                                      args.pop("damping"), args.pop("force"), args.pop("dt"),
                                      **args)
 
@@ -43,7 +43,7 @@ def chain(**kw):
 def nonlinear(**kw):
     args = dict(M=M2, C=C2, K=K2, force=F, dt=DT, force_dofs=[1], elements=CUBIC)
     args.update(kw)
-    return lambda: dd.nonlinear_response(args.pop("M"), args.pop("C"), args.pop("K"),
+    return lambda: dd.nonlinear_mck_response(args.pop("M"), args.pop("C"), args.pop("K"),
                                          args.pop("force"), args.pop("dt"), **args)
 
 
@@ -273,7 +273,7 @@ import signal
 signal.signal(signal.SIGINT, signal.default_int_handler)  # ignored in a shell's background job
 M, C, K = dd.chain_matrices([1.0] * 4, [1e3] * 4, [0.1] * 4)
 f = np.sin(np.arange({n}) * 7e-3)
-run = lambda f: dd.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[3], outputs=[0],
+run = lambda f: dd.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[3], outputs=[0],
                                       elements=[dd.Cubic(0, k3=1e5)], scheme="newmark",
                                       substeps=8, quantities=("x",))
 run(f[:100])
@@ -315,13 +315,13 @@ n = 1_000_000
 f = np.sin(np.arange(n) * 7e-3)
 kw = dict(force_dofs=[3], outputs=[0], quantities=("x",))
 runs = {{
-    "chain-c": lambda f: dd.simulate_chain([1.0] * 4, [1e3] * 4, [0.1] * 4, f, 1e-3, **kw),
-    "mck-c": lambda f: dd.simulate_mck(M, C, K, f, 1e-3, **kw),
+    "chain-c": lambda f: dd.chain_response([1.0] * 4, [1e3] * 4, [0.1] * 4, f, 1e-3, **kw),
+    "mck-c": lambda f: dd.mck_response(M, C, K, f, 1e-3, **kw),
     "state-space-c": lambda f: dd.state_space_response(dd.newmark_ss(M, C, K, 1e-3), f, **kw),
     "modal-filters-c": lambda f: dd.modal_filter_response(M, C, K, f, 1e-3, **kw),
-    "nonlinear-c": lambda f: dd.nonlinear_response(M, C, K, f, 1e-3, elements=[dd.Cubic(0,
+    "nonlinear-c": lambda f: dd.nonlinear_mck_response(M, C, K, f, 1e-3, elements=[dd.Cubic(0,
                              k3=1e5)], scheme="modal_parabolic", backend="c", **kw),
-    "nonlinear-casadi": lambda f: dd.nonlinear_response(M, C, K, f, 1e-3, elements=[dd.Cubic(0,
+    "nonlinear-casadi": lambda f: dd.nonlinear_mck_response(M, C, K, f, 1e-3, elements=[dd.Cubic(0,
                                   k3=1e5)], scheme="modal_parabolic", backend="casadi", **kw),
 }}
 run = runs["{backend}"]

@@ -61,10 +61,10 @@ def test_schemes_equal_the_hand_written_effective_force(building, run):
     dofs = list(range(5))
     cubic = [dd.Cubic(0, k3=1e12)]
     calls = {
-        "mck": lambda **kw: dd.simulate_mck(M, C, K, dt=DT, scheme="average_acceleration", **kw),
-        "chain": lambda **kw: dd.simulate_chain(MASS, STIFF, DAMP, dt=DT,
+        "mck": lambda **kw: dd.mck_response(M, C, K, dt=DT, scheme="average_acceleration", **kw),
+        "chain": lambda **kw: dd.chain_response(MASS, STIFF, DAMP, dt=DT,
                                                 scheme="average_acceleration", **kw),
-        "nonlinear": lambda **kw: dd.nonlinear_response(M, C, K, dt=DT, elements=cubic,
+        "nonlinear": lambda **kw: dd.nonlinear_mck_response(M, C, K, dt=DT, elements=cubic,
                                                         scheme="newmark", **kw),
         "nonlinear_chain": lambda **kw: dd.nonlinear_chain_response(
             MASS, STIFF, DAMP, dt=DT, elements=cubic, scheme="newmark", **kw),
@@ -75,7 +75,7 @@ def test_schemes_equal_the_hand_written_effective_force(building, run):
     np.testing.assert_allclose(g.a_abs, g.a + ag[:, None], rtol=0,
                                atol=1e-12 * np.abs(g.a_abs).max())
     if run == "chain":
-        ref = dd.simulate_mck(M, C, K, None, DT, ground_acceleration=ag,
+        ref = dd.mck_response(M, C, K, None, DT, ground_acceleration=ag,
                               scheme="average_acceleration")
         np.testing.assert_allclose(g.x, ref.x, rtol=0, atol=1e-12 * np.abs(ref.x).max())
 
@@ -98,7 +98,7 @@ def test_force_and_two_directions(building):
 def test_a_abs_and_x_abs_are_saved_and_loaded(building, tmp_path):
     M, C, K, t, ag = building
     u = np.cumsum(np.cumsum(ag)) * DT ** 2     # a displacement record: x_abs is stored too
-    r = dd.simulate_mck(M, C, K, None, DT, ground_displacement=u, quantities=("x", "a"))
+    r = dd.mck_response(M, C, K, None, DT, ground_displacement=u, quantities=("x", "a"))
     for suffix in (".npz", ".csv"):
         back = dd.load_result(r.save(tmp_path / f"r{suffix}"))
         for q in ("a_abs", "x_abs"):   # csv: 17 significant digits read back bitwise
@@ -120,10 +120,10 @@ def test_bad_input(building, kw, match):
     args = dict(force=np.ones(11), force_dofs=[4])
     args.update(kw)
     if match is None:   # the support motion alone: its own length sets the record
-        assert dd.simulate_mck(M, C, K, args.pop("force"), DT, **args).x.shape == (10, 5)
+        assert dd.mck_response(M, C, K, args.pop("force"), DT, **args).x.shape == (10, 5)
         return
     with pytest.raises(ValueError, match=match):
-        dd.simulate_mck(M, C, K, args.pop("force"), DT, **args)
+        dd.mck_response(M, C, K, args.pop("force"), DT, **args)
 
 
 def test_acceleration_from_displacement_and_velocity_records():
@@ -152,14 +152,14 @@ def test_acceleration_from_displacement_and_velocity_records():
 
 
 RUNS = {   # every time-history entry point on the building, keywords passed through
-    "simulate_mck": lambda M, C, K, **kw: dd.simulate_mck(M, C, K, None, DT, **kw),
-    "simulate_chain": lambda M, C, K, **kw: dd.simulate_chain(MASS, STIFF, DAMP, None, DT, **kw),
+    "mck_response": lambda M, C, K, **kw: dd.mck_response(M, C, K, None, DT, **kw),
+    "chain_response": lambda M, C, K, **kw: dd.chain_response(MASS, STIFF, DAMP, None, DT, **kw),
     "exact_response": lambda M, C, K, **kw: dd.exact_response(M, C, K, None, DT, **kw),
     "state_space_response": lambda M, C, K, **kw: dd.state_space_response(
         dd.discretize(M, C, K, DT, hold="foh"), None, **kw),
     "modal_filter_response": lambda M, C, K, **kw: dd.modal_filter_response(M, C, K, None, DT,
                                                                             **kw),
-    "nonlinear_response": lambda M, C, K, **kw: dd.nonlinear_response(
+    "nonlinear_mck_response": lambda M, C, K, **kw: dd.nonlinear_mck_response(
         M, C, K, None, DT, elements=[dd.Cubic(0, k3=1e12)], scheme="newmark", **kw),
     "nonlinear_chain_response": lambda M, C, K, **kw: dd.nonlinear_chain_response(
         MASS, STIFF, DAMP, None, DT, elements=[dd.Cubic(0, k3=1e12)], scheme="newmark", **kw),
@@ -269,6 +269,6 @@ def test_absolute_displacement_equals_solve_ivp_in_absolute_coordinates():
 def test_bad_ground_records(building, kw, match):
     M, C, K, _, _ = building
     with pytest.raises(ValueError, match=match):
-        dd.simulate_mck(M, C, K, np.ones(11), DT, force_dofs=[4], **kw)
+        dd.mck_response(M, C, K, np.ones(11), DT, force_dofs=[4], **kw)
     with pytest.raises(ValueError, match="ground_displacement has shape"):   # spline needs 3
         dd.exact_response(M, C, K, None, DT, ground_displacement=np.ones(2))

@@ -23,9 +23,9 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from dtdyn.linear.chain import DtdynAccuracyWarning, chain_matrices, simulate_chain
+from dtdyn.linear.chain import DtdynAccuracyWarning, chain_matrices, chain_response
 from dtdyn.linear.exact import exact_response
-from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.mck import mck_response
 from dtdyn.modal.model import modal_model
 from dtdyn.modal.filters import modal_filter_response
 from dtdyn._engine.schemes import NAMES, get_scheme
@@ -73,7 +73,7 @@ def test_stiff_chain_ratio_1e4_frequencies():
 
 @pytest.mark.parametrize("scheme", IMPLICIT)
 def test_stiff_chain_ratio_1e4_stable_sweep_equals_assembled(scheme):
-    """DT-TMM (Riccati sweep) = simulate_mck on the same chain, both forms, C kernel.
+    """DT-TMM (Riccati sweep) = mck_response on the same chain, both forms, C kernel.
 
     dt = 1e-2: Omega_max = 19.9 (stiff modes unresolved), Omega_min = 2.2e-3, 1,000 steps, step
     force on the free end; dt = 1e-3 (Omega_max = 2.0) for the conditionally stable schemes
@@ -90,9 +90,9 @@ def test_stiff_chain_ratio_1e4_stable_sweep_equals_assembled(scheme):
     M, C, K = chain_matrices(m, k, c, sparse=False)
     kappa = _effective_condition(M, C, K, scheme, dt)
     F = np.ones((n + 1, 1))
-    ref = simulate_mck(M, C, K, F, dt, force_dofs=[19], scheme=scheme, quantities=("x",))
+    ref = mck_response(M, C, K, F, dt, force_dofs=[19], scheme=scheme, quantities=("x",))
     for form in ("acceleration", "displacement"):
-        r = simulate_chain(m, k, c, F, dt, force_dofs=[19], scheme=scheme, form=form,
+        r = chain_response(m, k, c, F, dt, force_dofs=[19], scheme=scheme, form=form,
                            quantities=("x",))
         assert r.info["sweep"] == "stable" and r.info["backend"] == "c"
         err = rel_error(r.x, ref.x)
@@ -118,7 +118,7 @@ def test_stiff_chain_ratio_1e4_unconditionally_stable_bounded(scheme):
     M, C, K = chain_matrices(m, k, c, sparse=False)
     w = _natural_frequencies(M, K)
     assert stability(scheme, w * dt).spectral_radius.max() <= 1.0 + 1e-12
-    r = simulate_chain(m, k, c, np.ones((n + 1, 1)), dt, force_dofs=[19], scheme=scheme,
+    r = chain_response(m, k, c, np.ones((n + 1, 1)), dt, force_dofs=[19], scheme=scheme,
                        outputs=[19], quantities=("x",))
     bound = 2.0 * np.linalg.inv(K)[19, 19]
     assert np.all(np.isfinite(r.x))
@@ -127,10 +127,10 @@ def test_stiff_chain_ratio_1e4_unconditionally_stable_bounded(scheme):
 
 def _plain_and_stable(m, k, c, dt, n):
     F = np.ones((n + 1, 1))
-    stable = simulate_chain(m, k, c, F, dt, force_dofs=[m.size - 1], scheme="average_acceleration")
+    stable = chain_response(m, k, c, F, dt, force_dofs=[m.size - 1], scheme="average_acceleration")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        plain = simulate_chain(m, k, c, F, dt, force_dofs=[m.size - 1],
+        plain = chain_response(m, k, c, F, dt, force_dofs=[m.size - 1],
                                scheme="average_acceleration", sweep="plain")
     warned = [w for w in caught if issubclass(w.category, DtdynAccuracyWarning)]
     return rel_error(plain.x, stable.x), plain.info["error_estimate"], warned
@@ -139,7 +139,7 @@ def _plain_and_stable(m, k, c, dt, n):
 def test_stiff_chain_ratio_1e4_plain_sweep_warns():
     """dt = 1e-3: each stiff station multiplies the product by m A / k = 4 (the soft one by 4e6),
     so the plain sweep loses ~4^19 4e6 eps: measured error 2.0e-3 against the stable sweep
-    (itself equal to simulate_mck to < 1e-10, test above), and it must say so."""
+    (itself equal to mck_response to < 1e-10, test above), and it must say so."""
     err, est, warned = _plain_and_stable(*_stiff_chain(), 1e-3, 500)
     assert err > 1e-4  # the warning is deserved
     assert warned and "sweep='stable'" in str(warned[0].message)
@@ -173,7 +173,7 @@ def test_long_chain_1e5_masses(scheme):
     12 N scratch: measured 22 N doubles for generalized-alpha, 42 N for Houbolt and its lags),
     far below the 201 N doubles that storing every mass at every step would take: assert < 100 N.
 
-    Agreement with simulate_mck on scipy.sparse matrices at the outputs: the same tridiagonal
+    Agreement with mck_response on scipy.sparse matrices at the outputs: the same tridiagonal
     system is solved each step; M + Dv C + Dx K is diagonally dominant with margin min(m) by
     rows, so its infinity-norm condition number is at most ||S||_inf / min(m) (101), and the
     rounding of the two computations over 200 steps stays below 2 n_steps kappa eps (9e-12), in
@@ -187,7 +187,7 @@ def test_long_chain_1e5_masses(scheme):
     F = 10.0 * np.sin(np.linspace(0.0, 3.0, n + 1))[:, None]
     outputs = [0, L - 1, L, L + 1, N - 1]
     Ms, Cs, Ks = chain_matrices(m, k, c, sparse=True)
-    ref = simulate_mck(Ms, Cs, Ks, F, dt, force_dofs=[L], outputs=outputs, quantities=("x", "a"),
+    ref = mck_response(Ms, Cs, Ks, F, dt, force_dofs=[L], outputs=outputs, quantities=("x", "a"),
                        scheme=scheme)
     coef = get_scheme(scheme).coefficients("acceleration", dt)
     S = Ms + coef["r"] * Cs + coef["p"] * Ks
@@ -195,7 +195,7 @@ def test_long_chain_1e5_masses(scheme):
     for form in ("displacement", "acceleration"):
         tracemalloc.start()
         try:
-            r = simulate_chain(m, k, c, F, dt, force_dofs=[L], outputs=outputs,
+            r = chain_response(m, k, c, F, dt, force_dofs=[L], outputs=outputs,
                                quantities=("x", "a"), scheme=scheme, form=form)
             peak = tracemalloc.get_traced_memory()[1]
         finally:
@@ -228,7 +228,7 @@ def _undamped_run(scheme, dt, n):
         model = discrete_state_space([[1.0]], [[0.0]], [[1.0]], dt, scheme=scheme)
         r = state_space_response(model, F)
         return r.x[:, 0], r.v[:, 0], "state space"
-    r = simulate_chain([1.0], [1.0], [0.0], F, dt, scheme=scheme, quantities=("x", "v"))
+    r = chain_response([1.0], [1.0], [0.0], F, dt, scheme=scheme, quantities=("x", "v"))
     return r.x[:, 0], r.v[:, 0], r.info["backend"]
 
 
@@ -310,7 +310,7 @@ RECURRENCE_ORDER = {"newmark": 2, "average_acceleration": 2, "fox_euler": 2, "wi
 @pytest.mark.parametrize("scheme", UNCONDITIONAL)
 def test_dt_far_above_shortest_period(scheme, Omega):
     """dt = Omega / omega_2 with Omega = 100, 1000 (Omega_1 = 0.05, 0.5); a force pulse at t_1
-    in the shape of mode 2 (M phi_2, so mode 1 is not excited), 300 steps, simulate_mck.
+    in the shape of mode 2 (M phi_2, so mode 1 is not excited), 300 steps, mck_response.
 
     The modal displacement q_2 = phi_2' M x of a free response obeys the linear recurrence whose
     roots are the nonzero eigenvalues of the scheme's amplification matrix at Omega; the largest
@@ -334,7 +334,7 @@ def test_dt_far_above_shortest_period(scheme, Omega):
     dt, n = Omega / omega[1], 300
     F = np.zeros((n + 1, 2))
     F[1] = M @ Phi[:, 1]
-    r = simulate_mck(M, C, K, F, dt, scheme=scheme)
+    r = mck_response(M, C, K, F, dt, scheme=scheme)
     assert np.all(np.isfinite(r.x)) and np.all(np.isfinite(r.v))
     q = r.x @ M @ Phi[:, 1]
     rho = stability(scheme, [Omega]).spectral_radius[0]
@@ -429,7 +429,7 @@ def test_free_free_chain_constant_force(scheme):
         n = int(round(T / dt))
         t = dt * np.arange(n + 1)
         F = np.full((n + 1, 1), F0)
-        r = simulate_mck(M, C, K, F, dt, force_dofs=[0], scheme=scheme, quantities=("x",))
+        r = mck_response(M, C, K, F, dt, force_dofs=[0], scheme=scheme, quantities=("x",))
         xc = r.x @ m / m.sum()
         if dt == 2e-4:
             closed = F0 * t**2 / (2 * m.sum())
@@ -457,13 +457,13 @@ def _massless_stiff_chain():
 
 
 def test_massless_dof_in_stiff_chain():
-    """simulate_mck and discrete_state_space against the condensed model.
+    """mck_response and discrete_state_space against the condensed model.
 
     Condensation: the massless DOF j has no damper, so its equation is K_j x = f_j = 0 at every
     instant and every step (each scheme enforces the equilibrium at t_{n+1} for a zero-mass row);
     eliminating x_j = -K_jr x_r / K_jj gives K_red = K_rr - K_rj K_jr / K_jj, M_rr, C_rr: omega
     4.1 .. 1732 rad/s (ratio 424).
-    - simulate_mck = discrete_state_space (+ state_space_response): two paths of one
+    - mck_response = discrete_state_space (+ state_space_response): two paths of one
       recursion, each rounding ~kappa eps per step (kappa = cond(M + Dv C + Dx K) = 10..18),
       without growth (rho = 1): 2 n kappa eps (4.0e-12..8.8e-12); measured 1.2e-12..2.4e-12.
     - the massless DOF sits at its condensed position to rounding (measured 3e-16; assert
@@ -485,7 +485,7 @@ def test_massless_dof_in_stiff_chain():
         n = int(round(T / dt))
         t = dt * np.arange(n + 1)
         F = (np.sin(3 * t) * t)[:, None]  # on the free end, zero at t = 0 (consistent with M)
-        r = simulate_mck(M, C, K, F, dt, force_dofs=[5], scheme="average_acceleration")
+        r = mck_response(M, C, K, F, dt, force_dofs=[5], scheme="average_acceleration")
         model = discrete_state_space(M, C, K, dt, scheme="average_acceleration")
         y = state_space_response(model, F, force_dofs=[5], quantities=("x",)).x
         kappa = _effective_condition(M, C, K, "average_acceleration", dt)
@@ -514,13 +514,13 @@ def _duffing(n=1000):
 def test_strong_hardening_converges_at_second_order(method):
     from dtdyn.nonlinear.elements import Cubic
     from dtdyn.nonlinear.reference import reference_response
-    from dtdyn.nonlinear.response import nonlinear_response
+    from dtdyn.nonlinear.response import nonlinear_mck_response
     M, C, K, f, fs = _duffing()
     els = [Cubic(0, k3=1e8)]
     ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, cache=False)
     y = ref.x[:, 0]
     assert (1e8 * np.abs(y) ** 3).max() > 40 * (400.0 * np.abs(y)).max()
-    errs = [rel_error(nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els,
+    errs = [rel_error(nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els,
                                          scheme=method, substeps=S).x, ref.x) for S in (1, 2, 4)]
     # second order: each halving of h divides the error by 4 (+-15 %); first error < 1e-2
     assert errs[0] < 1e-2 and all(3.4 < a / b < 4.6 for a, b in zip(errs, errs[1:])), errs
@@ -538,25 +538,25 @@ def test_stiff_contact_at_large_step():
 
     from dtdyn.nonlinear.elements import Gap
     from dtdyn.nonlinear.reference import reference_response
-    from dtdyn.nonlinear.response import DtdynStepStabilityError, nonlinear_response
+    from dtdyn.nonlinear.response import DtdynStepStabilityError, nonlinear_mck_response
     M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
     fs, n = 1000.0, 1000
     f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]
     els = [Gap(0, gap=1e-2, stiffness=1e8)]
     peak = np.abs(reference_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, cache=False).x).max()
     for method in ("average_acceleration", "generalized_alpha"):
-        coarse = nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme=method)
+        coarse = nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme=method)
         assert np.isfinite(coarse.x).all() and np.abs(coarse.x).max() < 0.1
-        fine = nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme=method,
+        fine = nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme=method,
                                   substeps=16)
         assert abs(np.abs(fine.x).max() - peak) <= 1e-2 * peak
     with pytest.raises(DtdynStepStabilityError, match=r"substeps >= \d+") as err:
-        nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme="modal_ramp")
+        nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme="modal_ramp")
     need = int(re.search(r"substeps >= (\d+)", str(err.value)).group(1))
     assert need > 1
     # resolved: Omega_contact = 10 / S <= 0.6 from 17 sub-steps (0.02 % to 0.55 % at 17 to 32
     # measured); at the 6 = 2 need that had been used here (Omega 1.7) the peak moved with the
     # rounding of the modal loop: 0.2 %, then 1.4 % with its fused products
-    r = nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme="modal_ramp",
+    r = nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme="modal_ramp",
                            substeps=max(2 * need, 17))
     assert abs(np.abs(r.x).max() - peak) <= 1e-2 * peak

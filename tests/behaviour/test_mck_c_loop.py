@@ -1,4 +1,4 @@
-"""simulate_mck's generated C loop (dense matrices) against its NumPy loop, every scheme: the
+"""mck_response's generated C loop (dense matrices) against its NumPy loop, every scheme: the
 same step in another summation order, so the same results to round-off amplified by the scheme:
 1e-12 of the peak; 1e-11 for Houbolt, whose backward difference a_{n+1} = (2 x_{n+1} - 5 x_n +
 4 x_{n-1} - x_{n-2}) / dt^2 turns the last bits of x into the next step's load."""
@@ -24,8 +24,8 @@ def test_c_loop_equals_numpy_loop(model, scheme):
     M, C, K, f = model
     kw = dict(force_dofs=[3, 9], scheme=scheme, dt=1e-3, outputs=[0, 4, 9],
               x0=np.linspace(0, 1e-3, 10), v0=np.full(10, 1e-2))
-    a = dd.simulate_mck(M, C, K, f, backend="numpy", **kw)
-    b = dd.simulate_mck(M, C, K, f, backend="c", **kw)
+    a = dd.mck_response(M, C, K, f, backend="numpy", **kw)
+    b = dd.mck_response(M, C, K, f, backend="c", **kw)
     assert b.info["backend"] == "c" and a.info["backend"] == "numpy"
     t = 1e-11 if scheme == "houbolt" else 1e-12
     for q in "xva":
@@ -38,9 +38,9 @@ def test_c_loop_stores_only_what_is_asked_and_runs_in_blocks(model, monkeypatch)
 
     M, C, K, f = model
     monkeypatch.setattr(stepping, "CHECK_BLOCK", 7)   # many calls, the history carried
-    a = dd.simulate_mck(M, C, K, f, 1e-3, force_dofs=[3, 9], quantities=("v",), backend="numpy")
-    b = dd.simulate_mck(M, C, K, f, 1e-3, force_dofs=[3, 9], quantities=("v",))
+    a = dd.mck_response(M, C, K, f, 1e-3, force_dofs=[3, 9], quantities=("v",), backend="numpy")
+    b = dd.mck_response(M, C, K, f, 1e-3, force_dofs=[3, 9], quantities=("v",))
     assert b.x is None and b.a is None
     assert np.abs(b.v - a.v).max() <= 1e-12 * np.abs(a.v).max()
     with pytest.raises(ValueError, match="backend must be 'c' or 'numpy'"):
-        dd.simulate_mck(M, C, K, f, 1e-3, force_dofs=[3, 9], backend="fortran")
+        dd.mck_response(M, C, K, f, 1e-3, force_dofs=[3, 9], backend="fortran")

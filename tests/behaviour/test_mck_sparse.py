@@ -1,4 +1,4 @@
-"""simulate_mck on scipy.sparse matrices: the generated C loop (SuperLU's factors of the
+"""mck_response on scipy.sparse matrices: the generated C loop (SuperLU's factors of the
 effective matrix, sparse products and substitutions in C) against the NumPy/scipy.sparse loop and
 against the dense C loop on the same model densified, every scheme: the same step in another
 summation order, so 1e-12 of the peak (1e-11 for Houbolt, as in test_mck_c_loop.py: its
@@ -72,9 +72,9 @@ def test_sparse_c_loop_equals_numpy_and_dense_loops(request, model, scheme):
     kw = dict(force_dofs=[3, n - 2], scheme=scheme, dt=1e-3, outputs=[0, 7, n // 2, n - 1],
               x0=rng.uniform(-1e-3, 1e-3, n), v0=rng.uniform(-1e-2, 1e-2, n),
               ground_acceleration=ag)
-    a = dd.simulate_mck(M, C, K, f, backend="numpy", **kw)
-    b = dd.simulate_mck(M, C, K, f, backend="c", **kw)
-    c = dd.simulate_mck(M.toarray(), C.toarray(), K.toarray(), f, backend="c", **kw)
+    a = dd.mck_response(M, C, K, f, backend="numpy", **kw)
+    b = dd.mck_response(M, C, K, f, backend="c", **kw)
+    c = dd.mck_response(M.toarray(), C.toarray(), K.toarray(), f, backend="c", **kw)
     assert a.info["backend"] == "scipy.sparse" and a.info["sparse"]
     assert b.info["backend"] == "c" and b.info["sparse"]
     assert c.info["backend"] == "c" and not c.info["sparse"]
@@ -89,8 +89,8 @@ def test_sparse_c_loop_in_blocks_stores_only_what_is_asked(chain, monkeypatch):
     f = np.random.default_rng(4).standard_normal(2001)
     monkeypatch.setattr(stepping, "CHECK_BLOCK", 7)  # many calls, the history carried
     kw = dict(force_dofs=[199], quantities=("v",), outputs=[5, 150], scheme="park")
-    a = dd.simulate_mck(M, C, K, f, 1e-3, backend="numpy", **kw)
-    b = dd.simulate_mck(M, C, K, f, 1e-3, **kw)
+    a = dd.mck_response(M, C, K, f, 1e-3, backend="numpy", **kw)
+    b = dd.mck_response(M, C, K, f, 1e-3, **kw)
     assert b.x is None and b.a is None and b.v.shape == (2001, 2)
     assert np.abs(b.v - a.v).max() <= 1e-12 * np.abs(a.v).max()
 
@@ -102,12 +102,12 @@ def test_singular_sparse_effective_matrix_is_named(backend):
     K = sps.csr_matrix(np.array([[2.0, -1, 0, 0], [-1, 2, 0, 0], [0, 0, 0, 0], [0, 0, 0, 1.0]]))
     C = sps.csr_matrix((4, 4))
     with pytest.raises(ValueError, match=r"the effective matrix M \+ Dv C \+ Dx K is singular"):
-        dd.simulate_mck(M, C, K, np.ones(11), 1e-2, force_dofs=[0], backend=backend,
+        dd.mck_response(M, C, K, np.ones(11), 1e-2, force_dofs=[0], backend=backend,
                         scheme="average_acceleration", unstable="warn")
     # a pivot below eps of the largest: nothing of the solve would be left
     M = sps.diags([1.0, 1e-20]).tocsr()
     with pytest.raises(ValueError, match=r"effective matrix .* numerically singular"):
-        dd.simulate_mck(M, sps.csr_matrix((2, 2)), sps.csr_matrix((2, 2)), np.zeros(11), 1e-2,
+        dd.mck_response(M, sps.csr_matrix((2, 2)), sps.csr_matrix((2, 2)), np.zeros(11), 1e-2,
                         force_dofs=[0], backend=backend, scheme="average_acceleration")
 
 
@@ -115,7 +115,7 @@ def test_sparse_c_loop_stops_at_the_first_non_finite_step(chain):
     M, C, K = chain
     with pytest.warns(dd.DtdynStabilityWarning), np.errstate(over="ignore", invalid="ignore"):
         with pytest.raises(FloatingPointError, match=r"not finite from step \d+ \(t = "):
-            dd.simulate_mck(M, C, K, np.ones(20001), 0.05, force_dofs=[1],
+            dd.mck_response(M, C, K, np.ones(20001), 0.05, force_dofs=[1],
                             scheme="central_difference", unstable="warn")
 
 
@@ -124,7 +124,7 @@ import time, numpy as np, scipy.sparse as sps, dtdyn as dd
 import signal
 signal.signal(signal.SIGINT, signal.default_int_handler)  # ignored in a shell's background job
 M, C, K = dd.chain_matrices([1.0] * 3000, [1e3] * 3000, [0.1] * 3000, sparse=True)
-run = lambda f: dd.simulate_mck(M, C, K, f, 1e-3, force_dofs=[2999], outputs=[0],
+run = lambda f: dd.mck_response(M, C, K, f, 1e-3, force_dofs=[2999], outputs=[0],
                                 quantities=("x",))
 short = run(np.ones(200)).x
 print("start", flush=True)

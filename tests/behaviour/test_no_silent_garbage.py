@@ -16,29 +16,29 @@ def test_chain_and_mck_refuse_an_unstable_step():
     return 5.7e30 without a word)."""
     dt = 4.5 / 161.80339887498948
     with pytest.raises(dd.DtdynUnstableError, match=r"Omega = omega dt = 4.5 > 2"):
-        dd.simulate_chain(MASS, STIFF, [0.1, 0.1], np.ones(201), dt, force_dofs=[1],
+        dd.chain_response(MASS, STIFF, [0.1, 0.1], np.ones(201), dt, force_dofs=[1],
                           scheme="central_difference", form="acceleration")
     M, C, K = dd.chain_matrices(MASS, STIFF, DAMP)
     with pytest.raises(dd.DtdynUnstableError, match=r"use dt < 0.01236"):
-        dd.simulate_mck(M, C, K, np.ones(201), dt, force_dofs=[1], scheme="central_difference")
+        dd.mck_response(M, C, K, np.ones(201), dt, force_dofs=[1], scheme="central_difference")
     # just inside the limit it runs and stays bounded
-    r = dd.simulate_mck(M, C, K, np.ones(2001), 0.0123, force_dofs=[1],
+    r = dd.mck_response(M, C, K, np.ones(2001), 0.0123, force_dofs=[1],
                         scheme="central_difference")
     assert np.abs(r.x).max() < 1e-3
     # the chain's cheap Gershgorin bound (173 rad/s) exceeds the limit here, the exact top mode
     # (161.8 rad/s) does not: the run goes ahead
-    r = dd.simulate_chain(MASS, STIFF, [0.1, 0.1], np.ones(2001), 0.0123, force_dofs=[1],
+    r = dd.chain_response(MASS, STIFF, [0.1, 0.1], np.ones(2001), 0.0123, force_dofs=[1],
                           scheme="central_difference", form="acceleration")
     assert np.abs(r.x).max() < 1e-3
     # unconditionally stable schemes are never refused, whatever the step
-    dd.simulate_mck(M, C, K, np.ones(21), 10.0, force_dofs=[1], scheme="average_acceleration")
+    dd.mck_response(M, C, K, np.ones(21), 10.0, force_dofs=[1], scheme="average_acceleration")
 
 
 def test_a_blow_up_stops_at_its_first_non_finite_step():
     M, C, K = dd.chain_matrices(MASS, STIFF, DAMP)
     with pytest.warns(dd.DtdynStabilityWarning), np.errstate(over="ignore", invalid="ignore"):
         with pytest.raises(FloatingPointError, match=r"not finite from step \d+ \(t = "):
-            dd.simulate_mck(M, C, K, np.ones(20001), 0.05, force_dofs=[1],
+            dd.mck_response(M, C, K, np.ones(20001), 0.05, force_dofs=[1],
                             scheme="central_difference", unstable="warn")
 
 

@@ -1,6 +1,6 @@
 """Nonlinear forced response (runtime/nonlinear.py) against independent truths.
 
-Truths: exact_response (matrix exponential) and simulate_mck for the linear limit; the
+Truths: exact_response (matrix exponential) and mck_response for the linear limit; the
 solve_ivp reference (DOP853, rtol 1e-12, restarted at every sample) for nonlinear runs; the hand
 formulas of reference.md section 6 for the condensed per-step problem.
 """
@@ -10,7 +10,7 @@ import sympy as sp
 
 from dtdyn.derive import nonlinear as DN
 from dtdyn import chain_matrices, exact_response
-from dtdyn import load_result, simulate_mck
+from dtdyn import load_result, mck_response
 from dtdyn.nonlinear import response as NL
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
 from dtdyn.nonlinear.reference import reference_response
@@ -32,7 +32,7 @@ def P4_ref(P4):
 
 def _run(P, **kw):
     kw.setdefault("elements", P["elements"])
-    return NL.nonlinear_response(P["M"], P["C"], P["K"], P["force"], P["dt"],
+    return NL.nonlinear_mck_response(P["M"], P["C"], P["K"], P["force"], P["dt"],
                                  force_dofs=P["force_dofs"], **kw)
 
 
@@ -101,7 +101,7 @@ LINEAR = [Cubic(0, k3=0.0), Cubic(1, 2, k3=0.0)]
 def test_g_zero_modal_equals_matrix_exponential(P4, backend, method):
     """Ramp invariant = first-order hold: exact for the piecewise-linear force (1e-12)."""
     n = 1500
-    r = NL.nonlinear_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"],
+    r = NL.nonlinear_mck_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"],
                               force_dofs=[3], elements=LINEAR, scheme=method, backend=backend)
     ex = exact_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"], force_dofs=[3])
     for q in "xva":
@@ -115,10 +115,10 @@ def test_g_zero_modal_equals_matrix_exponential(P4, backend, method):
                                             ("wilson", {})])
 def test_g_zero_scheme_equals_simulate_mck(P4, backend, method, params):
     n = 1500
-    r = NL.nonlinear_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"],
+    r = NL.nonlinear_mck_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"],
                               force_dofs=[3], elements=LINEAR, scheme=method, backend=backend,
                               **params)
-    mk = simulate_mck(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"], force_dofs=[3],
+    mk = mck_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"], force_dofs=[3],
                       scheme=method, **params)
     for q in "xva":
         got, want = getattr(r, q), getattr(mk, q)
@@ -167,7 +167,7 @@ def test_velocity_law_against_reference():
     f = (np.random.default_rng(3).standard_normal(n) * 50)[:, None]
     els = [Law(0, 1, expression="c*v*abs(v)", c=20.0)]
     ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[1], elements=els, cache=False)
-    errs = [_err(NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[1], elements=els, substeps=S), ref, dof=1)
+    errs = [_err(NL.nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[1], elements=els, substeps=S), ref, dof=1)
             for S in (2, 4)]
     assert errs[1] < 2e-3 and 3.0 <= errs[0] / errs[1] <= 5.0, errs
 
@@ -182,7 +182,7 @@ def test_bouc_wen_hysteresis_matches_reference():
     ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, cache=False)
     errs = []
     for S in (4, 8):
-        r = NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, substeps=S)
+        r = NL.nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, substeps=S)
         errs.append(_err(r, ref, dof=0))
     assert errs[1] < 1e-3 and 3.3 <= errs[0] / errs[1] <= 4.7, errs
     # the element force g = f - M a - C v - K y does net work over the closed loops: the
@@ -200,7 +200,7 @@ def _impact(method, substeps, smoothing=1e-4, stiffness=1e12, backend="c", **kw)
     M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
     fs, n = 100.0, 200
     f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]
-    return NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0],
+    return NL.nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0],
                                  elements=[Gap(0, gap=1e-2, stiffness=stiffness,
                                                            smoothing=smoothing)],
                                  scheme=method, substeps=substeps, backend=backend, **kw)
@@ -262,7 +262,7 @@ def test_backends_report_the_same_failure(method, level):
     messages = []
     for backend in ("c", "casadi"):
         with pytest.raises(NL.NewtonError) as info:
-            NL.nonlinear_response(M, C, K, f, 0.01, force_dofs=[0],
+            NL.nonlinear_mck_response(M, C, K, f, 0.01, force_dofs=[0],
                                   elements=[Cubic(0, k3=1e14)], scheme=method, backend=backend)
         messages.append(str(info.value).split(": residual")[0])
     assert messages[0] == messages[1]
@@ -283,7 +283,7 @@ def test_casadi_backend_runs_in_chunks(P4, monkeypatch):
     messages = []
     for backend in ("c", "casadi"):
         with pytest.raises(NL.NewtonError, match=r"step 201 ") as info:
-            NL.nonlinear_response(M, C, K, f, 0.01, force_dofs=[0],
+            NL.nonlinear_mck_response(M, C, K, f, 0.01, force_dofs=[0],
                                   elements=[Cubic(0, k3=1e14)], scheme="newmark", backend=backend)
         messages.append(str(info.value).split(": residual")[0])
     assert messages[0] == messages[1]
@@ -295,7 +295,7 @@ def test_casadi_backend_checks_every_step():
     f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]
     els = [Gap(0, gap=1e-2, stiffness=1e12, smoothing=1e-4)]
     with pytest.raises(NL.NewtonError, match="step"):
-        NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme="newmark",
+        NL.nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme="newmark",
                               backend="casadi", solver="fast_newton", max_iter=5)
 
 
@@ -321,7 +321,7 @@ def test_bad_inputs(P4, change, match):
               force_dofs=P4["force_dofs"], elements=P4["elements"])
     kw.update(change)
     with pytest.raises(ValueError, match=match):
-        NL.nonlinear_response(**kw)
+        NL.nonlinear_mck_response(**kw)
 
 
 @pytest.mark.parametrize("make, match", [
@@ -359,7 +359,7 @@ def test_chain_equals_mck_path(form, scheme, params, elements):
     M, C, K = chain_matrices(m, k, c, sparse=False)
     a = nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3], elements=elements,
                                  scheme=scheme, form=form, substeps=2, **params)
-    b = NL.nonlinear_response(M, C, K, f, 0.001, force_dofs=[3], elements=elements,
+    b = NL.nonlinear_mck_response(M, C, K, f, 0.001, force_dofs=[3], elements=elements,
                               scheme=scheme, substeps=2, **params)
     for q in "xva":
         assert np.abs(getattr(a, q) - getattr(b, q)).max() <= 1e-12 * np.abs(getattr(b, q)).max()
@@ -402,8 +402,8 @@ def test_chain_c_loop_equals_python_loop(monkeypatch, elements):
 
 
 def test_long_chain_linear_limit_equals_simulate_chain():
-    """20,000 masses: with zero nonlinear stiffness the chain path is simulate_chain's sweep."""
-    from dtdyn import simulate_chain
+    """20,000 masses: with zero nonlinear stiffness the chain path is chain_response's sweep."""
+    from dtdyn import chain_response
     from dtdyn.nonlinear.chain import nonlinear_chain_response
     n = 20_000
     m, k, c = np.ones(n), np.full(n, 1e4), np.full(n, 1.0)
@@ -411,7 +411,7 @@ def test_long_chain_linear_limit_equals_simulate_chain():
     els = [Cubic(0, k3=0.0), Cubic(n - 3, n - 2, k3=0.0)]
     a = nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[n - 1], elements=els,
                                  outputs=[0, n - 2, n - 1], form="acceleration")
-    s = simulate_chain(m, k, c, f, 1e-3, force_dofs=[n - 1], outputs=[0, n - 2, n - 1],
+    s = chain_response(m, k, c, f, 1e-3, force_dofs=[n - 1], outputs=[0, n - 2, n - 1],
                        form="acceleration")
     assert np.abs(a.x - s.x).max() <= 1e-12 * np.abs(s.x).max()
 
@@ -439,7 +439,7 @@ def test_element_forces_and_internal_states_are_stored_when_asked(backend, tmp_p
     f = 30.0 * np.sin(2 * np.pi * 2.0 * np.arange(3001) * 1e-3)
     bw = BoucWen(1, stiffness=2e3, alpha=0.1, beta=300.0, gamma=300.0)
     els = [Cubic(0, k3=1e6), bw]
-    r = NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[1], elements=els, backend=backend,
+    r = NL.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[1], elements=els, backend=backend,
                               scheme="newmark", quantities=("x", "g", "z"))
     assert r.v is None and r.a is None and r.g.shape == (3001, 2) and r.z.shape == (3001, 1)
     y0, y1 = r.x[:, 0], r.x[:, 1]
@@ -447,7 +447,7 @@ def test_element_forces_and_internal_states_are_stored_when_asked(backend, tmp_p
     np.testing.assert_allclose(r.g[:, 1], 0.1 * 2e3 * y1 + 0.9 * 2e3 * r.z[:, 0], rtol=1e-9,
                                atol=1e-9)
     assert np.abs(r.z).max() <= (1.0 / 600.0) * (1 + 1e-9) and np.abs(r.z).max() > 1e-3
-    only = NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[1], elements=els,
+    only = NL.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[1], elements=els,
                                  backend=backend, scheme="newmark", quantities=("g",))
     np.testing.assert_allclose(only.g, r.g, rtol=0, atol=1e-12 * np.abs(r.g).max())
     assert only.x is None and only.z is None
@@ -456,13 +456,13 @@ def test_element_forces_and_internal_states_are_stored_when_asked(backend, tmp_p
         np.testing.assert_allclose(back.g, r.g, rtol=1e-15)
         np.testing.assert_allclose(back.z, r.z, rtol=1e-15)
     with pytest.raises(ValueError, match="no element has internal states"):
-        NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[1], elements=[Cubic(0, k3=1e6)],
+        NL.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[1], elements=[Cubic(0, k3=1e6)],
                               quantities=("x", "z"))
 
 
 def test_initial_conditions_linear_limit_and_duffing_orders():
     """x0, v0: with a negligible element the modal methods equal exact_response and the
-    one-step schemes simulate_mck (same initial state, 1e-12); a Duffing oscillator released
+    one-step schemes mck_response (same initial state, 1e-12); a Duffing oscillator released
     from x0, v0 converges to solve_ivp (DOP853, rtol 1e-12) at the methods' orders, 2 for
     Newmark and 3 for modal_parabolic, on both backends."""
     from scipy.integrate import solve_ivp
@@ -473,9 +473,9 @@ def test_initial_conditions_linear_limit_and_duffing_orders():
     f = np.sin(np.arange(3001) * 1e-3 * 20)[:, None]
     ex = exact_response(M, C, K, f, 1e-3, force_dofs=[2], x0=x0, v0=v0)
     for scheme in ("modal_ramp", "newmark"):
-        r = NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[2], scheme=scheme, x0=x0, v0=v0,
+        r = NL.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[2], scheme=scheme, x0=x0, v0=v0,
                                   elements=[Cubic(0, k3=1e-20)])
-        ref = ex if scheme == "modal_ramp" else simulate_mck(M, C, K, f, 1e-3, force_dofs=[2],
+        ref = ex if scheme == "modal_ramp" else mck_response(M, C, K, f, 1e-3, force_dofs=[2],
                                                              x0=x0, v0=v0, scheme=scheme)
         for q in "xva":
             assert np.abs(getattr(r, q) - getattr(ref, q)).max() <= 1e-12 * np.abs(
@@ -487,7 +487,7 @@ def test_initial_conditions_linear_limit_and_duffing_orders():
     peak = np.abs(sol.y[0]).max()
     for scheme, order in (("newmark", 2), ("modal_parabolic", 3)):
         for backend in ("c", "casadi"):
-            errs = [np.abs(NL.nonlinear_response(
+            errs = [np.abs(NL.nonlinear_mck_response(
                 [[m]], [[c]], [[k]], np.zeros(501), 1e-3, elements=[Cubic(0, k3=k3)],
                 scheme=scheme, substeps=S, x0=[a0], v0=[b0], backend=backend).x[:, 0]
                 - sol.y[0]).max() / peak for S in (4, 8)]
@@ -497,7 +497,7 @@ def test_initial_conditions_linear_limit_and_duffing_orders():
 @pytest.mark.parametrize("backend", ["c", "numpy"])
 def test_nonlinear_chain_initial_state_forces_and_states(backend):
     """nonlinear_chain_response with x0, v0 and quantities g, z: the same discrete equations
-    as nonlinear_response with the same scheme on the assembled matrices (x to 1e-10 of the
+    as nonlinear_mck_response with the same scheme on the assembled matrices (x to 1e-10 of the
     peak, g and z alike), from both the C loop and the Python loop."""
     from dtdyn import chain_matrices, nonlinear_chain_response
 
@@ -509,7 +509,7 @@ def test_nonlinear_chain_initial_state_forces_and_states(backend):
               quantities=("x", "g", "z"))
     r = nonlinear_chain_response(mass, stiff, damp, f, 1e-3, backend=backend, **kw)
     M, C, K = chain_matrices(mass, stiff, damp, sparse=False)
-    ref = NL.nonlinear_response(M, C, K, f, 1e-3, **kw)
+    ref = NL.nonlinear_mck_response(M, C, K, f, 1e-3, **kw)
     np.testing.assert_allclose(r.x[0], x0, rtol=0, atol=1e-15)
     for q in "xgz":
         a, b = getattr(r, q), getattr(ref, q)
@@ -595,7 +595,7 @@ def test_quintic_embedded_estimate_is_its_recursion(P4):
     lower). 3,000 steps: 23 full blocks of 128 steps and a partial one."""
     M, C, K, f, dt = P4["M"], P4["C"], P4["K"], P4["force"], P4["dt"]
     els = P4["elements"]
-    r = NL.nonlinear_response(M, C, K, f, dt, force_dofs=P4["force_dofs"], elements=els,
+    r = NL.nonlinear_mck_response(M, C, K, f, dt, force_dofs=P4["force_dofs"], elements=els,
                               scheme="modal_quintic", quantities=("x", "v", "a", "g"))
     L = NL.element_matrix(els, 4)
     step = NL.linear_step("modal_quintic", M, C, K, dt, np.array(P4["force_dofs"]), L,
@@ -627,7 +627,7 @@ def test_quintic_backends_agree(P4):
     CasADi backend on the full matrices: the same step, so the same numbers to the Newton
     tolerance."""
     n = 3000
-    runs = {b: NL.nonlinear_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"],
+    runs = {b: NL.nonlinear_mck_response(P4["M"], P4["C"], P4["K"], P4["force"][:n], P4["dt"],
                                      force_dofs=[3], elements=P4["elements"],
                                      scheme="modal_quintic", backend=b) for b in ("c", "casadi")}
     peak = np.abs(runs["c"].x).max()
@@ -653,7 +653,7 @@ def test_modal_path_with_real_poles_agrees_with_casadi(method):
     perm = step.modal["perm"]
     assert np.count_nonzero(step.modal["off"] == 0.0) >= 2  # real poles, moved behind the pairs
     assert not np.array_equal(perm, np.arange(perm.size))
-    runs = {b: NL.nonlinear_response(M, C, K, force, 1e-3, force_dofs=[2], elements=els,
+    runs = {b: NL.nonlinear_mck_response(M, C, K, force, 1e-3, force_dofs=[2], elements=els,
                                      scheme=method, backend=b, quantities=("x", "v", "a", "g"))
             for b in ("c", "casadi")}
     for q in "xvag":
@@ -708,7 +708,7 @@ def test_explicit_backends_agree(P4):
     theta from the same product): nothing is iterated, so they differ by rounding only (7e-15
     measured for x, v, a and g; 1e-11 asserted, room for the fused products of another CPU),
     with the same largest theta and no Newton iterations in C."""
-    runs = {b: NL.nonlinear_response(P4["M"], P4["C"], P4["K"], P4["force"], P4["dt"],
+    runs = {b: NL.nonlinear_mck_response(P4["M"], P4["C"], P4["K"], P4["force"], P4["dt"],
                                      force_dofs=[3], elements=P4["elements"],
                                      scheme="modal_explicit", backend=b,
                                      quantities=("x", "v", "a", "g")) for b in ("c", "casadi")}
@@ -729,7 +729,7 @@ def test_explicit_with_internal_states_agrees_with_casadi():
     fs, n = 200.0, 1000
     f = (50.0 * np.sin(2 * np.pi * np.arange(n) / fs))[:, None]
     els = [BoucWen(0, stiffness=1e4, alpha=0.1, beta=50.0, gamma=50.0)]
-    runs = {b: NL.nonlinear_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els,
+    runs = {b: NL.nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els,
                                      scheme="modal_explicit", substeps=4, backend=b,
                                      quantities=("x", "v", "a", "g", "z"))
             for b in ("c", "casadi")}
@@ -766,7 +766,7 @@ def test_explicit_checks_agree_with_casadi_mid_record(level):
     runs = {}
     for backend in ("c", "casadi"):
         try:
-            runs[backend] = NL.nonlinear_response(M, C, K, f, 0.01, force_dofs=[0],
+            runs[backend] = NL.nonlinear_mck_response(M, C, K, f, 0.01, force_dofs=[0],
                                                   elements=[Cubic(0, k3=1e8)],
                                                   scheme="modal_explicit", substeps=4,
                                                   backend=backend)
@@ -814,7 +814,7 @@ def test_kept_lu_converges_to_plain_newton(kind, scheme, factorizations, monkeyp
         runs = {}
         for reuse in (None, 12):
             monkeypatch.setattr(NL, "LU_REUSE_MIN", reuse)
-            runs[reuse] = NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[23], elements=els,
+            runs[reuse] = NL.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[23], elements=els,
                                                 scheme=scheme, tol=tol, quantities=("x",))
         peak = np.abs(runs[None].x).max()
         diff.append(np.abs(runs[12].x - runs[None].x).max() / peak)
@@ -880,7 +880,7 @@ def test_forces_before_start_on_a_stiff_damped_model():
         t0 = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            r = NL.nonlinear_response(M, 2e-6 * K, K, f, 1e-3, force_dofs=[0], elements=els,
+            r = NL.nonlinear_mck_response(M, 2e-6 * K, K, f, 1e-3, force_dofs=[0], elements=els,
                                       x0=x0, scheme="modal_quintic")
         said = [w for w in caught if issubclass(w.category, DtdynAccuracyWarning)
                 and "constant past g_0" in str(w.message)]
@@ -900,7 +900,7 @@ def test_start_away_from_rest_keeps_the_quintic_order():
                     (0.0, t[-1]), [a0, b0], method="DOP853", rtol=1e-13, atol=1e-16, t_eval=t)
     errs = []
     for S in (2, 4, 8):
-        r = NL.nonlinear_response([[m]], [[c]], [[k]], np.zeros(501), 1e-3,
+        r = NL.nonlinear_mck_response([[m]], [[c]], [[k]], np.zeros(501), 1e-3,
                                   elements=[Cubic(0, k3=k3)], x0=[a0], v0=[b0],
                                   quantities=("x", "v"), scheme="modal_quintic", substeps=S)
         e = max(np.abs(r.x[:, 0] - sol.y[0]).max() / np.abs(sol.y[0]).max(),

@@ -1,13 +1,13 @@
 """Shafts and beams with localized nonlinear elements at stations (issue 14 item 6):
-nonlinear_shaft_response and nonlinear_beam_response against nonlinear_response on the dense
+nonlinear_shaft_response and nonlinear_beam_response against nonlinear_mck_response on the dense
 assembled matrices (shaft_matrices / beam_matrices .toarray()), same scheme, same substeps.
 
-Truth: nonlinear_response solves the same condensed per-step problem with a dense
+Truth: nonlinear_mck_response solves the same condensed per-step problem with a dense
 factorization of the assembled effective matrix instead of the O(N) sweep, so the two are equal
 to rounding; held to 1e-9 relative (the issue's tolerance for the linear sweeps) on x, v, a and
 the element forces g, except a beam's rotational accelerations (their bound in
 test_beam_equals_assembled). Each case is first checked to be nonlinear: the elements change the
-response by far more than the tolerance (against the linear simulate_shaft / simulate_beam).
+response by far more than the tolerance (against the linear shaft_response / beam_response).
 """
 import numpy as np
 import pytest
@@ -61,11 +61,11 @@ def beam_case():
 
 def test_cases_are_nonlinear(shaft_case, beam_case):
     shaft, elements, f, dofs = shaft_case
-    lin = dd.simulate_shaft(shaft, f, 1e-3, force_dofs=dofs)
+    lin = dd.shaft_response(shaft, f, 1e-3, force_dofs=dofs)
     nl = dd.nonlinear_shaft_response(shaft, f, 1e-3, force_dofs=dofs, elements=elements)
     assert np.abs(nl.x - lin.x).max() > 0.05 * np.abs(lin.x).max()
     beam, elements, f, dofs = beam_case
-    lin = dd.simulate_beam(beam, f, 1e-4, force_dofs=dofs)
+    lin = dd.beam_response(beam, f, 1e-4, force_dofs=dofs)
     nl = dd.nonlinear_beam_response(beam, f, 1e-4, force_dofs=dofs, elements=elements,
                                     quantities=("x", "g"))
     assert np.abs(nl.x - lin.x).max() > 0.05 * np.abs(lin.x).max()
@@ -82,7 +82,7 @@ def test_shaft_equals_assembled(shaft_case, scheme, params, form, backend):
     a = dd.nonlinear_shaft_response(shaft, f, 1e-3, force_dofs=dofs, elements=elements,
                                     scheme=scheme, form=form, substeps=2, backend=backend,
                                     quantities=("x", "v", "a", "g"), **params)
-    b = NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=idx, elements=elements,
+    b = NL.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=idx, elements=elements,
                               scheme=scheme, substeps=2, quantities=("x", "v", "a", "g"),
                               **params)
     assert a.dof_names == shaft.dof_names
@@ -99,7 +99,7 @@ def test_beam_equals_assembled(beam_case, scheme, params, form, backend):
     a = dd.nonlinear_beam_response(beam, f, 1e-4, force_dofs=dofs, elements=elements,
                                    scheme=scheme, form=form, substeps=2, backend=backend,
                                    quantities=("x", "v", "a", "g"), **params)
-    b = NL.nonlinear_response(M, C, K, f, 1e-4, force_dofs=[beam.dof(d) for d in dofs],
+    b = NL.nonlinear_mck_response(M, C, K, f, 1e-4, force_dofs=[beam.dof(d) for d in dofs],
                               elements=elements, scheme=scheme, substeps=2,
                               quantities=("x", "v", "a", "g"), **params)
     assert a.dof_names == beam.dof_names
@@ -110,13 +110,13 @@ def test_beam_equals_assembled(beam_case, scheme, params, form, backend):
     # the rotations' accelerations carry the rounding of the highest (rotation) modes: a is a
     # difference of displacements over beta h^2, cond(A) ~ 2e3 here, and the sweep and the
     # dense solve round differently. Bound: the linear sweep's own difference from the
-    # assembled solve (simulate_beam against simulate_mck), same model, load, scheme and h
+    # assembled solve (beam_response against mck_response), same model, load, scheme and h
     # (measured: nonlinear 1.4e-9 .. 8e-9, linear 8e-9 .. 4.3e-8)
     idx = [beam.dof(d) for d in dofs]
     fine = np.interp(np.arange(2 * f.shape[0] - 1) * 5e-5, np.arange(f.shape[0]) * 1e-4, f[:, 0])
-    la = dd.simulate_beam(beam, fine, 5e-5, force_dofs=idx, scheme=scheme, form=form,
+    la = dd.beam_response(beam, fine, 5e-5, force_dofs=idx, scheme=scheme, form=form,
                           backend=backend, **params).a
-    lb = dd.simulate_mck(M, C, K, fine, 5e-5, force_dofs=idx, scheme=scheme, **params).a
+    lb = dd.mck_response(M, C, K, fine, 5e-5, force_dofs=idx, scheme=scheme, **params).a
     _close(a.a, b.a, "a", rtol=max(1e-9, np.abs(la - lb).max() / np.abs(lb).max()))
 
 
@@ -129,7 +129,7 @@ def test_initial_conditions_outputs_and_ground_motion(shaft_case, beam_case):
     x0, v0 = np.linspace(0.01, 0.03, n), np.linspace(-1.0, 1.0, n)
     a = dd.nonlinear_shaft_response(shaft, f, 1e-3, force_dofs=dofs, elements=elements,
                                     x0=x0, v0=v0, outputs=["out.1", "main.1"])
-    b = NL.nonlinear_response(M, C, K, f, 1e-3, force_dofs=[shaft.dof(d) for d in dofs],
+    b = NL.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[shaft.dof(d) for d in dofs],
                               elements=elements, scheme="newmark", x0=x0, v0=v0,
                               outputs=[shaft.dof("out.1"), shaft.dof("main.1")])
     assert a.dof_names == ("out.1", "main.1")
@@ -137,7 +137,7 @@ def test_initial_conditions_outputs_and_ground_motion(shaft_case, beam_case):
         _close(getattr(a, q), getattr(b, q), q)
     ag = 50.0 * np.sin(30 * np.arange(801) * 1e-3)
     a = dd.nonlinear_shaft_response(shaft, None, 1e-3, elements=elements, ground_acceleration=ag)
-    b = NL.nonlinear_response(M, C, K, None, 1e-3, elements=elements, scheme="newmark",
+    b = NL.nonlinear_mck_response(M, C, K, None, 1e-3, elements=elements, scheme="newmark",
                               ground_acceleration=ag, influence=rigid_rotation(shaft))
     for q in ("x", "v", "a", "a_abs"):
         _close(getattr(a, q), getattr(b, q), q)
@@ -147,7 +147,7 @@ def test_initial_conditions_outputs_and_ground_motion(shaft_case, beam_case):
     v0[beam.dof("w20")] = 0.05
     a = dd.nonlinear_beam_response(beam, f, 1e-4, force_dofs=dofs, elements=elements, v0=v0,
                                    outputs=["w10", "psi20"])
-    b = NL.nonlinear_response(M, C, K, f, 1e-4, force_dofs=[beam.dof(d) for d in dofs],
+    b = NL.nonlinear_mck_response(M, C, K, f, 1e-4, force_dofs=[beam.dof(d) for d in dofs],
                               elements=elements, scheme="newmark", v0=v0,
                               outputs=[beam.dof("w10"), beam.dof("psi20")])
     assert a.dof_names == ("w10", "psi20")

@@ -2,7 +2,7 @@
 
 Independent truths: the matrices are assembled here by hand from each element's energy (a gear
 as the constraint phi_side = -phi_parent / n, T^T k_e T per shaft), not by shaft_matrices; the
-frequencies are scipy.linalg.eigh of that (M, K); the time histories are simulate_mck on it
+frequencies are scipy.linalg.eigh of that (M, K); the time histories are mck_response on it
 (same scheme, same dt); a continuous shaft's frequencies are the closed form (2j - 1) pi c / (2 L)
 (clamped-free) and the roots of the clamped shaft with a tip disk, found here by a fine scan.
 """
@@ -127,9 +127,9 @@ def test_time_history_equals_assembled(name, form, scheme):
     force = np.c_[np.where(t > 0.05, 10.0, 0.0), 3.0 * np.sin(40.0 * t)]
     fd = [len(dofs) - 1, 1]
     x0 = 1e-3 * np.arange(len(dofs))
-    r = dd.simulate_shaft(s, force, dt, force_dofs=[dofs[i] for i in fd], scheme=scheme,
+    r = dd.shaft_response(s, force, dt, force_dofs=[dofs[i] for i in fd], scheme=scheme,
                           form=form, x0=x0)
-    ref = dd.simulate_mck(M, C, K, force, dt, force_dofs=fd, scheme=scheme, x0=x0)
+    ref = dd.mck_response(M, C, K, force, dt, force_dofs=fd, scheme=scheme, x0=x0)
     for q in "xva":
         a, b = getattr(r, q), getattr(ref, q)
         assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max(), q
@@ -139,8 +139,8 @@ def test_time_history_equals_assembled(name, form, scheme):
 def test_numpy_backend_equals_c(form):
     s, (M, C, K), dofs = branched()
     force = np.ones(301)
-    rc = dd.simulate_shaft(s, force, 1e-3, force_dofs=["leaf.0"], form=form, scheme="hht")
-    rn = dd.simulate_shaft(s, force, 1e-3, force_dofs=["leaf.0"], form=form, scheme="hht",
+    rc = dd.shaft_response(s, force, 1e-3, force_dofs=["leaf.0"], form=form, scheme="hht")
+    rn = dd.shaft_response(s, force, 1e-3, force_dofs=["leaf.0"], form=form, scheme="hht",
                            backend="numpy")
     assert rn.info["backend"] == "numpy"
     assert np.abs(rc.x - rn.x).max() <= 1e-12 * np.abs(rc.x).max()
@@ -150,9 +150,9 @@ def test_explicit_central_difference():
     s, (M, C, K), dofs = five_disk()
     dt = 1e-4
     f = np.ones(501)
-    r = dd.simulate_shaft(s, f, dt, force_dofs=[4], scheme="central_difference",
+    r = dd.shaft_response(s, f, dt, force_dofs=[4], scheme="central_difference",
                           form="acceleration")
-    ref = dd.simulate_mck(M, C, K, f, dt, force_dofs=[4], scheme="central_difference")
+    ref = dd.mck_response(M, C, K, f, dt, force_dofs=[4], scheme="central_difference")
     assert np.abs(r.x - ref.x).max() <= 1e-9 * np.abs(ref.x).max()
 
 
@@ -223,8 +223,8 @@ def test_ten_thousand_station_tree_equals_sparse_newmark_and_scales_linearly():
     M, C, K = dd.shaft_matrices(s)
     f = np.ones(201)
     out = [0, 4_999, 9_999]
-    r = dd.simulate_shaft(s, f, 1e-3, force_dofs=[9_999], outputs=out)
-    ref = dd.simulate_mck(M, C, K, f, 1e-3, force_dofs=[9_999], outputs=out)
+    r = dd.shaft_response(s, f, 1e-3, force_dofs=[9_999], outputs=out)
+    ref = dd.mck_response(M, C, K, f, 1e-3, force_dofs=[9_999], outputs=out)
     assert np.abs(r.x - ref.x).max() <= 1e-9 * np.abs(ref.x).max()
     # O(N) per step: 10x the stations costs about 10x (not 100x), best of three
     times = {}
@@ -233,7 +233,7 @@ def test_ten_thousand_station_tree_equals_sparse_newmark_and_scales_linearly():
         best = np.inf
         for _ in range(3):
             t0 = time.perf_counter()
-            dd.simulate_shaft(sh, np.ones(501), 1e-3, force_dofs=[n - 1], outputs=[0])
+            dd.shaft_response(sh, np.ones(501), 1e-3, force_dofs=[n - 1], outputs=[0])
             best = min(best, time.perf_counter() - t0)
         times[n] = best
     assert times[10_000] / times[1_000] < 30
@@ -264,7 +264,7 @@ def test_bad_gear_and_segment_and_dofs():
         dd.ContinuousShaft(1.0, -1.0, 1.0, 1.0)
     s = dd.Shaft([1.0, 1.0], [1.0, 1.0])
     with pytest.raises(ValueError, match=r"no DOF named 'main.7'"):
-        dd.simulate_shaft(s, np.ones(3), 0.01, force_dofs=["main.7"])
+        dd.shaft_response(s, np.ones(3), 0.01, force_dofs=["main.7"])
     with pytest.raises(ValueError, match=r"count = 0"):
         dd.shaft_frequencies(s, count=0)
     seg = dd.Shaft([0.0], [dd.ContinuousShaft(1.0, 1.0, 1.0, 1.0)])
@@ -285,9 +285,9 @@ def test_support_motion_of_a_geared_tree():
     dt = 1e-3
     t = np.arange(1001) * dt
     ag = 40.0 * np.sin(2 * np.pi * 7.0 * t)
-    res = dd.simulate_shaft(s, None, dt, ground_acceleration=ag, scheme="hht", alpha=-0.1)
+    res = dd.shaft_response(s, None, dt, ground_acceleration=ag, scheme="hht", alpha=-0.1)
     M, C, K = dd.shaft_matrices(s)
-    ref = dd.simulate_mck(M, C, K, -np.outer(ag, M @ r), dt, scheme="hht", alpha=-0.1)
+    ref = dd.mck_response(M, C, K, -np.outer(ag, M @ r), dt, scheme="hht", alpha=-0.1)
     for q in "xva":
         assert np.abs(getattr(res, q) - getattr(ref, q)).max() \
             <= 1e-9 * np.abs(getattr(ref, q)).max(), q
@@ -304,7 +304,7 @@ def test_blocked_tree_loop_at_block_edges(form, grounded, many):
     """The C tree loop works in blocks of 256 stations and takes two plain line stations a
     round: branches hanging at block edges (stations 255 and 256), a geared branch at the last
     disk of the main line (its parent is station n - 1, but through a gear), a branch of a
-    branch without a gear and an odd number of stations: equal to simulate_mck."""
+    branch without a gear and an odd number of stations: equal to mck_response."""
     rng = np.random.default_rng(7)
 
     def line(n):
@@ -322,8 +322,8 @@ def test_blocked_tree_loop_at_block_edges(form, grounded, many):
     # the root and a branch's first station; and on every fifth station (the force row read)
     fd = [[n - 1, 150, 0, s.dof("b255.0")], list(range(0, n, 5))][many]
     f = np.sin(np.outer(np.arange(301) * 0.1, np.arange(1, len(fd) + 1)))
-    r = dd.simulate_shaft(s, f, 1e-3, force_dofs=fd, form=form, scheme="hht")
-    ref = dd.simulate_mck(M, C, K, f, 1e-3, force_dofs=fd, scheme="hht")
+    r = dd.shaft_response(s, f, 1e-3, force_dofs=fd, form=form, scheme="hht")
+    ref = dd.mck_response(M, C, K, f, 1e-3, force_dofs=fd, scheme="hht")
     for q in "xva":
         a, b = getattr(r, q), getattr(ref, q)
         assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max(), q

@@ -6,7 +6,7 @@ import scipy.signal as sig
 
 from dtdyn.linear.discretize import first_order_form
 from dtdyn.linear.exact import exact_response
-from dtdyn.linear.mck import simulate_mck
+from dtdyn.linear.mck import mck_response
 from dtdyn.linear.discrete_model import DiscreteModel
 from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
 
@@ -80,7 +80,7 @@ def test_discrete_state_space_equals_simulate_mck(scheme, params):
     M, C, K = random_system(4, rng)
     dt, n_steps = 0.01, 400
     F = rng.standard_normal((n_steps + 1, 4))
-    ref = simulate_mck(M, C, K, F, dt, scheme=scheme, **params)
+    ref = mck_response(M, C, K, F, dt, scheme=scheme, **params)
     model = discrete_state_space(M, C, K, dt, scheme=scheme, acceleration=True, **params)
     A, B, Cm, D = model
     assert A.shape[0] == 12  # history (x0, v0, a0), all of it output: S = I, D = Gamma1
@@ -173,7 +173,7 @@ def test_exact_response_with_a_massless_dof():
 
 def test_massless_dof():
     """SHARPy's formula needs M^-1; newmark_ss realizes the same recursion with the state
-    [q; q'; q''], equals simulate_mck and converges at second order to exact_response."""
+    [q; q'; q''], equals mck_response and converges at second order to exact_response."""
     M, C, K = _massless_system()
     T = 2.0
     with pytest.raises(np.linalg.LinAlgError):
@@ -185,7 +185,7 @@ def test_massless_dof():
             n = int(round(T / dt))
             F = _massless_force(np.arange(n + 1) * dt)
             gamma, beta = 0.5 + num_damp, 0.25 * (1 + num_damp) ** 2
-            ref = simulate_mck(M, C, K, F, dt, scheme="newmark", beta=beta, gamma=gamma)
+            ref = mck_response(M, C, K, F, dt, scheme="newmark", beta=beta, gamma=gamma)
             model = newmark_ss(M, C, K, dt, num_damp=num_damp)
             A, B, Cm, D = model
             assert A.shape == (9, 9) and Cm.shape == (6, 9)
@@ -272,7 +272,7 @@ def test_bad_input():
 ], ids=["newmark_ss", "discrete_state_space", "generalized_alpha"])
 def test_response_starts_at_rest_under_a_step(build):
     """The models' states are shifted by the f_0 feedthrough, so a zero state is not rest under a
-    step: state_space_response starts at rest anyway and equals simulate_mck (same scheme) to
+    step: state_space_response starts at rest anyway and equals mck_response (same scheme) to
     1e-12 with no initial-state argument; the raw zero-state recursion does not."""
     M, C, K = np.diag([2.0, 1.0]), np.array([[0.3, -0.1], [-0.1, 0.1]]), \
         np.array([[30.0, -10.0], [-10.0, 10.0]])
@@ -280,7 +280,7 @@ def test_response_starts_at_rest_under_a_step(build):
     model = build(M, C, K, dt)
     scheme = "generalized_alpha" if "rho_inf=0.7" in model.source else "newmark"
     params = {"rho_inf": 0.7} if scheme == "generalized_alpha" else {}
-    ref = simulate_mck(M, C, K, np.ones(n + 1), dt, force_dofs=[1], scheme=scheme, **params)
+    ref = mck_response(M, C, K, np.ones(n + 1), dt, force_dofs=[1], scheme=scheme, **params)
     r = state_space_response(model, np.ones(n + 1), force_dofs=[1])
     for q in model.quantities:
         assert np.abs(getattr(r, q) - getattr(ref, q)).max() <= 1e-12 * np.abs(getattr(ref, q)).max()
@@ -292,7 +292,7 @@ def test_response_starts_at_rest_under_a_step(build):
 
 def test_response_from_initial_conditions():
     """x0, v0 map to each model's state: the FOH discretization then equals exact_response (the
-    matrix exponential) from the same initial state to round-off, Newmark equals simulate_mck."""
+    matrix exponential) from the same initial state to round-off, Newmark equals mck_response."""
     M, C, K = np.diag([2.0, 1.0]), np.array([[0.3, -0.1], [-0.1, 0.1]]), \
         np.array([[30.0, -10.0], [-10.0, 10.0]])
     dt, n = 0.01, 300
@@ -307,7 +307,7 @@ def test_response_from_initial_conditions():
         np.testing.assert_allclose(r.v[0], v0, rtol=0, atol=1e-14)
         if hold == "foh":
             assert np.abs(r.x - ex.x).max() <= 1e-12 * np.abs(ex.x).max()
-    mk = simulate_mck(M, C, K, f, dt, force_dofs=[1], x0=x0, v0=v0, scheme="newmark")
+    mk = mck_response(M, C, K, f, dt, force_dofs=[1], x0=x0, v0=v0, scheme="newmark")
     r = state_space_response(newmark_ss(M, C, K, dt, num_damp=0.0), f, force_dofs=[1], x0=x0,
                              v0=v0)
     assert np.abs(r.x - mk.x).max() <= 1e-12 * np.abs(mk.x).max()

@@ -54,8 +54,8 @@ def test_chain_from_rest_has_no_subnormal_state():
     m, k, c = np.ones(N), np.full(N, 1e4), np.ones(N)
     F = np.ones((steps + 1, 1))
     kw = dict(force_dofs=[N - 1], quantities=("x",))
-    xc = dd.simulate_chain(m, k, c, F, 1e-4, backend="c", **kw).x
-    xn = dd.simulate_chain(m, k, c, F, 1e-4, backend="numpy", **kw).x
+    xc = dd.chain_response(m, k, c, F, 1e-4, backend="c", **kw).x
+    xn = dd.chain_response(m, k, c, F, 1e-4, backend="numpy", **kw).x
     assert _mode_restored()
     assert ((xn != 0.0) & (np.abs(xn) < TINY)).any()   # NumPy's gradual underflow
     assert _normal_or_zero(xc)

@@ -3,7 +3,7 @@
 - every scheme's ``coefficients(form, dt, *params)`` against the maps built here from the
   reference's formulas (shared/reference.md section 4), at random dt and random admissible
   parameters;
-- the generated C chain kernel against the generated NumPy sweep (simulate_chain backend "c" vs
+- the generated C chain kernel against the generated NumPy sweep (chain_response backend "c" vs
   "numpy"), every scheme, both forms, both sweeps;
 - the generated Laplace-domain element matrices against reference section 2.
 
@@ -28,7 +28,7 @@ from numpy.testing import assert_allclose
 import dtdyn.generated as G
 from dtdyn.generated import tmm as gtmm
 from dtdyn._engine import kernels
-from dtdyn.linear.chain import DtdynAccuracyWarning, simulate_chain
+from dtdyn.linear.chain import DtdynAccuracyWarning, chain_response
 
 RTOL = 1e-13
 N_DRAWS = 25
@@ -338,8 +338,8 @@ def compare_backends(name, form, sweep, n_mass, dt, k_scale, c_scale, seed, n_st
     kw = dict(force_dofs=loaded, scheme=name, form=form, sweep=sweep, **params)
     with warnings.catch_warnings():
         warnings.simplefilter("error", DtdynAccuracyWarning)  # the chains are well conditioned
-        rc = simulate_chain(m, k, c, force, dt, backend="c", **kw)
-        rn = simulate_chain(m, k, c, force, dt, backend="numpy", **kw)
+        rc = chain_response(m, k, c, force, dt, backend="c", **kw)
+        rn = chain_response(m, k, c, force, dt, backend="numpy", **kw)
     assert rc.info["backend"] == "c" and rn.info["backend"] == "numpy"
     for q in ("x", "v", "a"):
         xc, xn = getattr(rc, q), getattr(rn, q)

@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 
-from dtdyn import DtdynUnstableError, simulate_chain
+from dtdyn import DtdynUnstableError, chain_response
 import sympy as sp
 
 from dtdyn.app.cli import main
@@ -97,7 +97,7 @@ def test_scene_warns_before_an_unstable_run():
         with pytest.raises(DtdynUnstableError, match=r"Omega = omega dt = 8.09 > 2"):
             run_scene(scene)  # refused before it runs: it would blow up (static answer 2e-4)
     with pytest.warns(DtdynStabilityWarning, match="unstable at dt = 0.05"):
-        response = simulate_chain([1.0, 1.0], [1e4, 1e4], [1.0, 1.0], np.ones(11), 0.05,
+        response = chain_response([1.0, 1.0], [1e4, 1e4], [1.0, 1.0], np.ones(11), 0.05,
                                   force_dofs=[1], scheme="central_difference",
                                   form="acceleration", unstable="warn")  # for study, on request
     assert np.abs(response.x).max() > 1e-2

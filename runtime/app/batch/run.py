@@ -39,7 +39,7 @@ LISTED_FAILURES = 10
 #: dynamic ceilings on 64-bit Linux (mmap above 32 MiB, return the heap's free top above twice
 #: that), fixed: a worker keeps at most 64 MiB of freed heap. Other C libraries ignore them.
 #: DTDYN_THREADS = 1: each worker process runs one task on one core (the C loops that can split
-#: their work, such as simulate_chain's stable sweep, then stay on one thread)
+#: their work, such as chain_response's stable sweep, then stay on one thread)
 WORKER_ENVIRON = {"MALLOC_MMAP_THRESHOLD_": str(32 * 2**20),
                   "MALLOC_TRIM_THRESHOLD_": str(64 * 2**20), "DTDYN_THREADS": "1"}
 #: the Dask config of that LocalCluster: WORKER_ENVIRON before the workers start, and the

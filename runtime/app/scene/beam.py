@@ -17,7 +17,7 @@
     supports = [{node = 50, k_w = 1e5, c_w = 20.0}]                # optional: k_psi, c_psi too
 
 DOF names (loads' ``dof``, ``[output] outputs``): "w<node>", "psi<node>" (`dtdyn.Beam`); held
-DOFs are not among them. The scene runs `simulate_beam` (scheme, form, backend from [scheme]);
+DOFs are not among them. The scene runs `beam_response` (scheme, form, backend from [scheme]);
 ``Scene.matrices()`` gives the assembled sparse M, C, K and ``Scene.dof_names`` their DOFs;
 `dtdyn modes` counts the frequencies by Wittrick-Williams.
 """
@@ -84,11 +84,11 @@ def matrices(beam, sparse=None):
 
 
 def simulate(scene, progress=False, support=None):
-    """`simulate_beam` on the scene, with its [ground] record when it has one."""
+    """`beam_response` on the scene, with its [ground] record when it has one."""
     from dtdyn.app.scene.schema import model_simulate
-    from dtdyn.linear.beam import simulate_beam
+    from dtdyn.linear.beam import beam_response
 
-    return model_simulate(simulate_beam, scene, progress, support)
+    return model_simulate(beam_response, scene, progress, support)
 
 
 def simulate_nonlinear(scene, support=None):

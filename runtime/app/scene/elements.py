@@ -116,7 +116,7 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
         for key in ("form", "sweep", "backend"):
             if key in scheme_tbl:
                 raise ValueError(f"scheme.{key} = {scheme_tbl[key]!r}: only for linear chains; a "
-                                 "scene with [[element]] runs nonlinear_response (set "
+                                 "scene with [[element]] runs nonlinear_mck_response (set "
                                  "nonlinear.backend): remove the key")
         name = scheme_tbl.get("name")
         if name == "auto" and "accuracy" not in options:

@@ -39,7 +39,7 @@ def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None,
         for key in ("form", "sweep", "backend"):
             if key in tbl:
                 raise ValueError(f"scheme.{key} = {tbl[key]!r}: only for chain models; a model "
-                                 "with kind = 'matrices' runs simulate_mck (acceleration form, "
+                                 "with kind = 'matrices' runs mck_response (acceleration form, "
                                  "dense or sparse as the matrices are): remove the key")
     name, params = _scheme_name_params(tbl)
     if kind == "matrices":
@@ -257,7 +257,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         if kind in MODEL_MODULES and sweep != "stable":
             raise ValueError(f"scheme.sweep = {sweep!r}: a {kind} runs the stable sweep only")
         if kind == "matrices":
-            backend = "c"  # simulate_mck's C loop, dense or sparse (NumPy without a compiler)
+            backend = "c"  # mck_response's C loop, dense or sparse (NumPy without a compiler)
     outputs, quantities = _parse_output(data.get("output", {}), n_dof, names, nonlinear)
     # the time, the force of each loaded DOF and the outputs asked, before any is built
     validate.output_size(f"{source}: time.duration / time.dt = {n_steps} steps", n_steps + 1,

@@ -41,7 +41,7 @@ def check_stability(scene: Scene) -> bool:
     """Warn before a run whose dt makes the scheme unstable for a mode of the model.
 
     A nonlinear scene is checked for its linear part at the sub-step dt / substeps when its
-    method is a scheme (the modal methods are exact for the linear part; nonlinear_response
+    method is a scheme (the modal methods are exact for the linear part; nonlinear_mck_response
     checks the elements' tangent stiffness as it runs).
     """
     from dtdyn.linear.stability import warn_if_unstable
@@ -74,7 +74,7 @@ def _support(scene: Scene) -> dict:
 
 
 def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
-    """``nonlinear_response`` on the scene; errors get the scene file's name."""
+    """``nonlinear_mck_response`` on the scene; errors get the scene file's name."""
     from dtdyn.nonlinear import response as nonlinear
 
     start = time.perf_counter()
@@ -84,7 +84,7 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
         else:
             M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m)
                        for m in scene_matrices(scene))
-            response = nonlinear.nonlinear_response(
+            response = nonlinear.nonlinear_mck_response(
                 M, C, K, scene.force, scene.dt, force_dofs=scene.loaded, **_support(scene),
                 elements=scene.elements,
                 outputs=scene.outputs, quantities=scene.quantities, scheme=scene.scheme,
@@ -119,8 +119,8 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
 
 
 def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple[Response, dict]:
-    """Simulate a scene with ``simulate_chain`` (chains), ``simulate_mck`` (general matrices) or
-    ``nonlinear_response`` (scenes with elements) and report run time and error.
+    """Simulate a scene with ``chain_response`` (chains), ``mck_response`` (general matrices) or
+    ``nonlinear_mck_response`` (scenes with elements) and report run time and error.
 
     The error is measured against the matrix-exponential solution (``exact_response``) when the
     scene is linear and has at most ``EXACT_MAX_DOF`` DOFs (and, for matrices, a mass matrix
@@ -178,7 +178,7 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
     if scene.kind == "matrices":
         from dtdyn.linear import mck
 
-        response = mck.simulate_mck(
+        response = mck.mck_response(
             scene.M, scene.C, scene.K, scene.force, scene.dt, force_dofs=scene.loaded,
             **_support(scene), scheme=scene.scheme, outputs=scene.outputs,
             quantities=scene.quantities, backend=scene.backend, progress=progress,
@@ -188,7 +188,7 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
     else:
         from dtdyn.linear import chain  # imported here: chain may compile kernels on first use
 
-        response = chain.simulate_chain(
+        response = chain.chain_response(
             **scene.chain, force=scene.force, dt=scene.dt, force_dofs=scene.loaded,
             **_support(scene), scheme=scene.scheme, form=scene.form, sweep=scene.sweep,
             backend=scene.backend, outputs=scene.outputs, quantities=scene.quantities,

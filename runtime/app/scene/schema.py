@@ -74,7 +74,7 @@ dtdyn.app.scene.shaft and dtdyn.app.scene.beam describe them; loads and outputs 
 ("main.3", "w200").
 
 Paths are relative to the scene file. ``load.dof`` and ``output.outputs`` entries of such a scene
-are 0-based indices or names from ``model.dofs``. It runs with ``simulate_mck`` (any scheme,
+are 0-based indices or names from ``model.dofs``. It runs with ``mck_response`` (any scheme,
 acceleration form, dense or sparse); ``scheme.form``, ``scheme.sweep`` and ``scheme.backend``
 belong to chains and are rejected.
 
@@ -95,7 +95,7 @@ Nonlinear elements (dtdyn.nonlinear.elements) join the model, chain or matrices;
     substeps = 1                        # optional: steps per sample, h = dt / substeps (with
                                         #   accuracy: the first run's)
     accuracy = 1e-6                     # optional: a relative error target instead (the method
-                                        #   and sub-steps chosen: nonlinear_response's accuracy)
+                                        #   and sub-steps chosen: nonlinear_mck_response's accuracy)
     max_substeps = 1024                 # optional, with accuracy: the most sub-steps tried
                                         #   (default: 10^8 DOF-steps over the record, >= 256)
     backend = "c"                       # optional: "c" or "casadi"
@@ -120,7 +120,7 @@ element classes)::
 The scheme of a nonlinear scene is ``scheme.name`` (default ``"modal_ramp"``): a modal method
 (no parameters) or a one-step scheme with its parameters (``beta = 0.3``, ...); ``scheme.form``,
 ``.sweep`` and ``.backend`` are refused (``nonlinear.backend`` chooses the backend). ``[nonlinear]`` without any ``[[element]]`` is an
-error. A nonlinear scene runs ``nonlinear_response`` on dense M, C, K (a chain's from
+error. A nonlinear scene runs ``nonlinear_mck_response`` on dense M, C, K (a chain's from
 ``chain_matrices``; ``model.sparse = true`` is refused) with the loads sampled every ``dt``
 and the stored outputs and quantities the scene asks for; it is not compared
 with the exact solution.
@@ -237,7 +237,7 @@ DEFAULT_SCENE = "scenes/p3.toml"
 
 @dataclass
 class Scene:
-    """A validated scene: what ``simulate_chain`` or ``simulate_mck`` needs, plus what to store.
+    """A validated scene: what ``chain_response`` or ``mck_response`` needs, plus what to store.
 
     ``force`` has shape ``(n_steps + 1, len(loaded))``: column ``j`` is the sum of the loads on
     the 0-based DOF ``loaded[j]`` sampled at ``t_0 .. t_n``.
@@ -246,13 +246,13 @@ class Scene:
     or ``"matrices"`` (``M``, ``C``, ``K`` set, all dense ndarrays or all scipy.sparse CSR, damping
     options already added to ``C``; ``mass``, ``stiffness``, ``damping`` None; ``dof_names`` one
     name per DOF; ``form = "acceleration"``, ``sweep = None``, ``backend = "c"``: the C loop of
-    ``simulate_mck``, dense or sparse).
+    ``mck_response``, dense or sparse).
 
     A nonlinear scene has ``elements`` (dtdyn.nonlinear.elements objects, DOFs checked),
     ``scheme`` the method (``"modal_ramp"``, ``"modal_parabolic"`` or a one-step scheme),
     ``scheme_params`` that scheme's parameters, ``nonlinear`` the ``[nonlinear]`` options the
     file gives (``substeps``, ``tol``, ``max_iter``, ``modes``, ``backend``; the others take
-    ``nonlinear_response``'s defaults), ``backend`` ``"c"`` or ``"casadi"``, ``form`` and
+    ``nonlinear_mck_response``'s defaults), ``backend`` ``"c"`` or ``"casadi"``, ``form`` and
     ``sweep`` None; matrices are dense.
 
     Attributes

@@ -21,7 +21,7 @@
     stiffness = [6e3, 5e3]
 
 DOF names (loads' ``dof``, ``[output] outputs``): "<line>.<i>" (`dtdyn.Shaft`). The scene runs
-`simulate_shaft` (scheme, form, backend from [scheme]); ``Scene.matrices()`` gives the assembled
+`shaft_response` (scheme, form, backend from [scheme]); ``Scene.matrices()`` gives the assembled
 sparse M, C, K and ``Scene.dof_names`` their DOFs; `dtdyn modes` counts the frequencies by
 Wittrick-Williams (exact for continuous shafts).
 """
@@ -139,11 +139,11 @@ def matrices(shaft, sparse=None):
 
 
 def simulate(scene, progress=False, support=None):
-    """`simulate_shaft` on the scene."""
+    """`shaft_response` on the scene."""
     from dtdyn.app.scene.schema import model_simulate
-    from dtdyn.linear.shaft import simulate_shaft
+    from dtdyn.linear.shaft import shaft_response
 
-    return model_simulate(simulate_shaft, scene, progress, support)
+    return model_simulate(shaft_response, scene, progress, support)
 
 
 def simulate_nonlinear(scene, support=None):
