@@ -57,8 +57,8 @@ def part_a():
     model = modal_model(M, C, K, force_dofs=[1], outputs=[1])
     print("## (a) Frequency response of the bank, P2\n")
     print("Driving-point receptance of P2 (force and displacement at DOF 1, 0-based). Undamped "
-          "natural frequencies " + ", ".join(f"{w:.4f}" for w in model.frequencies / (2 * np.pi))
-          + " Hz, damping ratios " + ", ".join(f"{z:.4f}" for z in model.damping_ratios) + ".\n")
+          "natural frequencies " + ", ".join(f"{w:.4f}" for w in model.omega / (2 * np.pi))
+          + " Hz, damping ratios " + ", ".join(f"{z:.4f}" for z in model.damping_ratio) + ".\n")
     print("![FRF of the three invariants](img/modal_filters_frf.png)\n")
     fss = (50.0, 5.0)
     fig, axes = plt.subplots(3, 2, figsize=(11, 10), sharex="col")
@@ -212,7 +212,7 @@ def part_c():
           "rest), linear between samples, on the loaded DOF; exact_response is exact for it. "
           "Error: max over time and all DOFs of |x - x_exact| / max |x_exact|. "
           "P2: 10 s; P3 (undamped 15-DOF chain, natural frequencies up to "
-          f"{np.max(modal_model(*matrices(P3), [14], [14]).frequencies) / (2 * np.pi):.2f} Hz): "
+          f"{np.max(modal_model(*matrices(P3), [14], [14]).omega) / (2 * np.pi):.2f} Hz): "
           "0.8 s.\n")
     print("| problem | fs (Hz) | samples | ramp | step | impulse |")
     print("|---|---:|---:|---:|---:|---:|")

@@ -4,7 +4,7 @@ Writes docs/modal_filter_speed.md. Run from the repository root:
 
     python benchmarks/modal_filter_speed.py
 
-Problem: P3 (`dtdyn.p3()`), the 15-DOF chain, as given: undamped (C = 0). The
+Problem: P3 (`dtdyn.problem("P3")`), the 15-DOF chain, as given: undamped (C = 0). The
 modal model keeps its undamped poles (Re s = 0, allowed by dtdyn.modal.model); damping would
 not change the work per sample. Force on DOF 14 (0-based), random piecewise-linear (standard
 normal samples, first one 0), fs = 2000 Hz, ramp invariant, 1,000,000 samples.
@@ -229,7 +229,7 @@ def main():
         y = ys[name]
         print(f"   {name:28s}" + "".join(f"{np.max(np.abs(y[:m] - ex[:m])) / ref:13.1e}  "
                                          for m in marks))
-    w1 = model.frequencies[0]
+    w1 = model.omega[0]
     eps = np.finfo(float).eps
     print(f"   mode 1: theta = |s_1| T = {w1 / FS:.2e}. A section stores a1 = -2 cos(theta), "
           f"whose rounding moves theta by ~ eps / theta = {eps / (w1 / FS):.1e} (a relative frequency "

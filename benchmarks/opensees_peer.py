@@ -54,7 +54,7 @@ SYSTEMS = ("BandSPD", "ProfileSPD", "BandGeneral", "FullGeneral")
 def building():
     """(M, C, K, a0, a1): the shear building with 5 % Rayleigh damping in modes 1 and 3."""
     M, _, K = dd.chain_matrices(MASS, STIFF, [0.0] * 5, sparse=False)
-    w = dd.modes(M, K).omega
+    w = dd.mck_modes(M, None, K).omega
     a0, a1 = np.linalg.solve([[1 / (2 * w[0]), w[0] / 2], [1 / (2 * w[2]), w[2] / 2]],
                              [0.05, 0.05])
     return M, a0 * M + a1 * K, K, a0, a1
@@ -163,7 +163,7 @@ def main(steps=(20_000, 200_000)):
         sys.exit(f"openseespy is not importable ({exc}): apt-get install libblas3 liblapack3; "
                  "pip install openseespy")
     M, C, K, a0, a1 = building()
-    w = dd.modes(M, K).omega
+    w = dd.mck_modes(M, None, K).omega
     print(f"5-storey shear building, f1 = {w[0] / 2 / np.pi:.3f} Hz, Rayleigh C = a0 M + a1 K "
           f"(a0 = {a0:.6g} 1/s, a1 = {a1:.6g} s: 5 % in modes 1 and 3); Newmark gamma 1/2, "
           "beta 1/4")

@@ -71,7 +71,7 @@ def main(quick=False):
     row(f"DT-TMM chain, {N} masses, from rest", *t, "mass-step", N * steps)
 
     # 3) modal filters (P4's linear model): an impulse, then quiet
-    p4 = dd.p4(n_samples=n)
+    p4 = dd.problem("P4", n_samples=n)
     M, C, K = (p4[key] for key in ("M", "C", "K"))
     imp = np.zeros((n, 1))
     imp[0, 0] = 100.0

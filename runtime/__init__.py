@@ -20,7 +20,7 @@ from dtdyn._engine.ground import ground_acceleration_from
 from dtdyn._engine.result import Response
 from dtdyn._engine.result_io import load_result
 from dtdyn.app.batch import run_batch
-from dtdyn.app.problems import p1, p2, p3, p4
+from dtdyn.app.problems import problem
 from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
 from dtdyn.linear.chain import chain_matrices, rayleigh_chain_damping, chain_response
 from dtdyn.linear.beam import (Beam, PointMass, Support, beam_frequencies, beam_matrices,
@@ -36,12 +36,12 @@ from dtdyn.linear.shaft import (Branch, ContinuousShaft, Shaft, shaft_frequencie
 from dtdyn.linear.shaft_frequency import shaft_frequency_response, shaft_modes
 from dtdyn.linear.stability import Stability, critical_omega_dt, stability
 from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
-from dtdyn.linear.tmm import frequency_response, undamped_poles
+from dtdyn.linear.tmm import chain_frequency_response
 from dtdyn.modal.filter_errors import (continuous_frequency_response, discrete_frequency_response,
                                        ramp_bias, truncation_error)
 from dtdyn.modal.filters import modal_filter_response, to_sos
 from dtdyn.modal.model import ModalModel, from_poles_residues, modal_model
-from dtdyn.modal.modes import Modes, modes
+from dtdyn.modal.modes import Modes, mck_modes
 from dtdyn.modal.spectrum import ResponseSpectrum, response_spectrum
 from dtdyn.modal.srs import SRS, load_record, sdof_response, shock_response_spectrum
 from dtdyn.nonlinear.chain import nonlinear_chain_response
@@ -59,13 +59,13 @@ __all__ = [
     "beam_frequency_response", "mck_response", "exact_response",
     "newmark_ss", "discrete_state_space", "state_space_response",
     "discretize", "first_order_form", "DiscreteModel",
-    "frequency_response", "undamped_poles", "chain_frequencies", "chain_poles", "stability", "critical_omega_dt",
+    "chain_frequency_response", "chain_frequencies", "chain_poles", "stability", "critical_omega_dt",
     "Stability",
     # torsional shafts and trees
     "Shaft", "Branch", "ContinuousShaft", "shaft_response", "shaft_matrices",
     "shaft_frequencies", "shaft_modes", "shaft_frequency_response",
     # modal
-    "modes", "Modes", "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",
+    "mck_modes", "Modes", "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",
     "discrete_frequency_response", "continuous_frequency_response", "ramp_bias",
     "truncation_error", "shock_response_spectrum", "sdof_response", "SRS", "load_record",
     "response_spectrum", "ResponseSpectrum",
@@ -76,10 +76,62 @@ __all__ = [
     # scenes, results, reference problems
     "ground_acceleration_from", "Scene", "load_scene", "scene_from_dict", "run_scene", "Response", "load_result",
     "run_batch",
-    "p1", "p2", "p3", "p4",
+    "problem",
     # errors and warnings
     "NewtonError", "DtdynStepStabilityError", "DtdynUnstableError", "SingularMassError",
     "DtdynAccuracyWarning",
     "DtdynStabilityWarning", "DtdynFallbackWarning", "SRSSamplingWarning",
     "__version__",
 ]
+
+
+def _check_keywords():
+    """Every public function and class checks its keywords (`dtdyn._engine.public`); the
+    checked function replaces the plain one in its home module too (one object, one name)."""
+    import sys
+    from dtdyn._engine.public import public
+    for name in __all__:
+        obj = globals()[name]
+        if isinstance(obj, type) and issubclass(obj, BaseException) or not callable(obj):
+            continue
+        if getattr(obj, "__dtdyn_public__", False) or \
+                getattr(getattr(obj, "__init__", None), "__dtdyn_public__", False):
+            continue
+        checked = public(obj)
+        globals()[name] = checked
+        if not isinstance(obj, type):
+            setattr(sys.modules[obj.__module__], name, checked)
+
+
+_check_keywords()
+
+
+def _deprecated():
+    """Old name -> (new name, the object it now means)."""
+    def p(name):
+        return lambda *args, **kw: problem(name, **({"n_samples": args[0]} if args else kw))
+
+    def old_modes(M, K, C=None, *, count=None, influence=None):
+        return mck_modes(M, C, K, count=count, influence=influence)
+
+    return {"simulate_chain": ("chain_response", chain_response),
+            "simulate_mck": ("mck_response", mck_response),
+            "simulate_beam": ("beam_response", beam_response),
+            "simulate_shaft": ("shaft_response", shaft_response),
+            "nonlinear_response": ("nonlinear_mck_response", nonlinear_mck_response),
+            "frequency_response": ("chain_frequency_response", chain_frequency_response),
+            "undamped_poles": ("chain_frequencies", chain_frequencies),
+            "modes": ("mck_modes(M, C, K) (note the argument order)", old_modes),
+            "p1": ('problem("P1")', p("P1")), "p2": ('problem("P2")', p("P2")),
+            "p3": ('problem("P3")', p("P3")), "p4": ('problem("P4", n_samples=...)', p("P4"))}
+
+
+def __getattr__(name):
+    """The names of the previous release, for one more release, with a DeprecationWarning."""
+    old = _deprecated().get(name)
+    if old is None:
+        raise AttributeError(f"module 'dtdyn' has no attribute {name!r}")
+    import warnings
+    warnings.warn(f"dtdyn.{name} is now dtdyn.{old[0]}; the old name will be removed in the "
+                  "next release", DeprecationWarning, stacklevel=2)
+    return old[1]

@@ -21,11 +21,11 @@ def pytest_configure(config):
 
 @pytest.fixture(scope="session")
 def p2():
-    """P2 (dtdyn.p2()): the 2-DOF chain with M, C, K."""
+    """P2 (dtdyn.problem("P2")): the 2-DOF chain with M, C, K."""
     return problems.p2()
 
 
 @pytest.fixture(scope="session")
 def p3():
-    """P3 (dtdyn.p3()): the undamped 15-DOF chain with M, C, K."""
+    """P3 (dtdyn.problem("P3")): the undamped 15-DOF chain with M, C, K."""
     return problems.p3()

@@ -4,6 +4,7 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass
 
+from dtdyn._engine.public import suggest
 from dtdyn.generated.scheme_table import TABLE
 
 NAMES = tuple(TABLE)
@@ -59,7 +60,8 @@ def get_scheme(name: str, **params) -> SchemeInfo:
     unknown = sorted(set(params) - set(module.PARAMS))
     if unknown:
         allowed = ", ".join(module.PARAMS) or "none"
-        raise ValueError(f"scheme {name!r} takes parameters ({allowed}), got {', '.join(unknown)}")
+        raise TypeError(f"scheme {name!r} takes parameters ({allowed}), got "
+                        f"{', '.join(unknown)}{suggest(unknown[0], module.PARAMS)}")
     values = dict(module.DEFAULTS)
     for key, value in params.items():
         values[key] = check_parameter(name, key, value)

@@ -46,7 +46,7 @@ def p1() -> dict:
     Examples
     --------
     >>> import dtdyn as dd
-    >>> dd.p1()["K"]
+    >>> dd.problem("P1")["K"]
     array([[12.]])
     """
     return _chain([2.0], [12.0], [3.0], dt=0.02, T=10.0, force_dofs=[0], output=0)
@@ -68,7 +68,7 @@ def p2() -> dict:
     Examples
     --------
     >>> import dtdyn as dd
-    >>> dd.p2()["force_dofs"]
+    >>> dd.problem("P2")["force_dofs"]
     [1]
     """
     return _chain([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], dt=0.02, T=10.0, force_dofs=[1], output=1)
@@ -90,7 +90,7 @@ def p3() -> dict:
     Examples
     --------
     >>> import dtdyn as dd
-    >>> p = dd.p3()
+    >>> p = dd.problem("P3")
     >>> p["M"].shape, p["T"]
     ((15, 15), 0.8)
     """
@@ -138,7 +138,7 @@ def p4(n_samples: int = 100_000) -> dict:
     Examples
     --------
     >>> import dtdyn as dd
-    >>> p = dd.p4(1000)
+    >>> p = dd.problem("P4", n_samples=1000)
     >>> p["force"].shape, p["dt"], p["force_dofs"]
     ((1000, 1), 0.001, [3])
     """
@@ -175,3 +175,38 @@ def p4l(n_samples: int = 100_000) -> dict:
     ([], True)
     """
     return {**p4(n_samples), "elements": [], "k3": 0.0}
+
+
+PROBLEMS = {"P1": p1, "P2": p2, "P3": p3, "P4": p4, "P4L": p4l}
+
+
+def problem(name: str, **options) -> dict:
+    """A reference problem as a dict of its data: the chain (``"mass"``, ``"stiffness"``,
+    ``"damping"``), its matrices ``"M"``, ``"C"``, ``"K"``, the duration ``"T"``, the loaded
+    DOFs ``"force_dofs"``; P4 also ``"force"``, ``"dt"`` and ``"elements"``. The module
+    docstring says what each problem is.
+
+    Parameters
+    ----------
+    name : {"P1", "P2", "P3", "P4", "P4L"}
+        The problem (case-insensitive).
+    **options
+        ``n_samples`` for P4 and P4L (default 100,000).
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> p = dd.problem("P3")
+    >>> p["M"].shape, p["T"]
+    ((15, 15), 0.8)
+    """
+    key = str(name).upper()
+    if key not in PROBLEMS:
+        raise ValueError(f"problem {name!r} is not one of {', '.join(PROBLEMS)}")
+    if options and key not in ("P4", "P4L"):
+        raise TypeError(f"problem {key!r} takes no options, got {', '.join(options)}")
+    unknown = set(options) - {"n_samples"}
+    if unknown:
+        from dtdyn._engine.public import unknown_keyword
+        raise unknown_keyword("problem", sorted(unknown)[0], {"name", "n_samples"})
+    return PROBLEMS[key](**options)

@@ -31,6 +31,8 @@ import numpy as np
 import scipy.linalg as sla
 
 from dtdyn._engine import linalg, validate
+from dtdyn._engine.frf import receptance_matrix
+from dtdyn._engine.public import public
 from dtdyn.generated import beam as derived
 from dtdyn.linear import sweep_modes
 from dtdyn.linear.beam import Beam, beam_frequencies, beam_matrices, rigid_translation
@@ -244,18 +246,21 @@ def _exact_blocks(beam: Beam, w: np.ndarray):
     return D, E
 
 
-def beam_frequency_response(beam: Beam, omega, force_dof, output, *, exact=False) -> np.ndarray:
-    """Receptance u_output / f (m/N, rad/N, m/(N m) or rad/(N m)) at s = i omega for a unit
-    force (on a w) or moment (on a psi) at ``force_dof``, by the pivoted banded LU of the node blocks (module
-    docstring), O(N) per frequency.
+@public(renamed={"force_dof": "force_dofs", "output": "outputs"})
+def beam_frequency_response(beam: Beam, omega, force_dofs, outputs, *,
+                            exact=False) -> np.ndarray:
+    """Receptances u_o / f_i (m/N, rad/N, m/(N m) or rad/(N m)) at s = i omega for a unit
+    force (on a w) or moment (on a psi) at each of ``force_dofs``, by the pivoted banded LU of
+    the node blocks (module docstring), O(N) per frequency and loaded DOF.
 
     Parameters
     ----------
     beam : Beam
     omega : array_like
         Circular frequencies, rad/s, finite and >= 0.
-    force_dof, output : int or str
-        An index into ``beam.dof_names`` or a name ("w200", "psi3").
+    force_dofs, outputs : int or str, or a sequence of them
+        The loaded DOFs and the DOFs whose motion is returned: indices into
+        ``beam.dof_names`` or names ("w200", "psi3").
     exact : bool
         False: the Hermite elements, (K + i omega C - omega^2 M)^-1 of `beam_matrices`, with
         the beam's Rayleigh damping and dampers. True: every element by its exact
@@ -266,8 +271,10 @@ def beam_frequency_response(beam: Beam, omega, force_dof, output, *, exact=False
 
     Returns
     -------
-    (len(omega),) complex ndarray
-        NaN where Z(omega) is singular to the bit (a resonance of an undamped beam).
+    complex ndarray
+        Shape (len(omega), len(outputs), len(force_dofs)), or (len(omega),) when both are
+        single DOFs. NaN where Z(omega) is singular to the bit (a resonance of an undamped
+        beam).
 
     Examples
     --------
@@ -280,7 +287,18 @@ def beam_frequency_response(beam: Beam, omega, force_dof, output, *, exact=False
     _check_beam(beam)
     w = validate.frequencies("omega", omega)
     validate.flag("exact", exact)
-    i_f, i_o = _dof("force_dof", force_dof, beam), _dof("output", output, beam)
+    columns = {}
+
+    def pair(i, o):
+        if i not in columns:
+            columns[i] = _all_receptances(beam, w, i, exact)
+        return columns[i][:, beam.free[o]]
+
+    return receptance_matrix(pair, force_dofs, outputs, lambda name, v: _dof(name, v, beam))
+
+
+def _all_receptances(beam, w, i_f, exact) -> np.ndarray:
+    """Every free DOF's receptance to a unit load on DOF ``i_f``: (len(w), 2 (elements + 1))."""
     nodes = beam.elements + 1
     if exact:
         D, E = _exact_blocks(beam, w)
@@ -292,4 +310,4 @@ def beam_frequency_response(beam: Beam, omega, force_dof, output, *, exact=False
     f = np.zeros((w.size, 2 * nodes), dtype=complex)
     f[:, beam.free[i_f]] = 1.0
     u = banded_solve(D, E, _held(beam), f.reshape(w.size, nodes, 2))
-    return u.reshape(w.size, -1)[:, beam.free[i_o]]
+    return u.reshape(w.size, -1)

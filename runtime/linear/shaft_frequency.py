@@ -17,6 +17,8 @@ from __future__ import annotations
 import numpy as np
 
 from dtdyn._engine import validate
+from dtdyn._engine.frf import receptance_matrix
+from dtdyn._engine.public import public
 from dtdyn.generated import shaft as gen
 from dtdyn.linear import sweep_modes
 from dtdyn.linear.shaft import (Shaft, _check_shaft, rigid_rotation, shaft_frequencies,
@@ -105,9 +107,12 @@ def _node(name, value, tree, shaft):
     raise ValueError(f"{name} = {value!r}: must be one DOF, an index or a name")
 
 
-def shaft_frequency_response(shaft: Shaft, omega, force_dof, output, *, exact=True) -> np.ndarray:
-    """Receptance phi_output / T (rad / N m) at s = i omega for a unit torque on ``force_dof``,
-    with the shaft's damping, by the tree's sweep (O(N) per frequency).
+@public(renamed={"force_dof": "force_dofs", "output": "outputs"})
+def shaft_frequency_response(shaft: Shaft, omega, force_dofs, outputs, *,
+                             exact=True) -> np.ndarray:
+    """Receptances phi_o / T_i (rad / N m) at s = i omega for a unit torque on each of
+    ``force_dofs``, with the shaft's damping, by the tree's sweep (O(N) per frequency and
+    loaded DOF).
 
     Each disk contributes mu = J s^2 + c_g s + k_g, each shaft its dynamic stiffness (a, b)
     (a spring-damper: a = -b = k_t + c_t s); eliminating from the leaves gives per node the pivot
@@ -120,9 +125,9 @@ def shaft_frequency_response(shaft: Shaft, omega, force_dof, output, *, exact=Tr
     shaft : Shaft
     omega : array_like
         Circular frequencies, rad/s, finite and >= 0.
-    force_dof, output : int or str
-        The loaded DOF and the DOF whose rotation is returned: an index into
-        ``shaft.dof_names`` or a name ("main.2", "out.0").
+    force_dofs, outputs : int or str, or a sequence of them
+        The loaded DOFs and the DOFs whose rotations are returned: indices into
+        ``shaft.dof_names`` or names ("main.2", "out.0").
     exact : bool
         Continuous shafts by their exact dynamic stiffness, damped as G (1 + tau s),
         tau = c_t L / (G J_p) (True; only disks can then be loaded or observed), or as their
@@ -130,8 +135,9 @@ def shaft_frequency_response(shaft: Shaft, omega, force_dof, output, *, exact=Tr
 
     Returns
     -------
-    (len(omega),) complex ndarray
-        The receptance; equal to (K + i omega C - omega^2 M)^-1 on `shaft_matrices` (lumped).
+    complex ndarray
+        Shape (len(omega), len(outputs), len(force_dofs)), or (len(omega),) when both are
+        single DOFs. The receptances; equal to (K + i omega C - omega^2 M)^-1 on `shaft_matrices` (lumped).
         At a natural frequency of an undamped shaft it is infinite.
 
     Examples
@@ -145,7 +151,19 @@ def shaft_frequency_response(shaft: Shaft, omega, force_dof, output, *, exact=Tr
     w = validate.frequencies("omega", omega)
     validate.flag("exact", exact)
     tree = shaft._build(exact=True) if exact and shaft.has_continuous else shaft.tree
-    i_f, i_o = _node("force_dof", force_dof, tree, shaft), _node("output", output, tree, shaft)
+    columns = {}
+
+    def pair(i, o):
+        if i not in columns:
+            columns[i] = _all_receptances(tree, w, i)
+        return columns[i][o]
+
+    return receptance_matrix(pair, force_dofs, outputs,
+                             lambda name, v: _node(name, v, tree, shaft))
+
+
+def _all_receptances(tree, w, i_f) -> np.ndarray:
+    """Every node's rotation per unit torque on node ``i_f``: (nodes, len(w)) complex."""
     s = 1j * w
     N = tree.J.size
     mu = gen.node_terms(s[None, :], tree.J[:, None], tree.kg[:, None], tree.cg[:, None])
@@ -167,4 +185,4 @@ def shaft_frequency_response(shaft: Shaft, omega, force_dof, output, *, exact=Tr
     gu, gS, gR = gen.gear_factors(tree.ratio)
     with np.errstate(divide="ignore", invalid="ignore"):
         phi, _ = gen.tree_solve(tree.parent, gu, gS, gR, mu, a, b, F)
-    return phi[i_o]
+    return phi

@@ -10,6 +10,8 @@ import numpy as np
 from dtdyn.generated import tmm as elements
 
 from dtdyn._engine import validate
+from dtdyn._engine.frf import receptance_matrix
+from dtdyn._engine.public import public
 from dtdyn.linear.chain import chain_parameters
 
 
@@ -28,18 +30,23 @@ def system_matrix(chain, s: complex) -> np.ndarray:
     return U
 
 
-def frequency_response(mass, stiffness, damping, omega, force_dof: int, output: int, *,
-                       ground_stiffness=None, ground_damping=None) -> np.ndarray:
-    """x_output / F at s = j omega for a unit force on mass ``force_dof`` (0-based masses), by
-    the Laplace-domain transfer matrices with the boundary conditions x_base = 0, f_end = 0.
+@public(renamed={"force_dof": "force_dofs", "output": "outputs"})
+def chain_frequency_response(mass, stiffness, damping, omega, force_dofs, outputs, *,
+                             ground_stiffness=None, ground_damping=None) -> np.ndarray:
+    """Receptances x_o / F_i at s = j omega for unit forces on the masses ``force_dofs``
+    (0-based), by the Laplace-domain transfer matrices with the boundary conditions
+    x_base = 0, f_end = 0; O(N) per frequency and pair.
 
     Examples
     --------
     >>> import numpy as np, dtdyn as dd
-    >>> H = dd.frequency_response([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], np.array([1.0, 2.0]),
-    ...                           force_dof=1, output=0)
+    >>> H = dd.chain_frequency_response([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], [1.0, 2.0],
+    ...                                 force_dofs=1, outputs=0)
     >>> H.shape
     (2,)
+    >>> dd.chain_frequency_response([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], [1.0, 2.0],
+    ...                             force_dofs=[1], outputs=[0, 1]).shape   # (omega, out, in)
+    (2, 2, 1)
 
     Parameters
     ----------
@@ -49,17 +56,26 @@ def frequency_response(mass, stiffness, damping, omega, force_dof: int, output: 
         Springs and dampers from the masses to the ground (as `chain_response`).
     omega : array_like
         Circular frequencies, rad/s.
-    force_dof, output : int
-        The loaded mass and the mass whose displacement is returned (0-based).
+    force_dofs, outputs : int or sequence of int
+        The loaded masses and the masses whose displacements are returned (0-based).
 
     Returns
     -------
-    (len(omega),) complex ndarray
-        The receptance x_output / F, m/N.
+    complex ndarray
+        The receptances x_o / F_i, m/N: shape (len(omega), len(outputs), len(force_dofs)), or
+        (len(omega),) when both ``force_dofs`` and ``outputs`` are single ints.
     """
     chain = chain_parameters(mass, stiffness, damping, ground_stiffness, ground_damping)
-    for name, value in (("force_dof", force_dof), ("output", output)):
-        validate.dof_indices(name, [value], chain.m.size)
+
+    def index(name, value):
+        return int(validate.dof_indices(name, [value], chain.m.size)[0])
+
+    return receptance_matrix(lambda i, o: _receptance(chain, omega, i, o), force_dofs, outputs,
+                             index)
+
+
+def _receptance(chain, omega, force_dof: int, output: int) -> np.ndarray:
+    """x_output / F at s = j omega, (len(omega),) complex, for one loaded mass."""
     out = np.empty(np.size(omega), dtype=complex)
     for i, w in enumerate(np.atleast_1d(omega)):
         s = 1j * w
@@ -74,34 +90,3 @@ def frequency_response(mass, stiffness, damping, omega, force_dof: int, output: 
         out[i] = (partial[output] @ np.array([0.0, f_base, 1.0]))[0]
     return out
 
-
-def undamped_poles(mass, stiffness) -> np.ndarray:
-    """Natural frequencies omega_n (rad/s, ascending) of an undamped chain: roots of U22(j omega).
-
-    U22 is a polynomial of degree N in lambda = omega^2 whose N roots are simple (an irreducible
-    tridiagonal pencil has distinct eigenvalues). They are found by `chain_frequencies`: bisection
-    on the Wittrick-Williams count of the same chain, O(N) per evaluation, so no root is missed
-    or doubled and nothing overflows, however long the chain.
-
-    Parameters
-    ----------
-    mass, stiffness : (N,) array_like
-        m_n > 0, k_n > 0 of the chain.
-
-    Returns
-    -------
-    (N,) ndarray
-        omega_n in rad/s, ascending.
-
-    Examples
-    --------
-    >>> import dtdyn as dd
-    >>> w = dd.undamped_poles([10, 9, 8, 7, 6, 6, 5.5, 5, 4.5, 4, 3.5, 4, 2.5, 2, 2],
-    ...                       [55000, 50000, 45000, 40000, 40000, 35000, 30000, 25000, 20000,
-    ...                        15000, 10000, 9000, 8000, 7000, 6000])          # P3
-    >>> round(float(w[0]), 2), round(float(w[-1]), 1)
-    (9.49, 148.2)
-    """
-    from dtdyn.linear.frequencies import chain_frequencies
-
-    return chain_frequencies(mass, stiffness)

@@ -421,7 +421,7 @@ def truncation_error(M, C, K, force_dofs, outputs, modes, freqs_hz,
     Examples
     --------
     >>> import dtdyn as dd
-    >>> p = dd.p3()
+    >>> p = dd.problem("P3")
     >>> e = dd.truncation_error(p["M"], p["C"], p["K"], [14], [14], range(5), [1.0, 5.0])
     >>> bool(e.peak_relative < 0.1)
     True

@@ -39,6 +39,7 @@ import scipy.linalg as sla
 
 from dtdyn._engine import linalg
 from dtdyn._engine import validate
+from dtdyn._engine.public import warn
 from dtdyn.linear.chain import DtdynAccuracyWarning
 
 #: a pole with |s| below this times max |s| is a rigid-body (zero) pole
@@ -165,14 +166,31 @@ class ModalModel:
         return int(self.poles.size)
 
     @property
-    def frequencies(self) -> np.ndarray:
-        """Undamped natural frequencies |s_r| in rad/s (ascending)."""
+    def omega(self) -> np.ndarray:
+        """Natural frequencies omega_n,r = |s_r| in rad/s (ascending)."""
         return np.abs(self.poles)
 
     @property
-    def damping_ratios(self) -> np.ndarray:
+    def omega_d(self) -> np.ndarray:
+        """Damped natural frequencies omega_d,r = Im s_r in rad/s (0 for a real pole)."""
+        return self.poles.imag.copy()
+
+    @property
+    def damping_ratio(self) -> np.ndarray:
         """-Re s_r / |s_r| (1 for a real pole; ~0 or roughly -1e-16 for an undamped mode)."""
         return -self.poles.real / np.abs(self.poles)
+
+    @property
+    def frequencies(self) -> np.ndarray:
+        """Deprecated name of `omega` (rad/s)."""
+        warn("ModalModel.frequencies is now ModalModel.omega (rad/s)", DeprecationWarning)
+        return self.omega
+
+    @property
+    def damping_ratios(self) -> np.ndarray:
+        """Deprecated name of `damping_ratio`."""
+        warn("ModalModel.damping_ratios is now ModalModel.damping_ratio", DeprecationWarning)
+        return self.damping_ratio
 
     def select(self, modes) -> "ModalModel":
         """The model with only ``modes`` (indices into the sorted modes, kept in sorted order)."""
@@ -239,7 +257,7 @@ def from_poles_residues(poles, residues, force_dofs=(0,), outputs=(0,)) -> Modal
     --------
     >>> import dtdyn as dd
     >>> model = dd.from_poles_residues([-0.1 + 10j], [-0.05j])    # one measured mode
-    >>> round(float(model.frequencies[0]), 4)
+    >>> round(float(model.omega[0]), 4)
     10.0005
     """
     inputs = _index_array("force_dofs", force_dofs, None, "DOF")
@@ -313,7 +331,7 @@ def modal_model(M, C, K, force_dofs=None, outputs=None, modes=None) -> ModalMode
     >>> import numpy as np, dtdyn as dd
     >>> model = dd.modal_model(np.eye(2), 0.01 * np.eye(2), np.array([[2.0, -1.0], [-1.0, 1.0]]),
     ...                        force_dofs=[1], outputs=[0, 1])
-    >>> model.n_modes, np.round(model.frequencies, 4)
+    >>> model.n_modes, np.round(model.omega, 4)
     (2, array([0.618, 1.618]))
     """
     M, C, K = linalg.mck(M, C, K)

@@ -31,12 +31,13 @@ import scipy.sparse.linalg as spla
 
 from dtdyn._engine import linalg, validate
 
-__all__ = ["Modes", "modes"]
+__all__ = ["Modes", "mck_modes"]
 
 
 @dataclass(frozen=True)
 class Modes:
-    """The result of `modes`; mode r is column r, sorted by frequency.
+    """The result of `mck_modes`, `beam_modes` and `shaft_modes`; mode r is column r, sorted
+    by frequency.
 
     Attributes
     ----------
@@ -50,8 +51,9 @@ class Modes:
         Gamma_r = phi_r^T M r and m_eff,r = Gamma_r^2.
     total_mass : float
         r^T M r: the effective masses of all modes sum to it.
-    damping_ratio, damped_omega : (m,) ndarray or None
-        With C: zeta_r and omega_n,r = |s_r| of the damped modes.
+    damping_ratio, omega_d : (m,) ndarray or None
+        With C: zeta_r = -Re s_r / |s_r| and the damped natural frequency
+        omega_d,r = Im s_r = omega_n,r sqrt(1 - zeta_r^2), rad/s.
     poles : (m,) complex ndarray or None
         With C: s_r, Im s_r > 0.
     complex_shapes : (n, m) complex ndarray or None
@@ -63,7 +65,7 @@ class Modes:
     --------
     >>> import numpy as np, dtdyn as dd
     >>> M, C, K = dd.chain_matrices([1.0, 1.0], [2.0, 1.0], [0.1, 0.1])
-    >>> m = dd.modes(M, K, C)
+    >>> m = dd.mck_modes(M, C, K)
     >>> m.shapes.shape, bool(np.all(m.damping_ratio > 0))
     ((2, 2), True)
     """
@@ -75,7 +77,7 @@ class Modes:
     effective_mass: np.ndarray
     total_mass: float
     damping_ratio: np.ndarray | None = None
-    damped_omega: np.ndarray | None = None
+    omega_d: np.ndarray | None = None
     poles: np.ndarray | None = None
     complex_shapes: np.ndarray | None = None
     dof_names: tuple | None = None
@@ -83,6 +85,15 @@ class Modes:
     @property
     def frequency_hz(self) -> np.ndarray:
         return self.omega / (2.0 * np.pi)
+
+    @property
+    def damped_omega(self) -> np.ndarray | None:
+        """Deprecated: |s_r| (the natural frequency of the damped mode, not Im s_r); use
+        `omega_d` (= Im s_r) or ``abs(poles)``."""
+        from dtdyn._engine.public import warn
+        warn("Modes.damped_omega (|s|) is deprecated: use Modes.omega_d (the damped frequency "
+             "Im s) or abs(Modes.poles)", DeprecationWarning)
+        return None if self.poles is None else np.abs(self.poles)
 
     @property
     def period(self) -> np.ndarray:
@@ -103,14 +114,14 @@ class Modes:
                "effective_mass": self.effective_mass.tolist(), "total_mass": self.total_mass}
         if self.damping_ratio is not None:
             out["damping_ratio"] = self.damping_ratio.tolist()
-            out["damped_omega_rad_s"] = self.damped_omega.tolist()
+            out["omega_d_rad_s"] = self.omega_d.tolist()
             out["poles"] = [[p.real, p.imag] for p in self.poles]
         if self.dof_names is not None:
             out["dof_names"] = list(self.dof_names)
         return out
 
 
-def modes(M, K, C=None, *, count=None, influence=None) -> Modes:
+def mck_modes(M, C, K, *, count=None, influence=None) -> Modes:
     """Natural frequencies, mass-normalized shapes, participation factors and effective masses
     (module docstring), with damping ratios and complex modes when ``C`` is given.
 
@@ -118,9 +129,10 @@ def modes(M, K, C=None, *, count=None, influence=None) -> Modes:
     ----------
     M, K : (n, n) array_like or scipy.sparse matrix
         Mass (symmetric positive definite) and stiffness (symmetric) matrices.
-    C : (n, n) array_like, optional
-        Damping: adds ``damping_ratio``, ``damped_omega``, ``poles`` and ``complex_shapes``
-        (dense; the first-order eigenproblem of size 2n).
+    C : (n, n) array_like or None
+        Damping, or None for the undamped modes only. Given, it adds ``damping_ratio``,
+        ``omega_d``, ``poles`` and ``complex_shapes`` (dense; the first-order eigenproblem of
+        size 2n).
     count : int, optional
         The lowest ``count`` modes (all by default). Sparse M and K: shift-invert about 0 (count
         is then required and < n).
@@ -135,7 +147,7 @@ def modes(M, K, C=None, *, count=None, influence=None) -> Modes:
     --------
     >>> import numpy as np, dtdyn as dd
     >>> M, C, K = dd.chain_matrices([1.0, 1.0], [2.0, 1.0], [0.0, 0.0])
-    >>> m = dd.modes(M, K)
+    >>> m = dd.mck_modes(M, None, K)
     >>> np.round(m.omega ** 2, 6)          # K phi = omega^2 M phi: 2 -+ sqrt(2)
     array([0.585786, 3.414214])
     >>> round(float(m.effective_mass.sum()), 12)   # = the total mass, 2 kg
@@ -206,7 +218,7 @@ def _undamped(M, K, count, sparse):
 
 
 def _damped(M, C, K, m):
-    """Damping ratios, |s| and complex shapes of the m lowest underdamped modes."""
+    """Damping ratios, Im s and complex shapes of the m lowest underdamped modes."""
     n = M.shape[0]
     # scaled variables z = [q; q' / w0], the equations divided by mu: the blocks of A and B are
     # of order 1, which keeps the eigenvalues' relative error near eps (1e-8 unscaled on a
@@ -225,5 +237,5 @@ def _damped(M, C, K, m):
     s = s[keep]
     psi = Z[:n, keep]
     psi = psi / psi[np.argmax(np.abs(psi), axis=0), np.arange(keep.size)]
-    return {"damping_ratio": -s.real / np.abs(s), "damped_omega": np.abs(s), "poles": s,
+    return {"damping_ratio": -s.real / np.abs(s), "omega_d": s.imag, "poles": s,
             "complex_shapes": psi}

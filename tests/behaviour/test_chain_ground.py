@@ -118,7 +118,7 @@ def test_rayleigh_chain_damping_assembles_alpha_m_plus_beta_k():
     c, cg = dd.rayleigh_chain_damping(m, k, (alpha, beta), ground_stiffness=kg)
     M, C, K = dd.chain_matrices(m, k, c, ground_stiffness=kg, ground_damping=cg, sparse=False)
     np.testing.assert_allclose(C, alpha * M + beta * K, rtol=0, atol=1e-15 * np.abs(K).max())
-    modes = dd.modes(M, K, C)
+    modes = dd.mck_modes(M, C, K)
     w = modes.omega
     np.testing.assert_allclose(modes.damping_ratio, alpha / (2 * w) + beta * w / 2, rtol=1e-10)
 
@@ -142,8 +142,8 @@ def test_frequency_response_with_ground_elements_equals_direct_solve():
     m, k, c, kg, cg = _grounded()
     M, C, K = dd.chain_matrices(m, k, c, ground_stiffness=kg, ground_damping=cg, sparse=False)
     omega = np.linspace(1.0, 200.0, 37)
-    H = dd.frequency_response(m, k, c, omega, force_dof=5, output=2, ground_stiffness=kg,
-                              ground_damping=cg)
+    H = dd.chain_frequency_response(m, k, c, omega, force_dofs=5, outputs=2,
+                                    ground_stiffness=kg, ground_damping=cg)
     for w, h in zip(omega, H):
         x = np.linalg.solve(K + 1j * w * C - w * w * M, np.eye(m.size)[5])
         assert abs(h - x[2]) <= 1e-11 * abs(x).max()

@@ -66,7 +66,7 @@ def test_damper_system_is_non_proportional():
 
 def frequency_grid(model, n=20):
     """n frequencies from low to above the last mode, away from the poles (undamped P3)."""
-    f = model.frequencies
+    f = model.omega
     pos = np.linspace(-0.7, f.size - 0.3, n)
     pos = np.floor(pos) + 0.25 + 0.5 * (pos - np.floor(pos))  # never within 1/4 gap of a mode
     omega = np.interp(pos, np.arange(-1, f.size + 1), np.concatenate([[0.0], f, [1.5 * f[-1]]]))
@@ -116,9 +116,9 @@ def test_poles_equal_state_space_eigenvalues(name):
         j = np.argmin(np.abs(ours - lam))
         assert abs(ours[j] - lam) < 1e-10 * scale
         ours = np.delete(ours, j)
-    assert np.all(np.diff(model.frequencies) >= 0)
-    np.testing.assert_allclose(model.frequencies, np.abs(model.poles))
-    np.testing.assert_allclose(model.damping_ratios, -model.poles.real / np.abs(model.poles))
+    assert np.all(np.diff(model.omega) >= 0)
+    np.testing.assert_allclose(model.omega, np.abs(model.poles))
+    np.testing.assert_allclose(model.damping_ratio, -model.poles.real / np.abs(model.poles))
     assert np.array_equal(model.oscillatory, model.poles.imag > 0)
 
 
@@ -127,11 +127,11 @@ def test_p3_undamped_frequencies():
     model = modal_model(M, C, K, [14], [14])
     ref = np.sqrt(sla.eigh(K, M, eigvals_only=True))
     assert model.n_modes == 15 and model.oscillatory.all()
-    np.testing.assert_allclose(model.frequencies, ref, rtol=1e-10, atol=0)
+    np.testing.assert_allclose(model.omega, ref, rtol=1e-10, atol=0)
     np.testing.assert_allclose(model.poles.imag, ref, rtol=1e-10, atol=0)
-    assert np.abs(model.damping_ratios).max() < 1e-12
-    assert model.frequencies[0] == pytest.approx(9.49, abs=0.01)
-    assert model.frequencies[-1] == pytest.approx(148.2, abs=0.05)
+    assert np.abs(model.damping_ratio).max() < 1e-12
+    assert model.omega[0] == pytest.approx(9.49, abs=0.01)
+    assert model.omega[-1] == pytest.approx(148.2, abs=0.05)
 
 
 def test_proportional_residues_are_classical():
@@ -143,7 +143,7 @@ def test_proportional_residues_are_classical():
     wd = w * np.sqrt(1 - zeta**2)
     model = modal_model(M, C, K, None, None)
     np.testing.assert_allclose(model.poles, -zeta * w + 1j * wd, rtol=1e-12)
-    np.testing.assert_allclose(model.damping_ratios, zeta, rtol=1e-10)
+    np.testing.assert_allclose(model.damping_ratio, zeta, rtol=1e-10)
     for r in range(3):
         ref = np.outer(U[:, r], U[:, r]) / (2j * wd[r])
         assert np.linalg.norm(model.residues[r] - ref) < 1e-12 * np.linalg.norm(ref)
@@ -164,7 +164,7 @@ def test_overdamped_real_poles():
     real = ~model.oscillatory
     assert np.all(model.poles[real].imag == 0) and np.all(model.poles[real].real < 0)
     assert np.all(model.residues[real].imag == 0)
-    np.testing.assert_allclose(model.damping_ratios[real], 1.0)
+    np.testing.assert_allclose(model.damping_ratio[real], 1.0)
     # all four poles are real here: four modes
     assert model.n_modes == 4 and not model.oscillatory.any()
     # the FRF (real poles summed once, no conjugate) is checked in the parametrized tests
@@ -251,7 +251,7 @@ def test_from_poles_residues_siso_and_undamped():
     model = from_poles_residues([-3.0, 10j], [0.5, -0.05j])
     assert model.oscillatory.tolist() == [False, True]  # sorted: |-3| < |10j|
     assert model.residues.shape == (2, 1, 1) and model.force_dofs.tolist() == [0]
-    np.testing.assert_allclose(model.damping_ratios, [1.0, 0.0])
+    np.testing.assert_allclose(model.damping_ratio, [1.0, 0.0])
     s = 1j * np.array([1.0, 2.0])
     ref = 0.5 / (s + 3) + (-0.05j) / (s - 10j) + 0.05j / (s + 10j)
     np.testing.assert_allclose(model.frequency_response([1.0, 2.0])[:, 0, 0], ref, rtol=1e-14)
@@ -291,7 +291,7 @@ def test_from_poles_residues_errors(poles, residues, kw, msg):
 
 def test_roundoff_positive_real_part_is_undamped():
     model = from_poles_residues([1e-15 + 10j], [0.1j])
-    assert model.damping_ratios[0] == pytest.approx(0, abs=1e-15)
+    assert model.damping_ratio[0] == pytest.approx(0, abs=1e-15)
 
 
 def test_modal_model_errors():

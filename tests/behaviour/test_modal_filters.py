@@ -398,7 +398,7 @@ def test_initial_conditions_add_the_free_response():
     with the same initial state: 1e-12 of the peak on P3 with light stiffness damping."""
     import dtdyn as dd
 
-    p = dd.p3()
+    p = dd.problem("P3")
     M, K = p["M"], p["K"]
     C = 1e-3 * K
     x0, v0 = np.linspace(0.0, 1e-3, 15), np.linspace(1e-2, 0.0, 15)
