@@ -8,7 +8,6 @@ pair is the eigenvalue with Im > 0 closest to the exact exp((-zeta + i sqrt(1 - 
 """
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -18,6 +17,7 @@ from dtdyn.generated import stability as _amp
 
 from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.errors import DtdynStabilityWarning, DtdynUnstableError
+from dtdyn._engine.public import public, warn
 
 
 @dataclass
@@ -31,8 +31,8 @@ class Stability:
         The scheme's parameters.
     omega_dt : ndarray
         Omega = omega dt.
-    zeta : float
-        Physical damping ratio.
+    damping_ratio : float
+        Physical damping ratio zeta.
     spectral_radius, period_elongation, algorithmic_damping : ndarray
         rho = max |eig A|, T_num / T - 1, and the numerical damping ratio, per Omega.
 
@@ -47,13 +47,20 @@ class Stability:
     scheme: str
     params: dict
     omega_dt: np.ndarray
-    zeta: float
+    damping_ratio: float
     spectral_radius: np.ndarray
     period_elongation: np.ndarray  # NaN where the principal pair is real (no oscillation)
     algorithmic_damping: np.ndarray
 
+    @property
+    def zeta(self) -> float:
+        """Deprecated name of `damping_ratio`."""
+        warn("Stability.zeta is now Stability.damping_ratio", DeprecationWarning)
+        return self.damping_ratio
 
-def stability(scheme, omega_dt, zeta=0.0, **scheme_params) -> Stability:
+
+@public(renamed={"zeta": "damping_ratio"})
+def stability(scheme, omega_dt, damping_ratio=0.0, **scheme_params) -> Stability:
     """Spectral radius, period elongation and algorithmic damping over ``omega_dt``.
 
     Each step of the scheme applied to x'' + 2 zeta omega x' + omega^2 x = 0 is
@@ -67,8 +74,8 @@ def stability(scheme, omega_dt, zeta=0.0, **scheme_params) -> Stability:
         A scheme of the scheme table; its parameters as keywords.
     omega_dt : array_like
         Omega = omega dt values.
-    zeta : float
-        Physical damping ratio.
+    damping_ratio : float
+        Physical damping ratio zeta, in [0, 1).
 
     Returns
     -------
@@ -85,9 +92,9 @@ def stability(scheme, omega_dt, zeta=0.0, **scheme_params) -> Stability:
     W = np.atleast_1d(np.asarray(omega_dt, dtype=float))
     if np.any(~np.isfinite(W)) or np.any(W <= 0.0):
         raise ValueError("omega_dt must be finite and > 0")
-    zeta = float(zeta)
+    zeta = float(damping_ratio)
     if not 0.0 <= zeta < 1.0:
-        raise ValueError(f"zeta must be in [0, 1), got {zeta!r}")
+        raise ValueError(f"damping_ratio must be in [0, 1), got {damping_ratio!r}")
     params = [info.params[p] for p in info.module.PARAMS]
     lam = np.linalg.eigvals(_amp.amplification(info.name, W, zeta, params))
     rho = np.abs(lam).max(axis=1)
@@ -103,15 +110,16 @@ def stability(scheme, omega_dt, zeta=0.0, **scheme_params) -> Stability:
     return Stability(info.name, dict(info.params), W, zeta, rho, elong, xi_bar)
 
 
-def critical_omega_dt(scheme, zeta=0.0, upper=1e4, **scheme_params) -> float:
+@public(renamed={"zeta": "damping_ratio"})
+def critical_omega_dt(scheme, damping_ratio=0.0, upper=1e4, **scheme_params) -> float:
     """The largest Omega below which rho <= 1 (inf when stable up to ``upper``).
 
     Parameters
     ----------
     scheme : str
         A scheme of the scheme table; its parameters as keywords.
-    zeta : float
-        Physical damping ratio.
+    damping_ratio : float
+        Physical damping ratio zeta, in [0, 1).
     upper : float
         Largest Omega searched.
 
@@ -125,6 +133,7 @@ def critical_omega_dt(scheme, zeta=0.0, upper=1e4, **scheme_params) -> float:
     >>> round(float(dd.critical_omega_dt("central_difference")), 6), dd.critical_omega_dt("hht")
     (2.0, inf)
     """
+    zeta = damping_ratio
     grid = np.geomspace(1e-3, upper, 4000)
     unstable = stability(scheme, grid, zeta, **scheme_params).spectral_radius > 1.0 + 1e-10
     if not unstable.any():
@@ -146,10 +155,10 @@ def warn_if_unstable(scheme, omegas, dt, zeta=0.0, **scheme_params) -> bool:
     bad = np.flatnonzero(st.spectral_radius > 1.0 + 1e-10)
     if bad.size:
         i = int(bad[np.argmax(st.spectral_radius[bad])])  # the worst mode
-        warnings.warn(f"scheme {st.scheme!r} is unstable at dt = {dt:g} s: mode {i + 1} "
-                      f"(omega = {omegas[i]:.6g} rad/s) has Omega = omega dt = {omegas[i] * dt:.4g}, "
-                      f"spectral radius {st.spectral_radius[i]:.6g} > 1 ({bad.size} unstable "
-                      "mode(s))", DtdynStabilityWarning, stacklevel=2)
+        warn(f"scheme {st.scheme!r} is unstable at dt = {dt:g} s: mode {i + 1} "
+             f"(omega = {omegas[i]:.6g} rad/s) has Omega = omega dt = {omegas[i] * dt:.4g}, "
+             f"spectral radius {st.spectral_radius[i]:.6g} > 1 ({bad.size} unstable "
+             "mode(s))", DtdynStabilityWarning)
         return True
     return False
 
@@ -179,10 +188,12 @@ def check_dt(info, dt: float, omega_max, unstable: str = "raise") -> None:
     msg = (f"scheme {info.name!r} is unstable at dt = {dt:g} s: the highest mode "
            f"(omega = {omega:.6g} rad/s) has Omega = omega dt = {omega * dt:.4g} > {crit:.4g}, "
            f"its stability limit; use dt < {crit / omega:.4g} s or an unconditionally stable "
-           "scheme (unstable='warn' runs it anyway, for study)")
+           "scheme")
     if unstable == "raise":
-        raise DtdynUnstableError(msg)
-    warnings.warn(msg, DtdynStabilityWarning, stacklevel=3)
+        raise DtdynUnstableError(msg + " (unstable='warn' runs it anyway, for study; in a scene: "
+                                 "[scheme] unstable = \"warn\"; on the command line: "
+                                 "--unstable warn)")
+    warn(msg + " (run anyway: unstable='warn')", DtdynStabilityWarning)
 
 
 def highest_frequency(M, K, limit=None):

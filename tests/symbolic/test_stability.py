@@ -82,7 +82,7 @@ def test_damped_exact_limit():
     """For small Omega every scheme's damping approaches the physical one (xi_bar -> zeta
     is measured on top of it: algorithmic damping of the principal pair minus zeta -> 0)."""
     for s in ("average_acceleration", "hht", "generalized_alpha", "wilson"):
-        st = stability(s, [1e-3], zeta=0.05)
+        st = stability(s, [1e-3], damping_ratio=0.05)
         assert abs(st.algorithmic_damping[0] - 0.05 / math.sqrt(1 - 0.05**2)) < 1e-3
 
 
