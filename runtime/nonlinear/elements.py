@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from dtdyn._engine.extras import require
+from dtdyn._engine.public import suggest, unknown_keyword
 
 
 class _Ops:
@@ -265,10 +266,17 @@ class Law(Element):
     def __post_init__(self):
         from dtdyn.nonlinear.expressions import parse_expression
         super().__post_init__()
+        for k, c in self.constants.items():
+            if isinstance(c, str) and suggest(str(k), ("expression",)):
+                raise unknown_keyword("Law", str(k), ("i", "j", "expression"))
         consts = {str(k): _number(f"Law constant {k}", c) for k, c in self.constants.items()}
         object.__setattr__(self, "constants", consts)
         parsed = parse_expression(self.expression, variables=("x", "v"),
                                   constants=tuple(consts), name="Law.expression")
+        unused = sorted(set(consts) - set(parsed.names))
+        if unused:
+            raise TypeError(f"Law got the constant {unused[0]!r}, which Law.expression = "
+                            f"{self.expression!r} does not use (a misspelled name?)")
         object.__setattr__(self, "_parsed", parsed)
 
     @property

@@ -116,3 +116,11 @@ def test_old_names_give_the_new_results():
         m_old = dd.modes(p["M"], p["K"], p["C"])
     np.testing.assert_array_equal(old.x, new.x)
     np.testing.assert_array_equal(m_old.poles, dd.mck_modes(p["M"], p["C"], p["K"]).poles)
+
+
+def test_law_constants_checked_against_the_expression():
+    with pytest.raises(TypeError, match="'expresion'; did you mean 'expression'"):
+        dd.Law(0, expresion="k*x**3", k=1.0)
+    with pytest.raises(TypeError, match="constant 'c', which Law.expression = 'k\\*x\\*\\*3' does "
+                                        "not use"):
+        dd.Law(0, expression="k*x**3", k=1.0, c=2.0)
