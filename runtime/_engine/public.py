@@ -9,6 +9,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import contextvars
 import difflib
 import functools
@@ -75,16 +76,23 @@ def _wrap(function, name, renamed, scheme_keywords):
             for key in kwargs:
                 if key not in valid:
                     raise unknown_keyword(name, key, valid | set(renamed))
-        if _SEEN.get() is not None:
+        with warning_scope():
             return function(*args, **kwargs)
-        token = _SEEN.set(set())
-        try:
-            return function(*args, **kwargs)
-        finally:
-            _SEEN.reset(token)
 
     wrapper.__dtdyn_public__ = True
     return wrapper
+
+
+@contextlib.contextmanager
+def warning_scope():
+    """Within it, each distinct warning raised through `warn` is shown once (as within one
+    public call); the `dtdyn` command runs each command in one scope."""
+    token = _SEEN.set(set()) if _SEEN.get() is None else None
+    try:
+        yield
+    finally:
+        if token is not None:
+            _SEEN.reset(token)
 
 
 def caller_stacklevel() -> int:
