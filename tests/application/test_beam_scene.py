@@ -49,7 +49,7 @@ def test_modes_json_gives_the_cantilever_frequencies(tmp_path):
                                  'name = "newmark"', "[time]", "dt = 1e-4", "duration = 0.01"]))
     out = subprocess.run([sys.executable, "-m", "dtdyn.app.cli", "modes", str(path), "--count",
                           "5", "--json"], capture_output=True, text=True, check=True)
-    omega = np.array(json.loads(out.stdout)["omega"])
+    omega = np.array(json.loads(out.stdout)["omega_rad_s"])
     beta_l = np.array([1.875104, 4.694091, 7.854757, 10.995541, 14.137168])
     np.testing.assert_allclose(omega, beta_l**2 * np.sqrt(2.1e11 * 8e-6 / (20.0 * 3.0**4)),
                                rtol=1e-6)

@@ -188,7 +188,9 @@ BAD_SCENES = {
                         r"scheme\.backend = 'fortran'"),
     "unknown top-level table": (dict(extra="[solver]\ntol = 1.0\n"),
                                 r"solver: unknown top-level key or table, allowed: title, model"),
-    "missing time": (dict(time=""), r"time is required"),
+    "time without duration": (dict(time="[time]\ndt = 0.01\n"), r"time\.duration is required"),
+    "unknown unstable": (dict(scheme='[scheme]\nunstable = "ignore"\n'),
+                         r"scheme\.unstable = 'ignore': unknown value, allowed: 'raise', 'warn'"),
     "unknown load kind": (dict(loads='[[load]]\ndof = 0\nkind = "impulse"\n'),
                           r"load\[0\]\.kind = 'impulse': unknown load kind, allowed: 'step'"),
     "unknown load key": (dict(loads='[[load]]\ndof = 0\nkind = "sine"\namplitude = 1.0\n'

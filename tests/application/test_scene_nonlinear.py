@@ -269,9 +269,17 @@ def test_malformed_nonlinear_scene_names_the_field(tmp_path, case):
     assert str(info.value).startswith(f"{path}: ")
 
 
-def test_linear_scene_still_needs_a_scheme(tmp_path):
+def test_linear_scene_without_a_scheme_takes_the_default(tmp_path):
+    """No [[element]] and no [scheme]: mck_response's default scheme, newmark (beta = 1/4,
+    gamma = 1/2), as the API runs it."""
     path = write_scene(tmp_path, elements="", nonlinear="")
-    with pytest.raises(ValueError, match=r"scheme is required"):
+    sc = load_scene(path)
+    assert sc.linear and (sc.scheme, sc.scheme_params, sc.unstable) == ("newmark", {}, "raise")
+
+
+def test_nonlinear_scene_refuses_scheme_unstable(tmp_path):
+    path = write_scene(tmp_path, nonlinear='[scheme]\nname = "newmark"\nunstable = "warn"\n')
+    with pytest.raises(ValueError, match=r"scheme\.unstable = 'warn': only for linear scenes"):
         load_scene(path)
 
 

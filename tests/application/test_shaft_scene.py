@@ -98,10 +98,10 @@ def test_modes_json_is_the_wittrick_williams_count(tmp_path):
     data = json.loads(out)
     sc = dd.load_scene(path)
     exact = dd.shaft_frequencies(sc.model, count=5)
-    np.testing.assert_array_equal(data["omega"], exact)
+    np.testing.assert_array_equal(data["omega_rad_s"], exact)
     M, _, K = sc.matrices(sparse=False)
     lumped = np.sqrt(sla.eigh(K, M, eigvals_only=True)[:5])
-    assert np.abs(np.array(data["omega"]) / lumped - 1).max() < 1e-2  # 8 segments vs exact
+    assert np.abs(np.array(data["omega_rad_s"]) / lumped - 1).max() < 1e-2  # 8 segments vs exact
 
 
 @pytest.mark.parametrize("change, match", [

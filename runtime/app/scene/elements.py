@@ -118,7 +118,12 @@ def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
                 raise ValueError(f"scheme.{key} = {scheme_tbl[key]!r}: only for linear chains; a "
                                  "scene with [[element]] runs nonlinear_mck_response (set "
                                  "nonlinear.backend): remove the key")
-        name = scheme_tbl.get("name")
+        if "unstable" in scheme_tbl:
+            raise ValueError(f"scheme.unstable = {scheme_tbl['unstable']!r}: only for linear "
+                             "scenes; a scene with [[element]] checks each step's stability as "
+                             "it runs (DtdynStepStabilityError; more nonlinear.substeps or a "
+                             "smaller time.dt fix it): remove the key")
+        name = scheme_tbl.get("name", method)  # no name: the default method
         if name == "auto" and "accuracy" not in options:
             raise ValueError("scheme.name = 'auto': picks the method for an accuracy target; "
                              "give nonlinear.accuracy too")

@@ -58,11 +58,6 @@ def scene_summary(scene: Scene) -> dict:
 _GROUND_UNIT = {"acceleration": "m_s2", "velocity": "m_s", "displacement": "m"}
 
 
-#: more stored DOFs than this are drawn as a heat map (time x DOF) instead of one line each
-MAX_LINES = 8
-_UNITS = {"x": ("displacement", "m"), "v": ("velocity", "m/s"), "a": ("acceleration", "m/s^2")}
-
-
 def plot_checked_path(path) -> tuple[Path, str]:
     """(path, format) after checking the folder exists and matplotlib can write the format."""
     require("matplotlib", "plot", "plot_response")
@@ -81,50 +76,31 @@ def plot_checked_path(path) -> tuple[Path, str]:
 
 
 def plot_response(path: str | os.PathLike, response: Response, scene: Scene) -> None:
-    """Plot every stored quantity (x, v, a) against time, one panel each, saved atomically.
+    """Plot every stored quantity the scene asks for (x, v, a; a nonlinear scene's element
+    forces g and internal states z) against time with `Response.plot`, one panel each
+    (a shaft's in rad, rad/s, rad/s^2; a beam's w and psi outputs in separate panels), saved
+    atomically.
 
-    Up to `MAX_LINES` DOFs: one labelled line per DOF. More: a heat map (time x DOF) with a
-    colour bar, so that a long chain stays readable. Uses the Agg canvas directly (no pyplot,
-    no global backend switch); the format follows the suffix of ``path`` (``.png`` when none).
+    Up to 8 DOFs (``result_plot.MAX_LINES``): one line per DOF, labelled by the scene's DOF
+    name or its 0-based index. More: a heat map (time x DOF) with a colour bar, so that a long
+    chain stays readable. Uses the Agg canvas directly (no pyplot, no global backend switch); the format
+    follows the suffix of ``path`` (``.png`` when none).
     """
     path, fmt = plot_checked_path(path)
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    stored = [q for q in QUANTITIES if q in scene.quantities and getattr(response, q) is not None]
+    stored = [q for q in QUANTITIES + ("g", "z")  # g, z: a nonlinear scene's, when asked
+              if q in scene.quantities and getattr(response, q, None) is not None]
     if not stored:
         raise ValueError("the response stores none of the scene's quantities: nothing to plot")
-    outputs = np.asarray(response.outputs)
-    fig = Figure(figsize=(8.0, 2.2 + 2.3 * len(stored)), layout="constrained")
+    if response.dof_names is None and scene.dof_names is not None:
+        response = dataclasses.replace(
+            response, dof_names=tuple(scene.dof_label(d) for d in response.outputs))
+    fig = Figure(layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(len(stored), 1, sharex=True, squeeze=False)[:, 0]
-    for ax, q in zip(axes, stored):
-        values = np.asarray(getattr(response, q))
-        name, unit = _UNITS[q]
-        if outputs.size > MAX_LINES:
-            order = np.argsort(outputs)
-            image = ax.pcolormesh(response.t, np.arange(outputs.size), values[:, order].T,
-                                  shading="nearest", cmap="RdBu_r",
-                                  vmin=-np.abs(values).max(), vmax=np.abs(values).max())
-            fig.colorbar(image, ax=ax, label=f"{q} [{unit}]")
-            ticks = np.unique(np.linspace(0, outputs.size - 1, min(outputs.size, 8)).astype(int))
-            ax.set_yticks(ticks, [scene.dof_label(outputs[order][k]) for k in ticks])
-            ax.set_ylabel("DOF")
-        else:
-            for j, dof in enumerate(outputs):
-                ax.plot(response.t, values[:, j], lw=1.0, label=_label(scene, dof))
-            ax.set_ylabel(f"{q} [{unit}]")
-            ax.grid(True, alpha=0.3)
-        ax.set_title(name, fontsize=9, loc="left")
-    if outputs.size <= MAX_LINES:
-        axes[0].legend(fontsize=7, loc="best")
-    axes[-1].set_xlabel("t [s]")
+    response.plot(stored, fig=fig)
+    n_panels = sum(1 for ax in fig.axes if ax.get_label() != "<colorbar>")
+    fig.set_size_inches(8.0, 2.2 + 2.3 * n_panels)
     fig.suptitle(f"{scene.title}: {scene.scheme}, dt = {scene.dt:g} s", fontsize=10)
     write_atomic(path, lambda f: fig.savefig(f, format=fmt, dpi=120))
-
-
-def _label(scene: Scene, dof) -> str:
-    if scene.kind == "matrices":
-        name = scene.dof_label(dof)
-        return f"DOF {int(dof)}" if name == str(int(dof)) else f"{name} (DOF {int(dof)})"
-    return f"DOF {int(dof)} (mass {int(dof) + 1})"

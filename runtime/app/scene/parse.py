@@ -11,8 +11,9 @@ import scipy.sparse as sps
 
 from dtdyn._engine import validate
 from dtdyn.app.loads import _read_file, finite_number, sample_load
-from dtdyn.app.scene.schema import (BACKENDS, DEFAULT_SCENE, FORMS, GROUND_UNITS, QUANTITIES,
-                                    STANDARD_GRAVITY, SWEEPS, Scene, _OUTPUT_KEYS, _TIME_KEYS,
+from dtdyn.app.scene.schema import (BACKENDS, DEFAULT_SCENE, DEFAULT_SCHEME, FORMS, GROUND_UNITS,
+                                    QUANTITIES, STANDARD_GRAVITY, SWEEPS, UNSTABLE, Scene,
+                                    _OUTPUT_KEYS, _TIME_KEYS,
                                     _TOP_KEYS, _choice, _dof_index, _model_kind, _number_list,
                                     _parse_model, _required, _scheme_name_params, _table)
 from dtdyn.app.scene.matrices import _parse_matrix_model
@@ -32,7 +33,11 @@ def _parse_time(tbl) -> tuple[float, int]:
     return dt, validate.step_count("time.duration / time.dt", n_steps)
 
 
-def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None, str]:
+def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None, str, str]:
+    """(name, params, form, sweep, backend, unstable) of a linear scene's [scheme] table; every
+    key is optional (``tbl`` None: no table), the defaults those of the entry points."""
+    if tbl is None:
+        tbl = {}
     if not isinstance(tbl, dict):
         raise ValueError(f"scheme = {tbl!r}: must be a table [scheme]")
     if kind == "matrices":
@@ -41,13 +46,14 @@ def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None,
                 raise ValueError(f"scheme.{key} = {tbl[key]!r}: only for chain models; a model "
                                  "with kind = 'matrices' runs mck_response (acceleration form, "
                                  "dense or sparse as the matrices are): remove the key")
-    name, params = _scheme_name_params(tbl)
+    name, params = _scheme_name_params(tbl, DEFAULT_SCHEME)
+    unstable = _choice("scheme.unstable", tbl.get("unstable", "raise"), UNSTABLE)
     if kind == "matrices":
-        return name, params, "acceleration", None, ""  # backend: set from the matrices
+        return name, params, "acceleration", None, "", unstable  # backend: from the matrices
     form = _choice("scheme.form", tbl.get("form", "displacement"), FORMS)
     sweep = _choice("scheme.sweep", tbl.get("sweep", "stable"), SWEEPS)
     backend = _choice("scheme.backend", tbl.get("backend", "c"), BACKENDS)
-    return name, params, form, sweep, backend
+    return name, params, form, sweep, backend, unstable
 
 
 
@@ -95,6 +101,16 @@ def _parse_loads(loads, n_dof: int, t: np.ndarray, base_dir: Path,
     loaded = np.array(sorted(columns), dtype=np.int64)
     force = np.column_stack([columns[d] for d in loaded])
     return [dict(x) for x in loads], loaded, validate.force_samples(force, t.size - 1, loaded)
+
+
+def _load_dofs(loads, n_dof: int, names: tuple[str, ...] | None = None):
+    """(load tables, loaded DOFs) of [[load]] tables in a scene without [time]: the DOFs are
+    checked, the samples wait for a time grid (a run asks for [time] first)."""
+    if not isinstance(loads, list) or not loads or not all(isinstance(x, dict) for x in loads):
+        raise ValueError(f"load = {loads!r}: must be one or more [[load]] tables")
+    dofs = {_dof_index(f"load[{i}].dof", _required(f"load[{i}]", spec, "dof"), n_dof, names)
+            for i, spec in enumerate(loads)}
+    return [dict(x) for x in loads], np.array(sorted(dofs), dtype=np.int64)
 
 
 def _parse_initial(tbl, n_dof: int):
@@ -161,8 +177,9 @@ def _parse_ground(tbl, n_dof: int, t: np.ndarray, base_dir: Path, kind: str):
 def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scene>") -> Scene:
     """Validate a parsed scene (the dict ``tomllib`` returns) and build a :class:`Scene`.
 
-    ``base_dir`` is where ``file`` loads and matrix files (``model.file``, ``.mtx`` paths) are
-    looked for. Errors are ``ValueError`` naming the field (without the file name;
+    Only ``[model]`` is required (enough for `dtdyn modes`); a run also needs ``[time]`` and a
+    load (`Scene.require_run`). ``base_dir`` is where ``file`` loads and matrix files
+    (``model.file``, ``.mtx`` paths) are looked for. Errors are ``ValueError`` naming the field (without the file name;
     :func:`load_scene` adds it).
 
     Parameters
@@ -187,18 +204,20 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
     ...                         "time": {"dt": 0.1, "duration": 1.0}})
     >>> s.n_steps, s.quantities
     (10, ('x',))
+    >>> m = dd.scene_from_dict({"model": {"mass": [1.0], "stiffness": [4.0]}})  # for modes
+    >>> m.dt is None, m.scheme
+    (True, 'newmark')
     """
     if not isinstance(data, dict):
         raise ValueError(f"a scene must be a table, got {type(data).__name__}")
     for key in data:
         if key not in _TOP_KEYS:
             raise ValueError(f"{key}: unknown top-level key or table, allowed: {', '.join(_TOP_KEYS)}")
-    nonlinear = bool(data.get("element"))  # [scheme] is optional then
-    needed = ("model", "time") + (() if "ground" in data else ("load",))
-    for key in needed + (() if nonlinear else ("scheme",)):
-        if key not in data:
-            hint = "[[load]]" if key == "load" else f"[{key}]"
-            raise ValueError(f"{key} is required: add a {hint} table")
+    nonlinear = bool(data.get("element"))
+    # [model] alone is a valid scene (dtdyn modes); a run also needs [time] and a load, which
+    # Scene.require_run checks where a run starts, naming the command
+    if "model" not in data:
+        raise ValueError("model is required: add a [model] table")
     if "nonlinear" in data and not nonlinear:
         raise ValueError(f"nonlinear = {data['nonlinear']!r}: the [nonlinear] options need at "
                          "least one [[element]] table")
@@ -233,8 +252,8 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         n_dof = chain["mass"].size
     if "branch" in data and kind not in MODEL_MODULES:
         raise ValueError(f"branch: [[branch]] tables are for model.kind = 'shaft', not {kind!r}")
-    dt, n_steps = _parse_time(data["time"])
-    elements, options = (), {}
+    dt, n_steps = _parse_time(data["time"]) if "time" in data else (None, None)
+    elements, options, unstable = (), {}, "raise"
     if nonlinear:
         elements = _parse_elements(data["element"], n_dof, names)
         scheme, params, options, backend = _parse_nonlinear(data.get("nonlinear", {}),
@@ -253,21 +272,26 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
     else:
         if "element" in data:  # an empty array: still a linear scene
             _parse_elements(data["element"], n_dof, names)
-        scheme, params, form, sweep, backend = _parse_scheme(data["scheme"], kind)
+        scheme, params, form, sweep, backend, unstable = _parse_scheme(data.get("scheme"), kind)
         if kind in MODEL_MODULES and sweep != "stable":
             raise ValueError(f"scheme.sweep = {sweep!r}: a {kind} runs the stable sweep only")
         if kind == "matrices":
             backend = "c"  # mck_response's C loop, dense or sparse (NumPy without a compiler)
     outputs, quantities = _parse_output(data.get("output", {}), n_dof, names, nonlinear)
-    # the time, the force of each loaded DOF and the outputs asked, before any is built
-    validate.output_size(f"{source}: time.duration / time.dt = {n_steps} steps", n_steps + 1,
-                         1 + n_dof + outputs.size * len(quantities))
-    t = np.arange(n_steps + 1) * dt
     loads, loaded, force = [], np.zeros(0, dtype=np.int64), None
-    if "load" in data:
-        loads, loaded, force = _parse_loads(data["load"], n_dof, t, base_dir, names)
-    ground, ground_quantity, influence = (None, "acceleration", None) if "ground" not in data \
-        else _parse_ground(data["ground"], n_dof, t, base_dir, kind)
+    ground, ground_quantity, influence = None, "acceleration", None
+    if dt is not None:  # the loads are sampled at the scene's times
+        # the time, the force of each loaded DOF and the outputs asked, before any is built
+        validate.output_size(f"{source}: time.duration / time.dt = {n_steps} steps",
+                             n_steps + 1, 1 + n_dof + outputs.size * len(quantities))
+        t = np.arange(n_steps + 1) * dt
+        if "load" in data:
+            loads, loaded, force = _parse_loads(data["load"], n_dof, t, base_dir, names)
+        if "ground" in data:
+            ground, ground_quantity, influence = _parse_ground(data["ground"], n_dof, t,
+                                                               base_dir, kind)
+    elif "load" in data:  # no times to sample them at: their DOFs are checked, no run asked
+        loads, loaded = _load_dofs(data["load"], n_dof, names)
     x0 = v0 = None
     if "initial" in data:
         x0, v0 = _parse_initial(data["initial"], n_dof)
@@ -276,7 +300,8 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
                  sweep=sweep, backend=backend, dt=dt, n_steps=n_steps, outputs=outputs,
                  quantities=quantities, source=source, base_dir=base_dir, kind=kind, M=M, C=C, K=K,
                  dof_names=names, elements=elements, nonlinear=options, ground=ground,
-                 ground_quantity=ground_quantity, influence=influence, x0=x0, v0=v0, model=model)
+                 ground_quantity=ground_quantity, influence=influence, x0=x0, v0=v0, model=model,
+                 unstable=unstable)
 
 
 def load_scene(path: str | os.PathLike | None = None) -> Scene:

@@ -1,13 +1,15 @@
 """Running a scene: the stability check, the linear or nonlinear run, the exact-error check."""
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
 import scipy.sparse as sps
 
 from dtdyn._engine.result import Response
-from dtdyn.app.scene.schema import EXACT_MAX_DOF, SCHEMES, Scene, model_module
+from dtdyn.app.scene.schema import (EXACT_MAX_DOF, SCHEMES, UNSTABLE, Scene, _choice,
+                                    model_module)
 
 def natural_frequencies(scene: Scene) -> np.ndarray:
     """Undamped natural frequencies (rad/s) to check stability against: all of them up to
@@ -46,6 +48,7 @@ def check_stability(scene: Scene) -> bool:
     """
     from dtdyn.linear.stability import warn_if_unstable
 
+    scene.require_run("check_stability", load=False)
     dt = scene.dt
     if not scene.linear:
         if scene.scheme not in SCHEMES:
@@ -118,7 +121,8 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
     return response, report
 
 
-def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple[Response, dict]:
+def run_scene(scene: Scene, progress: bool = False, check: bool = True,
+              unstable: str | None = None) -> tuple[Response, dict]:
     """Simulate a scene with ``chain_response`` (chains), ``mck_response`` (general matrices) or
     ``nonlinear_mck_response`` (scenes with elements) and report run time and error.
 
@@ -152,6 +156,12 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
 
     Raises
     ------
+    ValueError
+        The scene has no ``[time]`` table or no load (``[[load]]`` or ``[ground]``): a scene
+        holding only ``[model]`` is for `dtdyn modes`; the message names the table to add.
+    DtdynUnstableError
+        A linear scene whose dt is past its scheme's stability limit, unless ``unstable`` (or
+        the scene's ``scheme.unstable``) is ``"warn"``.
     NewtonError, DtdynStepStabilityError
         A nonlinear scene's step failed (dtdyn.nonlinear.response); the message starts with the
         scene file and names the step, its time and the residual (or the tangent stiffness).
@@ -163,6 +173,10 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
         A progress bar on long runs.
     check : bool
         Compare with `exact_response` (linear scenes up to ``EXACT_MAX_DOF`` DOFs).
+    unstable : {"raise", "warn"} or None
+        A linear scene's dt past the scheme's stability limit: raise DtdynUnstableError, or
+        warn (DtdynStabilityWarning) and run it anyway, for study (the entry points'
+        ``unstable=``). None: the scene's ``scheme.unstable`` (default "raise").
 
     Examples
     --------
@@ -171,7 +185,14 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
     >>> response.x.shape, report["check"], bool(report["max_rel_error"] < 1e-2)
     ((801, 15), 'done', True)
     """
-    check_stability(scene)
+    scene.require_run("run_scene")
+    if unstable is not None and unstable != scene.unstable:
+        if not scene.linear:
+            raise ValueError(f"unstable = {unstable!r}: only for linear scenes; a scene with "
+                             "[[element]] checks each step's stability as it runs")
+        scene = dataclasses.replace(scene, unstable=_choice("unstable", unstable, UNSTABLE))
+    if not scene.linear or scene.unstable == "raise":
+        check_stability(scene)  # "warn": the entry point warns, once
     if not scene.linear:
         return _run_nonlinear(scene)
     start = time.perf_counter()
@@ -182,7 +203,7 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
             scene.M, scene.C, scene.K, scene.force, scene.dt, force_dofs=scene.loaded,
             **_support(scene), scheme=scene.scheme, outputs=scene.outputs,
             quantities=scene.quantities, backend=scene.backend, progress=progress,
-            **scene.scheme_params)
+            unstable=scene.unstable, **scene.scheme_params)
     elif scene.model is not None:  # a kind in MODEL_MODULES (a shaft, a beam)
         response = model_module(scene.kind).simulate(scene, progress, _support(scene))
     else:
@@ -192,7 +213,7 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True) -> tuple
             **scene.chain, force=scene.force, dt=scene.dt, force_dofs=scene.loaded,
             **_support(scene), scheme=scene.scheme, form=scene.form, sweep=scene.sweep,
             backend=scene.backend, outputs=scene.outputs, quantities=scene.quantities,
-            progress=progress, **scene.scheme_params)
+            progress=progress, unstable=scene.unstable, **scene.scheme_params)
     run_time = time.perf_counter() - start
 
     report = {

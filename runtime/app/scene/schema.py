@@ -14,7 +14,7 @@ reference problem P3)::
     rayleigh = [0.5, 1e-3]              # optional: C += alpha M + beta K in chain form (station
                                         #   dampers += beta k, ground dampers += alpha m +
                                         #   beta kg; alpha, beta >= 0)
-    [[load]]                            # one or more; loads on the same dof add up
+    [[load]]                            # one or more to run; loads on the same dof add up
     dof = 14                            # 0-based mass index
     kind = "step"                       # and that kind's fields, see dtdyn.app.loads
     amplitude = 1.0
@@ -35,18 +35,25 @@ reference problem P3)::
     [initial]                           # optional: the state at t_0
     x0 = [0.0, 0.01]                    #   displacement of every DOF (default zeros)
     v0 = [0.0, 0.0]                     #   velocity of every DOF (default zeros)
-    [scheme]
+    [scheme]                            # optional: default newmark, beta = 0.25, gamma = 0.5
     name = "newmark"                    # plus that scheme's parameters: beta = 0.25, gamma = 0.5
     form = "displacement"               # optional
     sweep = "stable"                    # optional
     backend = "c"                       # optional
-    [time]
+    unstable = "raise"                  # optional: "warn" runs a dt past the scheme's stability
+                                        #   limit with a warning (for study; --unstable warn)
+    [time]                              # required to run (not by `dtdyn modes`)
     dt = 1e-3                           # s
     duration = 0.8                      # s, an integer multiple of dt: n_steps = duration / dt
     [output]                            # optional
     outputs = [0, 14]                   # optional, default all
     quantities = ["x", "v", "a"]        # optional, default ["x"]; with [[element]] also "g"
                                         #   (element forces) and "z" (internal states)
+
+Only ``[model]`` is required: a scene holding just a model is valid for ``dtdyn modes`` and
+whatever does not integrate. ``[time]`` and a load (``[[load]]`` or ``[ground]``) are required
+by the commands that integrate (``dtdyn simulate``, ``dtdyn batch``, `run_scene`); their
+error names the command and the table to add.
 
 A model with general matrices (``kind = "matrices"``) replaces the chain keys of ``[model]``::
 
@@ -175,7 +182,14 @@ _MATRIX_NAMES = ("M", "K", "C")
 _MTX_SUFFIXES = (".mtx", ".mtx.gz", ".mtx.bz2")
 _TIME_KEYS = ("dt", "duration")
 _OUTPUT_KEYS = ("outputs", "quantities")
-_SCHEME_COMMON = ("name", "form", "sweep", "backend")
+_SCHEME_COMMON = ("name", "form", "sweep", "backend", "unstable")
+#: the scheme of a linear scene without ``scheme.name``: the entry points' own default
+#: (``chain_response``, ``mck_response``, ``shaft_response``, ``beam_response``: ``"newmark"``
+#: with beta = 1/4, gamma = 1/2, the average acceleration method)
+DEFAULT_SCHEME = "newmark"
+#: ``scheme.unstable`` (and ``--unstable``): what a linear run does when its dt is past the
+#: scheme's stability limit, the entry points' ``unstable=`` keyword (default "raise")
+UNSTABLE = ("raise", "warn")
 
 
 def model_module(kind: str):
@@ -193,11 +207,11 @@ def model_matrices(assemble, model, sparse=None):
 
 def model_simulate(simulate, scene, progress=False, support=None):
     """simulate(model, force, dt, ...) of a kind in MODEL_MODULES with the scene's load,
-    scheme, outputs and support motion."""
+    scheme (and its ``unstable``), outputs and support motion."""
     return simulate(scene.model, scene.force, scene.dt, force_dofs=scene.loaded,
                     scheme=scene.scheme, form=scene.form, backend=scene.backend,
                     outputs=scene.outputs, quantities=scene.quantities, progress=progress,
-                    **(support or {}), **scene.scheme_params)
+                    unstable=scene.unstable, **(support or {}), **scene.scheme_params)
 
 
 def model_simulate_nonlinear(simulate, scene, support=None):
@@ -242,6 +256,12 @@ class Scene:
     ``force`` has shape ``(n_steps + 1, len(loaded))``: column ``j`` is the sum of the loads on
     the 0-based DOF ``loaded[j]`` sampled at ``t_0 .. t_n``.
 
+    Only ``[model]`` is required: that is all `dtdyn modes` and the other commands that do not
+    integrate read. A run needs ``[time]`` (``dt``, ``n_steps``, ``force`` and ``ground`` are
+    None without it) and a load (``[[load]]`` or ``[ground]``); `require_run` checks both and
+    names the table to add. Without ``[scheme]`` (or ``scheme.name``) a linear scene runs the
+    entry points' default scheme, `DEFAULT_SCHEME` (``"newmark"``, beta = 1/4, gamma = 1/2).
+
     ``kind`` is ``"chain"`` (``mass``, ``stiffness``, ``damping`` set; ``M``, ``C``, ``K`` None)
     or ``"matrices"`` (``M``, ``C``, ``K`` set, all dense ndarrays or all scipy.sparse CSR, damping
     options already added to ``C``; ``mass``, ``stiffness``, ``damping`` None; ``dof_names`` one
@@ -270,7 +290,11 @@ class Scene:
     loads, loaded, force : list of dict, ndarray, ndarray
         The load tables, the loaded DOFs (``force_dofs`` of the runs) and the summed samples.
     scheme, scheme_params, form, sweep, backend : str, dict, str, str, str
-    dt, n_steps : float, int
+    unstable : {"raise", "warn"}
+        ``scheme.unstable``: the ``unstable=`` keyword of the linear entry points (a dt past
+        the scheme's stability limit raises DtdynUnstableError, or warns and runs).
+    dt, n_steps : float, int or None
+        The ``[time]`` table (None without it).
     outputs, quantities : ndarray, tuple of str
     elements, nonlinear : tuple, dict
         Nonlinear elements and the ``[nonlinear]`` options.
@@ -292,14 +316,14 @@ class Scene:
     damping: np.ndarray | None
     loads: list[dict]
     loaded: np.ndarray
-    force: np.ndarray
+    force: np.ndarray | None
     scheme: str
     scheme_params: dict
     form: str | None
     sweep: str | None
     backend: str
-    dt: float
-    n_steps: int
+    dt: float | None
+    n_steps: int | None
     outputs: np.ndarray
     quantities: tuple[str, ...] = ("x",)
     source: str = "<scene>"
@@ -316,6 +340,7 @@ class Scene:
     influence: np.ndarray | None = None
     x0: np.ndarray | None = None
     v0: np.ndarray | None = None
+    unstable: str = "raise"
     ground_stiffness: np.ndarray | None = None
     ground_damping: np.ndarray | None = None
     model: object | None = None  # the model object of a kind in MODEL_MODULES (e.g. a Shaft)
@@ -357,13 +382,53 @@ class Scene:
         return str(int(dof))
 
     @property
-    def duration(self) -> float:
-        return self.n_steps * self.dt
+    def duration(self) -> float | None:
+        """``n_steps * dt`` in s (None without a ``[time]`` table)."""
+        return None if self.dt is None else self.n_steps * self.dt
 
     @property
     def t(self) -> np.ndarray:
         """Sample times ``t_i = i dt``, ``i = 0 .. n_steps``."""
+        self.require_run("Scene.t", load=False)
         return np.arange(self.n_steps + 1) * self.dt
+
+    def require_run(self, command: str = "run_scene", load: bool = True) -> None:
+        """Check that the scene can be integrated: it has a ``[time]`` table and (with
+        ``load``) a load, ``[[load]]`` or ``[ground]``.
+
+        A scene holding only ``[model]`` is valid for what does not integrate (`dtdyn modes`,
+        ``Scene.matrices``); the commands and functions that integrate call this first.
+
+        Parameters
+        ----------
+        command : str
+            What asks, for the message (``"dtdyn simulate"``, ``"run_scene"``).
+        load : bool
+            Require a load as well as the time grid.
+
+        Raises
+        ------
+        ValueError
+            ``"<file>: <command> needs a [time] table with dt and duration ..."`` or ``"...
+            needs a load ..."``, naming the table to add.
+
+        Examples
+        --------
+        >>> import dtdyn as dd
+        >>> s = dd.scene_from_dict({"model": {"mass": [1.0], "stiffness": [4.0]}})
+        >>> s.require_run("dtdyn simulate")
+        Traceback (most recent call last):
+        ...
+        ValueError: <scene>: dtdyn simulate needs a [time] table with dt and duration (e.g. [time] dt = 0.01, duration = 1.0); the scene has none
+        """
+        if self.dt is None:
+            raise ValueError(f"{self.source}: {command} needs a [time] table with dt and "
+                             "duration (e.g. [time] dt = 0.01, duration = 1.0); the scene has "
+                             "none")
+        if load and self.force is None and self.ground is None:
+            raise ValueError(f"{self.source}: {command} needs a load: one or more [[load]] "
+                             "tables (dof, kind and that kind's fields) or a [ground] record; "
+                             "the scene has neither")
 
     @property
     def linear(self) -> bool:
@@ -455,9 +520,10 @@ def _dof_index(name: str, value, n_dof: int, names: tuple[str, ...] | None) -> i
     return value
 
 
-def _scheme_name_params(tbl: dict) -> tuple[str, dict]:
-    """``scheme.name`` and its parameters, each checked against its bounds in SCHEMES."""
-    name = tbl.get("name")
+def _scheme_name_params(tbl: dict, default: str | None = None) -> tuple[str, dict]:
+    """``scheme.name`` (``default`` when the table has none) and its parameters, each checked
+    against its bounds in SCHEMES."""
+    name = tbl.get("name", default)
     if name is None:
         raise ValueError(f"scheme.name is required, allowed: {', '.join(SCHEMES)}")
     _choice("scheme.name", name, tuple(SCHEMES))
