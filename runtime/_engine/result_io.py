@@ -9,12 +9,21 @@ write leaves no partial file and an existing file untouched.
   scalar metadata as ``dtdyn_metadata``; read with ``allow_pickle=False``.
 - ``.nc``: an xarray Dataset with dimensions ``time`` and ``dof`` (netCDF 3 through SciPy: no
   other library needed besides xarray), the metadata as the attribute ``dtdyn_metadata``.
-- ``.csv``: one table, ``t`` then one column per stored quantity and DOF (``x[3]``), values
-  written with 17 significant digits (they read back bitwise); the metadata as a first comment
-  line ``# dtdyn_metadata: {...}``; array-valued ``info`` entries are not kept (one table).
+- ``.csv``: one plain table that pandas (``pandas.read_csv``) and spreadsheets read with their
+  defaults: one header row, ``t [s]`` then one column per stored quantity and DOF named by
+  quantity, DOF and unit (``x top [m]``, ``v main.1 [rad/s]``, ``a_abs 4 [m/s^2]``; the DOF's
+  name where the model has one, else its 0-based index; ``g 0 [N]``, ``z 0 [m]`` per element
+  and internal state), values written with 17 significant digits (they read back bitwise).
+  The metadata goes to the JSON sidecar ``<name>.csv.json`` next to it: the run info (array
+  entries too), the model summary and versions, the outputs, DOF names and kinds, the column
+  layout and the table's SHA-256. Both files are renamed into place only once both are
+  complete, the table last. `load_result` also reads the earlier single-file format (metadata
+  as a first comment line ``# dtdyn_metadata: {...}``).
 """
 from __future__ import annotations
 
+import csv
+import hashlib
 import io
 import json
 import os
@@ -22,14 +31,24 @@ from pathlib import Path
 
 import numpy as np
 
-from dtdyn._engine.atomic import write_atomic
+from dtdyn._engine.atomic import write_atomic, write_atomic_files
 from dtdyn._engine.extras import require
+from dtdyn._engine.result import DOF_QUANTITIES as QUANTITIES
+from dtdyn._engine.result import ELEMENT_QUANTITIES
 
 FORMATS = (".npz", ".nc", ".csv")
-QUANTITIES = ("x", "v", "a", "a_abs", "x_abs")
-#: per element (g) or internal state (z), not per DOF: their columns are numbered 0, 1, ...
-ELEMENT_QUANTITIES = ("g", "z")
 _META_KEY = "dtdyn_metadata"
+#: the ``format`` entry of a CSV's JSON sidecar
+CSV_FORMAT = "dtdyn result table"
+CSV_FORMAT_VERSION = 1
+#: the kinds fields a CSV sidecar (and .npz, .nc metadata) keeps
+_KIND_FIELDS = ("dof_kinds", "element_kinds", "state_kinds")
+
+
+def sidecar_path(path) -> Path:
+    """The JSON metadata sidecar of a CSV result: ``x.csv`` -> ``x.csv.json``."""
+    path = Path(path)
+    return path.with_name(path.name + ".json")
 
 
 def check_result_path(path) -> Path:
@@ -46,6 +65,9 @@ def check_result_path(path) -> Path:
         raise ValueError(f"{str(path)!r}: the folder {str(folder)!r} does not exist")
     if not os.access(folder, os.W_OK):
         raise ValueError(f"{str(path)!r}: the folder {str(folder)!r} is not writable")
+    if path.suffix.lower() == ".csv" and sidecar_path(path).is_dir():
+        raise ValueError(f"{str(path)!r}: its metadata sidecar {str(sidecar_path(path))!r} is "
+                         "a folder")
     return path
 
 
@@ -79,17 +101,33 @@ def _split_info(info: dict):
     return {k: v for k, v in info.items() if k not in arrays}, arrays
 
 
-def _metadata(response) -> str:
+def _kinds(response) -> dict:
+    """The DOF, element and state kinds the response has (only those set)."""
+    return {k: list(getattr(response, k)) for k in _KIND_FIELDS
+            if getattr(response, k, None) is not None}
+
+
+def _metadata_dict(response) -> dict:
     info, _ = _split_info(response.info)
     meta = dict(response.meta)
     meta.setdefault("versions", _versions())
-    return json.dumps({"info": _json_safe(info), "meta": _json_safe(meta)}, allow_nan=True)
+    return {"info": _json_safe(info), "meta": _json_safe(meta), **_kinds(response)}
+
+
+def _metadata(response) -> str:
+    return json.dumps(_metadata_dict(response), allow_nan=True)
 
 
 def save_result(response, path) -> Path:
     """Write ``response`` to ``path``; the extension chooses the format (module docstring)."""
     path = check_result_path(path)
-    writer = {".npz": _write_npz, ".nc": _write_nc, ".csv": _write_csv}[path.suffix.lower()]
+    if path.suffix.lower() == ".csv":
+        table, sidecar = _csv_files(response, path)
+        # the sidecar first, the table last: a reader that sees the new table sees its metadata
+        write_atomic_files([(sidecar_path(path), lambda fh: fh.write(sidecar)),
+                            (path, lambda fh: fh.write(table))])
+        return path
+    writer = {".npz": _write_npz, ".nc": _write_nc}[path.suffix.lower()]
     write_atomic(path, lambda fh: writer(response, fh))
     return path
 
@@ -136,33 +174,83 @@ def _write_nc(response, fh) -> None:
     fh.write(to_xarray(response).to_netcdf(engine="scipy"))
 
 
-def _columns(response):
-    names, columns = ["t"], [np.asarray(response.t)]
+TIME_COLUMN = "t [s]"
+
+
+def column_names(response) -> list[str]:
+    """The table's column names: ``t [s]``, then ``<quantity> <DOF> [<unit>]`` per stored
+    quantity and DOF (the DOF's name, else its 0-based index; units by `Response.units`), then
+    ``g <element> [<unit>]`` and ``z <state> [<unit>]``."""
+    names = [TIME_COLUMN]
     for q in _stored(response):
-        values = np.asarray(getattr(response, q))
-        for j, dof in enumerate(np.asarray(response.outputs)):
-            names.append(f"{q}[{int(dof)}]")
-            columns.append(values[:, j])
+        names += [f"{q} {response.dof_label(j)} [{unit}]"
+                  for j, unit in enumerate(response.units(q))]
     for q in _stored_elements(response):
+        names += [f"{q} {j} [{unit}]" for j, unit in enumerate(response.units(q))]
+    return names
+
+
+def _layout(response) -> list:
+    """[[quantity, number of columns], ...] after ``t``, in the table's order."""
+    return [[q, int(np.asarray(getattr(response, q)).shape[1])]
+            for q in _stored(response) + _stored_elements(response)]
+
+
+def _columns(response):
+    """(column names, the table as one (n_samples, n_columns) array)."""
+    n = np.asarray(response.t).size
+    parts = [np.asarray(response.t, dtype=float).reshape(n, 1)]
+    for q in _stored(response) + _stored_elements(response):
         values = np.asarray(getattr(response, q))
-        names += [f"{q}[{j}]" for j in range(values.shape[1])]
-        columns += list(values.T)
-    return names, np.column_stack(columns)
+        if values.ndim != 2 or values.shape[0] != n:
+            raise ValueError(f"{q} has shape {values.shape}; a table needs ({n}, columns) "
+                             f"for the {n} samples of t")
+        parts.append(values)
+    return column_names(response), np.hstack(parts)
 
 
-def _write_csv(response, fh) -> None:
-    meta = json.loads(_metadata(response))
-    if response.dof_names is not None:
-        meta["dof_names"] = list(response.dof_names)
+def _header_line(names) -> str:
+    text = io.StringIO()
+    csv.writer(text, lineterminator="\n").writerow(names)  # quotes a name holding a comma
+    return text.getvalue()
+
+
+def _csv_files(response, path: Path) -> tuple[bytes, bytes]:
+    """(table bytes, sidecar bytes) of ``response`` saved as ``path``."""
     names, table = _columns(response)
     text = io.StringIO()
-    text.write(f"# {_META_KEY}: {json.dumps(meta)}\n")
-    np.savetxt(text, table, fmt="%.17g", delimiter=",", header=",".join(names), comments="")
-    fh.write(text.getvalue().encode())
+    text.write(_header_line(names))
+    np.savetxt(text, table, fmt="%.17g", delimiter=",")
+    data = text.getvalue().encode("utf-8")
+    _, arrays = _split_info(response.info)
+    sidecar = {"format": CSV_FORMAT, "version": CSV_FORMAT_VERSION, "table": path.name,
+               "table_sha256": hashlib.sha256(data).hexdigest(), "n_samples": int(table.shape[0]),
+               "columns": names, "layout": _layout(response),
+               "outputs": [int(d) for d in np.asarray(response.outputs)],
+               "dof_names": None if response.dof_names is None else
+               [str(n) for n in response.dof_names],
+               **_metadata_dict(response),
+               "info_arrays": {k: {"dtype": v.dtype.str, "shape": list(v.shape),
+                                   "values": v.ravel().tolist()}
+                               for k, v in arrays.items() if v.dtype.kind in "biuf"}}
+    return data, (json.dumps(sidecar, indent=1, allow_nan=True) + "\n").encode("utf-8")
+
+
+def to_dataframe(response):
+    """`Response.to_dataframe`: the CSV table as a pandas DataFrame."""
+    pd = require("pandas", "pandas", "Response.to_dataframe")
+    names, table = _columns(response)
+    return pd.DataFrame(table, columns=names)
 
 
 def load_result(path):
     """Read a result written by `Response.save` (.npz, .nc or .csv) back into a `Response`.
+
+    A ``.csv`` is read with its JSON sidecar ``<name>.csv.json`` (the metadata, DOF names and
+    kinds, the column layout): a missing sidecar or a header that differs from it is a
+    ValueError; a table whose bytes changed since it was saved (its SHA-256 differs) is read
+    as it is now, with a warning. The single-file CSV of earlier releases (metadata as a first
+    comment line) is read too.
 
     Examples
     --------
@@ -173,11 +261,14 @@ def load_result(path):
     >>> back = dd.load_result(path)
     >>> bool(np.array_equal(back.x, r.x)), back.v is None, back.info["scheme"]
     (True, True, 'newmark')
+    >>> back = dd.load_result(r.save(path.with_suffix(".csv")))   # r.csv and r.csv.json
+    >>> bool(np.array_equal(back.x, r.x)), back.info["scheme"]
+    (True, 'newmark')
 
     Parameters
     ----------
     path : str or Path
-        A file written by `Response.save`.
+        A file written by `Response.save` (for a ``.csv``, with its sidecar next to it).
 
     Returns
     -------
@@ -197,15 +288,17 @@ def load_result(path):
         raise ValueError(f"{str(path)!r} is not a dtdyn result file ({suffix}): {exc}") from None
 
 
-def _build(t, outputs, quantities: dict, metadata: str, dof_names=None, arrays=None):
+def _build(t, outputs, quantities: dict, metadata, dof_names=None, arrays=None):
     from dtdyn._engine.result import Response
-    meta = json.loads(metadata)
+    meta = json.loads(metadata) if isinstance(metadata, str) else metadata
     info = dict(meta["info"])
     info.update(arrays or {})
+    kinds = {k: tuple(str(v) for v in meta[k]) for k in _KIND_FIELDS if meta.get(k) is not None}
     return Response(np.asarray(t, dtype=float), np.asarray(outputs, dtype=np.int64),
                     **{q: quantities.get(q) for q in QUANTITIES + ELEMENT_QUANTITIES},
                     info=info, meta=meta["meta"],
-                    dof_names=None if dof_names is None else tuple(str(n) for n in dof_names))
+                    dof_names=None if dof_names is None else tuple(str(n) for n in dof_names),
+                    **kinds)
 
 
 def _read_npz(path: Path):
@@ -230,10 +323,46 @@ def _read_nc(path: Path):
 
 
 def _read_csv(path: Path):
+    sidecar = sidecar_path(path)
+    data = path.read_bytes()
+    if data.startswith(f"# {_META_KEY}: ".encode()):
+        return _read_commented_csv(path)
+    if not sidecar.is_file():
+        raise ValueError(f"its metadata sidecar {sidecar.name!r} is missing (Response.save and "
+                         "dtdyn simulate --out write it next to the table)")
+    meta = json.loads(sidecar.read_text(encoding="utf-8"))
+    if not isinstance(meta, dict) or meta.get("format") != CSV_FORMAT:
+        raise ValueError(f"{sidecar.name!r} is not the sidecar of a dtdyn table (format "
+                         f"{meta.get('format') if isinstance(meta, dict) else None!r})")
+    if meta.get("version", 0) > CSV_FORMAT_VERSION:
+        raise ValueError(f"{sidecar.name!r} has format version {meta['version']}; this dtdyn "
+                         f"reads up to {CSV_FORMAT_VERSION}: update dtdyn")
+    text = io.StringIO(data.decode("utf-8"))
+    header = next(csv.reader([text.readline()]), [])
+    if header != meta["columns"]:
+        raise ValueError(f"its header {header[:4]}... differs from the columns in "
+                         f"{sidecar.name!r} {meta['columns'][:4]}...")
+    table = np.loadtxt(text, delimiter=",", ndmin=2)
+    if table.shape != (meta["n_samples"], len(header)):
+        raise ValueError(f"the table is {table.shape[0]} x {table.shape[1]}; {sidecar.name!r} "
+                         f"says {meta['n_samples']} x {len(header)}")
+    if hashlib.sha256(data).hexdigest() != meta.get("table_sha256"):
+        from dtdyn._engine.public import warn
+        warn(f"{path.name} changed after it was saved (its SHA-256 differs from the one in "
+             f"{sidecar.name}); its values are read as they are now", UserWarning)
+    quantities, start = {}, 1
+    for q, width in meta["layout"]:
+        quantities[q] = np.ascontiguousarray(table[:, start:start + width])
+        start += width
+    arrays = {k: np.array(v["values"], dtype=np.dtype(v["dtype"])).reshape(v["shape"])
+              for k, v in meta.get("info_arrays", {}).items()}
+    return _build(table[:, 0], meta["outputs"], quantities, meta, meta.get("dof_names"), arrays)
+
+
+def _read_commented_csv(path: Path):
+    """The single-file CSV of earlier releases: ``# dtdyn_metadata: {...}``, then ``t,x[0],...``."""
     with open(path, encoding="utf-8") as fh:
         first = fh.readline()
-        if not first.startswith(f"# {_META_KEY}: "):
-            raise ValueError(f"the first line must be '# {_META_KEY}: ...'")
         header = fh.readline().strip().split(",")
         table = np.loadtxt(fh, delimiter=",", ndmin=2)
     meta = json.loads(first[len(f"# {_META_KEY}: "):])

@@ -489,6 +489,8 @@ def beam_response(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
                              quantities, progress)
     res.outputs = outputs
     res.dof_names = tuple(beam.dof_names[i] for i in outputs)
+    res.dof_kinds = tuple("rotation" if n.startswith("psi") else "translation"
+                          for n in res.dof_names)
     res.info.update(method="DT-TMM (matrix Riccati sweep)" if lib is not None else
                     "assembled matrices (sparse LU)", form=form,
                     backend="c" if lib is not None else "numpy")

@@ -613,6 +613,7 @@ def shaft_response(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     used = "c" if backend == "c" and _c_function(info.name) is not None else "numpy"
     res.info.update(method="DT-TMM (tree)", sweep="stable", backend=used)
     res.dof_names = tuple(tree.names[i] for i in out)
+    res.dof_kinds = ("rotation",) * len(out)   # units rad, rad/s, rad/s^2 in files and plots
     return support.finish(res, ground)
 
 

@@ -56,7 +56,7 @@ def _checked(model, n, dof_names, elements, substeps, scheme, scheme_params, bac
 
 
 def _response(dt, outputs, dof_names, store, stats, quantities, info, form, S, backend, method,
-              elements, t0):
+              elements, t0, kind):
     n_samples = store["x"].shape[0]
     res = Response(dt * np.arange(n_samples), outputs,
                    **{q: store[q] if q in quantities else None for q in ("x", "v", "a")},
@@ -67,6 +67,12 @@ def _response(dt, outputs, dof_names, store, stats, quantities, info, form, S, b
                          "elements": [el.describe() for el in elements],
                          "setup_time": stats.pop("setup_end") - t0, **stats})
     res.dof_names = tuple(dof_names[i] for i in outputs)
+    # units of files and plots: kind(name) is "translation" or "rotation"; an element's force
+    # and internal states take the kind of its DOF i
+    res.dof_kinds = tuple(kind(n) for n in res.dof_names)
+    res.element_kinds = tuple(kind(dof_names[el.i]) for el in elements)
+    res.state_kinds = tuple(kind(dof_names[el.i]) for el in elements
+                            for _ in range(el.n_internal))
     return res
 
 
@@ -159,7 +165,8 @@ def nonlinear_shaft_response(shaft, force, dt, *, elements, force_dofs=None, sch
                                       force_dofs, outputs, f, x0, v0, accel, S, h, quantities,
                                       tol, max_iter, backend)
     res = _response(dt, outputs, tree.names, store, stats, quantities, info, form, S, backend,
-                    f"DT-TMM {info.name} ({form} form, tree sweep)", elements, t0)
+                    f"DT-TMM {info.name} ({form} form, tree sweep)", elements, t0,
+                    lambda name: "rotation")
     return support.finish(res, ground)
 
 
@@ -258,5 +265,6 @@ def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, schem
     method = (f"DT-TMM {info.name} ({form} form, matrix Riccati sweep)" if loop is not None
               else f"{info.name} ({form} form, assembled matrices, sparse LU)")
     res = _response(dt, outputs, beam.dof_names, store, stats, quantities, info, form, S,
-                    "c" if loop is not None else "numpy", method, elements, t0)
+                    "c" if loop is not None else "numpy", method, elements, t0,
+                    lambda name: "rotation" if name.startswith("psi") else "translation")
     return support.finish(res, ground)
