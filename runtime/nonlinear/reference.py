@@ -342,11 +342,6 @@ def reference_response(M, C, K, force, dt, *, elements=(), force_dofs=None, outp
     Non-smooth laws (Gap without smoothing, Bouc-Wen's :math:`|\dot y|`) have kinks inside
     intervals too; the solver handles them by step rejection at some cost in time.
 
-    Example
-    -------
-    >>> from dtdyn.nonlinear.elements import Cubic
-    >>> r = reference_response(f, 1000.0, M, C, K, [3], [Cubic(0, k3=2e7)])  # doctest: +SKIP
-
     Examples
     --------
     >>> import numpy as np, dtdyn as dd

@@ -324,16 +324,13 @@ def load_scene(path: str | os.PathLike | None = None) -> Scene:
         ``"<file>: <field> = <value>: <what is wrong>"``: unreadable file, TOML syntax, unknown
         table or key, invalid value.
 
-    Example
-    -------
-    >>> load_scene().n_dof
-    15
-
     Examples
     --------
     >>> import dtdyn as dd
     >>> dd.load_scene().title[:2]
     'P3'
+    >>> dd.load_scene().n_dof
+    15
     """
     if path is None:
         resource = importlib.resources.files("dtdyn.app").joinpath(DEFAULT_SCENE)
