@@ -21,7 +21,12 @@ per DOF and written to a Zarr store. In the same run:
   the one-time warm-up, since the plain loop builds its kernels before its clock starts), peak
   resident memory of each worker process (ru_maxrss), the CPU time per case of the plain
   loop and of the worker process, whether all agree bitwise, and the load average (other
-  processes on the machine make the wall times noisy).
+  processes on the machine make the wall times noisy); the spread of the case run times.
+
+Each batch is one timed run (its 200 cases are the repeats: the run time of each case on the
+workers is shown as median [min, max]); BLAS pinned to one thread in this process and, by
+OPENBLAS_NUM_THREADS / OMP_NUM_THREADS / MKL_NUM_THREADS = 1 set before the workers start, in
+theirs (dtdyn.app.timing.pin_blas for this process).
 
     python benchmarks/batch_speed.py [N_CASES]        (default 200)
 """
@@ -36,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 import dtdyn as dd
+from dtdyn.app.timing import Timing, pin_blas
 
 SCENE = Path(dd.__file__).parent / "app" / "scenes" / "p4.toml"
 ROOT_SEED = 0
@@ -104,6 +110,7 @@ def main():
         done = int((ds1["status"] == "done").sum()), int((ds2["status"] == "done").sum())
         worker_run = float(ds1["run_time"].mean())
         default_run = float(ds3["run_time"].mean())
+        spreads = [Timing(ds["run_time"].values) for ds in (ds1, ds2, ds3)]
     rows = [("plain loop, 1 process", loop_time, n / loop_time, "", ""),
             ("run_batch, 1 worker", one["wall_time_s"], one["cases_per_s"],
              f"{start1:.1f}", " ".join(f"{v:.0f}" for v in mem1.values())),
@@ -121,7 +128,10 @@ def main():
     print(f"\nthroughput, 2 workers / 1 worker: {two['cases_per_s'] / one['cases_per_s']:.2f}x "
           "(target >= 1.7)")
     print(f"one P4 run in the plain loop: {per_case * 1e3:.1f} ms (parse, run, reduce); on a "
-          f"worker: {worker_run * 1e3:.1f} ms")
+          f"worker: {worker_run * 1e3:.1f} ms (mean)")
+    print("run time of a case on the workers, median [min, max] over the cases: "
+          + ", ".join(f"{label} {t.format()}" for label, t in
+                      zip(("1 worker", "2 workers", "1 worker, Dask config"), spreads)))
     print(f"overhead per case, 1 worker against the plain loop: {overhead * 1e3:.2f} ms = "
           f"{100 * overhead / per_case:.1f} % of a P4 run (target < 5 %)")
     print(f"  of which the warm-up ({one['warm_up_s']:.2f} s once per worker: kernels built or "
@@ -149,4 +159,8 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = "1"  # inherited by the worker processes
+    with pin_blas(1) as pin:
+        print(pin.describe() + "; worker processes: OPENBLAS_NUM_THREADS=1")
+        main()

@@ -13,15 +13,15 @@ Wittrick-Williams frequencies.
    log(time per step) over log(N) for each method; "diff": the largest difference of the tip
    displacement from the scipy.sparse run, relative to its largest value.
 
-Times: the minimum of 3 runs after a warm-up. Usage: python benchmarks/beam_speed.py
+Times: median [min, max] of 3 runs after a warm-up, BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
+Usage: python benchmarks/beam_speed.py
 """
 from __future__ import annotations
-
-import time
 
 import numpy as np
 
 import dtdyn as dd
+from dtdyn.app.timing import Timing, measure, pin_blas
 
 E, I, RHO_A = 2.1e11, 8e-6, 20.0  # noqa: E741
 BETA_L = np.array([1.87510406871196, 4.69409113297418, 7.85475743823761, 10.9955407348755,
@@ -31,26 +31,26 @@ STEPS, DT = 400, 1e-4
 
 
 def best(fn, repeats=3):
-    """(total, run_time, result) of the fastest of ``repeats`` calls after a warm-up."""
-    fn()
-    runs = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
+    """(total, run_time, result): the Timings (median, spread) of the whole call and of its
+    time loop (``info["run_time"]``) over ``repeats`` calls after a warm-up, the last result."""
+    loops = []
+
+    def call():
         out = fn()
-        total = time.perf_counter() - t0
-        runs.append((total, out.info.get("run_time", total), out))
-    return min(runs, key=lambda r: r[0])
+        loops.append(out.info.get("run_time"))
+        return out
+    out, total = measure(call, repeats)
+    run = Timing([w if t is None else t for t, w in zip(loops[1:], total.times)])
+    return total, run, out
 
 
 def main():
     print("1) cantilever, lowest five frequencies: relative error against the closed form")
     for n in (100, 200, 400):
         beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=3.0, elements=n)
-        t0 = time.perf_counter()
-        w = dd.beam_frequencies(beam, count=5)
-        t = time.perf_counter() - t0
+        w, t = measure(lambda: dd.beam_frequencies(beam, count=5), 3)
         ref = BETA_L**2 * np.sqrt(E * I / (RHO_A * 3.0**4))
-        print(f"   {n:4d} elements: max {np.abs(w / ref - 1).max():.1e}  ({t:.2f} s)")
+        print(f"   {n:4d} elements: max {np.abs(w / ref - 1).max():.1e}  ({t.format('s')})")
     print(f"\n2) step load at the tip, average acceleration, {STEPS} steps: time loop per step "
           "(us), construction (ms)")
     print("   elements   DT-TMM (C)        mck scipy.sparse    mck C (SuperLU)    "
@@ -70,7 +70,8 @@ def main():
         cells = []
         for key, (total, run, _) in runs.items():
             per_step[key].append(run / STEPS * 1e6)
-            cells.append(f"{run / STEPS * 1e6:7.1f} ({(total - run) * 1e3:5.1f} ms)")
+            cells.append(f"{run.scaled(1 / STEPS).format('us'):>22s} "
+                         f"({(total - run) * 1e3:5.1f} ms)")
         ref = runs["scipy"][2].x
         diff = np.abs(runs["dttmm"][2].x - ref).max() / np.abs(ref).max()
         totals = {k: v[0] for k, v in runs.items()}
@@ -85,4 +86,6 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    with pin_blas(1) as pin:
+        print(f"{pin.describe()}; times: median [min, max] of the repeats")
+        main()

@@ -6,16 +6,16 @@ Laguerre's iteration on det(K - lambda M), C) against
 scipy.linalg.eigh_tridiagonal (LAPACK stebz bisection) on the symmetrized pencil; and the
 relative error of each on a uniform chain of the same length, whose frequencies are known in
 closed form. Then the lowest 20 damped poles of a 1,000-mass chain (`chain_poles`) against
-numpy.linalg.eigvals of the 2,000-state first-order form.
+numpy.linalg.eigvals of the 2,000-state first-order form. Times: median [min, max] of 3 runs
+after a warm-up, BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
 
     python benchmarks/chain_frequencies.py
 """
-import time
-
 import numpy as np
 import scipy.linalg as sla
 
 import dtdyn as dd
+from dtdyn.app.timing import measure, pin_blas
 
 
 def _tridiagonal(m, k):
@@ -23,10 +23,9 @@ def _tridiagonal(m, k):
     return a / m, -k[1:] / np.sqrt(m[1:] * m[:-1])
 
 
-def _timed(fn):
-    t = time.perf_counter()
-    out = fn()
-    return out, time.perf_counter() - t
+def _timed(fn, repeats=3):
+    """(result, Timing: median and spread of ``repeats`` calls after a warm-up)."""
+    return measure(fn, repeats)
 
 
 def main(n=100_000, count=10):
@@ -37,8 +36,9 @@ def main(n=100_000, count=10):
     lam, t_lapack = _timed(lambda: sla.eigh_tridiagonal(*_tridiagonal(m, k), eigvals_only=True,
                                                         select="i",
                                                         select_range=(0, count - 1)))
-    print(f"lowest {count} of a {n:,}-mass random chain: chain_frequencies {t_ours:.3f} s, "
-          f"eigh_tridiagonal {t_lapack:.3f} s (ratio {t_ours / t_lapack:.2f})")
+    print(f"lowest {count} of a {n:,}-mass random chain: chain_frequencies "
+          f"{t_ours.format('s')}, eigh_tridiagonal {t_lapack.format('s')} "
+          f"(ratio of the medians {t_ours / t_lapack:.2f})")
     mu, ku = np.full(n, 2.0), np.full(n, 1e4)
     j = np.arange(1, count + 1)
     exact = 2 * np.sqrt(ku[0] / mu[0]) * np.sin((2 * j - 1) * np.pi / (2 * (2 * n + 1)))
@@ -55,10 +55,12 @@ def main(n=100_000, count=10):
     ev, t_eig = _timed(lambda: np.linalg.eigvals(A))
     ev = ev[ev.imag > 0]
     ev = ev[np.argsort(np.abs(ev))][:20]
-    print(f"lowest 20 damped poles of a 1,000-mass chain: chain_poles {t_poles:.3f} s, "
-          f"eigvals of the first-order form {t_eig:.3f} s; they agree to "
+    print(f"lowest 20 damped poles of a 1,000-mass chain: chain_poles {t_poles.format('s')}, "
+          f"eigvals of the first-order form {t_eig.format('s')}; they agree to "
           f"{np.max(np.abs(s / ev - 1)):.1e}")
 
 
 if __name__ == "__main__":
-    main()
+    with pin_blas(1) as pin:
+        print(f"{pin.describe()}; times: median [min, max] of the repeats")
+        main()

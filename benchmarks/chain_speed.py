@@ -17,7 +17,8 @@
    over a working set of the same size), measured in the same run; the peer's rate bounds the
    time per mass-step of one thread from below.
 
-Times: minimum of repeats after one warm-up run (compilation excluded and reported apart).
+Times: median [min, max] of repeats after one warm-up run (compilation excluded and reported
+apart), BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
 Usage: python benchmarks/chain_speed.py [--quick]
 """
 from __future__ import annotations
@@ -32,16 +33,13 @@ from dtdyn._engine import kernels
 from dtdyn import DtdynUnstableError
 from dtdyn.linear.chain import SPLIT_MASSES, chain_matrices, chain_response
 from dtdyn.linear.mck import mck_response
+from dtdyn.app.timing import measure, pin_blas
 
 
 def best_of(fn, repeats):
-    fn()  # warm-up
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
+    """(Timing: median and spread of ``repeats`` calls after a warm-up, last result)."""
+    out, t = measure(fn, repeats)
+    return t, out
 
 
 def chain(n):
@@ -68,9 +66,9 @@ def main(quick=False):
                                            quantities=("x",)), 1 if quick else 3)
     diff = np.max(np.abs(rc.x - rm.x)) / np.max(np.abs(rm.x))
     print(f"1) {n} masses x {steps} steps, Newmark average acceleration")
-    print(f"   C DT-TMM                        {t_c * 1e3:9.2f} ms  ({t_c / steps * 1e6:.2f} us/step)")
-    print(f"   mck_response sparse, NumPy loop {t_mck * 1e3:9.2f} ms  ({t_mck / steps * 1e6:.2f} us/step)")
-    print(f"   mck_response sparse, C loop     {t_mc * 1e3:9.2f} ms  ({t_mc / steps * 1e6:.2f} us/step)")
+    print(f"   C DT-TMM                        {t_c.format():>26s}  ({t_c / steps * 1e6:.2f} us/step)")
+    print(f"   mck_response sparse, NumPy loop {t_mck.format():>26s}  ({t_mck / steps * 1e6:.2f} us/step)")
+    print(f"   mck_response sparse, C loop     {t_mc.format():>26s}  ({t_mc / steps * 1e6:.2f} us/step)")
     print(f"   speed-up {t_mck / t_c:.1f}x against the scipy.sparse loop (target >= 5x), "
           f"{t_mc / t_c:.1f}x against the C loop (SuperLU); max relative difference {diff:.1e}\n")
 
@@ -87,12 +85,13 @@ def main(quick=False):
             t, r = best_of(lambda: chain_response(m, k, c, F, dt, force_dofs=[N - 1],
                                                   outputs=[N - 1], quantities=("x",),
                                                   workers=workers), 3)
-            times.append(t / s)
+            times.append(t.scaled(1 / s))
         one.append(times[0])
         per.append(times[1])
-        print(f"   N = {N:>7d}: one thread {times[0] / N * 1e9:5.2f}, default ({r.info['workers']} "
-              f"thread{'s' if r.info['workers'] > 1 else ''}) {times[1] / N * 1e9:5.2f} ns per "
-              f"mass-step ({times[1] * 1e6:.2f} us/step)")
+        print(f"   N = {N:>7d}: one thread {times[0].scaled(1 / N).format('ns')}, default "
+              f"({r.info['workers']} thread{'s' if r.info['workers'] > 1 else ''}) "
+              f"{times[1].scaled(1 / N).format('ns')} per mass-step "
+              f"({times[1] * 1e6:.2f} us/step)")
     slope = np.polyfit(np.log(Ns), np.log(per), 1)[0]
     print(f"   fitted slope of log(time/step) over log(N), default: {slope:.3f} (1 = linear)")
     worst = max(t / N for t, N in zip(per, Ns) if N >= 10_000) * 1e9
@@ -163,7 +162,8 @@ def memory_traffic(N, t_step, rows=10):
     print(f"   stable sweep: {doubles} doubles per mass-step ("
           + ", ".join(f"{k} {v}" for k, v in SWEEP_TRAFFIC.items())
           + f"): {rate / 1e9:.1f} GB/s at {t_step / N * 1e9:.2f} ns per mass-step")
-    print(f"   peer, NumPy x += y over {2 * x.size * 8 / 1e6:.1f} MB: {peer / 1e9:.1f} GB/s; the "
+    print(f"   peer, NumPy x += y over {2 * x.size * 8 / 1e6:.1f} MB: {peer / 1e9:.1f} GB/s "
+          f"(one pass {t_peer.format('ms')}); the "
           f"sweep streams at {rate / peer:.0%} of it")
     print(f"   at the peer's rate, {doubles} doubles take at least "
           f"{doubles * 8 / peer * 1e9:.2f} ns per mass-step")
@@ -175,7 +175,8 @@ if __name__ == "__main__":
     import pathlib
 
     buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
+    with contextlib.redirect_stdout(buf), pin_blas(1) as pin:
+        print(f"{pin.describe()}; times: median [min, max] of the repeats\n")
         main(quick="--quick" in sys.argv)
     print(buf.getvalue(), end="")
     if "--quick" not in sys.argv:

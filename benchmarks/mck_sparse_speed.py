@@ -11,18 +11,19 @@ Three runs of the same record: mck_response with backend="c" (the effective matr
 once by SuperLU, least-fill ordering; products and substitutions in C, whole blocks of steps
 per call), backend="numpy" (the same factors, stepped with scipy.sparse products and
 SuperLU's solve), and a lean textbook Newmark loop in NumPy/scipy.sparse with its own
-prefactored splu (the peer).
+prefactored splu (the peer). Times: median [min, max] of 3 runs (the C kernel compiled or
+loaded first), BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
 
     python benchmarks/mck_sparse_speed.py [n_steps]
 """
 import sys
-import time
 
 import numpy as np
 import scipy.sparse as sps
 import scipy.sparse.linalg as spla
 
 import dtdyn as dd
+from dtdyn.app.timing import measure, pin_blas
 
 
 def peer(M, C, K, f, dt, loaded, outputs):
@@ -71,15 +72,10 @@ def run(name, M, C, K, f, dt):
     loaded, outputs = [n // 3, n - 1], np.arange(0, n, 100)
     kw = dict(force_dofs=loaded, outputs=outputs, scheme="average_acceleration")
     dd.mck_response(M, C, K, f[:50], dt, **kw)  # compile or load the kernel
-    t = time.perf_counter()
-    rc = dd.mck_response(M, C, K, f, dt, **kw)
-    t_c = time.perf_counter() - t
-    t = time.perf_counter()
-    rn = dd.mck_response(M, C, K, f, dt, backend="numpy", **kw)
-    t_np = time.perf_counter() - t
-    t = time.perf_counter()
-    X = peer(M, C, K, f, dt, loaded, outputs)
-    t_peer = time.perf_counter() - t
+    rc, t_c = measure(lambda: dd.mck_response(M, C, K, f, dt, **kw), 3, warmup=False)
+    rn, t_np = measure(lambda: dd.mck_response(M, C, K, f, dt, backend="numpy", **kw), 3,
+                       warmup=False)
+    X, t_peer = measure(lambda: peer(M, C, K, f, dt, loaded, outputs), 3, warmup=False)
     n_steps = f.shape[0] - 1
     A = sps.csc_matrix(M + 0.5 * dt * C + 0.25 * dt * dt * K)
     lu = spla.splu(A, permc_spec="MMD_AT_PLUS_A")
@@ -89,10 +85,10 @@ def run(name, M, C, K, f, dt):
     us = 1e6 / n_steps
     print(f"{name}: {n:,} DOFs, nnz(K) = {K.nnz:,}, nnz(L + U) = {lu.L.nnz + lu.U.nnz:,}; "
           f"{n_steps:,} steps, average acceleration, x v a of {outputs.size} DOFs stored")
-    print(f"  mck_response, C loop:                {t_c * 1e3:9.1f} ms  ({t_c * us:.1f} us/step)")
-    print(f"  mck_response, NumPy/scipy.sparse:    {t_np * 1e3:9.1f} ms  ({t_np * us:.1f} us/step)"
+    print(f"  mck_response, C loop:                {t_c.format():>26s}  ({t_c * us:.1f} us/step)")
+    print(f"  mck_response, NumPy/scipy.sparse:    {t_np.format():>26s}  ({t_np * us:.1f} us/step)"
           f"  {t_np / t_c:.1f}x the C loop; agree to {err_np:.1e} (x, v, a; relative to max)")
-    print(f"  lean NumPy/scipy.sparse Newmark:     {t_peer * 1e3:9.1f} ms  "
+    print(f"  lean NumPy/scipy.sparse Newmark:     {t_peer.format():>26s}  "
           f"({t_peer * us:.1f} us/step)  {t_peer / t_c:.1f}x the C loop; agree to "
           f"{err_peer:.1e} (x)")
 
@@ -107,4 +103,6 @@ def main(n_steps=2_000):
 
 
 if __name__ == "__main__":
-    main(int(float(sys.argv[1])) if len(sys.argv) > 1 else 2_000)
+    with pin_blas(1) as pin:
+        print(f"{pin.describe()}; times: median [min, max] of the repeats")
+        main(int(float(sys.argv[1])) if len(sys.argv) > 1 else 2_000)

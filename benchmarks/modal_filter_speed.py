@@ -34,7 +34,8 @@ The two forms of dtdyn.modal.filters (its module docstring):
     (its drift: ~1e-19 per step). exact_response (matrix exponential, the reference of the
     tests) is compared too: its difference from the truth also contains the eigensolver's error
     in the poles.
-Times: minimum of repeats after one warm-up call (which also compiles the C kernels).
+Times: median [min, max] of repeats after one warm-up call (which also compiles the C kernels),
+BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
 """
 from __future__ import annotations
 
@@ -51,6 +52,7 @@ import numpy as np
 import scipy
 import scipy.signal as sig
 
+from dtdyn.app.timing import Timing, measure, pin_blas
 from dtdyn.linear.chain import chain_matrices
 from dtdyn.linear.discretize import first_order_form
 from dtdyn.linear.exact import exact_response
@@ -70,13 +72,9 @@ LOADED = 14
 
 
 def best_of(fn, repeats):
-    out = fn()  # warm-up
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return min(times), out
+    """(Timing: median and spread of ``repeats`` calls after a warm-up, last result)."""
+    out, t = measure(fn, repeats)
+    return t, out
 
 
 def rel_diff(a, b):
@@ -84,7 +82,7 @@ def rel_diff(a, b):
 
 
 def ms(t):
-    return f"{t * 1e3:9.1f} ms"
+    return f"{t.format():>26s}" if isinstance(t, Timing) else f"{t * 1e3:9.1f} ms"
 
 
 def extended_precision_truth(model, force):
@@ -140,10 +138,10 @@ def main():
                 y[:, o] += sig.sosfilt(row[None, :], force)
             return y
 
-        t_rows, y_rows = best_of(rowwise, 1)
+        t_rows, y_rows = best_of(rowwise, 3)
         t_lf, _ = best_of(lambda: run_bank(sos, in_col, out_col, direct, x[:N_LF], n_out,
-                                           backend="numpy"), 1)
-        t_lfm, _ = best_of(lambda: run_modes(st, x[:N_LF], backend="numpy"), 1)
+                                           backend="numpy"), 3)
+        t_lfm, _ = best_of(lambda: run_modes(st, x[:N_LF], backend="numpy"), 3)
         scale = N / N_LF
         kernel[n_out] = (t_bank, t_modes, t_rows)
         label = "DOF 14" if n_out == 1 else "all 15 DOFs"
@@ -158,9 +156,9 @@ def main():
             t_casc, _ = best_of(lambda: sig.sosfilt(sos6, force), 3)
             print(f"      sosfilt, one call, rows as a cascade      {ms(t_casc)}  "
                   "(reference only: a different filter)")
-        print(f"      NumPy fallback, lfilter per section       {ms(t_lf * scale)}  "
+        print(f"      NumPy fallback, lfilter per section       {ms(t_lf.scaled(scale))}  "
               f"(extrapolated from {N_LF:,} samples)")
-        print(f"      NumPy fallback, lfilter per modal state   {ms(t_lfm * scale)}  "
+        print(f"      NumPy fallback, lfilter per modal state   {ms(t_lfm.scaled(scale))}  "
               f"(extrapolated from {N_LF:,} samples)")
         print(f"      speed-up over row-wise sosfilt: bank {t_rows / t_bank:.1f}x (target >= 1x), "
               f"per mode {t_rows / t_modes:.1f}x; per mode vs bank {t_bank / t_modes:.1f}x")
@@ -177,13 +175,13 @@ def main():
         Cm = np.zeros((n_out, 2 * n))
         Cm[np.arange(n_out), outputs] = 1.0
         system = (A, B[:, [LOADED]], Cm, np.zeros((n_out, 1)))
-        t_ls, (_, y_ls, _) = best_of(lambda: sig.lsim(system, force[:N_LSIM], t), 1)
+        t_ls, (_, y_ls, _) = best_of(lambda: sig.lsim(system, force[:N_LSIM], t), 3)
         y_ls = np.reshape(y_ls, (N_LSIM, n_out))
-        t_ls_full = t_ls * N / N_LSIM
+        t_ls_full = t_ls.scaled(N / N_LSIM)
         label = "DOF 14" if n_out == 1 else "all 15 DOFs"
         print(f"   outputs {label}:")
         print(f"      scipy.signal.lsim              {ms(t_ls_full)}  (extrapolated; measured "
-              f"{t_ls * 1e3:.1f} ms on {N_LSIM:,} samples)")
+              f"{t_ls.format()} on {N_LSIM:,} samples)")
         for method in ("modes", "sections", "auto"):
             t_mf, r = best_of(lambda: modal_filter_response(M, C, K, x, 1 / FS, force_dofs=[LOADED],
                                                             outputs=outputs, algorithm=method,
@@ -239,7 +237,8 @@ def main():
 
 if __name__ == "__main__":
     buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
+    with contextlib.redirect_stdout(buf), pin_blas(1) as pin:
+        print(pin.describe())
         main()
     print(buf.getvalue(), end="")
     doc = ROOT / "docs" / "modal_filter_speed.md"

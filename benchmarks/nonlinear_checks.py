@@ -11,7 +11,8 @@ tangent stiffness, and the Bouc-Wen hysteresis loop against the solve_ivp refere
 
 3. DT-TMM chains with nonlinear elements: run time per step of nonlinear_chain_response (two
    cubic springs) against the linear chain_response on the same chain, N = 1e3 .. 1e5 masses,
-   measured in the same run.
+   measured in the same run: median [min, max] of 3 runs after a warm-up, BLAS pinned to one
+   thread (dtdyn.app.timing.pin_blas, threadpoolctl).
 
 Writes docs/nonlinear_checks.md and docs/img/bouc_wen_loop.png.
 Usage: python benchmarks/nonlinear_checks.py
@@ -70,9 +71,8 @@ def bouc_wen():
 
 
 def chain_scaling():
-    import time
-
     from dtdyn import chain_response
+    from dtdyn.app.timing import measure
     from dtdyn.nonlinear.elements import Cubic
     from dtdyn.nonlinear.chain import nonlinear_chain_response
     rows = []
@@ -87,15 +87,18 @@ def chain_scaling():
                     lambda: nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[n - 1],
                                                      elements=els, outputs=[n - 1],
                                                      form="acceleration")):
-            run()
-            t0 = time.perf_counter()
-            run()
-            times.append((time.perf_counter() - t0) / n_steps)
+            times.append(measure(run, 3)[1].scaled(1 / n_steps))
         rows.append((n, *times))
     return rows
 
 
 def main():
+    from dtdyn.app.timing import pin_blas
+    with pin_blas(1) as pin:
+        _main(pin)
+
+
+def _main(pin):
     lines = ["# Nonlinear checks", "", "Output of `python benchmarks/nonlinear_checks.py`.", "",
              "## Stability against an element's tangent stiffness", "",
              "x'' + 2 zeta x' + x = -k_t x, h = 0.01; entries: spectral radius - 1 of the step "
@@ -123,10 +126,12 @@ def main():
     lines += ["", "![Bouc-Wen loop](img/bouc_wen_loop.png)", "",
               "## DT-TMM chains with nonlinear elements", "",
               "Two cubic springs (k3 = 2e7) on a uniform chain, 100 steps, acceleration form; time "
-              "per step:", "", "| masses | chain_response (linear) [ms] | nonlinear_chain_response "
-              "[ms] | ratio |", "|---|---|---|---|"]
+              "per step, median [min, max] of 3 runs after a warm-up; " + pin.describe() + ":",
+              "", "| masses | chain_response (linear) [ms] | nonlinear_chain_response "
+              "[ms] | ratio (medians) |", "|---|---|---|---|"]
     for n, t_lin, t_nl in chain_scaling():
-        lines.append(f"| {n} | {t_lin * 1e3:.3f} | {t_nl * 1e3:.3f} | {t_nl / t_lin:.1f} |")
+        lines.append(f"| {n} | {t_lin.format('ms', 3).removesuffix(' ms')} | "
+                     f"{t_nl.format('ms', 3).removesuffix(' ms')} | {t_nl / t_lin:.1f} |")
     lines.append("")
     text = "\n".join(lines)
     print(text)

@@ -29,14 +29,14 @@ ground_acceleration=ag)``.
 2. Speed, same run: OpenSees ``analyze(n_steps, dt)`` in one call with a Node recorder writing
    the displacement of every floor at every step (the fastest of the systems tried below,
    ``Linear -factorOnce``, a binary recorder file), against ``mck_response`` (generated C loop)
-   storing x of every DOF; after a warm-up, the median of repeats. Only the analysis is timed
+   storing x of every DOF; after a warm-up, the median [min, max] of repeats, BLAS pinned to
+   one thread in this process (dtdyn.app.timing.pin_blas, threadpoolctl). Only the analysis is timed
    in OpenSees (not the model building nor reading the file back); dtdyn's time is the whole
    call (checks, factorization, loop, result).
 
     python benchmarks/opensees_peer.py [n_steps ...]     (default: 20000 200000)
 """
 import os
-import statistics
 import sys
 import tempfile
 import time
@@ -44,6 +44,7 @@ import time
 import numpy as np
 
 import dtdyn as dd
+from dtdyn.app.timing import Timing, measure, pin_blas
 
 MASS, STIFF = [2e5] * 5, [3e8] * 4 + [2e8]
 #: OpenSees equation solvers tried for speed (all exact for this symmetric positive definite
@@ -146,14 +147,8 @@ def accuracy(ops, M, C, K, a0, a1, n_steps, dt):
 
 
 def median_time(fn, repeats):
-    fn()   # warm-up
-    return statistics.median(timed(fn) for _ in range(repeats))
-
-
-def timed(fn):
-    start = time.perf_counter()
-    fn()
-    return time.perf_counter() - start
+    """Timing (median, spread) of ``repeats`` calls after a warm-up."""
+    return measure(fn, repeats)[1]
 
 
 def main(steps=(20_000, 200_000)):
@@ -182,19 +177,20 @@ def main(steps=(20_000, 200_000)):
             note = ("met" if ok else "MISSED") if gated else "OpenSees' clock drifts from k dt"
             print(f"{dt:10.7g} {n:8d} {ex:9.1e} {ea:9.1e} {ec:9.1e}  {note}")
 
-    print("\n2. speed, same run: displacement of every floor stored at every step; median of "
-          "repeats after a warm-up")
+    print("\n2. speed, same run: displacement of every floor stored at every step; median "
+          "[min, max] of repeats after a warm-up")
     dt = 1 / 128
-    print(f"{'steps':>8s} {'dtdyn C [ms]':>13s} {'OpenSees [ms]':>14s} {'system':>12s} "
+    print(f"{'steps':>8s} {'dtdyn C [ms]':>24s} {'OpenSees [ms]':>24s} {'system':>12s} "
           f"{'ratio':>7s}")
     for n in steps:
         ag = record(n, dt)
         repeats = 5 if n <= 50_000 else 3
         t_dd = median_time(lambda: dtdyn_run(M, C, K, ag, dt), repeats)
-        t_os = {s: statistics.median(opensees(ops, ag, dt, a0, a1, system=s)[0]
-                                     for _ in range(repeats)) for s in SYSTEMS}
+        t_os = {s: Timing([opensees(ops, ag, dt, a0, a1, system=s)[0]
+                           for _ in range(repeats)]) for s in SYSTEMS}
         best = min(t_os, key=t_os.get)
-        print(f"{n:8d} {t_dd * 1e3:13.1f} {t_os[best] * 1e3:14.1f} {best:>12s} "
+        print(f"{n:8d} {t_dd.format('ms').removesuffix(' ms'):>24s} "
+              f"{t_os[best].format('ms').removesuffix(' ms'):>24s} {best:>12s} "
               f"{t_os[best] / t_dd:6.1f}x")
     print("OpenSees: one analyze(n_steps, dt) call, algorithm Linear -factorOnce, a binary Node "
           "recorder of disp; systems tried: " + ", ".join(SYSTEMS))
@@ -213,4 +209,6 @@ def _version(name):
 
 
 if __name__ == "__main__":
-    main(tuple(int(float(a)) for a in sys.argv[1:]) or (20_000, 200_000))
+    with pin_blas(1) as pin:
+        print(pin.describe())
+        main(tuple(int(float(a)) for a in sys.argv[1:]) or (20_000, 200_000))

@@ -14,8 +14,8 @@ ValueError naming the damping): it is run instead on the assembled matrices with
 
 Error: max over time (and over the 15 masses) of |x - x_exact|, divided by max |x_exact| over
 the same set; x_exact from `exact_response` with the same force samples (exact for them).
-Run time: the whole solver call, minimum of REPEATS after one warm-up run (which also compiles
-the C kernel on first use).
+Run time: the whole solver call, median [min, max] of REPEATS after one warm-up run (which also
+compiles the C kernel on first use), BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
 """
 from __future__ import annotations
 
@@ -23,11 +23,11 @@ import importlib
 import pathlib
 import platform
 import sys
-import time
 
 import numpy as np
 
 from dtdyn.app import problems
+from dtdyn.app.timing import measure, pin_blas
 from dtdyn.generated import SCHEMES
 from dtdyn.linear.chain import chain_matrices, chain_response
 from dtdyn.linear.exact import exact_response
@@ -48,13 +48,9 @@ def rel_error(x, ref):
 
 
 def best_time(fn):
-    fn()  # warm-up (compiles the C kernel on first use)
-    times = []
-    for _ in range(REPEATS):
-        t0 = time.perf_counter()
-        res = fn()
-        times.append(time.perf_counter() - t0)
-    return res, min(times)
+    """(last result, Timing of REPEATS calls after a warm-up, which compiles the C kernel on
+    first use): the median and the spread."""
+    return measure(fn, REPEATS)
 
 
 def describe(name):
@@ -64,6 +60,11 @@ def describe(name):
 
 
 def main():
+    with pin_blas(1) as pin:
+        _main(pin)
+
+
+def _main(pin):
     n_steps = int(round(T_END / DT))
     force = np.ones((n_steps + 1, 1))
     M, C, K = chain_matrices(MASS, STIFFNESS, DAMPING)
@@ -142,17 +143,18 @@ def main():
         "displacement form). Central difference is explicit and P3 is undamped: its DT-TMM "
         "acceleration form divides by c Dv = 0 and raises, so it is run on the assembled "
         "matrices with `dtdyn.linear.mck.mck_response` (same generated integrator). "
-        "Run time: the whole solver call, minimum of "
+        "Run time: the whole solver call, median [min, max] of "
         f"{REPEATS} after a warm-up (includes the per-run setup; the exact reference takes "
-        f"{t_exact * 1e3:.1f} ms).",
+        f"{t_exact.format()}); {pin.describe()}.",
         "",
         "| rank | scheme | parameters | rel. error x (all masses) | rel. error x (mass 15) "
-        "| run time (ms) | solver |",
+        "| run time (ms), median [min, max] | solver |",
         "|---:|---|---|---:|---:|---:|---|",
     ]
     for i, r in enumerate(rows, 1):
         lines.append(f"| {i} | `{r['name']}` | {r['params']} | {r['err']:.3e} | "
-                     f"{r['err_last']:.3e} | {r['time'] * 1e3:.2f} | {r['how']} |")
+                     f"{r['err_last']:.3e} | {r['time'].format('ms').removesuffix(' ms')} | "
+                     f"{r['how']} |")
     lines += [
         "",
         f"Central difference, {cd_note}",

@@ -9,25 +9,21 @@
 2. Cost per step of the tree loop for N = 1e3 .. 1e5 stations; the fitted slope of log(time)
    over log(N) is 1 for O(N) per step.
 
-Times: minimum of repeats after one warm-up run. Usage: python benchmarks/shaft_speed.py
+Times: median [min, max] of repeats after one warm-up run, BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
+Usage: python benchmarks/shaft_speed.py
 """
 from __future__ import annotations
-
-import time
 
 import numpy as np
 
 import dtdyn as dd
+from dtdyn.app.timing import measure, pin_blas
 
 
 def best_of(fn, repeats=3):
-    out = fn()
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, out
+    """(Timing: median and spread of ``repeats`` calls after a warm-up, last result)."""
+    out, t = measure(fn, repeats)
+    return t, out
 
 
 def line(n):
@@ -48,12 +44,12 @@ def compare(name, shaft, n_steps=2000, dt=1e-4):
     kw = dict(force_dofs=[n - 1], outputs=[0, n - 1], scheme="average_acceleration")
     t_tmm, r = best_of(lambda: dd.shaft_response(shaft, f, dt, **kw))
     t_c, rc = best_of(lambda: dd.mck_response(M, C, K, f, dt, **kw))
-    t_np, rn = best_of(lambda: dd.mck_response(M, C, K, f, dt, backend="numpy", **kw), 1)
+    t_np, rn = best_of(lambda: dd.mck_response(M, C, K, f, dt, backend="numpy", **kw), 3)
     diff = max(np.abs(r.x - ref.x).max() / np.abs(ref.x).max() for ref in (rc, rn))
     print(f"{name}: {n} stations, {n_steps} steps of dt = {dt:g}")
-    print(f"  DT-TMM tree sweep (C)              {t_tmm * 1e3:9.1f} ms")
-    print(f"  mck_response sparse, C loop        {t_c * 1e3:9.1f} ms   ratio {t_c / t_tmm:6.1f}x")
-    print(f"  mck_response sparse, numpy backend {t_np * 1e3:9.1f} ms   ratio {t_np / t_tmm:6.1f}x"
+    print(f"  DT-TMM tree sweep (C)              {t_tmm.format():>26s}")
+    print(f"  mck_response sparse, C loop        {t_c.format():>26s}   ratio {t_c / t_tmm:6.1f}x")
+    print(f"  mck_response sparse, numpy backend {t_np.format():>26s}   ratio {t_np / t_tmm:6.1f}x"
           "   (scipy.sparse Newmark; target >= 10x)")
     print(f"  largest relative difference in x: {diff:.1e}")
 
@@ -65,15 +61,17 @@ def scaling(n_steps=500):
         s = tree(n)
         t, _ = best_of(lambda: dd.shaft_response(s, np.ones(n_steps + 1), 1e-4,
                                                  force_dofs=[n - 1], outputs=[0]))
-        per.append(t / n_steps)
-        print(f"  N = {n:7d}: {per[-1] * 1e6:9.2f} us per step, "
+        per.append(t.scaled(1 / n_steps))
+        print(f"  N = {n:7d}: {per[-1].format('us'):>24s} per step, "
               f"{per[-1] / n * 1e9:6.2f} ns per station-step")
     slope = np.polyfit(np.log(sizes), np.log(per), 1)[0]
     print(f"  fitted slope of log(time per step) over log(N): {slope:.2f}")
 
 
 if __name__ == "__main__":
-    compare("10,000-disk shaft", line(10_000))
-    compare("10,000-station tree (a geared branch)", tree(10_000))
-    print("tree loop, cost per step:")
-    scaling()
+    with pin_blas(1) as pin:
+        print(f"{pin.describe()}; times: median [min, max] of the repeats")
+        compare("10,000-disk shaft", line(10_000))
+        compare("10,000-station tree (a geared branch)", tree(10_000))
+        print("tree loop, cost per step:")
+        scaling()

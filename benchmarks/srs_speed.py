@@ -4,7 +4,8 @@
 200 log-spaced frequencies, 10 Hz .. 10 kHz (>= 10 points per cycle, so neither code upsamples),
 5 % damping, absolute acceleration, total window (primary + residual), peaks at the samples.
 
-Compared, each timed once (single runs; 2-core shared machine, so expect a few % noise):
+Compared, each timed 3 times (median [min, max]; the C kernel compiled or loaded first), BLAS
+pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl; the SRS threads are dtdyn's own):
 - ours, 1 thread and the default (threads = CPU count for a run this size; the C kernel releases
   the GIL), and ours with exact peaks;
 - pyyeti.srs.srs(rolloff="none", time="total") with parallel="no" and its default "auto" (if
@@ -21,13 +22,13 @@ import io
 import os
 import pathlib
 import platform
-import time
 import warnings
 
 import numpy as np
 import scipy
 import scipy.signal as sig
 
+from dtdyn.app.timing import measure, pin_blas
 from dtdyn.generated import modal_filters as coef
 from dtdyn.modal.srs import _poles_residues, shock_response_spectrum
 
@@ -58,10 +59,10 @@ def lfilter_loop(a, fs, freqs, zeta):
     return out
 
 
-def timed(fn):
-    t0 = time.perf_counter()
-    out = fn()
-    return time.perf_counter() - t0, out
+def timed(fn, repeats=3):
+    """(Timing: median and spread of ``repeats`` calls, the last result)."""
+    out, t = measure(fn, repeats, warmup=False)
+    return t, out
 
 
 def main():
@@ -97,9 +98,11 @@ def main():
             t_pa, m_pa = timed(lambda: pysrs.srs(a, fs, freqs, 1 / (2 * zeta), **kw))
             rows.append(("pyyeti.srs.srs, parallel='auto' (default)", t_pa))
     print()
-    print(f"   {'':46s} {'time [s]':>9s} {'ns/sample/freq':>15s} {'vs dtdyn default':>17s}")
+    print(f"   {'':46s} {'time [s], median [min, max]':>28s} {'ns/sample/freq':>15s} "
+          f"{'vs dtdyn default':>17s}")
     for name, t in rows:
-        print(f"   {name:46s} {t:9.3f} {t / (n * freqs.size) * 1e9:15.2f} {t / t2:16.2f}x")
+        print(f"   {name:46s} {t.format('s').removesuffix(' s'):>28s} "
+              f"{t / (n * freqs.size) * 1e9:15.2f} {t / t2:16.2f}x")
     print()
     if pysrs is not None:
         print(f"speed-up of dtdyn (default) over pyyeti: {t_py / t2:.1f}x (pyyeti parallel='no'), "
@@ -117,10 +120,11 @@ def main():
 
 if __name__ == "__main__":
     buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
+    with contextlib.redirect_stdout(buf), pin_blas(1) as pin:
+        print(pin.describe())
         main()
     print(buf.getvalue(), end="")
     doc = pathlib.Path(__file__).resolve().parents[1] / "docs" / "srs_speed.md"
     doc.write_text("# Shock response spectrum speed\n\nOutput of `python benchmarks/srs_speed.py` "
-                   "(2-core shared machine; every time from one run, ratios measured in the same "
-                   "run):\n\n```\n" + buf.getvalue() + "```\n")
+                   "(2-core shared machine; every time the median [min, max] of 3 runs, ratios "
+                   "of the medians measured in the same run):\n\n```\n" + buf.getvalue() + "```\n")

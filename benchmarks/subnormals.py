@@ -10,40 +10,37 @@ underflow (a noise floor of 1e-12 added to the record, or a random initial state
 ratio near 1 means the decay costs nothing extra. Run on the code before the flush (commit
 aae8357), the four ratios were 6.69, 10.45, 1.42 and 2.00 on this 2-core machine.
 
-Times: minimum of repeats after one warm-up run.
+Times: median [min, max] of repeats after one warm-up run, BLAS pinned to one thread
+(dtdyn.app.timing.pin_blas, threadpoolctl); ratios of the medians.
 Usage: python benchmarks/subnormals.py [--quick]
 """
 from __future__ import annotations
 
 import sys
-import time
 import warnings
 
 import numpy as np
 
 import dtdyn as dd
+from dtdyn.app.timing import measure, pin_blas
 
 
 def best_of(fn, repeats):
-    fn()  # warm-up (and compilation)
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+    """Timing (median, spread) of ``repeats`` calls after a warm-up (and compilation)."""
+    return measure(fn, repeats)[1]
 
 
 def row(name, t_decay, t_floor, unit, count):
-    print(f"   {name:<38s} {t_decay * 1e3:8.1f} ms  {t_floor * 1e3:8.1f} ms  "
+    print(f"   {name:<38s} {t_decay.format('ms'):>22s}  {t_floor.format('ms'):>22s}  "
           f"{t_decay / t_floor:5.2f}   ({t_decay / count * 1e9:.2f} ns per {unit})")
 
 
 def main(quick=False):
-    repeats = 2 if quick else 5
+    repeats = 3 if quick else 5
     rng = np.random.default_rng(0)
-    print("case                                   decaying   never near   ratio")
-    print("                                          to 0     underflow")
+    print("case                                   decaying to 0, median     never near underflow"
+          "    ratio")
+    print("                                           [min, max]")
 
     # 1) shock response spectrum: a 5 ms half-sine, then quiet, 20 s at 10 kHz, 60 oscillators
     fs, n = 10_000.0, 100_000 if quick else 200_000
@@ -54,8 +51,9 @@ def main(quick=False):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", dd.SRSSamplingWarning)
         for zeta in (0.05, 0.3):
-            t = [best_of(lambda a=a: dd.shock_response_spectrum(a, 1 / fs, freqs, damping=zeta,
-                                                                workers=1), repeats)
+            t = [best_of(lambda a=a: dd.shock_response_spectrum(a, 1 / fs, freqs,
+                                                                damping_ratio=zeta, workers=1),
+                         repeats)
                  for a in (pulse, floor)]
             row(f"SRS, half-sine then quiet, zeta {zeta}", *t, "sample-oscillator",
                 n * freqs.size)
@@ -88,7 +86,8 @@ if __name__ == "__main__":
     import pathlib
 
     buf = io.StringIO()
-    with contextlib.redirect_stdout(buf):
+    with contextlib.redirect_stdout(buf), pin_blas(1) as pin:
+        print(f"{pin.describe()}\n")
         main(quick="--quick" in sys.argv)
     print(buf.getvalue(), end="")
     if "--quick" not in sys.argv:
