@@ -24,9 +24,9 @@ import sysconfig
 import time
 import tempfile
 import threading
-import warnings
 from pathlib import Path
 from dtdyn._engine.errors import DtdynFallbackWarning
+from dtdyn._engine.public import warn
 
 try:  # POSIX only; without it the C backend is reported as unavailable.
     import fcntl
@@ -266,10 +266,9 @@ def _warn_once(reason: str) -> None:
         if _warned:
             return
         _warned = True
-    warnings.warn(
+    warn(
         f"dtdyn C backend unavailable, using the NumPy implementation instead. Reason: {reason}",
         DtdynFallbackWarning,
-        stacklevel=3,
     )
 
 

@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from pathlib import Path
 
+from dtdyn._engine.public import warning_scope
 from dtdyn.generated.scheme_table import TABLE as SCHEMES
 
 
@@ -139,10 +141,19 @@ def _simulate_nonlinear(args, sc) -> int:
                f"; accuracy {target:g} {'met' if report['accuracy_met'] else 'NOT met'}")
         print(f"error estimate: {report['error_estimate']:.3g} (relative; ran "
               f"{report['scheme']}, {report['substeps']} substep(s) per sample{met})")
-    for what, path in (("results", args.out), ("plot", args.plot)):
-        if path:
-            print(f"{what}: {path}")
+    _print_written(args)
     return 0
+
+
+def _print_written(args) -> None:
+    """Say where --out (a CSV with its JSON metadata sidecar) and --plot went."""
+    if args.out:
+        from dtdyn._engine.result_io import sidecar_path
+        extra = (f" (metadata: {sidecar_path(args.out)})"
+                 if str(args.out).lower().endswith(".csv") else "")
+        print(f"results: {args.out}{extra}")
+    if args.plot:
+        print(f"plot: {args.plot}")
 
 
 def _check_outputs(args) -> None:
@@ -161,12 +172,19 @@ def _simulate(args) -> int:
 
     _check_outputs(args)
     sc = scenes.load_scene(args.scene)
+    sc.require_run("dtdyn simulate")
     if not sc.linear:
         for flag, used in (("--no-check", args.no_check), ("--quiet", args.quiet)):
             if used:
                 raise ValueError(f"{flag} applies to linear scenes only (a nonlinear run has no "
                                  "exact check and no progress bar)")
+        if args.unstable is not None:
+            raise ValueError(f"--unstable {args.unstable} applies to linear scenes only (a "
+                             "nonlinear run checks each step's stability as it runs)")
         return _simulate_nonlinear(args, sc)
+    if args.unstable is not None:  # the flag overrides the scene's scheme.unstable
+        import dataclasses
+        sc = dataclasses.replace(sc, unstable=args.unstable)
     if sc.kind == "matrices":
         how = (f"assembled {'sparse' if sc.sparse else 'dense'} M, C, K, {sc.form} form, "
                f"backend {sc.backend}")
@@ -200,9 +218,7 @@ def _simulate(args) -> int:
               f"{report['exact_time_s'] * 1e3:.1f} ms)")
     elif not args.no_check:
         print(f"exact check {report['check']}")
-    for what, path in (("results", args.out), ("plot", args.plot)):
-        if path:
-            print(f"{what}: {path}")
+    _print_written(args)
     return 0
 
 
@@ -283,7 +299,7 @@ def _modes(args) -> int:
     import scipy.sparse as sps
 
     from dtdyn.app import scene as scenes
-    from dtdyn.modal.modes import modes
+    from dtdyn.modal.modes import mck_modes
 
     sc = scenes.load_scene(args.scene)
     if sc.model is not None:  # a kind in MODEL_MODULES: its own frequencies (Wittrick-Williams)
@@ -292,7 +308,7 @@ def _modes(args) -> int:
         omega = model_module(sc.kind).frequencies(sc.model, args.count)
         if args.json:
             print(json.dumps({"scene": sc.title, "n_dof": sc.n_dof, "kind": sc.kind,
-                              "method": "Wittrick-Williams", "omega": omega.tolist(),
+                              "method": "Wittrick-Williams", "omega_rad_s": omega.tolist(),
                               "frequency_hz": (omega / (2 * np.pi)).tolist()}))
             return 0
         print(f"{sc.title}: {sc.kind}, {sc.n_dof} DOF, {omega.size} frequencies "
@@ -311,7 +327,7 @@ def _modes(args) -> int:
                              "shift-invert")
         M, C, K = (A.toarray() for A in (M, C, K))
     damped = not sps.issparse(C) and np.any(C)
-    m = modes(M, K, C if damped else None, count=args.count)
+    m = mck_modes(M, C if damped else None, K, count=args.count)
     if args.json:
         print(json.dumps({"scene": sc.title, "n_dof": n, **m.to_dict()}))
         return 0
@@ -336,7 +352,7 @@ def _spectrum(args) -> int:
 
     from dtdyn._engine.atomic import write_atomic
     from dtdyn.app.scene.schema import STANDARD_GRAVITY
-    from dtdyn.modal.spectrum import response_spectrum
+    from dtdyn.modal.spectrum import default_periods, response_spectrum
     from dtdyn.modal.srs import load_record
 
     if args.out and (Path(args.out).is_dir() or not Path(args.out).resolve().parent.is_dir()):
@@ -344,23 +360,28 @@ def _spectrum(args) -> int:
     ag = load_record(args.record, args.column)
     if args.units == "g":
         ag = ag * STANDARD_GRAVITY
-    tmin, tmax, n = args.periods
-    if float(n) != int(n) or int(n) < 1 or not 0.0 < tmin <= tmax:
-        raise ValueError(f"--periods: need 0 < TMIN <= TMAX and an integer N >= 1, got "
-                         f"{tmin!r} {tmax!r} {n!r}")
-    periods = np.geomspace(tmin, tmax, int(n))
+    if not args.dt > 0.0 or not np.isfinite(args.dt):
+        raise ValueError(f"--dt must be finite and > 0, got {args.dt!r}")
+    if args.periods is None:  # those the record resolves: from max(0.02 s, 10 dt) to 5 s
+        periods = default_periods(args.dt)
+    else:
+        tmin, tmax, n = args.periods
+        if float(n) != int(n) or int(n) < 1 or not 0.0 < tmin <= tmax:
+            raise ValueError(f"--periods: need 0 < TMIN <= TMAX and an integer N >= 1, got "
+                             f"{tmin!r} {tmax!r} {n!r}")
+        periods = np.geomspace(tmin, tmax, int(n))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        s = response_spectrum(ag, args.dt, periods, damping=args.damping)
+        s = response_spectrum(ag, args.dt, periods, damping_ratio=args.damping_ratio)
     for message in dict.fromkeys(str(w.message) for w in caught):
         print(f"warning: {message}", file=sys.stderr)
     print(f"response spectra of {args.record}: {ag.size} samples, dt = {args.dt:g} s, peak "
           f"ground acceleration {np.abs(ag).max():.4g} m/s^2; SD [m], PSV [m/s], PSA and SA "
           f"[m/s^2]; {s.info['run_time'] * 1e3:.1f} ms")
     rows = np.unique(np.linspace(0, periods.size - 1, min(periods.size, 12)).round().astype(int))
-    lines = ["damping,period_s,sd_m,psv_m_s,psa_m_s2,sa_m_s2"]
-    for i, zeta in enumerate(s.damping):
-        print(f"damping {zeta:g}:\n{'T [s]':>10s} {'SD':>12s} {'PSV':>12s} {'PSA':>12s} "
+    lines = ["damping_ratio,period_s,sd_m,psv_m_s,psa_m_s2,sa_m_s2"]
+    for i, zeta in enumerate(s.damping_ratio):
+        print(f"damping ratio {zeta:g}:\n{'T [s]':>10s} {'SD':>12s} {'PSV':>12s} {'PSA':>12s} "
               f"{'SA':>12s}")
         for j in rows:
             print(f"{periods[j]:10.4g} {s.sd[i, j]:12.5g} {s.psv[i, j]:12.5g} "
@@ -378,6 +399,7 @@ def _batch(args) -> int:
     """`dtdyn batch`: many cases on Dask (run_batch), a progress bar and a summary; exit 1 when
     a case failed (the store is written all the same)."""
     import json
+    import warnings
 
     from dtdyn._engine.extras import require
     from dtdyn.app.batch import CBackendError, run_batch
@@ -387,17 +409,21 @@ def _batch(args) -> int:
         distributed = require("distributed", "batch", "dtdyn batch")
         client = distributed.Client(args.scheduler, timeout="30s")
     try:
-        ds = run_batch(args.scenes, vary=args.vary, seed=args.seed, client=client,
-                       workers=args.workers, reduce=args.reduce, out=args.out,
-                       chunk=args.chunk if args.chunk is not None else "auto",
-                       progress=not args.quiet, check=not args.no_check,
-                       overwrite=args.overwrite)
+        with warnings.catch_warnings(record=True) as caught:  # --quiet: the cases' warnings,
+            warnings.simplefilter("always")                   # once each, printed below
+            ds = run_batch(args.scenes, vary=args.vary, seed=args.seed, client=client,
+                           workers=args.workers, reduce=args.reduce, out=args.out,
+                           chunk=args.chunk if args.chunk is not None else "auto",
+                           progress=not args.quiet, check=not args.no_check,
+                           overwrite=args.overwrite, unstable=args.unstable)
     except CBackendError as exc:
         print(f"dtdyn batch: error: {exc}", file=sys.stderr)
         return 2
     finally:
         if client is not None:
             client.close()
+    for w in dict.fromkeys((w.category.__name__, str(w.message)) for w in caught):
+        print(f"warning: {w[0]}: {w[1]}", file=sys.stderr)
     summary = json.loads(ds.attrs["dtdyn_batch"])["summary"]
     if args.quiet:
         print(f"{summary['cases']} cases: {summary['done']} done, {summary['failed']} failed; "
@@ -408,8 +434,10 @@ def _batch(args) -> int:
 
 def _bench(args) -> int:
     from dtdyn.app import bench
-    command = "dtdyn bench " + " ".join(args.problems) + (" --quick" if args.quick else "")
-    bench.run(args.problems, args.out, quick=args.quick, command=command)
+    command = ("dtdyn bench " + " ".join(args.problems) + (" --quick" if args.quick else "")
+               + (f" --blas-threads {args.blas_threads}" if args.blas_threads != 1 else ""))
+    bench.run(args.problems, args.out, quick=args.quick, command=command,
+              blas_threads=args.blas_threads)
     return 0
 
 
@@ -428,6 +456,8 @@ def _srs(args) -> int:
         raise ValueError(f"--dt must be finite and > 0, got {args.dt!r}")
     fs = 1.0 / args.dt
     if args.freqs is None:
+        # 10 samples per cycle at fs / 10: sampled peaks low by at most 1 - cos(pi/10) = 4.9 %,
+        # below the 5 % of SRSSamplingWarning (dtdyn.modal.srs)
         fmin, fmax, n = fs / 1e4, fs / 10.0, 100
     else:
         fmin, fmax, n = args.freqs
@@ -440,32 +470,32 @@ def _srs(args) -> int:
     freqs = np.geomspace(fmin, fmax, n)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", S.SRSSamplingWarning)
-        res = S.shock_response_spectrum(accel, args.dt, freqs, damping=args.damping,
+        res = S.shock_response_spectrum(accel, args.dt, freqs, damping_ratio=args.damping_ratio,
                                         response=args.response, window=args.window,
                                         points_per_cycle=args.points_per_cycle,
                                         exact_peaks=args.exact_peaks)
-    for w in caught:
-        print(f"warning: {w.message}", file=sys.stderr)
+    for message in dict.fromkeys(str(w.message) for w in caught):
+        print(f"warning: {message}", file=sys.stderr)
     info = res.info
     print(f"SRS of {args.record}: {accel.size} samples, dt = {args.dt:g} s (fs = {fs:g} Hz); "
-          f"{args.response.replace('_', ' ')}, damping {args.damping:g} (Q = "
-          f"{(1 / (2 * args.damping)) if args.damping > 0 else float('inf'):g}), "
+          f"{args.response.replace('_', ' ')}, damping ratio {args.damping_ratio:g} (Q = "
+          f"{(1 / (2 * args.damping_ratio)) if args.damping_ratio > 0 else float('inf'):g}), "
           f"{args.window} window, {'exact' if args.exact_peaks else 'sampled'} peaks"
           + (f", upsampled x{info['upsample']}" if info["upsample"] > 1 else ""))
     rows = np.unique(np.linspace(0, n - 1, min(n, 12)).round().astype(int))
     print(f"{'f [Hz]':>12s} {'maximax':>13s} {'positive':>13s} {'negative':>13s}")
     for i in rows:
-        print(f"{res.freqs[i]:12.5g} {res.maximax[i]:13.6g} {res.positive[i]:13.6g} "
+        print(f"{res.freqs_hz[i]:12.5g} {res.maximax[i]:13.6g} {res.positive[i]:13.6g} "
               f"{res.negative[i]:13.6g}")
     k = int(np.argmax(res.maximax))
-    print(f"largest: {res.maximax[k]:.6g} at {res.freqs[k]:.5g} Hz; run time "
+    print(f"largest: {res.maximax[k]:.6g} at {res.freqs_hz[k]:.5g} Hz; run time "
           f"{(info['setup_time'] + info['run_time']) * 1e3:.1f} ms ({info['backend']})")
     if args.out:
         S.save_srs_csv(args.out, res)
         print(f"results: {args.out}")
     if args.plot:
-        S.plot_srs(args.plot, res, title=f"SRS of {Path(args.record).name}, damping "
-                                         f"{args.damping:g}, {args.window} window")
+        S.plot_srs(args.plot, res, title=f"SRS of {Path(args.record).name}, damping ratio "
+                                         f"{args.damping_ratio:g}, {args.window} window")
         print(f"plot: {args.plot}")
     return 0
 
@@ -484,11 +514,16 @@ def _parser() -> argparse.ArgumentParser:
     r = sub.add_parser("simulate", help="run a scene (default: the embedded P3 scene) and check "
                                         "it against the exact response")
     r.add_argument("scene", nargs="?", help="scene TOML file")
-    r.add_argument("--out", help="write the results: .npz, .nc (netCDF) or .csv")
+    r.add_argument("--out", help="write the results: .npz, .nc (netCDF) or .csv (a plain table "
+                                 "with a 't [s]' column, its metadata in <name>.csv.json)")
     r.add_argument("--plot", help="plot the stored quantities to this image file (.png, .pdf, ...)")
     r.add_argument("--no-check", action="store_true",
                    help="skip the comparison with the exact response (matrix exponential)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--unstable", choices=["raise", "warn"], default=None,
+                   help="a dt past the scheme's stability limit: stop (raise) or run it anyway "
+                        "with a warning, for study (default: the scene's scheme.unstable, "
+                        "else raise)")
     mo = sub.add_parser("modes", help="natural frequencies, participation factors and effective "
                                       "masses of a scene's model (damping ratios when it has C)")
     mo.add_argument("scene", nargs="?", help="scene TOML file (default: the embedded P3 scene)")
@@ -498,22 +533,29 @@ def _parser() -> argparse.ArgumentParser:
                                          "ground acceleration record")
     sp.add_argument("record", help=".npy or .csv record of ground acceleration samples")
     sp.add_argument("--dt", type=float, required=True, help="sample step of the record, s")
-    sp.add_argument("--periods", type=float, nargs=3, default=[0.02, 5.0, 60],
-                    metavar=("TMIN", "TMAX", "N"), help="N log-spaced periods, s "
-                                                        "(default 0.02 5 60)")
-    sp.add_argument("--damping", type=float, nargs="+", default=[0.05],
+    sp.add_argument("--periods", type=float, nargs=3, default=None,
+                    metavar=("TMIN", "TMAX", "N"),
+                    help="N log-spaced periods, s (default: 60 from max(0.02, 10 dt) to 5, the "
+                         "periods the record resolves: at least 10 samples per period)")
+    sp.add_argument("--damping-ratio", type=float, nargs="+", default=[0.05],
                     help="damping ratios (default 0.05)")
+    sp.add_argument("--damping", type=float, nargs="+", dest="damping_ratio",
+                    default=argparse.SUPPRESS, help=argparse.SUPPRESS)  # the old name
     sp.add_argument("--units", choices=["m/s^2", "g"], default="m/s^2",
                     help="unit of the record (g: times 9.80665)")
     sp.add_argument("--column", type=int, default=None,
                     help="column of a table holding the samples (default: the last)")
-    sp.add_argument("--out", help="write damping, period and the four spectra to this CSV")
+    sp.add_argument("--out", help="write damping ratio, period and the four spectra to "
+                                         "this CSV")
     sr = sub.add_parser("srs", help="shock response spectrum of a base-acceleration record")
     sr.add_argument("record", help=".npy or .csv record of acceleration samples")
     sr.add_argument("--dt", type=float, required=True, help="sample step of the record, s")
     sr.add_argument("--freqs", type=float, nargs=3, metavar=("FMIN", "FMAX", "N"),
                     help="N log-spaced natural frequencies, Hz (default 1e-4/dt .. 0.1/dt, 100)")
-    sr.add_argument("--damping", type=float, default=0.05, help="damping ratio (default 0.05)")
+    sr.add_argument("--damping-ratio", type=float, default=0.05,
+                    help="damping ratio (default 0.05)")
+    sr.add_argument("--damping", type=float, dest="damping_ratio", default=argparse.SUPPRESS,
+                    help=argparse.SUPPRESS)  # the old name
     sr.add_argument("--response", default="absolute_acceleration", choices=RESPONSES)
     sr.add_argument("--window", default="total", choices=WINDOWS)
     sr.add_argument("--points-per-cycle", type=float, default=None,
@@ -552,11 +594,19 @@ def _parser() -> argparse.ArgumentParser:
     ba.add_argument("--no-check", action="store_true",
                     help="skip the comparison of linear cases with the exact response")
     ba.add_argument("--quiet", action="store_true", help="no progress bar")
+    ba.add_argument("--unstable", choices=["raise", "warn"], default=None,
+                    help="linear cases whose dt is past the scheme's stability limit: fail "
+                         "(raise) or run anyway with a warning (default: each scene's "
+                         "scheme.unstable, else raise)")
     be = sub.add_parser("bench", help="work-precision report: error against run time per method")
     be.add_argument("problems", nargs="*", default=["P3", "P4"], choices=["P3", "P4"],
                     help="P3, P4 (default: both)")
     be.add_argument("--out", default="bench", help="folder for the Markdown, JSON and plot")
     be.add_argument("--quick", action="store_true", help="shorter sweeps (a smoke run)")
+    be.add_argument("--blas-threads", type=int, default=1, metavar="N",
+                    help="threads of the BLAS libraries during the bench (threadpoolctl; "
+                         "default 1: small matrices' BLAS calls on several threads of a shared "
+                         "machine vary by 50x from run to run)")
     s = sub.add_parser("show", help="a scheme's defining relations, derived coefficients and "
                                     "DT-TMM station matrices (needs the [derive] extra)")
     s.add_argument("scheme", choices=SCHEMES, metavar="SCHEME",
@@ -567,6 +617,15 @@ def _parser() -> argparse.ArgumentParser:
     g.add_argument("--check", action="store_true", help="exit 1 if generated/ is out of date")
     g.add_argument("--out", help="target folder (default: generated/ of the checkout you are in)")
     return parser
+
+
+def _warning_line(command: str):
+    """A `warnings.showwarning` that prints one line, ``dtdyn <command>: warning: <Category>:
+    <message>``, instead of a source path and line the user did not write."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"dtdyn {command}: warning: {category.__name__}: {message}",
+              file=file or sys.stderr)
+    return show
 
 
 def main(argv=None) -> int:
@@ -585,7 +644,9 @@ def main(argv=None) -> int:
                "stability": _stability, "srs": _srs, "bench": _bench,
                "modes": _modes, "spectrum": _spectrum, "batch": _batch}[args.command]
     try:
-        return handler(args)
+        with warning_scope(), warnings.catch_warnings():
+            warnings.showwarning = _warning_line(args.command)
+            return handler(args)
     except BrokenPipeError:  # `dtdyn ... | head`: stop quietly, no traceback at exit either
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())

@@ -13,7 +13,6 @@ elastic supports. docs/dttmm.md has the station matrices and the sweep.
 """
 from __future__ import annotations
 
-import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -27,6 +26,7 @@ from dtdyn._engine import validate
 from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.errors import DtdynAccuracyWarning
+from dtdyn._engine.public import warn
 from dtdyn.linear.stability import chain_highest_frequency, check_dt
 
 #: the plain sweep warns above this estimated relative error
@@ -292,7 +292,7 @@ def chain_response(mass, stiffness, damping, force, dt, *, ground_stiffness=None
     res.info.update(method="DT-TMM", sweep=sweep, backend=used,
                     workers=threads if used == "c" else 1)
     if sweep == "plain" and res.info["error_estimate"] > PLAIN_SWEEP_TOLERANCE:
-        warnings.warn(f"plain DT-TMM sweep on {m.size} masses: estimated relative error "
-                      f"{res.info['error_estimate']:.1e} (cancellation in the transfer-matrix "
-                      "product); use sweep='stable'", DtdynAccuracyWarning, stacklevel=2)
+        warn(f"plain DT-TMM sweep on {m.size} masses: estimated relative error "
+             f"{res.info['error_estimate']:.1e} (cancellation in the transfer-matrix "
+             "product); use sweep='stable'", DtdynAccuracyWarning)
     return support.finish(res, ground)

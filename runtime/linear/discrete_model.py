@@ -15,11 +15,13 @@ The model is iterable as ``(A, B, C, D)`` for scipy and python-control:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
-import scipy.signal
 import scipy.sparse
+
+if TYPE_CHECKING:  # scipy.signal costs ~0.3 s to import: loaded by to_dlti only
+    import scipy.signal
 
 from dtdyn._engine import validate
 
@@ -133,6 +135,7 @@ class DiscreteModel:
 
     def to_dlti(self) -> scipy.signal.dlti:
         """The model as a :class:`scipy.signal.dlti` with sample time ``dt``."""
+        import scipy.signal  # deferred: `import dtdyn` does not load scipy.signal
         return scipy.signal.dlti(self.A, self.B, self.C, self.D, dt=self.dt)
 
     def to_control(self):

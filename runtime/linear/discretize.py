@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg
-import scipy.signal
 import scipy.sparse
 
 from dtdyn._engine import linalg

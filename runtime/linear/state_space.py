@@ -17,7 +17,6 @@ A = Phi, B = Gamma0 + Phi Gamma1, and the outputs y_n = S z_n = S x_n + S Gamma1
 from __future__ import annotations
 
 import time
-import warnings
 from functools import lru_cache
 from importlib import resources
 
@@ -31,6 +30,7 @@ from dtdyn._engine import linalg
 from dtdyn._engine import ground as support
 from dtdyn._engine import validate
 from dtdyn._engine.errors import DtdynStabilityWarning, DtdynUnstableError
+from dtdyn._engine.public import warn
 from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.stepping import check_quantities
@@ -353,7 +353,7 @@ def _check_radius(model: DiscreteModel, unstable: str) -> None:
                "without bound (unstable='warn' runs it anyway)")
         if unstable == "raise":
             raise DtdynUnstableError(msg)
-        warnings.warn(msg, DtdynStabilityWarning, stacklevel=3)
+        warn(msg, DtdynStabilityWarning)
 
 
 def run_recursion(Ad, Bd, Cd, Dd, force, state0=None, backend="c") -> np.ndarray:

@@ -31,7 +31,6 @@ to ~3e-12.
 """
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -392,9 +391,9 @@ def modal_factors(M, C, K, initial: bool = False):
                          f"{kappa:.3g}, e.g. an exactly critically damped mode): the partial-"
                          "fraction modal sum cannot represent a double pole")
     if estimate > WARN_ERROR:
-        warnings.warn(f"nearly defective eigenvalue (condition number {kappa:.3g}, e.g. a nearly "
-                      f"critically damped mode): modal sum relative error ~{estimate:.1e}",
-                      DtdynAccuracyWarning, stacklevel=2)
+        warn(f"nearly defective eigenvalue (condition number {kappa:.3g}, e.g. a nearly "
+             f"critically damped mode): modal sum relative error ~{estimate:.1e}",
+             DtdynAccuracyWarning)
     # H(s) = (1/(Omega^2 mu)) sum psi~ x~ / (s~ - s~_r) = sum psi~ x~ / (Omega mu (s - s_r))
     if initial:  # eta = X B~ z~, z~ = [q; q' / Omega], B~ = diag(I, M / mu)
         return s, Psi[:n], X[:, n:] / (omega_s * mu), X[:, :n]

@@ -49,11 +49,11 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 
 import numpy as np
 
 from dtdyn._engine.errors import DtdynAccuracyWarning, DtdynStepStabilityError, NewtonError
+from dtdyn._engine.public import warn
 from dtdyn.generated.scheme_table import TABLE
 
 #: the stored quantities the estimate measures, and the ones an extrapolation combines
@@ -273,10 +273,10 @@ def reach(run, accuracy, substeps, max_substeps, method, params, observed=False)
         # runs succeeded but none had a successful neighbour to be estimated from: the last
         # of them, with an infinite estimate, and the warning below
         best = (np.inf, all_runs[-1], False, last_ok, None, [last_ok])
-    warnings.warn(
+    warn(
         f"accuracy={accuracy:g} not reached: the error estimate is {best[0]:.3g} at "
         f"{best[3]} sub-steps (max_substeps={max_substeps}, scheme {method!r}, order {p}); "
-        f"raise max_substeps or use a higher-order scheme", DtdynAccuracyWarning, stacklevel=3)
+        f"raise max_substeps or use a higher-order scheme", DtdynAccuracyWarning)
     return _finish(best, accuracy, False, all_runs, p, log, spent[0], method)
 
 

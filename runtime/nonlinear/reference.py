@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 import scipy
-import scipy.integrate
 import scipy.linalg
 
 from dtdyn._engine import linalg
@@ -31,7 +30,9 @@ __all__ = ["reference_response", "check_reference", "reference_cache_dir"]
 
 #: bump when the algorithm changes so stale cache files are not reused
 VERSION = "nl_reference-1"
-METHODS = {"DOP853": scipy.integrate.DOP853, "Radau": scipy.integrate.Radau}
+#: the ``ode_solver`` choices: names of scipy.integrate solver classes (scipy.integrate is
+#: imported where a reference is integrated, so `import dtdyn` does not load it)
+METHODS = ("DOP853", "Radau")
 
 
 def reference_cache_dir() -> Path:
@@ -201,7 +202,8 @@ class _System:
 
 def _integrate(system, f, fs, method, rtol, atol):
     """States at every sample; the solver restarted at each sample, first step carried over."""
-    Solver = METHODS[method]
+    import scipy.integrate  # deferred: ~0.2 s, needed only when a reference is integrated
+    Solver = getattr(scipy.integrate, method)
     n, ns = f.shape[0], system.ns
     S = np.zeros((n, ns))
     s = np.zeros(ns)

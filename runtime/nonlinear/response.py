@@ -588,9 +588,6 @@ def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, sch
     if accuracy is not None and estimate is False:
         raise ValueError("estimate=False with accuracy: an accuracy target always estimates "
                          "(drop estimate, or give substeps instead of accuracy)")
-    if "error_estimate" in scheme_params:
-        raise TypeError("nonlinear_mck_response: the keyword error_estimate is now estimate "
-                        "(info['error_estimate'] is still the number)")
     if scheme is None:
         scheme = "modal_ramp" if accuracy is None else "auto"
     if scheme == "auto" and (accuracy is None or scheme_params):

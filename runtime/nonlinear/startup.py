@@ -22,13 +22,12 @@ on which smooth continuation is used.
 """
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
-import scipy.integrate
 
 from dtdyn._engine import linalg
 from dtdyn._engine.errors import DtdynAccuracyWarning
+from dtdyn._engine.public import warn
 from dtdyn.nonlinear.reference import _System
 
 #: relative tolerance of the integration (the reference's)
@@ -75,6 +74,7 @@ def forces_before_start(M, C, K, L, elements, force_dofs, f, dt, q0, qd0, h, cou
             raise _TooMuchWork
         return system.rhs(t, s)
     why = None
+    import scipy.integrate  # deferred: `import dtdyn` does not load scipy.integrate
     try:
         sol = scipy.integrate.solve_ivp(rhs, (0.0, span), s0, method="DOP853", rtol=RTOL,
                                         atol=atol, t_eval=h * np.arange(count + 1))
@@ -88,8 +88,7 @@ def forces_before_start(M, C, K, L, elements, force_dofs, f, dt, q0, qd0, h, cou
         if np.all(np.isfinite(past)):
             return past
         why = "not finite"
-    warnings.warn(f"the element forces before t_0 (the continuation from x0, v0 over {count} "
-                  f"steps of {h:.6g} s): {why}; the force polynomials start from the constant "
-                  f"past g_0, so their first steps are of lower order", DtdynAccuracyWarning,
-                  stacklevel=3)
+    warn(f"the element forces before t_0 (the continuation from x0, v0 over {count} "
+         f"steps of {h:.6g} s): {why}; the force polynomials start from the constant "
+         f"past g_0, so their first steps are of lower order", DtdynAccuracyWarning)
     return None

@@ -250,7 +250,9 @@ def test_cli_on_a_scheduler_address_and_50_ground_motions(cluster, tmp_path, cap
         drift = np.abs(np.diff(np.c_[np.zeros(ag.size), r.x], axis=1)).max(axis=0)
         np.testing.assert_array_equal(ds["peak_drift"].values[i], drift)
         assert str(ds["ground.path"].values[i]) == f"records/gm_{i:03d}.csv"
-        psa = dd.response_spectrum(r.a_abs[:, 4], 0.01, Spectrum().periods).psa[0]
+        periods = Spectrum().resolved(0.01).periods    # the default: 10 dt = 0.1 s to 4 s
+        np.testing.assert_array_equal(ds["period"].values, periods)
+        psa = dd.response_spectrum(r.a_abs[:, 4], 0.01, periods).psa[0]
         np.testing.assert_array_equal(ds["psa"].values[i, :, 4], psa)
     # --workers starts its own cluster; a second run refuses the existing store
     rc = main(["batch", str(tmp_path / "building.toml"), "--workers", "1", "--out", str(out)])

@@ -301,7 +301,7 @@ def test_cap_warns_with_target_estimate_and_substeps(P4):
 def test_estimate_keyword_is_a_bool_and_the_old_name_is_named(P4):
     with pytest.raises(ValueError, match=r"estimate must be True or False, got 1e-06"):
         nonlinear_mck_response(*P4["args"], **P4["kw"], estimate=1e-6)
-    with pytest.raises(TypeError, match="error_estimate is now estimate"):
+    with pytest.raises(TypeError, match="'error_estimate'; did you mean 'estimate'"):
         nonlinear_mck_response(*P4["args"], **P4["kw"], error_estimate=True)
 
 

@@ -31,8 +31,8 @@ def _reference(ag, T, zeta):
 
 def test_equals_the_upsampled_exact_sdof(record):
     T = np.array([0.1, 0.3, 1.0, 3.0])
-    s = dd.response_spectrum(record, DT, T, damping=[0.0, 0.05])
-    for i, zeta in enumerate(s.damping):
+    s = dd.response_spectrum(record, DT, T, damping_ratio=[0.0, 0.05])
+    for i, zeta in enumerate(s.damping_ratio):
         for j, Tj in enumerate(T):
             sd, sa = _reference(record, Tj, zeta)
             assert sd * (1 - 1e-12) <= s.sd[i, j] <= sd * (1 + 2e-5)
@@ -47,9 +47,10 @@ def test_command_writes_the_csv(record, tmp_path, capsys):
     np.savetxt(tmp_path / "rec.csv", record / 9.80665)
     out = tmp_path / "spec.csv"
     assert main(["spectrum", str(tmp_path / "rec.csv"), "--dt", "0.01", "--units", "g",
-                 "--periods", "0.1", "3.0", "4", "--damping", "0.05", "--out", str(out)]) == 0
+                 "--periods", "0.1", "3.0", "4", "--damping-ratio", "0.05",
+                 "--out", str(out)]) == 0
     table = np.loadtxt(out, delimiter=",", skiprows=1)
-    s = dd.response_spectrum(record, DT, np.geomspace(0.1, 3.0, 4), damping=0.05)
+    s = dd.response_spectrum(record, DT, np.geomspace(0.1, 3.0, 4), damping_ratio=0.05)
     np.testing.assert_allclose(table[:, 2], s.sd[0], rtol=1e-12)
     np.testing.assert_allclose(table[:, 5], s.sa[0], rtol=1e-12)
     assert main(["spectrum", str(tmp_path / "rec.csv"), "--dt", "0.01", "--periods", "1", "0.5",
@@ -59,7 +60,8 @@ def test_command_writes_the_csv(record, tmp_path, capsys):
 
 @pytest.mark.parametrize("kw, match", [
     ({"periods": [0.0, 1.0]}, r"periods\[0\] = 0.0"),
-    ({"damping": -0.1}, r"damping\[0\] = -0.1"),
+    ({"damping_ratio": -0.1}, r"damping_ratio\[0\] = -0.1"),
+    ({"damping_ratio": 1.0}, r"damping_ratio\[0\] = 1.0: must be < 1"),
     ({"dt": 0.0}, "dt"),
 ])
 def test_bad_input(record, kw, match):

@@ -304,16 +304,18 @@ def test_against_endaq(mode, response):
 # --- (5) inputs, warnings, backends ---------------------------------------------------------
 @pytest.mark.parametrize("kwargs, name", [
     (dict(dt=0.0), "dt"), (dict(dt=-5.0), "dt"), (dict(dt=np.nan), "dt"),
-    (dict(accel=[0.0, 1.0, np.nan, 0.0]), r"accel\[2\]"), (dict(accel=[]), "accel"),
-    (dict(accel=np.ones((4, 2))), "accel"),
-    (dict(damping=-0.01), "damping"), (dict(damping=1.0), "damping"),
-    (dict(damping=np.nan), "damping"), (dict(freqs=[10.0, 0.0]), r"freqs\[1\]"),
-    (dict(freqs=[-3.0]), r"freqs\[0\]"), (dict(freqs=[np.inf]), "freqs"),
+    (dict(ground_acceleration=[0.0, 1.0, np.nan, 0.0]), r"ground_acceleration\[2\]"),
+    (dict(ground_acceleration=[]), "ground_acceleration"),
+    (dict(ground_acceleration=np.ones((4, 2))), "ground_acceleration"),
+    (dict(damping_ratio=-0.01), "damping_ratio"), (dict(damping_ratio=1.0), "damping_ratio"),
+    (dict(damping_ratio=np.nan), "damping_ratio"),
+    (dict(freqs_hz=[10.0, 0.0]), r"freqs_hz\[1\]"),
+    (dict(freqs_hz=[-3.0]), r"freqs_hz\[0\]"), (dict(freqs_hz=[np.inf]), "freqs_hz"),
     (dict(response="absolute_velocity"), "response"), (dict(window="after"), "window"),
     (dict(points_per_cycle=0), "points_per_cycle"), (dict(exact_peaks="yes"), "exact_peaks"),
 ])
 def test_bad_inputs_name_the_argument(kwargs, name):
-    args = dict(accel=np.sin(np.arange(50) / 5.0), dt=1e-3, freqs=[10.0, 50.0])
+    args = dict(ground_acceleration=np.sin(np.arange(50) / 5.0), dt=1e-3, freqs_hz=[10.0, 50.0])
     args.update(kwargs)
     with pytest.raises(ValueError, match=name):
         shock_response_spectrum(**args)
@@ -362,7 +364,7 @@ def test_cli_srs_npy_plot_and_csv(tmp_path, capsys):
     rec, png, csv = tmp_path / "rec.npy", tmp_path / "srs.png", tmp_path / "srs.csv"
     np.save(rec, a)
     assert main(["srs", str(rec), "--dt", repr(1 / fs), "--freqs", "10", "2000", "40",
-                 "--damping", "0.05", "--plot", str(png), "--out", str(csv)]) == 0
+                 "--damping-ratio", "0.05", "--plot", str(png), "--out", str(csv)]) == 0
     out = capsys.readouterr().out
     assert "maximax" in out and "largest" in out and str(png) in out
     assert png.stat().st_size > 10_000
@@ -385,9 +387,12 @@ def test_cli_srs_csv_record_and_errors(tmp_path, capsys):
     bad = tmp_path / "bad.npy"
     np.save(bad, np.array([0.0, np.nan, 1.0]))
     assert main(["srs", str(bad), "--dt", "0.01", "--plot", str(tmp_path / "p.png")]) == 2
-    assert "accel[1]" in capsys.readouterr().err and not (tmp_path / "p.png").exists()
-    assert main(["srs", str(rec), "--dt", "0.01", "--damping", "1.5"]) == 2
-    assert "damping" in capsys.readouterr().err
+    assert "ground_acceleration[1]" in capsys.readouterr().err
+    assert not (tmp_path / "p.png").exists()
+    assert main(["srs", str(rec), "--dt", "0.01", "--damping-ratio", "1.5"]) == 2
+    assert "damping_ratio" in capsys.readouterr().err
+    assert main(["srs", str(rec), "--dt", "0.01", "--damping", "1.5"]) == 2  # the old flag
+    assert "damping_ratio" in capsys.readouterr().err
 
 
 def test_cli_response_choices_match_runtime(capsys):

@@ -19,6 +19,7 @@ drift      ``peak_drift`` = max over time of ``|x_j - x_{j-1}|``: the stored out
 srs        ``psa`` = the pseudo-acceleration response spectrum (`dtdyn.response_spectrum`) of
            each output's absolute acceleration (``a_abs`` under support motion, else ``a``):
            floor spectra; (period, output). `Spectrum` chooses the periods and the damping
+           ratio (default: 40 periods from max(0.05 s, 10 dt) to 4 s, 5 %)
 ========== ==================================================================================
 
 A user reducer is any callable ``f(response, scene)`` returning a dict: name -> a value
@@ -28,9 +29,11 @@ local function works). Its shapes must be the same for every case.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 
 import numpy as np
+
+from dtdyn._engine.public import public, warn
 
 __all__ = ["REDUCERS", "Spectrum", "reducers_from", "MOTION"]
 
@@ -69,31 +72,56 @@ def drift(response, scene) -> dict:
     return {"peak_drift": (("output",), np.abs(x - below).max(axis=0))}
 
 
+@public(renamed={"damping": "damping_ratio"})
 @dataclass(frozen=True)
 class Spectrum:
-    """The ``srs`` reducer with its periods and damping: ``psa`` (period, output), the
+    """The ``srs`` reducer with its periods and damping ratio: ``psa`` (period, output), the
     pseudo-acceleration spectrum (`dtdyn.response_spectrum`) of each output's absolute
     acceleration.
 
     Attributes
     ----------
-    periods : tuple of float
-        Natural periods, s (default 40 log-spaced from 0.05 to 4 s).
-    damping : float
-        Damping ratio (default 0.05).
+    periods : tuple of float, optional
+        Natural periods, s. Default (None): 40 log-spaced from max(0.05 s, 10 dt) to 4 s
+        (`dtdyn.modal.spectrum.default_periods`), dt of the batch's first case: the periods
+        its records resolve (10 samples per period at least). A case whose record is coarser
+        than those periods allow warns (`SRSSamplingWarning`, counted in the batch's summary).
+    damping_ratio : float
+        Damping ratio (default 0.05; ``damping`` before this release: deprecated).
 
     Examples
     --------
     >>> from dtdyn.app.batch import Spectrum
-    >>> Spectrum(periods=(0.1, 1.0)).damping
+    >>> Spectrum(periods=(0.1, 1.0)).damping_ratio
     0.05
+    >>> T = Spectrum().resolved(0.01).periods        # a 100 Hz record: 0.1 s to 4 s
+    >>> len(T), round(T[0], 6), round(T[-1], 6)
+    (40, 0.1, 4.0)
     """
 
-    periods: tuple = field(default_factory=lambda: tuple(np.geomspace(0.05, 4.0, 40)))
-    damping: float = 0.05
+    periods: tuple | None = None
+    damping_ratio: float = 0.05
     name = "srs"
 
+    @property
+    def damping(self) -> float:
+        """Deprecated: `damping_ratio`."""
+        warn("Spectrum.damping is now Spectrum.damping_ratio; Spectrum.damping will be removed "
+             "in the next release", DeprecationWarning)
+        return self.damping_ratio
+
+    def resolved(self, dt) -> "Spectrum":
+        """This spectrum with its periods set: the given ones, or the default for a record of
+        step ``dt`` (s)."""
+        if self.periods is not None:
+            return self
+        from dtdyn.modal.spectrum import default_periods
+        periods = default_periods(dt, count=40, shortest=0.05, longest=4.0)
+        return replace(self, periods=tuple(float(T) for T in periods))
+
     def coords(self) -> dict:
+        if self.periods is None:
+            return {}        # known once a case gives dt (the batch resolves it first)
         return {"period": np.asarray(self.periods, dtype=float)}
 
     def __call__(self, response, scene) -> dict:
@@ -104,10 +132,16 @@ class Spectrum:
             raise ValueError("reduce 'srs' needs the accelerations: add \"a\" to "
                              "output.quantities")
         acc = np.asarray(acc)
-        psa = np.column_stack([response_spectrum(acc[:, j], scene.dt, self.periods,
-                                                 damping=self.damping).psa[0]
+        periods = self.resolved(scene.dt).periods
+        psa = np.column_stack([response_spectrum(acc[:, j], scene.dt, periods,
+                                                 damping_ratio=self.damping_ratio).psa[0]
                                for j in range(acc.shape[1])])
         return {"psa": (("period", "output"), psa)}
+
+
+def resolve(reducers, dt) -> list:
+    """The reducers with a default-period `Spectrum` resolved for records of step ``dt``."""
+    return [r.resolved(dt) if isinstance(r, Spectrum) else r for r in reducers]
 
 
 #: the reducers by name

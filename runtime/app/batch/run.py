@@ -11,10 +11,12 @@ import time
 import numpy as np
 
 from dtdyn._engine.extras import require
+from dtdyn._engine.public import warn
 from dtdyn.app.batch import store, worker
 from dtdyn.app.batch.cases import build_cases
+from dtdyn.app.batch.main_guard import check_main_guard
 from dtdyn.app.batch.worker import CBackendError
-from dtdyn.app.batch.reducers import reducer_coords, reducer_name, reducers_from
+from dtdyn.app.batch.reducers import reducer_coords, reducer_name, reducers_from, resolve
 
 __all__ = ["run_batch", "auto_chunk", "local_cluster", "TASK_BYTES", "TASKS_PER_WORKER",
            "PROBE_CASES", "WORKER_ENVIRON", "CLUSTER_CONFIG"]
@@ -168,11 +170,23 @@ def _stop(client, futures, timeout: float = 60.0) -> None:
         pass
 
 
+def _warning_counts(metas: list[dict]) -> list[tuple]:
+    """[(category, message, number of cases)] of the cases' warnings, each distinct warning
+    once, the most frequent first."""
+    counts: dict = {}
+    for m in metas:
+        for key in m.get("warnings", ()):
+            counts[key] = counts.get(key, 0) + 1
+    return [(c, msg, k) for (c, msg), k in sorted(counts.items(), key=lambda kv: -kv[1])]
+
+
 def _summary_lines(summary: dict, metas: list[dict]) -> list[str]:
     lines = [f"{summary['cases']} cases: {summary['done']} done, {summary['failed']} failed; "
              f"wall time {summary['wall_time_s']:.2f} s, {summary['cases_per_s']:.1f} cases/s "
              f"on {summary['workers']} worker(s), {summary['tasks']} tasks of up to "
              f"{summary['chunk']} cases"]
+    for w in summary.get("warnings", ()):
+        lines.append(f"  {w['category']} x{w['cases']}: {w['message']}")
     failed = [m for m in metas if m["status"] != "done"]
     for m in failed[:LISTED_FAILURES]:
         lines.append(f"  case {m['index']} failed: {m['message']}")
@@ -182,8 +196,41 @@ def _summary_lines(summary: dict, metas: list[dict]) -> list[str]:
     return lines
 
 
+def _runnable(shared, specs, unstable) -> None:
+    """Refuse, before a worker starts, a base scene that no case can run (no [time] table or
+    no load, and no ``vary`` key that sets one); with ``unstable``, set each linear base
+    scene's ``scheme.unstable``."""
+    import dataclasses
+
+    from dtdyn.app.scene.schema import UNSTABLE, Scene, _choice
+
+    if unstable is not None:
+        _choice("unstable", unstable, UNSTABLE)
+    for k, base in enumerate(shared.bases):
+        if isinstance(base, Scene):
+            base.require_run("run_batch")
+            if unstable is not None and base.linear:
+                shared.bases[k] = dataclasses.replace(base, unstable=unstable)
+            continue
+        varied = {key.split(".")[0].split("[")[0] for spec in specs if spec.scene == k
+                  for key in spec.overrides}
+        has = set(base) | varied
+        if "time" not in has:
+            raise ValueError(f"{shared.sources[k]}: run_batch needs a [time] table with dt and "
+                             "duration (e.g. [time] dt = 0.01, duration = 1.0); the scene has "
+                             "none")
+        if not has & {"load", "ground"}:
+            raise ValueError(f"{shared.sources[k]}: run_batch needs a load: one or more "
+                             "[[load]] tables (dof, kind and that kind's fields) or a [ground] "
+                             "record; the scene has neither")
+        if unstable is not None and not base.get("element"):
+            scheme = base.get("scheme", {})
+            if isinstance(scheme, dict):  # else the parser names the bad value
+                shared.bases[k] = {**base, "scheme": {**scheme, "unstable": unstable}}
+
+
 def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=None, out=None,
-              chunk="auto", progress=True, check=True, overwrite=False):
+              chunk="auto", progress=True, check=True, overwrite=False, unstable=None):
     """Run many scenes and load cases on Dask distributed: this machine or a cluster.
 
     Each case is a scene, run by `run_scene` on a Dask worker exactly as it runs alone (the
@@ -225,7 +272,8 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         What to keep per case: None, the time histories of the stored quantities (dims case,
         time, output); or reducers computed on the workers: ``"peak"``, ``"rms"``, ``"drift"``
         (peak inter-storey drift), ``"srs"`` (the pseudo-acceleration response spectrum of each
-        output's absolute acceleration; `dtdyn.app.batch.Spectrum` sets periods and damping),
+        output's absolute acceleration, by default at 40 periods from max(0.05 s, 10 dt) to
+        4 s; `dtdyn.app.batch.Spectrum` sets the periods and the damping ratio),
         ``"history"``, or callables ``f(response, scene) -> {name: value or (dims, value)}``;
         a comma-separated string or a list.
     out : path, optional
@@ -236,11 +284,18 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         Cases per task; "auto" gives about 4 tasks per worker, each holding at most 64 MB of
         results.
     progress : bool
-        A progress bar and a summary printed at the end.
+        A progress bar and a summary printed at the end. The workers' warnings are collected
+        (not printed per case): the summary lists each distinct one once with the number of
+        cases that gave it (``SRSSamplingWarning x130: ...``); with ``progress=False`` each is
+        issued once as a Python warning at the caller's line (``"130 of 130 case(s): ..."``).
     check : bool
         Linear cases: compare with `exact_response` (the ``max_rel_error`` of each case).
     overwrite : bool
         Replace an existing ``out`` (only once the new store is complete).
+    unstable : {"raise", "warn"} or None
+        Linear cases whose dt is past the scheme's stability limit: fail (DtdynUnstableError)
+        or run anyway with a warning; sets ``scheme.unstable`` of every linear scene (a
+        ``vary`` column ``scheme.unstable`` still wins). None: each scene's own.
 
     Returns
     -------
@@ -250,12 +305,15 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         ``run_time``, ``max_rel_error``, ``max_residual``, ``error_estimate`` (the run's
         ``info["error_estimate"]``, NaN: none), ``seed`` (of the first random load, -1: none),
         ``params`` (JSON) and each varied key as a coordinate; ``attrs["dtdyn_batch"]`` (JSON)
-        holds the summary. Opened lazily from ``out`` when given.
+        holds the summary (its ``warnings``: category, message and number of cases of each
+        distinct warning; a done case's ``message`` holds its own warnings). Opened lazily
+        from ``out`` when given.
 
     Raises
     ------
     ValueError
-        Bad cases, keys, missing files, reducers or ``out`` (before anything runs), reducer
+        Bad cases, keys, missing files, reducers or ``out``, a scene without ``[time]`` or a
+        load that no ``vary`` column sets (before anything runs), reducer
         variables whose names clash (the warm-up), or no case of the first ten succeeded (the
         warm-up: nothing to take the layout from).
     dtdyn.app.batch.CBackendError
@@ -283,7 +341,10 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
                              "given client has its own workers")
         if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
             raise ValueError(f"workers = {workers!r}: must be an integer >= 1")
+    if client is None:
+        check_main_guard()
     shared, specs, params = build_cases(cases, vary, seed)
+    _runnable(shared, specs, unstable)
     n = len(specs)
     out_path = store.check_out(out, overwrite) if out is not None else None
 
@@ -323,6 +384,7 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         if layout["vars"] is None:
             raise ValueError(f"the first {min(n, PROBE_CASES)} case(s) all failed, so the batch "
                              "has no layout to store:\n  " + "\n  ".join(layout["failed"]))
+        reducers = resolve(reducers, layout["dt"])   # default periods: the first case's dt
         layout["coords"].update(reducer_coords(reducers))
         case_coords = _case_coords(params)
         for name in layout["vars"]:
@@ -389,10 +451,13 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
                         record(_task_failed(specs[i:i + 1], exc), None)
                     fresh = not alone
         wall = time.perf_counter() - start
+        warned = _warning_counts(metas)
         summary = {"cases": n, "done": n - failed, "failed": failed, "wall_time_s": wall,
                    "cases_per_s": n / wall if wall > 0 else float("inf"),
                    "cluster_start_s": cluster_time if own else None, "warm_up_s": warm,
-                   "workers": len(addresses), "tasks": len(tasks), "chunk": size}
+                   "workers": len(addresses), "tasks": len(tasks), "chunk": size,
+                   "warnings": [{"category": c.__name__, "message": msg, "cases": k}
+                                for c, msg, k in warned]}
         attrs = {"summary": summary, "scenes": shared.sources, "root_seed": seed,
                  "reducers": [reducer_name(r) for r in reducers], "check": check,
                  "versions": _versions()}
@@ -402,6 +467,9 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
             tmp = None
         if progress:
             print("\n".join(_summary_lines(summary, metas)))
+        else:  # no summary printed: each distinct warning of the cases once, at the caller
+            for category, msg, k in warned:
+                warn(f"{k} of {n} case(s): {msg}", category)
         if out_path is None:
             return _in_memory(layout, n, blocks_by_start, meta_vars, case_coords, attrs)
     except BaseException:

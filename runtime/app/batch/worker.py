@@ -147,12 +147,33 @@ def _nonfinite(name: str, dims, values) -> str | None:
     return f"non-finite values in {name}" + (" at " + ", ".join(parts) if parts else "")
 
 
+def _reported(caught) -> list:
+    """The distinct warnings of a case, [(category, message)] in order: those a batch reports
+    (not the C fallback, which stops it, nor DeprecationWarning)."""
+    return list(dict.fromkeys((w.category, str(w.message)) for w in caught
+                              if not issubclass(w.category, (DtdynFallbackWarning,
+                                                             DeprecationWarning))))
+
+
 def run_case(shared: Shared, spec: CaseSpec, reducers, check: bool, layout=None,
              coords: bool = False, strict: bool = False):
     """(metadata, {name: (dims, values)} or None) of one case. Any Exception of the case (a
     RUN_ERRORS error, a library bug, a failing reducer, a non-finite result) fails the case
     (status "failed", ``"<type>: <message>"``); a missing C backend raises CBackendError, and
-    with ``strict`` (the warm-up) a reducer's name clash raises NameClash."""
+    with ``strict`` (the warm-up) a reducer's name clash raises NameClash. The warnings of the
+    run and of the reducers are caught (not printed by the worker): the metadata's
+    ``warnings`` lists them, [(category, message)], once each, and a done case's message
+    holds them (``"warning: ..."``)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        meta, arrays = _run_case(shared, spec, reducers, check, layout, coords, strict, caught)
+    meta["warnings"] = _reported(caught)
+    if meta["status"] == "done":
+        meta["message"] = "; ".join(f"warning: {m}" for _, m in meta["warnings"])
+    return meta, arrays
+
+
+def _run_case(shared, spec, reducers, check, layout, coords, strict, caught):
     from dtdyn.app.batch.reducers import reducer_name
     from dtdyn.app.scene.run import run_scene
 
@@ -161,17 +182,15 @@ def run_case(shared: Shared, spec: CaseSpec, reducers, check: bool, layout=None,
             "run_time": np.nan, "max_rel_error": np.nan, "max_residual": np.nan,
             "error_estimate": np.nan, "seed": spec.seed, "worker": _address()}
     where = folder(shared)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            scene = scene_of(shared, spec, where)
-            if _wants_c(scene):
-                _require_compiler()
-            response, report = run_scene(scene, check=check)
-        except CBackendError:
-            raise
-        except Exception as exc:  # RUN_ERRORS and anything else: this case fails
-            return _fail(meta, exc, start)
+    try:
+        scene = scene_of(shared, spec, where)
+        if _wants_c(scene):
+            _require_compiler()
+        response, report = run_scene(scene, check=check)
+    except CBackendError:
+        raise
+    except Exception as exc:  # RUN_ERRORS and anything else: this case fails
+        return _fail(meta, exc, start)
     used = str(response.info.get("backend", scene.backend))
     if _wants_c(scene) and used != "c":
         why = "; ".join(str(w.message) for w in caught if issubclass(w.category,
@@ -220,13 +239,11 @@ def run_case(shared: Shared, spec: CaseSpec, reducers, check: bool, layout=None,
         raise
     except Exception as exc:  # a reducer (possibly the user's), a non-finite value or a
         return _fail(meta, exc, start, f"reduce {failing!r}: " if failing else "")  # layout
-    others = [str(w.message) for w in caught
-              if not issubclass(w.category, (DtdynFallbackWarning, DeprecationWarning))]
-    meta["message"] = "; ".join(dict.fromkeys(f"warning: {m}" for m in others))
     meta["status"] = "done"
     meta["run_time"] = time.perf_counter() - start
     if coords:
         meta["coords"] = _coords(response, scene)
+        meta["dt"] = float(scene.dt)
     return meta, arrays
 
 
@@ -276,8 +293,8 @@ def probe(shared: Shared, specs: list[CaseSpec], reducers, check: bool) -> dict:
             continue
         coords = meta["coords"]
         return {"vars": {k: (tuple(d), tuple(np.shape(v))) for k, (d, v) in arrays.items()},
-                "coords": coords, "case": spec.index, "run_time": meta["run_time"],
-                "failed": failed, "worker": _address()}
+                "coords": coords, "dt": meta["dt"], "case": spec.index,
+                "run_time": meta["run_time"], "failed": failed, "worker": _address()}
     return {"vars": None, "failed": failed, "worker": _address()}
 
 
