@@ -346,7 +346,6 @@ def _modes(args) -> int:
 
 
 def _spectrum(args) -> int:
-    import warnings
 
     import numpy as np
 
@@ -370,11 +369,7 @@ def _spectrum(args) -> int:
             raise ValueError(f"--periods: need 0 < TMIN <= TMAX and an integer N >= 1, got "
                              f"{tmin!r} {tmax!r} {n!r}")
         periods = np.geomspace(tmin, tmax, int(n))
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        s = response_spectrum(ag, args.dt, periods, damping_ratio=args.damping_ratio)
-    for message in dict.fromkeys(str(w.message) for w in caught):
-        print(f"warning: {message}", file=sys.stderr)
+    s = response_spectrum(ag, args.dt, periods, damping_ratio=args.damping_ratio)
     print(f"response spectra of {args.record}: {ag.size} samples, dt = {args.dt:g} s, peak "
           f"ground acceleration {np.abs(ag).max():.4g} m/s^2; SD [m], PSV [m/s], PSA and SA "
           f"[m/s^2]; {s.info['run_time'] * 1e3:.1f} ms")
@@ -399,7 +394,6 @@ def _batch(args) -> int:
     """`dtdyn batch`: many cases on Dask (run_batch), a progress bar and a summary; exit 1 when
     a case failed (the store is written all the same)."""
     import json
-    import warnings
 
     from dtdyn._engine.extras import require
     from dtdyn.app.batch import CBackendError, run_batch
@@ -409,21 +403,17 @@ def _batch(args) -> int:
         distributed = require("distributed", "batch", "dtdyn batch")
         client = distributed.Client(args.scheduler, timeout="30s")
     try:
-        with warnings.catch_warnings(record=True) as caught:  # --quiet: the cases' warnings,
-            warnings.simplefilter("always")                   # once each, printed below
-            ds = run_batch(args.scenes, vary=args.vary, seed=args.seed, client=client,
-                           workers=args.workers, reduce=args.reduce, out=args.out,
-                           chunk=args.chunk if args.chunk is not None else "auto",
-                           progress=not args.quiet, check=not args.no_check,
-                           overwrite=args.overwrite, unstable=args.unstable)
+        ds = run_batch(args.scenes, vary=args.vary, seed=args.seed, client=client,
+                       workers=args.workers, reduce=args.reduce, out=args.out,
+                       chunk=args.chunk if args.chunk is not None else "auto",
+                       progress=not args.quiet, check=not args.no_check,
+                       overwrite=args.overwrite, unstable=args.unstable)
     except CBackendError as exc:
         print(f"dtdyn batch: error: {exc}", file=sys.stderr)
         return 2
     finally:
         if client is not None:
             client.close()
-    for w in dict.fromkeys((w.category.__name__, str(w.message)) for w in caught):
-        print(f"warning: {w[0]}: {w[1]}", file=sys.stderr)
     summary = json.loads(ds.attrs["dtdyn_batch"])["summary"]
     if args.quiet:
         print(f"{summary['cases']} cases: {summary['done']} done, {summary['failed']} failed; "
@@ -442,7 +432,6 @@ def _bench(args) -> int:
 
 
 def _srs(args) -> int:
-    import warnings
 
     import numpy as np
 
@@ -468,14 +457,10 @@ def _srs(args) -> int:
             raise ValueError(f"--freqs: need 0 < fmin <= fmax, got fmin = {fmin!r}, "
                              f"fmax = {fmax!r}")
     freqs = np.geomspace(fmin, fmax, n)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", S.SRSSamplingWarning)
-        res = S.shock_response_spectrum(accel, args.dt, freqs, damping_ratio=args.damping_ratio,
-                                        response=args.response, window=args.window,
-                                        points_per_cycle=args.points_per_cycle,
-                                        exact_peaks=args.exact_peaks)
-    for message in dict.fromkeys(str(w.message) for w in caught):
-        print(f"warning: {message}", file=sys.stderr)
+    res = S.shock_response_spectrum(accel, args.dt, freqs, damping_ratio=args.damping_ratio,
+                                    response=args.response, window=args.window,
+                                    points_per_cycle=args.points_per_cycle,
+                                    exact_peaks=args.exact_peaks)
     info = res.info
     print(f"SRS of {args.record}: {accel.size} samples, dt = {args.dt:g} s (fs = {fs:g} Hz); "
           f"{args.response.replace('_', ' ')}, damping ratio {args.damping_ratio:g} (Q = "
@@ -632,8 +617,10 @@ def main(argv=None) -> int:
     """Run the `dtdyn` command; returns the exit code (0 ok, 1 a failed run or check, 2 bad
     input or a result too large for memory, 3 an internal error, 130 Ctrl-C). Errors are one
     line on stderr (``--debug`` shows the traceback)."""
-    from dtdyn._engine.errors import (DtdynStepStabilityError, DtdynUnstableError, NewtonError,
-                                      SingularMassError)
+    from dtdyn._engine.errors import (DtdynAccuracyWarning, DtdynFallbackWarning,
+                                      DtdynStabilityWarning, DtdynStepStabilityError,
+                                      DtdynUnstableError, NewtonError, SingularMassError,
+                                      SRSSamplingWarning)
 
     parser = _parser()
     try:
@@ -645,6 +632,9 @@ def main(argv=None) -> int:
                "modes": _modes, "spectrum": _spectrum, "batch": _batch}[args.command]
     try:
         with warning_scope(), warnings.catch_warnings():
+            for category in (DtdynStabilityWarning, DtdynAccuracyWarning, SRSSamplingWarning,
+                             DtdynFallbackWarning):   # each shown (once per command: warn)
+                warnings.simplefilter("always", category)
             warnings.showwarning = _warning_line(args.command)
             return handler(args)
     except BrokenPipeError:  # `dtdyn ... | head`: stop quietly, no traceback at exit either
