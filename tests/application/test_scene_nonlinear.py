@@ -366,9 +366,10 @@ def test_accuracy_scene_not_met_says_so(tmp_path, capsys):
     one reached, and says what it is)."""
     path = write_scene(tmp_path, nonlinear='[scheme]\nname = "newmark"\n[nonlinear]\n'
                                            'accuracy = 1e-9\nmax_substeps = 2\n')
-    with pytest.warns(DtdynAccuracyWarning, match=r"accuracy=1e-09 not reached"):
-        assert main(["simulate", str(path)]) == 0
-    text = capsys.readouterr().out
+    assert main(["simulate", str(path)]) == 0
+    out = capsys.readouterr()
+    assert "dtdyn simulate: warning: DtdynAccuracyWarning: accuracy=1e-09 not reached" in out.err
+    text = out.out
     assert "ran newmark, 2 substep(s) per sample; accuracy 1e-09 NOT met)" in text
 
 

@@ -98,6 +98,18 @@ def test_frequency_response_equals_direct_solve(left, right):
             col = np.linalg.solve(Z, np.eye(n)[fi])
             tol = 4 * np.finfo(float).eps * np.linalg.cond(Z) * np.abs(col).max()
             assert abs(h - col[oi]) <= tol, (x, abs(h - col[oi]) / np.abs(col).max())
+    # several loaded DOFs and outputs at once: (omega, outputs, force_dofs), the columns of
+    # the dense inverse
+    fs, os = ["w20", "psi30", n - 1], [0, "w10", "w20"]
+    H = dd.beam_frequency_response(beam, w, force_dofs=fs, outputs=os)
+    assert H.shape == (w.size, 3, 3)
+    fi = [beam.dof(f) if isinstance(f, str) else f for f in fs]
+    oi = [beam.dof(o) if isinstance(o, str) else o for o in os]
+    for x, h in zip(w, H):
+        Z = K + 1j * x * C - x * x * M
+        ref = np.linalg.inv(Z)[np.ix_(oi, fi)]
+        tol = 4 * np.finfo(float).eps * np.linalg.cond(Z) * np.abs(ref).max()
+        assert np.abs(h - ref).max() <= tol
 
 
 def test_exact_field_matrix_gives_the_cantilever_tip_receptance():
@@ -126,7 +138,7 @@ def test_bad_inputs_are_named():
         dd.beam_frequency_response(beam, [1.0], "w4", "w4", exact=True)
     with pytest.raises(ValueError, match=r"omega = \[nan\]"):
         dd.beam_frequency_response(beam, [np.nan], "w4", "w4")
-    with pytest.raises(ValueError, match=r"force_dof: no DOF named 'w0'"):
+    with pytest.raises(ValueError, match=r"force_dofs: no DOF named 'w0'"):
         dd.beam_frequency_response(beam, [1.0], "w0", "w4")
     with pytest.raises(ValueError, match=r"count must be an integer >= 1, got 0"):
         dd.beam_modes(beam, count=0)

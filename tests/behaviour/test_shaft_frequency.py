@@ -65,6 +65,12 @@ def test_frequency_response_equals_direct_solve(name):
         H = dd.shaft_frequency_response(s, w, dofs[f], o)
         ref = np.array([np.linalg.solve(K + 1j * x * C - x * x * M, np.eye(n)[f])[o] for x in w])
         assert np.abs(H - ref).max() <= 1e-10 * np.abs(ref).max()
+    # every pair at once: (omega, outputs, force_dofs), the columns of the dense inverse
+    H = dd.shaft_frequency_response(s, w, force_dofs=[dofs[n - 1], 0], outputs=[0, n - 1, 1])
+    ref = np.array([np.linalg.inv(K + 1j * x * C - x * x * M)[np.ix_([0, n - 1, 1], [n - 1, 0])]
+                    for x in w])
+    assert H.shape == (w.size, 3, 2)
+    assert np.abs(H - ref).max() <= 1e-10 * np.abs(ref).max()
 
 
 def test_damped_continuous_clamped_free_tip_receptance():
@@ -137,9 +143,9 @@ def test_bad_inputs_are_named():
     s, _ = _clamped_clamped(0.0)
     with pytest.raises(ValueError, match=r"omega = \[-1.0\]"):
         dd.shaft_frequency_response(s, [-1.0], 0, 0)
-    with pytest.raises(ValueError, match=r"output: no DOF named 'main.9'"):
+    with pytest.raises(ValueError, match=r"outputs: no DOF named 'main.9'"):
         dd.shaft_frequency_response(s, [1.0], "main.0", "main.9")
-    with pytest.raises(ValueError, match=r"force_dof = 'main.0.e3' .* inside a lumped"):
+    with pytest.raises(ValueError, match=r"force_dofs = 'main.0.e3' .* inside a lumped"):
         dd.shaft_frequency_response(s, [1.0], "main.0.e3", "main.0")
     with pytest.raises(ValueError, match=r"right_damping = 1.0: a ContinuousShaft"):
         dd.Shaft([1.0], [1.0], right="clamped",
