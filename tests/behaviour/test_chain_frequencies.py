@@ -103,7 +103,6 @@ def test_below_numpy_backend_and_p3(p3):
                                w[w < 50.0], rtol=0)
     np.testing.assert_array_equal(dd.chain_frequencies(p3["mass"], p3["stiffness"],
                                                        backend="numpy"), w)
-    np.testing.assert_array_equal(dd.undamped_poles(p3["mass"], p3["stiffness"]), w)
     assert dd.chain_frequencies(p3["mass"], p3["stiffness"], below=1.0).size == 0
 
 
