@@ -12,9 +12,10 @@ ends clamped (w = psi = 0), pinned (w = 0), sliding (psi = 0), free, or elastic 
 [w_i, psi_i] per node (`Beam.dof_names`).
 
 The natural frequencies come from the Wittrick-Williams count: the number of eigenvalues of
-(K, M) below lambda is the number of negative eigenvalues of the block pivots of
-K - lambda M eliminated node by node from the free end (its dynamic stiffness condensed onto
-each node, the frequency-domain form of the Riccati sweep), bisected to adjacent floats.
+(K, M) below lambda is the inertia of K - lambda M, here taken in mixed form (each element's
+deformation and flexibility as unknowns, so flexibilities add node by node instead of
+element stiffnesses cancelling; `wittrick_williams_counts`), bisected to adjacent floats;
+rigid-body modes are exact zeros (`rigid_body_modes`).
 docs/beam.md has the equations.
 """
 from __future__ import annotations
@@ -255,44 +256,143 @@ def beam_matrices(beam: Beam):
 
 
 def _count_blocks(beam: Beam):
-    """(DK, EK, DM, EM, held, pivmin): the node blocks of K and M (linalg.node_blocks) and the
-    held DOFs (nodes, 2) that every count of `wittrick_williams_counts` reads."""
-    M, _, K = beam.global_matrices()
-    DK, EK, _ = linalg.node_blocks(K)
-    DM, EM, _ = linalg.node_blocks(M)
-    held = np.ones(2 * (beam.elements + 1), dtype=bool)
+    """The data of `wittrick_williams_counts` in element units (lengths in h = length /
+    elements, stiffness in EI / h, mass in rho_A h^3, lambda in EI / (rho_A h^4)):
+    (m, em, kg, held, scale) with m (nodes, 3) the node mass blocks [m_ww, m_wpsi, m_psipsi]
+    (point masses included), em the 2 x 2 coupling of the element mass matrix between its
+    nodes, kg (nodes, 2) the springs to the ground, held (nodes, 2), and scale = rho_A h^4 / EI
+    (lambda in these units is scale lambda)."""
+    N, nodes = beam.elements, beam.elements + 1
+    h = beam.length / N
+    EI = beam.E * beam.I
+    s_k, s_m = EI / h, beam.rho_A * h ** 3
+    Me = (derived.element_mass if beam.mass_matrix == "consistent"
+          else derived.element_mass_lumped)(beam.rho_A, h)
+    unit = np.array([h, 1.0, h, 1.0])        # w = h w_hat
+    Me = Me * unit[:, None] * unit[None, :] / s_m
+    diag = {k: v.reshape(nodes, 2) for k, v in beam.nodal_diagonals().items()}
+    m = np.zeros((nodes, 3))
+    for k, (a, b) in enumerate(((0, 0), (0, 1), (1, 1))):
+        m[:N, k] += Me[a, b]                  # node i as the left node of element i
+        m[1:, k] += Me[2 + a, 2 + b]          # ... and as the right node of element i - 1
+    m[:, 0] += diag["m"][:, 0] * h * h / s_m
+    m[:, 2] += diag["m"][:, 1] / s_m
+    kg = np.stack([diag["k"][:, 0] * h * h / s_k, diag["k"][:, 1] / s_k], axis=1)
+    held = np.ones(2 * nodes, dtype=bool)
     held[beam.free] = False
-    scale = max(np.abs(DK).max(), 1.0)
-    return DK, EK, DM, EM, held.reshape(-1, 2), np.finfo(float).tiny * scale * scale * 1e16
+    return m, Me[:2, 2:].copy(), kg, held.reshape(nodes, 2), s_m / s_k
+
+
+#: the element's flexibility F (a cantilever held at its right node, element units) and F^-1
+_FLEX = (1.0 / 3.0, -0.5, 1.0)
+_STIFF = (12.0, 6.0, 4.0)
+#: the count's arithmetic: extended precision where the platform has it (x86: 64-bit mantissa)
+_WIDE = np.longdouble
+
+
+def _inertia_inverse(a, b, c, pivmin):
+    """Negative eigenvalues and inverse of the symmetric [[a, b], [b, c]] by LDL^T with the
+    larger diagonal entry as the first pivot (a pivot below pivmin in magnitude: -pivmin)."""
+    swap = np.abs(c) > np.abs(a)
+    p, q = np.where(swap, c, a), np.where(swap, a, c)
+    p = np.where(np.abs(p) < pivmin, -pivmin, p)
+    ell = b / p
+    d = q - ell * b
+    d = np.where(np.abs(d) < pivmin, -pivmin, d)
+    neg = (p < 0).astype(np.int64) + (d < 0)
+    gd = 1.0 / d
+    gpp = 1.0 / p + ell * ell * gd
+    return neg, np.where(swap, gd, gpp), -ell * gd, np.where(swap, gpp, gd)
 
 
 def wittrick_williams_counts(beam: Beam, lam, blocks=None) -> np.ndarray:
-    """The number of eigenvalues of (K, M) below each lam (rad^2/s^2): negative eigenvalues of
-    the 2 x 2 block pivots P_i = D_i(lam) - E_i P_{i+1}^-1 E_i^T, from the free (right) end
-    (``blocks``: `_count_blocks` of the beam, when the caller keeps them)."""
-    lam = np.atleast_1d(np.asarray(lam, dtype=float))
-    DK, EK, DM, EM, held, pivmin = _count_blocks(beam) if blocks is None else blocks
-    count = np.zeros(lam.size, dtype=np.int64)
-    L = lam[:, None, None]
-    P_next = det_next = None
-    for i in range(beam.elements, -1, -1):
-        P = DK[i] - L * DM[i]
-        if P_next is not None:
-            Ec = (EK[i] - L * EM[i]) * ~held[i][:, None] * ~held[i + 1][None, :]
-            adj = np.stack([np.stack([P_next[:, 1, 1], -P_next[:, 0, 1]], -1),
-                            np.stack([-P_next[:, 1, 0], P_next[:, 0, 0]], -1)], -2)
-            P = P - Ec @ (adj / det_next[:, None, None]) @ np.swapaxes(Ec, 1, 2)
-        for a in range(2):  # a held DOF: its row and column are the identity's
-            if held[i, a]:
-                P[:, a, :] = 0.0
-                P[:, :, a] = 0.0
-                P[:, a, a] = 1.0
-        det = P[:, 0, 0] * P[:, 1, 1] - P[:, 0, 1] * P[:, 1, 0]
-        # an exact eigenvalue of the part beyond: its pivot counted as negative and kept finite
-        det = np.where(np.abs(det) < pivmin, -pivmin, det)
-        count += np.where(det < 0.0, 1, np.where(P[:, 0, 0] + P[:, 1, 1] < 0.0, 2, 0))
-        P_next, det_next = P, det
-    return count
+    r"""The number of eigenvalues of (K, M) below each lam (rad^2/s^2), from the inertia of
+    K - lam M in mixed form (``blocks``: `_count_blocks` of the beam, when the caller keeps
+    them).
+
+    Each Hermite element's stiffness is exactly :math:`K_e = [I, -T]^T F^{-1} [I, -T]`: its
+    deformation :math:`y_e = x_i - T x_{i+1}` (the left node against the right node's rigid
+    extension, :math:`T = [[1, -h], [0, 1]]`) and its flexibility F (a cantilever). With the
+    deformations as unknowns,
+
+    .. math::
+
+        A(\lambda) = \begin{bmatrix} -F^{-1}_{\rm all} & Q \\ Q^T & K_g - \lambda M
+        \end{bmatrix}, \qquad \operatorname{neg}(A) = 2N + \operatorname{neg}(K - \lambda M)
+
+    (Haynsworth: the Schur complement on the deformations is K - lambda M). A is eliminated
+    in the order x_0, y_0, x_1, y_1, ..., x_N (2 x 2 pivots): the flexibilities of the part
+    already eliminated add to the next element's, as the series springs of `chain_frequencies`
+    do, instead of the element stiffnesses (of order EI/h^3) being added and then cancelled
+    down to the stiffness of the whole (of order EI/L^3), which is what limits the node-block
+    count of K - lambda M to about eps lambda_max absolute. The rigid motions stay exact
+    (no rounding of K_e's entries spoils its null space); the recursion runs in element
+    units in extended precision (`numpy.longdouble`; on platforms where that is double,
+    the count is about 2,000 times noisier near each root).
+    """
+    m, em, kg, held, scale = _count_blocks(beam) if blocks is None else blocks
+    lam = np.atleast_1d(np.asarray(lam, dtype=float)).astype(_WIDE) * _WIDE(scale)
+    N = m.shape[0] - 1
+    pivmin = _WIDE(np.finfo(float).tiny) / np.finfo(float).eps
+    f00, f01, f11 = _FLEX
+    keep = (~held).astype(float)
+    one, zero = np.ones_like(lam), np.zeros_like(lam)
+
+    def node(i, a=0.0, b=0.0, c=0.0):
+        return (a + kg[i, 0] - lam * m[i, 0], b - lam * m[i, 1], c + kg[i, 1] - lam * m[i, 2])
+
+    def held_identity(i, a, b, c):
+        if held[i, 0]:
+            a, b = one, zero
+        if held[i, 1]:
+            b, c = zero, one
+        return a, b, c
+
+    a, b, c = held_identity(0, *node(0))
+    neg = np.zeros(lam.size, dtype=np.int64)
+    for i in range(N):
+        # pivot x_i: G = P_i^-1 (held DOFs decoupled)
+        n_x, g00, g01, g11 = _inertia_inverse(a, b, c, pivmin)
+        k0, k1 = keep[i]
+        j0, j1 = keep[i + 1]
+        g00, g01, g11 = g00 * k0, g01 * (k0 * k1), g11 * k1
+        e00, e01 = em[0, 0] * k0 * j0, em[0, 1] * k0 * j1
+        e10, e11 = em[1, 0] * k1 * j0, em[1, 1] * k1 * j1
+        w00, w01 = g00 * e00 + g01 * e10, g00 * e01 + g01 * e11       # G E
+        w10, w11 = g01 * e00 + g11 * e10, g01 * e01 + g11 * e11
+        # the next node after x_i: coupling to y_i (-T^T + lam E^T G) and its own block
+        c00, c01 = -j0 + lam * w00, lam * w10
+        c10, c11 = j1 + lam * w01, -j1 + lam * w11
+        x00, x01, x11 = node(i + 1, -lam * lam * (e00 * w00 + e10 * w10),
+                             -lam * lam * (e00 * w01 + e10 * w11),
+                             -lam * lam * (e01 * w01 + e11 * w11))
+        # pivot y_i: -F - G (flexibilities added)
+        n_y, h00, h01, h11 = _inertia_inverse(-f00 - g00, -f01 - g01, -f11 - g11, pivmin)
+        neg += n_x + n_y - 2
+        u00, u01 = c00 * h00 + c01 * h01, c00 * h01 + c01 * h11
+        u10, u11 = c10 * h00 + c11 * h01, c10 * h01 + c11 * h11
+        a, b, c = held_identity(i + 1, x00 - (u00 * c00 + u01 * c01),
+                                x01 - (u00 * c10 + u01 * c11), x11 - (u10 * c10 + u11 * c11))
+    return neg + _inertia_inverse(a, b, c, pivmin)[0]
+
+
+def rigid_body_modes(beam: Beam) -> int:
+    """The number of rigid-body modes of a beam (0, 1 or 2): the motions w = a + b x,
+    psi = b that no end and no spring holds (their frequencies are exactly 0)."""
+    rows = []
+    x = np.linspace(0.0, 1.0, beam.elements + 1)  # node positions over the length
+    for side, node in (("left", 0), ("right", beam.elements)):
+        w_held, psi_held = BOUNDARIES.get(beam.ends[side], (False, False))
+        if w_held:
+            rows.append((1.0, x[node]))
+        if psi_held:
+            rows.append((0.0, 1.0))
+    for s in beam.supports:
+        if s.k_w > 0.0:
+            rows.append((1.0, x[s.node]))
+        if s.k_psi > 0.0:
+            rows.append((0.0, 1.0))
+    return 2 - (np.linalg.matrix_rank(np.array(rows)) if rows else 0)
 
 
 def beam_frequencies(beam: Beam, count=None, below=None) -> np.ndarray:
@@ -334,9 +434,12 @@ def beam_frequencies(beam: Beam, count=None, below=None) -> np.ndarray:
     top = 1.01 * _highest_frequency_bound(beam) ** 2
     if wanted == 0:
         return np.zeros(0)
-    lo = np.zeros(wanted)
-    hi = np.full(wanted, top)
-    target = np.arange(wanted)
+    # rigid-body modes (free, sliding or one pinned end, no spring holding them): exact zeros,
+    # not bisected (their lambda = 0 lies below every bracket's lower end)
+    rigid = min(rigid_body_modes(beam), wanted)
+    lo = np.zeros(wanted - rigid)
+    hi = np.full(wanted - rigid, top)
+    target = np.arange(rigid, wanted)
     while True:
         mid = np.where(lo > 0.0, np.sqrt(lo * hi), 0.5 * hi)
         mid = np.where(hi > 4.0 * lo, mid, 0.5 * (lo + hi))
@@ -348,7 +451,7 @@ def beam_frequencies(beam: Beam, count=None, below=None) -> np.ndarray:
         above = c > target[idx]
         hi[idx[above]] = mid[open_][above]
         lo[idx[~above]] = mid[open_][~above]
-    return np.sqrt(0.5 * (lo + hi))
+    return np.concatenate([np.zeros(rigid), np.sqrt(0.5 * (lo + hi))])
 
 
 def _highest_frequency_bound(beam: Beam) -> float:
@@ -424,6 +527,10 @@ def beam_response(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
         Support motion as in `mck_response` (one record; ``force`` may then be None): the DOFs
         are relative to the supports, which move together; the default influence r is the
         rigid translation (1 on every w, 0 on every psi).
+    **scheme_params
+        The scheme's parameters by name (``beta``, ``gamma`` of "newmark", ``theta`` of
+        "wilson", ``alpha`` of "hht", ``rho_inf`` of "generalized_alpha"; `dtdyn show` lists
+        them; defaults as there); a misspelled name is a TypeError that names the closest one.
 
     Returns
     -------
