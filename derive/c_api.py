@@ -1,6 +1,10 @@
-"""One signature spec per C kernel: the emitter writes it as the C prototype at the top of each
-generated source (so the compiler checks the definition against it) and as the ctypes binding
-in generated/c_api.py (so the runtime never types argtypes by hand)."""
+"""One spec for every C/Python contract of the kernels, written once here and emitted into both
+sides: the signatures, as the C prototypes of generated/c_api.h (every source includes it, so the
+compiler checks each definition against it) and as the ctypes bindings of generated/c_api.py (so
+the runtime never types argtypes by hand); the codes, work-array row counts and offsets
+(`CONSTANTS`), as ``#define DTDYN_<name>`` in c_api.h and as ``<name>`` in c_api.py. A kernel
+with a work array receives its length (``n_work``) and returns ``DTDYN_ERR_WORK`` before
+touching it when it is too short."""
 from __future__ import annotations
 
 import re
@@ -13,7 +17,7 @@ KERNELS = {
         "const double *c", "const double *kg", "const double *cg", "double dt", "const double *params", "long n_loaded",
         "const long *loaded", "const double *force", "double *hist", "long n_out",
         "const long *out_idx", "double *xo", "double *vo", "double *ao", "double *work",
-        "double *ehist", "double *err", "int threads")),
+        "long n_work", "double *ehist", "double *err", "int threads")),
     # every dtdyn_shaft_<scheme> (derive/shaft.py): the DT-TMM loop of a torsional tree
     "dtdyn_shaft": ("int", (
         "int form", "long N", "long n_steps", "const long *parent", "const double *gu",
@@ -21,7 +25,7 @@ KERNELS = {
         "const double *c", "const double *kg", "const double *cg", "double dt",
         "const double *params", "long n_loaded", "const long *loaded", "const double *force",
         "double *hist", "long n_out", "const long *out_idx", "double *xo", "double *vo",
-        "double *ao", "double *work")),
+        "double *ao", "double *work", "long n_work")),
     "dtdyn_ss_states": ("int", (
         "long ns", "long n_steps", "const double *restrict At", "const double *restrict w",
         "double *restrict X")),
@@ -29,7 +33,7 @@ KERNELS = {
         "long n", "long n_in", "long n_out", "long n_sec", "const double *restrict sos",
         "const long *restrict in_col", "const long *restrict out_col",
         "const double *restrict xt", "double *restrict yt", "double *restrict state")),
-    "dtdyn_set_stop": ("int", ("int value",)),  # csrc/stop.c, in every library with a long loop
+    "dtdyn_set_stop": ("int", ("int value",)),  # csrc/stop.h, in every library with a long loop
     "dtdyn_mck_loop": ("int", (
         "int solver", "long n", "long n_hist", "long n_steps", "long n_loaded",
         "const long *restrict loaded",
@@ -39,7 +43,7 @@ KERNELS = {
         "const long *restrict shift", "const long *restrict rows", "double *restrict H",
         "long n_out", "const long *restrict out_idx", "double *restrict xo",
         "double *restrict vo", "double *restrict ao", "double *restrict work")),
-    # csrc/block_chain.c: 2 x 2 node-block chains (beam_response)
+    # csrc/block_chain.h: 2 x 2 node-block chains (beam_response)
     "dtdyn_block_chain_factor": ("int", (
         "long N", "const double *restrict A", "double *restrict fac")),
     "dtdyn_block_chain_solve": ("int", (
@@ -60,7 +64,7 @@ KERNELS = {
         "long N", "const double *restrict k", "const double *restrict kg",
         "const double *restrict m", "double pivmin", "long n_lam", "const double *restrict lam",
         "long *restrict counts", "double *restrict G", "double *restrict H")),
-    # csrc/fma_peak.c: the multiply-add peak that `dtdyn bench` measures the loops against
+    # csrc/fma_peak.h: the multiply-add peak that `dtdyn bench` measures the loops against
     "dtdyn_fma_peak": ("double", ("long rounds",)),
     "dtdyn_modal_filters_lanes": ("int", ("long m",)),
     "dtdyn_modal_filters_work": ("long", ("long m", "long n_out")),
@@ -85,6 +89,64 @@ KERNELS = {
         "nl_int *restrict iwork")),
 }
 
+#: the contract's numbers: name -> (value, meaning); ``#define DTDYN_<name> <value>`` in
+#: generated/c_api.h, ``<name> = <value>`` in generated/c_api.py. Rows are rows of N doubles of a
+#: kernel's work array (N: masses or disks); `check_layout` checks how they fit together.
+CONSTANTS = {
+    # what the kernels return
+    "OK": (0, "success"),
+    "ERR_FORM": (-1, "the scheme has no such form (an explicit scheme's displacement form)"),
+    "ERR_WORK": (-2, "the work array is shorter than the kernel needs (nothing was written)"),
+    "STOPPED": (5, "stopped by dtdyn_set_stop(1) (stop.h: Ctrl-C)"),
+    # the chain and shaft kernels' form and sweep codes
+    "FORM_DISPLACEMENT": (0, "the displacement form"),
+    "FORM_ACCELERATION": (1, "the acceleration form"),
+    "SWEEP_STABLE": (0, "the stable (Riccati) sweep"),
+    "SWEEP_PLAIN": (1, "the plain sweep with its rounding-error estimate"),
+    "SWEEP_REUSE": (2, "the stable sweep reusing the Riccati factors a previous call left in work"),
+    # dtdyn_chain_<scheme>'s work (chain_loop.h)
+    "CHAIN_ROWS_STABLE": (12, "rows of the stable sweep: Fe, q, s, b, Delta, S_R, g, h, R, u, "
+                              "P_u, den"),
+    "CHAIN_ROW_DEN": (11, "row of den, the stable sweep's last"),
+    "CHAIN_ROW_PAIRS": (12, "first row of the plain sweep's error pairs (eu, eb, eDelta, eR: "
+                            "2 rows each)"),
+    "CHAIN_ROW_PLAIN": (20, "first row of the plain sweep's station entries (one row each)"),
+    "CHAIN_ROWS_PLAIN": (30, "rows of the plain sweep"),
+    # dtdyn_shaft_<scheme>'s work (shaft_loop.h)
+    "SHAFT_ROWS": (15, "rows of the torsional tree loop"),
+}
+
+#: the C types the signatures name besides int, long and double (generated/c_api.h)
+TYPEDEFS = ("typedef long long int nl_int; /* CasADi's integer (casadi_int) */",)
+
+
+def constant(name: str) -> int:
+    """The value of a `CONSTANTS` entry."""
+    return CONSTANTS[name][0]
+
+
+def check_layout(plain_rows: int = 0) -> None:
+    """Raise ValueError when the chain's work rows in `CONSTANTS` overlap or do not fit
+    ``plain_rows`` station-entry rows (the most any scheme's plain sweep uses)."""
+    c = constant
+    need = {"CHAIN_ROW_DEN": c("CHAIN_ROWS_STABLE") - 1,
+            "CHAIN_ROW_PAIRS": c("CHAIN_ROWS_STABLE"),
+            "CHAIN_ROW_PLAIN": c("CHAIN_ROW_PAIRS") + 8}
+    for name, value in need.items():
+        if c(name) != value:
+            raise ValueError(f"c_api.CONSTANTS[{name!r}] = {c(name)}, expected {value}")
+    if c("CHAIN_ROW_PLAIN") + plain_rows > c("CHAIN_ROWS_PLAIN"):
+        raise ValueError(f"c_api.CONSTANTS['CHAIN_ROWS_PLAIN'] = {c('CHAIN_ROWS_PLAIN')} is "
+                         f"too small for {plain_rows} station-entry rows from row "
+                         f"{c('CHAIN_ROW_PLAIN')}")
+
+
+#: the hand-written C (dtdyn/_engine/csrc/, runtime/_engine/csrc in the repository) that each
+#: generated source of `SOURCES` consists of, besides c_api.h and its entry points
+BODIES = {"ss_response.c": "ss_response.h", "filter_bank.c": "filter_bank.h",
+          "sturm.c": "sturm.h", "fma_peak.c": "fma_peak.h", "mck_loop.c": "mck_loop.h",
+          "block_chain.c": "block_chain.h", "nl_loop.c": "nl_loop.h", "nl_chain.c": "nl_chain.h"}
+
 #: the kernels each generated source defines
 SOURCES = {
     "ss_response.c": ("dtdyn_ss_states",),
@@ -100,7 +162,7 @@ SOURCES = {
     "nl_chain.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_chain"),
 }
 
-#: kernel -> the loop it runs with subnormals flushed to zero (csrc/flush_subnormals.c): the
+#: kernel -> the loop it runs with subnormals flushed to zero (csrc/flush_subnormals.h): the
 #: generated entry point wraps the source's ``DTDYN_LOOP int <loop>(<same parameters>)``
 FLUSHED = {"dtdyn_ss_states": "ss_states_run", "dtdyn_filter_bank": "filter_bank_run",
            "dtdyn_mck_loop": "mck_loop_run", "dtdyn_block_chain_loop": "block_chain_loop_run",
@@ -122,12 +184,20 @@ def pointer_typedef(alias: str, kernel: str) -> str:
     return f"typedef {restype} (*{alias})({', '.join(params)});"
 
 
-def prototypes(source: str) -> str:
-    """The declarations a generated source starts with."""
-    lines = ["/* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks",
-             "   the definitions below against the ctypes bindings in generated/c_api.py */"]
-    lines += [prototype(k) for k in SOURCES[source]]
-    return "\n".join(lines)
+def header(schemes: list[str], shaft_schemes: list[str]) -> dict:
+    """What generated/c_api.h holds: ``typedefs``, ``defines`` (name, value, meaning) and
+    ``prototypes`` (every kernel; ``dtdyn_chain`` and ``dtdyn_shaft`` once per scheme)."""
+    protos = []
+    for kernel in KERNELS:
+        if kernel == "dtdyn_chain":
+            protos += [prototype(kernel, f"dtdyn_chain_{s}") for s in schemes]
+        elif kernel == "dtdyn_shaft":
+            protos += [prototype(kernel, f"dtdyn_shaft_{s}") for s in shaft_schemes]
+        else:
+            protos.append(prototype(kernel))
+    return {"typedefs": [*TYPEDEFS, pointer_typedef("chain_fn", "dtdyn_chain")],
+            "defines": [(f"DTDYN_{n}", v, doc) for n, (v, doc) in CONSTANTS.items()],
+            "prototypes": protos}
 
 
 def _wrapped(head: str, items: list[str], tail: str, width: int = 100) -> list[str]:
@@ -149,7 +219,7 @@ def flushed_entries(source: str) -> str:
     for kernel in (k for k in SOURCES[source] if k in FLUSHED):
         restype, params = KERNELS[kernel]
         names = [re.findall(r"[A-Za-z_]\w*", p)[-1] for p in params]
-        out += ["", f"/* {FLUSHED[kernel]} with subnormals flushed to zero (flush_subnormals.c) */"]
+        out += ["", f"/* {FLUSHED[kernel]} with subnormals flushed to zero (flush_subnormals.h) */"]
         out += _wrapped(f"{restype} {kernel}(", list(params), ")")
         out += ["{", "    const unsigned long long mode = dtdyn_flush_on();"]
         out += _wrapped(f"    const {restype} rc = {FLUSHED[kernel]}(", names, ");")

@@ -21,14 +21,15 @@ from . import (beam, c_api, dttmm, integrators as I, kernels, modal_filters, non
                stability, state_space, tmm)
 
 TEMPLATES = Path(__file__).parent / "templates"
-#: hand-written C that generated sources include verbatim (not templates)
-CSOURCES = Path(__file__).parent / "csrc"
+#: the hand-written C (.h files compiled as they are: the runtime inlines them into the generated
+#: sources that include them, dtdyn._engine.cbuild); the templates only #include them
+CSOURCES = Path(__file__).resolve().parent.parent / "runtime" / "_engine" / "csrc"
 GENERATED = Path(__file__).resolve().parent.parent / "generated"
 
 
 def environment() -> jinja2.Environment:
     env = jinja2.Environment(
-        loader=jinja2.FileSystemLoader([str(TEMPLATES), str(CSOURCES)]),
+        loader=jinja2.FileSystemLoader(str(TEMPLATES)),
         undefined=jinja2.StrictUndefined,
         trim_blocks=True,
         lstrip_blocks=True,
@@ -281,11 +282,13 @@ def _chain_macros(ctx) -> dict:
     forms = []
     for f in ctx["forms_c"]:
         plain = f["error_step"] + f["plain"]["run"] + f["plain"]["step"]
+        c_api.check_layout(len(plain))  # the rows fit the work the runtime allocates
         forms.append({
             **f,
             "constants": [f"const double {p} = params[{i}];" for i, p in enumerate(ctx["params"])]
                          + [f"const double {n} = {e};" for n, e in f["temps"] + f["rows"]],
-            "plain_rows": [f"double *{n} = work + {20 + i} * N;" for i, (n, _) in enumerate(plain)],
+            "plain_rows": [f"double *{n} = work + (DTDYN_CHAIN_ROW_PLAIN + {i}) * N;"
+                           for i, (n, _) in enumerate(plain)],
             "plain_voids": [f"(void){n};" for n, _ in plain],
             "error_step_lines": [f"{n}[n] = {e};" for n, e in f["error_step"]],
             "plain_run_lines": [f"{n}[n] = {e};" for n, e in f["plain"]["run"]],
@@ -297,15 +300,32 @@ def _chain_macros(ctx) -> dict:
     return {"forms": forms, "history_lines": rows + errors, "state_lines": rows}
 
 
+def _contract(env) -> dict[str, str]:
+    """generated/c_api.h and c_api.py, both from dtdyn.derive.c_api (unformatted)."""
+    names = list(I.SCHEMES)
+    src = "dtdyn.derive.c_api"
+    return {"c_api.h": env.get_template("c/c_api.h.jinja").render(
+                template="c/c_api.h.jinja", source=src, **c_api.header(names, names)),
+            "c_api.py": env.get_template("numpy/c_api.py.jinja").render(
+                template="numpy/c_api.py.jinja", source=src, bindings=c_api.bindings(),
+                constants=c_api.CONSTANTS)}
+
+
+def render_contract() -> dict[str, str]:
+    """The two sides of the kernels' contract, c_api.h and c_api.py, as `render_all` writes
+    them (from the spec as it is now: a test changes it and sees both sides change)."""
+    return format_sources(_contract(environment()))
+
+
 def render_all() -> dict[str, str]:
     """Every generated file as {name: text}."""
     env = environment()
     out: dict[str, str] = {}
 
     def render(template, dest, source, **ctx):
-        if dest in c_api.SOURCES:  # the C declarations from the signature spec
-            ctx.setdefault("prototypes", c_api.prototypes(dest))
+        if dest in c_api.SOURCES:  # the entry points from the signature spec
             ctx.setdefault("flushed_entries", c_api.flushed_entries(dest))
+            ctx.setdefault("body", c_api.BODIES.get(dest))
         out[dest] = env.get_template(template).render(template=template, source=source, **ctx)
 
     render("numpy/dttmm.py.jinja", "dttmm_sweep.py", "dtdyn.derive.dttmm", **_dttmm_context())
@@ -316,26 +336,13 @@ def render_all() -> dict[str, str]:
     render("markdown/tmm.md.jinja", "tmm.md", "dtdyn.derive.tmm", **_tmm_context())
     render("numpy/newmark_ss.py.jinja", "newmark_ss.py", "dtdyn.derive.state_space",
            **_newmark_ss_context())
-    render("c/verbatim.c.jinja", "ss_response.c", "derive/csrc/ss_response.c (hand-written)",
-           csource="ss_response.c", with_stop=False)
-    render("c/nl_chain.c.jinja", "nl_chain.c", "dtdyn.nonlinear.chain (its loop)",
-           chain_typedef=c_api.pointer_typedef("chain_fn", "dtdyn_chain"))
+    for dest, body in c_api.BODIES.items():  # hand-written loops, entry points from the spec
+        render("c/verbatim.c.jinja", dest, f"dtdyn/_engine/csrc/{body} (hand-written)")
     render("numpy/modal_filters.py.jinja", "modal_filters.py", "dtdyn.derive.modal_filters",
            **_modal_filters_context())
-    render("c/verbatim.c.jinja", "filter_bank.c", "derive/csrc/filter_bank.c (hand-written)",
-           csource="filter_bank.c", with_stop=True)
-    render("c/verbatim.c.jinja", "sturm.c", "derive/csrc/sturm.c (hand-written)",
-           csource="sturm.c", with_stop=False)
-    render("c/verbatim.c.jinja", "fma_peak.c", "derive/csrc/fma_peak.c (hand-written)",
-           csource="fma_peak.c", with_stop=False)
-    render("c/verbatim.c.jinja", "mck_loop.c", "derive/csrc/mck_loop.c (hand-written)",
-           csource="mck_loop.c", with_stop=True)
-    render("c/verbatim.c.jinja", "block_chain.c", "derive/csrc/block_chain.c (hand-written)",
-           csource="block_chain.c", with_stop=True)
     render("c/modal_states.c.jinja", "modal_states.c",
            "dtdyn.derive.modal_filters.increment_form",
            increments=[(k, sp.sstr(v)) for k, v in modal_filters.increment_form().items()])
-    render("c/nl_loop.c.jinja", "nl_loop.c", "dtdyn.derive.nonlinear")
     render("markdown/nonlinear.md.jinja", "nonlinear.md", "dtdyn.derive.nonlinear",
            **_nonlinear_context(), **nonlinear.polynomial_context())
     par = nonlinear.parabola_coefficient()
@@ -351,21 +358,17 @@ def render_all() -> dict[str, str]:
         ctx = _scheme_context(name)
         src = f"dtdyn.derive.integrators.SCHEMES[{name!r}]"
         render("numpy/scheme.py.jinja", f"scheme_{name}.py", src, **ctx, forms=ctx["forms_py"])
-        render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, **_chain_macros(ctx),
-               prototypes=c_api.prototype("dtdyn_chain", f"dtdyn_chain_{name}"))
+        render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, **_chain_macros(ctx))
         render("markdown/scheme.md.jinja", f"scheme_{name}.md", src, **ctx,
                latex=_latex_rows(ctx["derived"]),
                increments=_increment_rows(ctx["spec"]), relations=[sp.latex(r) for r in
                                                              ctx["derived"].scheme.relations],
                substitutions=[(sp.latex(k), sp.latex(v)) for k, v in
                               ctx["derived"].scheme.substitutions.items()])
-    render("c/chain_loop.h.jinja", "chain_loop.h", "the DT-TMM chain loop (every scheme)")
     from . import shaft  # torsional shafts and trees: shaft.py, shaft.md, shaft_<scheme>.c
     shaft.render(render, _scheme_context, _chain_macros, names)
-    render("c/shaft_loop.h.jinja", "shaft_loop.h", "the DT-TMM torsional tree loop (every scheme)")
     render("numpy/init.py.jinja", "__init__.py", "dtdyn.derive.integrators.scheme_table")
-    render("numpy/c_api.py.jinja", "c_api.py", "dtdyn.derive.c_api",
-           bindings=c_api.bindings())
+    out.update(_contract(env))
     render("numpy/scheme_table.py.jinja", "scheme_table.py",
            "dtdyn.derive.integrators.scheme_table", table=I.scheme_table())
     out = format_sources(out)
@@ -403,7 +406,7 @@ def format_sources(files: dict[str, str]) -> dict[str, str]:
     for name, text in files.items():
         if name.endswith(".py"):
             cmd = [ruff, "format", "--line-length", "100", "--stdin-filename", name, "-"]
-        elif name.endswith(".c"):
+        elif name.endswith((".c", ".h")):
             cmd = [clang, f"--style={CLANG_STYLE}", f"--assume-filename={name}"]
         else:
             out[name] = text
@@ -433,7 +436,7 @@ def write(dest: Path = GENERATED) -> list[str]:
     for name, text in files.items():
         _atomic_write(dest / name, text)
     stale = [p.name for p in dest.iterdir() if p.is_file() and p.name not in files
-             and p.suffix in (".py", ".c", ".md", ".json")]
+             and p.suffix in (".py", ".c", ".h", ".md", ".json")]
     for name in stale:
         (dest / name).unlink()
     return sorted(files)
@@ -445,5 +448,5 @@ def check(dest: Path = GENERATED) -> list[str]:
     bad = [n for n, t in files.items()
            if not (dest / n).is_file() or (dest / n).read_text(encoding="utf-8") != t]
     bad += [p.name for p in dest.iterdir() if p.is_file() and p.name not in files
-            and p.suffix in (".py", ".c", ".md", ".json")]
+            and p.suffix in (".py", ".c", ".h", ".md", ".json")]
     return sorted(bad)

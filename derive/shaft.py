@@ -274,7 +274,6 @@ def c_context(scheme_ctx: dict, chain_macros: dict) -> dict:
 def render(render_fn, scheme_context, chain_macros, schemes) -> None:
     """Emit generated/shaft.py, shaft.md and shaft_<scheme>.c through ``render_fn`` (emit's
     render(template, dest, source, **ctx))."""
-    from . import c_api
     ctx = {**numpy_context(), **receptance_context()}
     render_fn("numpy/shaft.py.jinja", "shaft.py", "dtdyn.derive.shaft", **ctx)
     render_fn("markdown/shaft.md.jinja", "shaft.md", "dtdyn.derive.shaft", **ctx["latex"],
@@ -283,8 +282,7 @@ def render(render_fn, scheme_context, chain_macros, schemes) -> None:
         sc = scheme_context(name)
         cc = c_context(sc, chain_macros(sc))
         render_fn("c/shaft.c.jinja", f"shaft_{name}.c",
-                  f"dtdyn.derive.shaft with dtdyn.derive.integrators.SCHEMES[{name!r}]", **cc,
-                  prototypes=c_api.prototype("dtdyn_shaft", f"dtdyn_shaft_{name}"))
+                  f"dtdyn.derive.shaft with dtdyn.derive.integrators.SCHEMES[{name!r}]", **cc)
 
 
 # --- frequency responses and mode shapes: the tree's solve in the Laplace domain -------------

@@ -12,24 +12,24 @@
  *
  * hist: 3 rows of N doubles (x0, v0, a0), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..
- * written (NULL: not stored). work: 12 N doubles (stable sweep). threads: 2 runs the stable
- * sweep on two threads, the chain split in two parts (chain_loop.h, CHAIN_UPPER_FRACTION), 1 on
- * the calling thread.
- * Plain sweep only (work: 30 N doubles): ehist, the two error histories E_s (systematic part of
- * the rounding error) and E_r (random part), rows as hist, each entry a pair (E_s, E_r) of
- * adjacent doubles (a GCC/Clang vector: one operation advances both); err = {max_n e_n, max |x|,
- * steps so far}, e_n = max_i |E_s,x| + max_i |E_r,x|; all updated in place. Each step both
- * histories are advanced by the exact step with zero force (the Riccati recurrences with F = 0)
- * and this step's rounding error is added to their unknowns: -eps_P f_1 P_u to E_s (eps_P: the
- * rounding error of P_f,N, from the product in double-double), 1.5 s_j eps f_1 P_u to
- * E_r (s_j: a pseudo-random sign of the step index). The estimate is err[0] / (err[1] - err[0]),
- * derived in dtdyn.derive.dttmm.
- * The loop itself is chain_loop.h (shared by every scheme); this file defines the scheme's
- * derived expressions for it.
+ * written (NULL: not stored). work: n_work >= DTDYN_CHAIN_ROWS_STABLE N doubles (stable sweep).
+ * threads: 2 runs the stable sweep on two threads, the chain split in two parts (chain_loop.h,
+ * CHAIN_UPPER_FRACTION), 1 on the calling thread. Plain sweep only (work: DTDYN_CHAIN_ROWS_PLAIN N
+ * doubles): ehist, the two error histories E_s (systematic part of the rounding error) and E_r
+ * (random part), rows as hist, each entry a pair (E_s, E_r) of adjacent doubles (a GCC/Clang
+ * vector: one operation advances both); err = {max_n e_n, max |x|, steps so far}, e_n = max_i
+ * |E_s,x| + max_i |E_r,x|; all updated in place. Each step both histories are advanced by the exact
+ * step with zero force (the Riccati recurrences with F = 0) and this step's rounding error is added
+ * to their unknowns: -eps_P f_1 P_u to E_s (eps_P: the rounding error of P_f,N, from the product in
+ * double-double), 1.5 s_j eps f_1 P_u to E_r (s_j: a pseudo-random sign of the step index). The
+ * estimate is err[0] / (err[1] - err[0]), derived in dtdyn.derive.dttmm. The loop itself is
+ * chain_loop.h (shared by every scheme); this file defines the scheme's derived expressions for it.
  * The stable sweep forms the same terms in the same order as the NumPy backend; its two
  * recurrences use fma() and advance four stations a round (with the products of their g), so
  * the backends agree to rounding, not bitwise (on two threads, also the split's sums).
  */
+#include "c_api.h"
+
 /* displacement form */
 #define CHAIN_RUN run_displacement
 #define CHAIN_CONSTANTS \
@@ -68,16 +68,16 @@
     double *v0 = hist + 1 * N; \
     double *a0 = hist + 2 * N;
 #define CHAIN_PLAIN_ROWS \
-    double *hD = work + 20 * N; \
-    double *hb = work + 21 * N; \
-    double *fR = work + 22 * N; \
-    double *fD = work + 23 * N; \
-    double *fb = work + 24 * N; \
-    double *T12 = work + 25 * N; \
-    double *T21 = work + 26 * N; \
-    double *T22 = work + 27 * N; \
-    double *T13 = work + 28 * N; \
-    double *T23 = work + 29 * N;
+    double *hD = work + (DTDYN_CHAIN_ROW_PLAIN + 0) * N; \
+    double *hb = work + (DTDYN_CHAIN_ROW_PLAIN + 1) * N; \
+    double *fR = work + (DTDYN_CHAIN_ROW_PLAIN + 2) * N; \
+    double *fD = work + (DTDYN_CHAIN_ROW_PLAIN + 3) * N; \
+    double *fb = work + (DTDYN_CHAIN_ROW_PLAIN + 4) * N; \
+    double *T12 = work + (DTDYN_CHAIN_ROW_PLAIN + 5) * N; \
+    double *T21 = work + (DTDYN_CHAIN_ROW_PLAIN + 6) * N; \
+    double *T22 = work + (DTDYN_CHAIN_ROW_PLAIN + 7) * N; \
+    double *T13 = work + (DTDYN_CHAIN_ROW_PLAIN + 8) * N; \
+    double *T23 = work + (DTDYN_CHAIN_ROW_PLAIN + 9) * N;
 #define CHAIN_PLAIN_VOIDS \
     (void)hD; \
     (void)hb; \
@@ -173,16 +173,16 @@
     double *v0 = hist + 1 * N; \
     double *a0 = hist + 2 * N;
 #define CHAIN_PLAIN_ROWS \
-    double *hD = work + 20 * N; \
-    double *hb = work + 21 * N; \
-    double *fR = work + 22 * N; \
-    double *fD = work + 23 * N; \
-    double *fb = work + 24 * N; \
-    double *T12 = work + 25 * N; \
-    double *T21 = work + 26 * N; \
-    double *T22 = work + 27 * N; \
-    double *T13 = work + 28 * N; \
-    double *T23 = work + 29 * N;
+    double *hD = work + (DTDYN_CHAIN_ROW_PLAIN + 0) * N; \
+    double *hb = work + (DTDYN_CHAIN_ROW_PLAIN + 1) * N; \
+    double *fR = work + (DTDYN_CHAIN_ROW_PLAIN + 2) * N; \
+    double *fD = work + (DTDYN_CHAIN_ROW_PLAIN + 3) * N; \
+    double *fb = work + (DTDYN_CHAIN_ROW_PLAIN + 4) * N; \
+    double *T12 = work + (DTDYN_CHAIN_ROW_PLAIN + 5) * N; \
+    double *T21 = work + (DTDYN_CHAIN_ROW_PLAIN + 6) * N; \
+    double *T22 = work + (DTDYN_CHAIN_ROW_PLAIN + 7) * N; \
+    double *T13 = work + (DTDYN_CHAIN_ROW_PLAIN + 8) * N; \
+    double *T23 = work + (DTDYN_CHAIN_ROW_PLAIN + 9) * N;
 #define CHAIN_PLAIN_VOIDS \
     (void)hD; \
     (void)hb; \
@@ -241,27 +241,26 @@
     ea0[i] = ea1;
 #include "chain_loop.h"
 
-/* form: 0 displacement, 1 acceleration; sweep: 0 stable, 1 plain, 2 stable reusing the Riccati
-   factors a previous call (same chain, dt, scheme and form) left in work. Returns 0, or -1 for
-   an absent form. */
+/* form: DTDYN_FORM_*; sweep: DTDYN_SWEEP_STABLE, _PLAIN, or _REUSE (the stable sweep reusing the
+   Riccati factors a previous call (same chain, dt, scheme and form) left in work). Returns
+   DTDYN_OK, DTDYN_ERR_FORM for an absent form, DTDYN_ERR_WORK (nothing written) when n_work is
+   below the sweep's rows times N (generated/c_api.h). */
 int dtdyn_chain_newmark_1_8(int form, int sweep, long N, long n_steps, const double *m,
                             const double *k, const double *c, const double *kg, const double *cg,
                             double dt, const double *params, long n_loaded, const long *loaded,
                             const double *force, double *hist, long n_out, const long *out_idx,
-                            double *xo, double *vo, double *ao, double *work, double *ehist,
-                            double *err, int threads);
-int dtdyn_chain_newmark_1_8(int form, int sweep, long N, long n_steps, const double *m,
-                            const double *k, const double *c, const double *kg, const double *cg,
-                            double dt, const double *params, long n_loaded, const long *loaded,
-                            const double *force, double *hist, long n_out, const long *out_idx,
-                            double *xo, double *vo, double *ao, double *work, double *ehist,
-                            double *err, int threads) {
-    const unsigned long long mode = dtdyn_flush_on(); /* subnormals flushed (chain_loop.h) */
-    int rc = -1;
-    if (form == 0)
+                            double *xo, double *vo, double *ao, double *work, long n_work,
+                            double *ehist, double *err, int threads) {
+    const long rows = sweep == DTDYN_SWEEP_PLAIN ? DTDYN_CHAIN_ROWS_PLAIN : DTDYN_CHAIN_ROWS_STABLE;
+    unsigned long long mode;
+    int rc = DTDYN_ERR_FORM;
+    if (N < 0 || n_work < rows * N)
+        return DTDYN_ERR_WORK;
+    mode = dtdyn_flush_on(); /* subnormals flushed (chain_loop.h) */
+    if (form == DTDYN_FORM_DISPLACEMENT)
         rc = run_displacement(sweep, N, n_steps, m, k, c, kg, cg, dt, params, n_loaded, loaded,
                               force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err, threads);
-    if (form == 1)
+    if (form == DTDYN_FORM_ACCELERATION)
         rc = run_acceleration(sweep, N, n_steps, m, k, c, kg, cg, dt, params, n_loaded, loaded,
                               force, hist, n_out, out_idx, xo, vo, ao, work, ehist, err, threads);
     dtdyn_flush_off(mode);

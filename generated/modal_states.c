@@ -43,66 +43,9 @@ typedef double v8d __attribute__((vector_size(64), aligned(8)));
    outputs against 37 / 43 / 56 ms, equal at 12) */
 #define AXPY_OUTPUTS 12
 
-/* declarations from the signature spec (dtdyn.derive.c_api): the compiler checks
-   the definitions below against the ctypes bindings in generated/c_api.py */
-int dtdyn_set_stop(int value);
-int dtdyn_modal_filters_lanes(long m);
-long dtdyn_modal_filters_work(long m, long n_out);
-int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
-                        const double *restrict coef, const double *restrict wt,
-                        const double *restrict x, double *restrict e, double *restrict y,
-                        double *restrict work);
-/*
- * Cooperative stop (Ctrl-C). The runtime runs a long call of this library in a worker thread;
- * on KeyboardInterrupt the main thread calls dtdyn_set_stop(1), and the loop returns
- * DTDYN_STOPPED at its next check (every block of samples: well under a second).
- */
-#define DTDYN_STOPPED 5
-static volatile int dtdyn_stop_flag = 0;
-
-int dtdyn_set_stop(int value) {
-    dtdyn_stop_flag = value;
-    return 0;
-}
-/* Subnormal results flushed to zero, and subnormal operands read as zero, while a kernel runs
-   (x86: MXCSR's FTZ and DAZ bits; AArch64: FPCR's FZ bit), the caller's mode restored on return.
-   A response that decays or a wave entering a system at rest passes through the subnormal range
-   (|x| < 2.2e-308) on its way to zero, where each operation can cost about a hundred cycles;
-   flushed, such values become 0 (a flushed recursion may instead settle into a limit cycle just
-   above 2.2e-308: the results change only near the underflow threshold). */
-#if defined(__x86_64__) || defined(__i386__)
-#include <xmmintrin.h>
-static inline unsigned long long dtdyn_flush_on(void) {
-    const unsigned int mode = _mm_getcsr();
-    _mm_setcsr(mode | 0x8040u);
-    return mode;
-}
-static inline void dtdyn_flush_off(unsigned long long mode) {
-    _mm_setcsr((unsigned int)mode);
-}
-#elif defined(__aarch64__)
-static inline unsigned long long dtdyn_flush_on(void) {
-    unsigned long long mode;
-    __asm__ volatile("mrs %0, fpcr" : "=r"(mode));
-    __asm__ volatile("msr fpcr, %0" : : "r"(mode | (1ull << 24)));
-    return mode;
-}
-static inline void dtdyn_flush_off(unsigned long long mode) {
-    __asm__ volatile("msr fpcr, %0" : : "r"(mode));
-}
-#else
-static inline unsigned long long dtdyn_flush_on(void) {
-    return 0;
-}
-static inline void dtdyn_flush_off(unsigned long long mode) {
-    (void)mode;
-}
-#endif
-
-/* The loop a flushing entry point calls (name_run, called by dtdyn_name): not inlined into it,
-   which keeps GCC's use of the loop's restrict parameters (inlined, the state-space loop of
-   ss_response.c ran 7 % slower). */
-#define DTDYN_LOOP __attribute__((noinline)) static
+#include "c_api.h"
+#include "stop.h"
+#include "flush_subnormals.h"
 
 static inline void states_block_4(long nb, long m, long n_in, const double *restrict coef,
                                   const double *restrict x, double *restrict e,
@@ -500,7 +443,7 @@ DTDYN_LOOP int modal_filters_run(long n, long m, long n_in, long n_out, int im_o
     return dtdyn_stop_flag ? DTDYN_STOPPED : 0;
 }
 
-/* modal_filters_run with subnormals flushed to zero (flush_subnormals.c) */
+/* modal_filters_run with subnormals flushed to zero (flush_subnormals.h) */
 int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
                         const double *restrict coef, const double *restrict wt,
                         const double *restrict x, double *restrict e, double *restrict y,

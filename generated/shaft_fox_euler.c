@@ -14,10 +14,12 @@
  * m, k, c, kg, cg: N doubles each (kg = cg = NULL: no ground elements).
  * hist: 3 rows of N doubles (x0, v0, a0), updated in place.
  * force: (n_steps + 1) x n_loaded samples, row-major. xo/vo/ao: (n_steps + 1) x n_out, rows 1..
- * written (NULL: not stored). work: 15 N doubles.
+ * written (NULL: not stored). work: n_work >= DTDYN_SHAFT_ROWS N doubles.
  * The loop itself is shaft_loop.h (shared by every scheme); this file defines the scheme's
  * derived expressions for it.
  */
+#include "c_api.h"
+
 /* displacement form */
 #define SHAFT_RUN run_displacement
 #define SHAFT_CONSTANTS \
@@ -100,25 +102,23 @@
     a0[i] = a1;
 #include "shaft_loop.h"
 
-/* form: 0 displacement, 1 acceleration. Returns 0, or -1 for an absent form. */
+/* form: DTDYN_FORM_*. Returns DTDYN_OK, DTDYN_ERR_FORM for an absent form, DTDYN_ERR_WORK
+   (nothing written) when n_work is below DTDYN_SHAFT_ROWS N (generated/c_api.h). */
 int dtdyn_shaft_fox_euler(int form, long N, long n_steps, const long *parent, const double *gu,
                           const double *gS, const double *gR, const double *m, const double *k,
                           const double *c, const double *kg, const double *cg, double dt,
                           const double *params, long n_loaded, const long *loaded,
                           const double *force, double *hist, long n_out, const long *out_idx,
-                          double *xo, double *vo, double *ao, double *work);
-int dtdyn_shaft_fox_euler(int form, long N, long n_steps, const long *parent, const double *gu,
-                          const double *gS, const double *gR, const double *m, const double *k,
-                          const double *c, const double *kg, const double *cg, double dt,
-                          const double *params, long n_loaded, const long *loaded,
-                          const double *force, double *hist, long n_out, const long *out_idx,
-                          double *xo, double *vo, double *ao, double *work) {
-    const unsigned long long mode = dtdyn_flush_on(); /* subnormals flushed (shaft_loop.h) */
-    int rc = -1;
-    if (form == 0)
+                          double *xo, double *vo, double *ao, double *work, long n_work) {
+    unsigned long long mode;
+    int rc = DTDYN_ERR_FORM;
+    if (N < 0 || n_work < DTDYN_SHAFT_ROWS * N)
+        return DTDYN_ERR_WORK;
+    mode = dtdyn_flush_on(); /* subnormals flushed (shaft_loop.h) */
+    if (form == DTDYN_FORM_DISPLACEMENT)
         rc = run_displacement(N, n_steps, parent, gu, gS, gR, m, k, c, kg, cg, dt, params, n_loaded,
                               loaded, force, hist, n_out, out_idx, xo, vo, ao, work);
-    if (form == 1)
+    if (form == DTDYN_FORM_ACCELERATION)
         rc = run_acceleration(N, n_steps, parent, gu, gS, gR, m, k, c, kg, cg, dt, params, n_loaded,
                               loaded, force, hist, n_out, out_idx, xo, vo, ao, work);
     dtdyn_flush_off(mode);

@@ -6,6 +6,14 @@ source text, the compiler and its flags, so a source is compiled once per
 machine and reused afterwards. Concurrent processes are serialised with a file
 lock and the library is moved into place atomically.
 
+A cached library is loaded only when it is complete: its size and hash match the sidecar its
+build wrote, its ELF headers put every segment and section inside the file (a library cut short
+would be mapped past its end, and the first touch of the missing pages kills the process with
+SIGBUS), and, once loaded and before any call, it exports the entry points its source defines and
+the stamp of its own cache key (a library swapped with another, sidecar and all, is caught
+there). A library that fails is removed and rebuilt once; if the rebuilt one fails too,
+:class:`DtdynCacheError` is raised.
+
 When no compiler is available, compilation fails, or ``DTDYN_NO_C=1`` is set,
 :func:`load_library` returns ``None`` and warns once per process with
 :class:`DtdynFallbackWarning`; callers then use their NumPy implementation.
@@ -19,13 +27,15 @@ import platform
 import re
 import shlex
 import shutil
+import struct
 import subprocess
+import sys
 import sysconfig
 import time
 import tempfile
 import threading
 from pathlib import Path
-from dtdyn._engine.errors import DtdynFallbackWarning
+from dtdyn._engine.errors import DtdynCacheError, DtdynFallbackWarning
 from dtdyn._engine.public import warn
 
 try:  # POSIX only; without it the C backend is reported as unavailable.
@@ -36,6 +46,7 @@ except ImportError:  # pragma: no cover - non-POSIX platforms
 __all__ = [
     "CFLAGS",
     "LIBS",
+    "DtdynCacheError",
     "DtdynFallbackWarning",
     "c_available",
     "cache_dir",
@@ -186,15 +197,239 @@ def _digest(path: Path) -> str:
     return f"{len(data)} {hashlib.sha256(data).hexdigest()}"
 
 
-def _verified(so_path: Path) -> bool:
-    """True when the library matches the size and hash its build wrote next to it: a cache file
-    cut short, emptied, overwritten or swapped is never handed to the loader (a truncated ELF
-    file can crash dlopen; checking it first, in this process, makes that impossible)."""
+#: ELF constants (System V gABI): e_ident fields, ET_DYN, PT_LOAD, SHT_NOBITS, PN_XNUM
+_ELFCLASS = {1: 32, 2: 64}
+_ELFDATA = {1: "little", 2: "big"}
+_ET_DYN, _PT_LOAD, _SHT_NOBITS, _PN_XNUM = 3, 1, 8, 0xFFFF
+#: per class: (header layout after e_ident, program header layout, section header layout);
+#: the program header's fields are read by name below, as the two classes order them differently
+_ELF_LAYOUT = {
+    32: ("HHIIIIIHHHHHH", "IIIIIIII", "IIIIIIIIII"),
+    64: ("HHIQQQIHHHHHH", "IIQQQQQQ", "IIQQQQIIQQ"),
+}
+_PH_FIELDS = {
+    32: ("type", "offset", "vaddr", "paddr", "filesz", "memsz", "flags", "align"),
+    64: ("type", "flags", "offset", "vaddr", "paddr", "filesz", "memsz", "align"),
+}
+
+
+def _elf_problem(path: str | os.PathLike[str]) -> str | None:
+    """What makes ``path`` not a complete ELF shared library for this process, or ``None``.
+
+    The loader maps each PT_LOAD segment's file range ``[p_offset, p_offset + p_filesz)``; a range
+    past the end of the file is mapped anyway and the first read of it kills the process with
+    SIGBUS, so every segment, the program and section header tables and every section with file
+    contents must lie inside the file. The file must also be a shared object (``ET_DYN``) of this
+    process's word size and byte order (ELF32 or big-endian files are parsed and refused, as
+    dlopen would refuse them). Pure Python (:mod:`struct`), reading only the headers.
+
+    On macOS libraries are Mach-O, not ELF: the check is skipped there (dtdyn is developed and
+    tested on Linux; the sidecar's size and hash still guard the file).
+    """
+    if sys.platform == "darwin":  # Mach-O: no ELF headers to read (see the docstring)
+        return None
+    try:
+        with open(path, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+
+            def read(offset: int, n: int) -> bytes:
+                fh.seek(offset)
+                return fh.read(n)
+
+            ident = read(0, 16)
+            if len(ident) < 16 or ident[:4] != b"\x7fELF":
+                return f"is not an ELF file ({size} bytes, starts {ident[:4]!r})"
+            bits, order = _ELFCLASS.get(ident[4]), _ELFDATA.get(ident[5])
+            if bits is None or order is None or ident[6] != 1:
+                return f"has an unknown ELF class, byte order or version ({ident[4:7].hex()})"
+            if bits != 8 * struct.calcsize("P") or order != sys.byteorder:
+                return (f"is a {bits}-bit {order}-endian ELF file; this Python is "
+                        f"{8 * struct.calcsize('P')}-bit {sys.byteorder}-endian")
+            end = "<" if order == "little" else ">"
+            eh_fmt, ph_fmt, sh_fmt = (end + f for f in _ELF_LAYOUT[bits])
+            head = read(16, struct.calcsize(eh_fmt))
+            if len(head) < struct.calcsize(eh_fmt):
+                return f"ends inside its ELF header ({size} bytes)"
+            (e_type, _machine, _version, _entry, phoff, shoff, _flags, _ehsize, phentsize,
+             phnum, shentsize, shnum, _shstrndx) = struct.unpack(eh_fmt, head)
+            if e_type != _ET_DYN:
+                return f"is not a shared library (ELF e_type {e_type}, expected {_ET_DYN})"
+            ph_size, sh_size = struct.calcsize(ph_fmt), struct.calcsize(sh_fmt)
+
+            def table(offset: int, count: int, entsize: int, what: str) -> str | None:
+                if offset + count * entsize > size:
+                    return (f"is cut short: its {what} table ends at byte "
+                            f"{offset + count * entsize}, the file has {size} bytes")
+                return None
+
+            sections: list[tuple] = []
+            if shoff:  # section 0 holds the real counts when they overflow the header's fields
+                if shentsize != sh_size:
+                    return f"has section headers of {shentsize} bytes, expected {sh_size}"
+                bad = table(shoff, max(shnum, 1), sh_size, "section header")
+                if bad:
+                    return bad
+                first = struct.unpack(sh_fmt, read(shoff, sh_size))
+                shnum = shnum or first[5]
+                phnum = first[7] if phnum == _PN_XNUM else phnum
+                bad = table(shoff, shnum, sh_size, "section header")
+                if bad:
+                    return bad
+                data = read(shoff, shnum * sh_size)
+                sections = [struct.unpack_from(sh_fmt, data, i * sh_size) for i in range(shnum)]
+            if phentsize != ph_size or phnum == 0:
+                return f"has no usable program headers ({phnum} of {phentsize} bytes)"
+            bad = table(phoff, phnum, ph_size, "program header")
+            if bad:
+                return bad
+            data = read(phoff, phnum * ph_size)
+            loads = 0
+            for i in range(phnum):
+                ph = dict(zip(_PH_FIELDS[bits], struct.unpack_from(ph_fmt, data, i * ph_size)))
+                loads += ph["type"] == _PT_LOAD
+                if ph["filesz"] and ph["offset"] + ph["filesz"] > size:
+                    return (f"is cut short: segment {i} (type {ph['type']:#x}) ends at byte "
+                            f"{ph['offset'] + ph['filesz']}, the file has {size} bytes")
+                if ph["type"] == _PT_LOAD and ph["filesz"] > ph["memsz"]:
+                    return f"has a PT_LOAD segment {i} larger in the file than in memory"
+            if loads == 0:
+                return "has no PT_LOAD segment"
+            for i, sh in enumerate(sections):
+                sh_type, sh_offset, sh_bytes = sh[1], sh[4], sh[5]
+                if sh_type != _SHT_NOBITS and sh_bytes and sh_offset + sh_bytes > size:
+                    return (f"is cut short: section {i} ends at byte {sh_offset + sh_bytes}, "
+                            f"the file has {size} bytes")
+    except (OSError, struct.error) as exc:
+        return f"cannot be read ({type(exc).__name__}: {exc})"
+    return None
+
+
+def _sidecar_problem(so_path: Path) -> str | None:
+    """What is wrong with the library against the size and hash its build wrote next to it."""
     sidecar = so_path.with_name(so_path.name + ".sha256")
     try:
-        return sidecar.read_text().strip() == _digest(so_path)
+        if sidecar.read_text().strip() != _digest(so_path):
+            return "does not match the size and hash its build recorded"
+    except OSError as exc:
+        return f"or its sidecar cannot be read ({type(exc).__name__})"
+    return None
+
+
+def _file_problem(so_path: Path) -> str | None:
+    """Why the cached library must not be handed to the loader, or ``None``: its sidecar (size
+    and hash) and its ELF headers (every segment inside the file)."""
+    return _sidecar_problem(so_path) or _elf_problem(so_path)
+
+
+def _verified(so_path: Path) -> bool:
+    """True when the library matches the size and hash its build wrote next to it and its ELF
+    headers describe a complete file: a cache file cut short, emptied, overwritten or swapped is
+    never handed to the loader (a truncated ELF file crashes the process with SIGBUS, even when
+    its sidecar was rewritten to match; checking it first, in this process, prevents that)."""
+    return _file_problem(so_path) is None
+
+
+def _identity(path: Path) -> tuple[int, int, int, int] | None:
+    """The file's (device, inode, size, mtime): tells a file rejected earlier from a new one."""
+    try:
+        st = os.stat(path)
     except OSError:
-        return False
+        return None
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+#: the words a function definition's return type may be made of; a macro (upper case) or an
+#: attribute before the name may make it static or hidden, so such a definition promises nothing
+_TYPE_WORD = re.compile(r"[a-z_][a-z0-9_]*|\*")
+_NOT_EXPORTED = {"static", "inline", "__inline", "__inline__", "extern", "typedef", "struct",
+                 "union", "enum", "return", "if", "while", "for", "switch", "do", "else"}
+_DEFINITION = re.compile(r"(?:^|(?<=[;}]))\s*([A-Za-z_][\w\s*]*?)\s*\b([A-Za-z_]\w*)\s*"
+                         r"\(([^(){};]*)\)\s*\{\}")
+_TOKENS = re.compile(r"/\*.*?\*/|//[^\n]*|\"(?:\\.|[^\"\\\n])*\"|'(?:\\.|[^'\\\n])*'", re.S)
+_DIRECTIVE = re.compile(r"^[ \t]*#(?:[^\n]*\\\n)*[^\n]*", re.M)
+
+
+def entry_points(source: str) -> tuple[str, ...]:
+    """The functions a C translation unit defines with external linkage, as far as can be told
+    without a preprocessor: file-scope definitions ``type name(params) { ... }`` whose return
+    type is plain lower-case words and ``*`` and neither they nor the name is a macro (no
+    ``static``, ``inline``, ``#define``d word or upper-case word that may hide one). Comments,
+    string literals and preprocessor lines are removed first; function bodies are skipped by
+    brace depth. Conservative: a definition it cannot read is left out, never guessed.
+
+    Parameters
+    ----------
+    source : str
+        A complete C99 translation unit.
+
+    Returns
+    -------
+    tuple of str
+        The names, sorted.
+
+    Examples
+    --------
+    >>> entry_points("static int f(void) { return 0; }\\nint g(int a) { return a; }\\n")
+    ('g',)
+    """
+    text = _TOKENS.sub(lambda m: " " if m.group(0)[0] == "/" else '""', source)
+    macros = set(re.findall(r"^[ \t]*#[ \t]*define[ \t]+([A-Za-z_]\w*)", text, re.M))
+    text = _DIRECTIVE.sub("", text)
+    flat, depth, last = [], 0, 0  # the file-scope text, every {...} body replaced by {}
+    for match in re.finditer(r"[{}]", text):
+        if match.group(0) == "{":
+            if depth == 0:
+                flat.append(text[last:match.start()] + "{")
+            depth += 1
+        else:
+            depth -= 1
+            if depth == 0:
+                flat.append("}")
+                last = match.end()
+            elif depth < 0:  # unbalanced: read nothing rather than guess
+                return ()
+    flat.append(text[last:] if depth == 0 else "")
+    names = set()
+    for match in _DEFINITION.finditer("".join(flat)):
+        prefix = match.group(1).replace("*", " * ").split()
+        if prefix and not _NOT_EXPORTED.intersection(prefix) and all(
+                _TYPE_WORD.fullmatch(word) and word not in macros
+                for word in [*prefix, match.group(2)]):
+            names.add(match.group(2))
+    return tuple(sorted(names))
+
+
+def _stamp(key: str) -> tuple[str, str]:
+    """The symbol every library carries for its cache key, and its C definition."""
+    name = f"dtdyn_cache_key_{key[:32]}"
+    return name, f'\n/* dtdyn cache key stamp */\nconst char {name}[] = "{key}";\n'
+
+
+def _export_problem(lib: ctypes.CDLL, key: str, names: tuple[str, ...]) -> str | None:
+    """What the loaded library lacks of what its key promises (looked up, never called): the
+    key stamp with the full key as its value, and every entry point of its source."""
+    stamp, _ = _stamp(key)
+    try:
+        value = (ctypes.c_char * (len(key) + 1)).in_dll(lib, stamp).value.decode("ascii")
+    except (AttributeError, ValueError, UnicodeDecodeError):
+        return f"lacks the stamp {stamp} of its cache key (a library built from another source)"
+    if value != key:
+        return f"carries the stamp of another cache key ({value[:16]}...)"
+    missing = [name for name in names if not hasattr(lib, name)]
+    if missing:
+        return f"does not export {', '.join(missing)}"
+    return None
+
+
+def _dlclose(lib: ctypes.CDLL) -> None:
+    """Unload a rejected library, so that loading the rebuilt file at the same path maps the new
+    file (the loader would otherwise hand back the library already open under that name)."""
+    try:
+        import _ctypes
+
+        _ctypes.dlclose(lib._handle)
+    except (ImportError, AttributeError, OSError):  # pragma: no cover - no dlclose here
+        pass
 
 
 def _discard(so_path: Path) -> None:
@@ -202,13 +437,17 @@ def _discard(so_path: Path) -> None:
         _unlink(path)
 
 
-def _compile(source: str, argv: tuple[str, ...], folder: Path, stem: str) -> Path:
-    """``folder/stem.so``, verified: reused when its sidecar matches, else (re)built by this
-    process under an exclusive lock (a racing process waits and reuses it).
+def _compile(source: str, argv: tuple[str, ...], folder: Path, stem: str,
+             rejected: tuple | None = None) -> Path:
+    """``folder/stem.so``, verified: reused when its sidecar and ELF headers check, else
+    (re)built by this process under an exclusive lock (a racing process waits and reuses it).
+    ``rejected``: the :func:`_identity` of a file the caller found bad after loading it; the
+    file is removed and rebuilt only if it is still that one (a racing process may have
+    replaced it already), so two processes that both reject it build it once.
 
-    A build counts only when the compiler exits 0 and leaves a non-empty shared object (ELF
-    header); then the sidecar ``stem.so.sha256`` (size and hash) is written atomically and
-    the library renamed into place. Anything else is never cached.
+    A build counts only when the compiler exits 0 and leaves a complete shared object (its
+    ELF headers check); then the sidecar ``stem.so.sha256`` (size and hash) is written
+    atomically and the library renamed into place. Anything else is never cached.
 
     Raises
     ------
@@ -221,7 +460,9 @@ def _compile(source: str, argv: tuple[str, ...], folder: Path, stem: str) -> Pat
     lock_fd = os.open(folder / f"{stem}.so.lock", os.O_RDWR | os.O_CREAT, 0o644)
     try:
         fcntl.flock(lock_fd, fcntl.LOCK_EX)
-        if so_path.exists() and _verified(so_path):  # built by another process while we waited
+        # built by another process while we waited (and not the file the caller rejected)
+        if so_path.exists() and _verified(so_path) and (
+                rejected is None or _identity(so_path) != rejected):
             return so_path
         _discard(so_path)  # stale, damaged or foreign: rebuilt below
         c_path = folder / f"{stem}.c"
@@ -248,9 +489,13 @@ def _compile(source: str, argv: tuple[str, ...], folder: Path, stem: str) -> Pat
                 )
             with open(tmp, "rb") as fh:
                 magic = fh.read(4)
-            if magic != b"\x7fELF":
+            if not magic if sys.platform == "darwin" else magic != b"\x7fELF":
                 raise _Unavailable(f"{argv[0]!r} exited 0 but produced no shared library "
                                    f"({os.path.getsize(tmp)} bytes); nothing was cached")
+            bad = _elf_problem(tmp)
+            if bad:
+                raise _Unavailable(f"{argv[0]!r} exited 0 but the library it wrote {bad}; "
+                                   "nothing was cached")
             _write_atomic(so_path.with_name(so_path.name + ".sha256"), _digest(Path(tmp)))
             os.replace(tmp, so_path)
         finally:
@@ -270,6 +515,40 @@ def _warn_once(reason: str) -> None:
         f"dtdyn C backend unavailable, using the NumPy implementation instead. Reason: {reason}",
         DtdynFallbackWarning,
     )
+
+
+def _load_checked(source: str, name: str, key: str, argv: tuple[str, ...]) -> ctypes.CDLL:
+    """Load ``name-<key>.so`` from the cache, building it if missing, such that no file that is
+    not a complete library reaches the loader and no library lacking what its key promises is
+    returned; a bad file is removed and rebuilt once (under the build lock, see
+    :func:`_compile`), a second failure raises :class:`DtdynCacheError`."""
+    folder = cache_dir()
+    stem = f"{name}-{key[:16]}"
+    so_path = folder / f"{stem}.so"
+    compiled = source + _stamp(key)[1]
+    names = entry_points(source)
+    rejected, problem = None, None
+    for attempt in range(2):
+        if attempt == 0 and so_path.exists() and _verified(so_path):
+            path = so_path  # the common case: checked without the lock, the file is never
+        else:               # rewritten in place (builds are renamed over it)
+            path = _compile(compiled, argv, folder, stem, rejected)
+        identity = _identity(path)
+        try:
+            lib = ctypes.CDLL(str(path))
+        except OSError as exc:  # checked yet not loadable
+            problem = f"was refused by the loader ({exc})"
+        else:
+            problem = _export_problem(lib, key, names)
+            if problem is None:
+                return lib
+            _dlclose(lib)
+        rejected = identity
+    raise DtdynCacheError(
+        f"the cached C library {so_path} {problem}, again after it was removed and rebuilt; "
+        f"something rewrites the cache folder {folder} or the compiler {argv[0]!r} does not "
+        "build a complete library (set DTDYN_CACHE to another folder, or DTDYN_NO_C=1 to use "
+        "the NumPy implementation)")
 
 
 def load_library(source: str, name: str) -> ctypes.CDLL | None:
@@ -297,6 +576,9 @@ def load_library(source: str, name: str) -> ctypes.CDLL | None:
         If ``name`` is not a valid identifier.
     TypeError
         If ``source`` is not a string.
+    DtdynCacheError
+        If the cached library fails its checks (sidecar, ELF headers, key stamp and entry
+        points, see the module docstring) again after it was removed and rebuilt once.
     """
     if not isinstance(name, str) or _NAME_RE.fullmatch(name) is None:
         raise ValueError(
@@ -304,6 +586,7 @@ def load_library(source: str, name: str) -> ctypes.CDLL | None:
         )
     if not isinstance(source, str):
         raise TypeError(f"source must be str, not {type(source).__name__}")
+    source = expand_includes(source)
     if _disabled():
         _warn_once("disabled by DTDYN_NO_C")
         return None
@@ -320,16 +603,9 @@ def load_library(source: str, name: str) -> ctypes.CDLL | None:
             return _memo[memo_key]
         lib = None
         try:
-            folder = cache_dir()
-            stem = f"{name}-{key[:16]}"
-            so_path = folder / f"{stem}.so"
-            if not (so_path.exists() and _verified(so_path)):
-                so_path = _compile(source, argv, folder, stem)
-            try:
-                lib = ctypes.CDLL(str(so_path))
-            except OSError:  # verified yet not loadable: rebuild once
-                _discard(so_path)
-                lib = ctypes.CDLL(str(_compile(source, argv, folder, stem)))
+            lib = _load_checked(source, name, key, argv)
+        except DtdynCacheError:
+            raise
         except _Unavailable as exc:
             reason = str(exc)
         except (OSError, RuntimeError) as exc:  # cache not writable, no home, dlopen error
@@ -340,18 +616,44 @@ def load_library(source: str, name: str) -> ctypes.CDLL | None:
     return lib
 
 
-def generated_source(filename: str) -> str:
-    """A generated C source as one translation unit: its ``#include "x.h"`` lines of files that
-    dtdyn.generated ships (chain_loop.h) are replaced by their text, so the compile needs no
-    include path and the cache key covers the included code."""
+#: where ``#include "x.h"`` of a source is found: the generated headers (c_api.h), then the
+#: hand-written C (dtdyn/_engine/csrc)
+INCLUDE_PACKAGES = ("dtdyn.generated", "dtdyn._engine")
+_INCLUDE_RE = re.compile(r'(?m)^[ \t]*#include "([A-Za-z0-9_]+\.h)"[^\n]*\n?')
+
+
+def include_dirs() -> list:
+    """The folders `expand_includes` reads (generated/, then _engine/csrc/), for a compiler's -I."""
     from importlib import resources
 
-    folder = resources.files("dtdyn.generated")
-    out = []
-    for line in folder.joinpath(filename).read_text().splitlines(keepends=True):
-        match = re.fullmatch(r'#include "([A-Za-z0-9_]+\.h)"\s*', line)
-        out.append(folder.joinpath(match.group(1)).read_text() if match else line)
-    return "".join(out)
+    return [resources.files("dtdyn.generated"), resources.files("dtdyn._engine") / "csrc"]
+
+
+def expand_includes(source: str, _depth: int = 0) -> str:
+    """``source`` with each ``#include "x.h"`` of a header dtdyn ships (`include_dirs`) replaced by
+    its text, recursively (as the preprocessor reads it: each header's own guard keeps a second
+    copy out), so the compile needs no include path and the cache key covers the included code.
+    Other includes (``<math.h>``) are left as they are."""
+    if _depth > 16:
+        raise RuntimeError("#include nesting deeper than 16 in dtdyn's C sources (a cycle?)")
+    folders = include_dirs()
+
+    def text(match):
+        for folder in folders:
+            path = folder.joinpath(match.group(1))
+            if path.is_file():
+                body = expand_includes(path.read_text(), _depth + 1)
+                return body if body.endswith("\n") else body + "\n"
+        return match.group(0)
+
+    return _INCLUDE_RE.sub(text, source)
+
+
+def generated_source(filename: str) -> str:
+    """A generated C source (dtdyn.generated) as one translation unit (`expand_includes`)."""
+    from importlib import resources
+
+    return expand_includes(resources.files("dtdyn.generated").joinpath(filename).read_text())
 
 
 def bind(lib, kernel: str, symbol: str | None = None):

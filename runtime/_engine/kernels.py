@@ -5,14 +5,28 @@ from functools import lru_cache
 
 import numpy as np
 
-from dtdyn.generated import dttmm_sweep
+from dtdyn.generated import c_api, dttmm_sweep
 
 from dtdyn._engine import cbuild
 from dtdyn._engine.stepping import history_from_states
 
-FORM_CODE = {"displacement": 0, "acceleration": 1}
-SWEEP_CODE = {"stable": 0, "plain": 1}
-WORK_ROWS = {"stable": 12, "plain": 30}  # doubles per mass the C kernel needs as scratch
+# the kernels' codes and work rows (doubles per mass) from the one spec, dtdyn.derive.c_api
+FORM_CODE = {"displacement": c_api.FORM_DISPLACEMENT, "acceleration": c_api.FORM_ACCELERATION}
+SWEEP_CODE = {"stable": c_api.SWEEP_STABLE, "plain": c_api.SWEEP_PLAIN}
+WORK_ROWS = {"stable": c_api.CHAIN_ROWS_STABLE, "plain": c_api.CHAIN_ROWS_PLAIN}
+
+
+class DtdynKernelError(RuntimeError):
+    """A C kernel refused or failed a call (a broken contract between the runtime and the C
+    code, never a user error): ``kernel``, its return code ``code`` and what it means."""
+
+    def __init__(self, kernel: str, code: int, detail: str = ""):
+        self.kernel, self.code = kernel, code
+        meaning = {c_api.ERR_WORK: "its work array is too short (n_work below its rows times N); "
+                                   "nothing was written",
+                   c_api.ERR_FORM: "the scheme has no such form"}.get(code, "unknown code")
+        super().__init__(f"C kernel {kernel} returned {code}: {meaning}"
+                         + (f" ({detail})" if detail else ""))
 
 
 class PlainSweepError:
@@ -125,10 +139,11 @@ def chain_advance(backend, scheme, coeffs, form, sweep, chain, dt, loaded, out_i
         rc = fn(FORM_CODE[form], SWEEP_CODE[sweep], N, force.shape[0] - 1, m.ctypes.data,
                 k.ctypes.data, c.ctypes.data, _p(kg), _p(cg), dt, params.ctypes.data, loaded64.size,
                 loaded64.ctypes.data, force.ctypes.data, H.ctypes.data, out64.size,
-                out64.ctypes.data, _p(xo), _p(vo), _p(ao), work.ctypes.data, _p(E),
+                out64.ctypes.data, _p(xo), _p(vo), _p(ao), work.ctypes.data, work.size, _p(E),
                 _p(tracker.err) if plain else None, threads)
-        if rc != 0:
-            raise RuntimeError(f"C kernel chain_{scheme.name} returned {rc} for form {form!r}")
+        if rc != c_api.OK:
+            raise DtdynKernelError(f"dtdyn_chain_{scheme.name}", rc, f"form {form!r}, sweep "
+                                   f"{sweep!r}, N = {N}, n_work = {work.size}")
         if plain:
             tracker.record(force.shape[0] - 1)
         return tracker.estimate if plain else 0.0

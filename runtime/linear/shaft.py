@@ -24,8 +24,10 @@ import scipy.sparse as sps
 
 from dtdyn._engine import cbuild, stepping, validate
 from dtdyn._engine import ground as support
+from dtdyn._engine import kernels
 from dtdyn._engine.kernels import params_array
 from dtdyn._engine.schemes import get_scheme
+from dtdyn.generated import c_api
 from dtdyn.generated import shaft as gen
 from dtdyn.linear.stability import check_dt, highest_frequency
 
@@ -259,6 +261,10 @@ class Shaft:
         ``right_stiffness``, ``right_damping`` (a shaft or a support) from the last disk to a wall;
         ``right_stiffness`` may be a `ContinuousShaft` (right = "clamped", right_damping 0): its
         lumped points are "<line>.right.e<j>", after the line's last disk.
+    right_stiffness, right_damping : float or ContinuousShaft
+        The shaft or support from the last disk to the right wall with right = "clamped" or
+        "elastic": k_t >= 0 (N m/rad) or a `ContinuousShaft`, and c_t >= 0 (N m s/rad); 0, 0
+        by default.
     ground_stiffness, ground_damping : (N,) array_like, optional
         Springs and dampers from each disk to the ground (bearings, supports).
     branches : sequence of Branch
@@ -266,6 +272,8 @@ class Shaft:
     name : str
         The main line's name in the DOF names ("main").
 
+    Notes
+    -----
     DOF names: "<line>.<i>" for disk i of a line, "<line>.<i>.e<j>" for the j-th lumped point
     inside a continuous shaft before disk i. Order (`dofs`): the main line station by station
     (a continuous shaft's points just before its disk), then each branch the same way, depth
@@ -487,7 +495,7 @@ def _advance_factory(backend, tree, dt, loaded, outputs, form):
     loaded64 = np.ascontiguousarray(loaded, dtype=np.int64)
     out64 = np.ascontiguousarray(outputs, dtype=np.int64)
     N = m.size
-    work = np.empty(15 * N)
+    work = np.empty(c_api.SHAFT_ROWS * N)  # rows from the one spec (dtdyn.derive.c_api)
 
     def make_advance(sch, coeffs):
         fn = _c_function(sch.name) if backend == "c" else None
@@ -503,13 +511,16 @@ def _advance_factory(backend, tree, dt, loaded, outputs, form):
             force = np.ascontiguousarray(force)
             assert H.flags.c_contiguous and H.dtype == np.float64
             p_ = lambda a: None if a is None else a.ctypes.data  # noqa: E731
-            rc = fn(0 if form == "displacement" else 1, N, force.shape[0] - 1, parent.ctypes.data,
+            rc = fn(kernels.FORM_CODE[form], N, force.shape[0] - 1, parent.ctypes.data,
                     gu.ctypes.data, gS.ctypes.data, gR.ctypes.data, m.ctypes.data, k.ctypes.data,
                     c.ctypes.data, p_(kg), p_(cg), dt, params.ctypes.data, loaded64.size,
                     loaded64.ctypes.data, force.ctypes.data, H.ctypes.data, out64.size,
-                    out64.ctypes.data, p_(xo), p_(vo), p_(ao), work.ctypes.data)
-            if rc != 0:
+                    out64.ctypes.data, p_(xo), p_(vo), p_(ao), work.ctypes.data, work.size)
+            if rc == c_api.ERR_FORM:
                 raise ValueError(f"scheme {sch.name!r} has no {form} form")
+            if rc != c_api.OK:
+                raise kernels.DtdynKernelError(f"dtdyn_shaft_{sch.name}", rc,
+                                               f"N = {N}, n_work = {work.size}")
             return 0.0
         return advance
     return make_advance
@@ -667,6 +678,8 @@ def shaft_frequencies(shaft: Shaft, count=None, below=None, *, exact=True) -> np
 
     Parameters
     ----------
+    shaft : Shaft
+        The torsional system.
     count : int, optional
         The lowest ``count`` frequencies (default: all of a lumped model; required or ``below``
         with continuous shafts, which have infinitely many).

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import ctypes
 import time
-from functools import lru_cache
+from functools import cache
 from types import SimpleNamespace
 from importlib import resources
 
@@ -37,6 +37,7 @@ from dtdyn.nonlinear.response import (QUANTITIES, NewtonError, _c_source, _force
                                       _residual_function, _sizes)
 from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
+from dtdyn.generated import c_api
 
 
 def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
@@ -48,13 +49,53 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
                              **scheme_params) -> Response:
     """Forced response of a chain with nonlinear elements by the DT-TMM (module docstring).
 
-    Parameters as `chain_response` (chain data with ``ground_stiffness``, ``ground_damping``,
-    ``force`` of shape (n_steps + 1,
-    len(force_dofs)) at t_k = k dt, linear between samples, ``scheme``, ``form``, ``outputs``,
-    ``quantities``, ``backend``, ``x0``, ``v0``, ``ground_acceleration``, ``ground_velocity``,
-    ``ground_displacement``, ``influence``) and
-    `nonlinear_mck_response` (``elements``, ``substeps``, ``tol``, ``max_iter``, the quantities "g"
-    and "z"). One-step schemes only.
+    The chain's linear part as in `chain_response` (stable sweep, O(N) per step), the elements
+    as in `nonlinear_mck_response`: a Newton solve in the element unknowns at every step.
+
+    Parameters
+    ----------
+    mass, stiffness, damping : (N,) array_like
+        m_n > 0, k_n >= 0, c_n >= 0 of station n (0-based), as in `chain_response`.
+    force : array_like, shape (n_steps + 1, len(force_dofs))
+        Samples at t_k = k dt, linear in between (a 1-D array is one column).
+    dt : float
+        Sample step, s (> 0).
+    elements : sequence of elements
+        `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen` between masses (i, j) or from mass i to
+        the ground (j None); at least one (`chain_response` for a linear chain).
+    ground_stiffness, ground_damping : (N,) array_like, optional
+        Springs and dampers from each mass to the ground, as in `chain_response`.
+    force_dofs : sequence of int, optional
+        0-based masses the force columns act on (all masses when None).
+    scheme : str
+        A one-step scheme of `chain_response` ("newmark", "hht", "generalized_alpha", ...; not
+        the multistep "houbolt", "park").
+    form : {"displacement", "acceleration"}
+        Primary unknown of the step transfer matrices, as in `chain_response`.
+    substeps : int
+        Steps per sample (h = dt / substeps); the force is interpolated linearly.
+    outputs : sequence of int, optional
+        Masses whose response is stored (all by default).
+    quantities : subset of ("x", "v", "a", "g", "z")
+        What is stored, as in `nonlinear_mck_response` ("g": element forces, "z": internal
+        states).
+    backend : {"c", "numpy"}
+        "c": with a compiler, the whole loop in generated C (the chain kernel and the compiled
+        residual); otherwise, and with "numpy", Python around the sweep, step for step the
+        same computation.
+    tol : float
+        Newton's tolerance, the acceptance rule of `nonlinear_mck_response`.
+    max_iter : int
+        Newton iterations per step before NewtonError.
+    ground_acceleration, ground_velocity, ground_displacement, influence : optional
+        Support motion as in `chain_response` (one record; ``force`` may then be None).
+    x0, v0 : (N,) array_like, optional
+        Displacement and velocity at t_0 (rest when None); the elements start from the
+        deformations they give, their internal states z from 0.
+    **scheme_params
+        The scheme's parameters by name (``beta``, ``gamma`` of "newmark", ``alpha`` of "hht",
+        ``rho_inf`` of "generalized_alpha"; `dtdyn show` lists them); a misspelled name is a
+        TypeError that names the closest one.
 
     Returns
     -------
@@ -240,7 +281,8 @@ def condensed_response(make_advance, n, history, elements, ei, ej, force_dofs, o
                 u = np.concatenate([Q + Dwg @ g, zold + h * rold])
                 scale = _grow(scale, Q)
                 u, it, rn, (g_new, rate_new) = newton_solve(
-                    lambda v: fn(v, Q, zold, rold, par), u, scale, scale_u, tol, max_iter)
+                    lambda v, Q=Q, zold=zold, rold=rold: fn(v, Q, zold, rold, par), u, scale,
+                    scale_u, tol, max_iter)
                 if it < 0 or not np.isfinite(g_new).all():
                     _newton_error(k * S + j, S, h, rn, max_iter)
                 scale_u = _grow(scale_u, u)
@@ -298,7 +340,7 @@ def _newton_error(kk, S, h, rn, max_iter):
                       "iterations; try more substeps")
 
 
-@lru_cache(maxsize=None)
+@cache
 def _c_driver(elements, sz):
     """(dtdyn_nl_chain, CasADi work sizes, library) from generated/nl_chain.c with the elements'
     residual appended, or None without a compiler."""
@@ -327,7 +369,7 @@ def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
         *[0 if a is None else a.ctypes.data for a in xs])
     stats = np.zeros(4)
     fail = np.zeros(1, dtype=np.int64)
-    work = np.zeros(12 * N + 2 * nl + nw + 2 * nz + nu * (nu + 1) + ne + nz + n_w + 1)
+    work = np.zeros(c_api.CHAIN_ROWS_STABLE * N + 2 * nl + nw + 2 * nz + nu * (nu + 1) + ne + nz + n_w + 1)
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
     args = (dims.ctypes.data, ctypes.cast(chain, ctypes.c_void_p), pointers(idx),
             pointers(mats), *(a.ctypes.data for a in state),

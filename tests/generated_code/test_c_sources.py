@@ -29,3 +29,36 @@ def test_compiles_without_warnings(name, tmp_path):
                            *DEFINES.get(name, []), "-c", str(src), "-o", str(tmp_path / "k.o")],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
+
+
+CSRC = resources.files("dtdyn._engine") / "csrc"
+HAND_WRITTEN = sorted(p.name for p in CSRC.iterdir() if p.name.endswith(".h"))
+
+
+@pytest.mark.skipif(CC is None, reason="no C compiler on this machine")
+@pytest.mark.parametrize("name", SOURCES)
+def test_compiles_in_place_with_the_runtime_flags(name, tmp_path):
+    """As the files are, with the include path instead of the runtime's inlining, and with the
+    runtime's optimisation (-O3: some warnings, e.g. maybe-uninitialized, need it)."""
+    flags = [f for f in cbuild.CFLAGS if f not in ("-shared", "-fPIC")]
+    dirs = [f"-I{d}" for d in cbuild.include_dirs()]
+    proc = subprocess.run([CC, *flags, "-Wall", "-Wextra", "-Werror", *dirs,
+                           *DEFINES.get(name, []), "-c",
+                           str(resources.files("dtdyn.generated").joinpath(name)),
+                           "-o", str(tmp_path / "k.o")], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_hand_written_c_is_c_and_each_file_is_used():
+    """The hand-written C is plain C (no template syntax), kept once (not copied into
+    generated/), and every file is included by a generated source."""
+    generated = resources.files("dtdyn.generated")
+    texts = [cbuild.generated_source(n) for n in SOURCES]
+    assert {"chain_loop.h", "shaft_loop.h", "nl_loop.h", "nl_chain.h", "mck_loop.h"} <= set(
+        HAND_WRITTEN)
+    for name in HAND_WRITTEN:
+        text = CSRC.joinpath(name).read_text()
+        assert "{%" not in text and "{{" not in text, name
+        assert not generated.joinpath(name).is_file(), f"{name} is also in generated/"
+        first = text.splitlines()[0]
+        assert any(first in t for t in texts), f"{name} is included by no generated source"

@@ -1,3 +1,7 @@
+/* sturm.h: hand-written C, compiled as it is (dtdyn/_engine/csrc) */
+#ifndef DTDYN_STURM_H
+#define DTDYN_STURM_H
+#include "c_api.h"
 /*
  * Wittrick-Williams count for a chain: the number of eigenvalues of K phi = lambda M phi below
  * each trial lambda, from the signs of the pivots of K - lambda M (Sylvester's law of inertia).
@@ -122,3 +126,4 @@ int dtdyn_sturm_laguerre(long N, const double *restrict k, const double *restric
     }
     return 0;
 }
+#endif /* DTDYN_STURM_H */

@@ -1,3 +1,9 @@
+/* block_chain.h: hand-written C, compiled as it is (dtdyn/_engine/csrc) */
+#ifndef DTDYN_BLOCK_CHAIN_H
+#define DTDYN_BLOCK_CHAIN_H
+#include "c_api.h"
+#include "stop.h"
+#include "flush_subnormals.h"
 /*
  * The time loop of a chain of nodes with two DOFs each whose M, C, K are symmetric and block
  * tridiagonal in 2 x 2 node blocks (a beam: [w, psi] per node, beam_response), any scheme of
@@ -454,3 +460,4 @@ DTDYN_LOOP int block_chain_loop_run(long N, long n_hist, long n_steps, long n_lo
     }
     return 0;
 }
+#endif /* DTDYN_BLOCK_CHAIN_H */

@@ -1,3 +1,6 @@
+/* flush_subnormals.h: hand-written C, compiled as it is (dtdyn/_engine/csrc) */
+#ifndef DTDYN_FLUSH_SUBNORMALS_H
+#define DTDYN_FLUSH_SUBNORMALS_H
 /* Subnormal results flushed to zero, and subnormal operands read as zero, while a kernel runs
    (x86: MXCSR's FTZ and DAZ bits; AArch64: FPCR's FZ bit), the caller's mode restored on return.
    A response that decays or a wave entering a system at rest passes through the subnormal range
@@ -34,3 +37,4 @@ static inline void dtdyn_flush_off(unsigned long long mode) { (void)mode; }
    which keeps GCC's use of the loop's restrict parameters (inlined, the state-space loop of
    ss_response.c ran 7 % slower). */
 #define DTDYN_LOOP __attribute__((noinline)) static
+#endif /* DTDYN_FLUSH_SUBNORMALS_H */

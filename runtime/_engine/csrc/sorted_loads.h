@@ -1,3 +1,7 @@
+/* sorted_loads.h: hand-written C, compiled as it is (dtdyn/_engine/csrc) */
+#ifndef DTDYN_SORTED_LOADS_H
+#define DTDYN_SORTED_LOADS_H
+#include <stdlib.h>
 /* The loaded indices of a kernel call ascending and once each (the chain's and the tree's stable
    sweeps redo the loaded stations after a terms loop that skips the force row). */
 static int dtdyn_compare_long(const void *a, const void *b)
@@ -18,3 +22,4 @@ static long dtdyn_sorted_loads(long n, const long *loaded, long *out)
             out[m++] = out[j];
     return m;
 }
+#endif /* DTDYN_SORTED_LOADS_H */

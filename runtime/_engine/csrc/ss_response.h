@@ -1,3 +1,8 @@
+/* ss_response.h: hand-written C, compiled as it is (dtdyn/_engine/csrc) */
+#ifndef DTDYN_SS_RESPONSE_H
+#define DTDYN_SS_RESPONSE_H
+#include "c_api.h"
+#include "flush_subnormals.h"
 /*
  * The sequential part of a discrete state-space response: X[n + 1] = A X[n] + w_n for
  * n = 0..n_steps-1 (w_n = B u_n is formed beforehand, as is y = C x + D u afterwards, by
@@ -33,3 +38,4 @@ DTDYN_LOOP int ss_states_run(long ns, long n_steps, const double *restrict At,
     }
     return 0;
 }
+#endif /* DTDYN_SS_RESPONSE_H */

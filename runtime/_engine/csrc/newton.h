@@ -1,3 +1,7 @@
+/* newton.h: hand-written C, compiled as it is (dtdyn/_engine/csrc) */
+#ifndef DTDYN_NEWTON_H
+#define DTDYN_NEWTON_H
+#include "c_api.h"
 /* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
 #include <float.h>
 /* LU with partial pivoting of J (column-major n x n) in place: the multipliers below the
@@ -179,3 +183,4 @@ static long newton_solve(long nu, long ne, double *restrict u, double *restrict 
             u[i] += r[i];
     }
 }
+#endif /* DTDYN_NEWTON_H */

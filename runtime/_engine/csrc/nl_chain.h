@@ -1,5 +1,5 @@
-{% import "macros.jinja" as mac %}
-{{ mac.header("//", template, source) }}
+/* nl_chain.h: hand-written C, compiled as it is (dtdyn/_engine/csrc); generated/nl_chain.c
+   adds the entry point of the signature spec (dtdyn.derive.c_api) */
 /*
  * Nonlinear response of a DT-TMM chain with localized elements over a whole record: the loop of
  * dtdyn.nonlinear.chain in C. Per (sub)step, with the chain history H (nh x N rows):
@@ -13,23 +13,23 @@
  * L(f, g) puts the external forces on their masses and -g_e, +g_e on the element's nodes i, j;
  * W(H)_e = x_i - x_j (and v_i - v_j when an element needs y'). The sweep is the generated chain
  * kernel of the scheme, called through a pointer one step at a time; after the first call it
- * reuses the Riccati factors left in its work (sweep code 2). The residual, its Jacobian, g and
+ * reuses the Riccati factors left in its work (DTDYN_SWEEP_REUSE). The residual, its Jacobian, g and
  * z' come from `nl_residual` (CasADi code generation of the element laws, appended to this
- * source). Newton accepts u by the rule of every backend (newton_solve in newton.c).
- * Returns 0; DTDYN_STOPPED (stop.c) when stopped; 1 when Newton failed (not converged in
+ * source). Newton accepts u by the rule of every backend (newton_solve in newton.h).
+ * Returns 0; DTDYN_STOPPED (stop.h) when stopped; 1 when Newton failed (not converged in
  * max_iter iterations, singular Jacobian or non-finite) at step fail[0] with residual
  * stats[3]; 4 when the chain kernel failed.
  */
+#ifndef DTDYN_NL_CHAIN_H
+#define DTDYN_NL_CHAIN_H
+#include "c_api.h"
 #include <math.h>
 #include <string.h>
 
-typedef long long int nl_int;
-{{ chain_typedef }}
-{{ prototypes }}
-{% include "stop.c" %}
-{% include "flush_subnormals.c" %}
+#include "stop.h"
+#include "flush_subnormals.h"
 
-{% include "newton.c" %}
+#include "newton.h"
 
 /*
  * dims: N, nh, n_loaded, nf (force columns), ne, nw, nz, no, n_samples, S, max_iter, form,
@@ -42,7 +42,7 @@ typedef long long int nl_int;
  * out:  x, v, a (n_samples x no each), then g (n_samples x ne) and z (n_samples x nz), NULL
  *       when not stored.
  * stats: [max iterations, total iterations, max final residual, failing residual].
- * work: 12 N (chain kernel) + 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz, then
+ * work: DTDYN_CHAIN_ROWS_STABLE N (chain kernel) + 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz, then
  *       the CasADi work.
  */
 DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const *idx,
@@ -60,7 +60,7 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
     const long *ej = idx[5], *outs = idx[6];
     const double *m = mats[0], *k = mats[1], *c = mats[2], *kg = mats[3], *cg = mats[4];
     const double *params = mats[5], *U = mats[6], *par = mats[7], *Dwg = par, *force = mats[8];
-    double *cwork = work, *frc = cwork + 12 * N, *Q = frc + 2 * nl, *zold = Q + nw;
+    double *cwork = work, *frc = cwork + DTDYN_CHAIN_ROWS_STABLE * N, *Q = frc + 2 * nl, *zold = Q + nw;
     double *rold = zold + nz, *r = rold + nz, *J = r + nu, *gn = J + nu * nu, *rn_ = gn + ne;
     double *cw = rn_ + nz;
     const double *arg[5];
@@ -99,8 +99,9 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
                 if (pj[e] >= 0)
                     frc[pj[e]] += g[e];
             }
-            if (sweep(form, (n == 0 && j == 0) ? 0 : 2, N, 1, m, k, c, kg, cg, h, params, nl, loaded,
-                      frc, H, 0, NULL, NULL, NULL, NULL, cwork, NULL, NULL, 1))
+            if (sweep(form, (n == 0 && j == 0) ? DTDYN_SWEEP_STABLE : DTDYN_SWEEP_REUSE, N, 1, m, k, c, kg, cg, h, params, nl, loaded,
+                      frc, H, 0, NULL, NULL, NULL, NULL, cwork, DTDYN_CHAIN_ROWS_STABLE * N, NULL, NULL,
+                      1))
                 return 4;
             for (e = 0; e < ne; ++e) {
                 Q[e] = H[ix * N + ei[e]] - (ej[e] >= 0 ? H[ix * N + ej[e]] : 0.0);
@@ -145,4 +146,4 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
     }
     return 0;
 }
-{{ flushed_entries }}
+#endif /* DTDYN_NL_CHAIN_H */

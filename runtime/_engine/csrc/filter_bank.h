@@ -1,3 +1,9 @@
+/* filter_bank.h: hand-written C, compiled as it is (dtdyn/_engine/csrc) */
+#ifndef DTDYN_FILTER_BANK_H
+#define DTDYN_FILTER_BANK_H
+#include "c_api.h"
+#include "stop.h"
+#include "flush_subnormals.h"
 /*
  * A bank of parallel second-order sections (transposed direct form II):
  *   v_n = b0 x_n + s1;  s1 = b1 x_n - a1 v_n + s2;  s2 = b2 x_n - a2 v_n
@@ -44,3 +50,4 @@ DTDYN_LOOP int filter_bank_run(long n, long n_in, long n_out, long n_sec,
     }
     return 0;
 }
+#endif /* DTDYN_FILTER_BANK_H */

@@ -1,3 +1,9 @@
+/* mck_loop.h: hand-written C, compiled as it is (dtdyn/_engine/csrc) */
+#ifndef DTDYN_MCK_LOOP_H
+#define DTDYN_MCK_LOOP_H
+#include "c_api.h"
+#include "stop.h"
+#include "flush_subnormals.h"
 /*
  * The time loop of mck_response and beam_response (any one-step or multistep scheme of the
  * generated table, either form), for dense and sparse M, C, K alike. Each DOF's x, v, a at the
@@ -222,3 +228,4 @@ DTDYN_LOOP int mck_loop_run(int solver, long n, long n_hist, long n_steps, long 
     }
     return 0;
 }
+#endif /* DTDYN_MCK_LOOP_H */

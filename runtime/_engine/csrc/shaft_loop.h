@@ -1,5 +1,3 @@
-{% import "macros.jinja" as mac %}
-{{ mac.header("//", template, source) }}
 /*
  * The DT-TMM time loop of a torsional tree (disks, shafts, gears, branches), written once for
  * every scheme and form: shaft_<scheme>.c defines the scheme's derived expressions as the
@@ -11,6 +9,7 @@
  * junction sums: the Riccati factors S and the R terms are summed from the leaves to the root
  * (times gS and gR of each child), the unknowns u go from the root to the leaves (times gu).
  */
+#include "c_api.h"
 #include <math.h>
 #include <stddef.h>
 #include <stdlib.h>
@@ -18,8 +17,8 @@
 
 #ifndef DTDYN_SHAFT_HELPERS
 #define DTDYN_SHAFT_HELPERS
-{% include "sorted_loads.c" %}
-{% include "flush_subnormals.c" %}
+#include "sorted_loads.h"
+#include "flush_subnormals.h"
 #endif
 
 #ifndef SHAFT_BLOCK

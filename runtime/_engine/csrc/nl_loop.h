@@ -1,5 +1,5 @@
-{% import "macros.jinja" as mac %}
-{{ mac.header("//", template, source) }}
+/* nl_loop.h: hand-written C, compiled as it is (dtdyn/_engine/csrc); generated/nl_loop.c
+   adds the entry point of the signature spec (dtdyn.derive.c_api) */
 /*
  * Nonlinear forced response over a whole record: a linear discrete model with localized
  * nonlinear forces, one small Newton solve per (sub)step. With the state x_k, force f_k and the
@@ -15,18 +15,19 @@
  * `nl_residual` (CasADi code generation of the element laws, appended to this source).
  * Between samples the force is linear: f at sub-step j of sample n is f_n + (j/S)(f_{n+1} - f_n).
  *
- * Newton accepts u by the rule of every backend (newton_solve in newton.c): |r|_inf <= tol s_r
+ * Newton accepts u by the rule of every backend (newton_solve in newton.h): |r|_inf <= tol s_r
  * or the next Newton step |J^-1 r|_inf <= tol s_u, s_r = the largest |Q|_inf or |u|_inf and
  * s_u = the largest |u|_inf accepted so far (s_r raised by Q before a step). Matrices are
  * column-major; par holds Dwg, then h. Returns 0, or 1 when Newton failed at step fail[0] (sub-step
  * index) with residual stats[3] (non-finite, singular Jacobian or max_iter iterations), 3 (see
- * below) when the step is beyond its stability limit, DTDYN_STOPPED (stop.c) when stopped.
+ * below) when the step is beyond its stability limit, DTDYN_STOPPED (stop.h) when stopped.
  */
+#ifndef DTDYN_NL_LOOP_H
+#define DTDYN_NL_LOOP_H
+#include "c_api.h"
 #include <float.h>
 #include <math.h>
 
-typedef long long int nl_int;
-{{ prototypes }}
 #ifdef __GNUC__
 /* an empty statement the compiler may not move memory accesses across */
 #define COMPILER_BARRIER() __asm__ __volatile__("" ::: "memory")
@@ -38,8 +39,8 @@ typedef long long int nl_int;
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem)
     __attribute__((visibility("hidden")));
 #endif
-{% include "stop.c" %}
-{% include "flush_subnormals.c" %}
+#include "stop.h"
+#include "flush_subnormals.h"
 
 /* y += A x with A column-major (rows x cols): independent axpys, no long add chains */
 static inline void matvec_add(long rows, long cols, const double *restrict A,
@@ -54,7 +55,7 @@ static inline void matvec_add(long rows, long cols, const double *restrict A,
     }
 }
 
-{% include "newton.c" %}
+#include "newton.h"
 
 /*
  * newton_solve at the compile-time sizes of this loop (NL_NW + NL_NZ unknowns, NL_NE
@@ -969,4 +970,4 @@ DTDYN_LOOP int nl_loop_run(const long *dims, const double *const *mats,
     stats[5 + no] = lu.formed;
     return 0;
 }
-{{ flushed_entries }}
+#endif /* DTDYN_NL_LOOP_H */

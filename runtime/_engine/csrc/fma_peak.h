@@ -1,3 +1,7 @@
+/* fma_peak.h: hand-written C, compiled as it is (dtdyn/_engine/csrc) */
+#ifndef DTDYN_FMA_PEAK_H
+#define DTDYN_FMA_PEAK_H
+#include "c_api.h"
 /*
  * The multiply-add peak of one core for the 4-lane vectors of the generated loops (nl_loop.c,
  * modal_states.c), which `dtdyn bench` divides each loop's achieved flop rate by: `rounds` rounds
@@ -34,3 +38,4 @@ double dtdyn_fma_peak(long rounds)
         s += (a[i][0] + a[i][1]) + (a[i][2] + a[i][3]);
     return s;
 }
+#endif /* DTDYN_FMA_PEAK_H */

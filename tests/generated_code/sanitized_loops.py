@@ -1,0 +1,47 @@
+"""Run by test_sanitizers.py in a subprocess with libasan and libubsan preloaded: the chain, shaft,
+beam (block chain), mck and nonlinear (mck and chain) loops, compiled with
+-fsanitize=address,undefined, on tiny problems. With the argument ``overflow``: the chain kernel
+told its work is longer than it is (the check at entry passes), which ASan must report."""
+import sys
+import warnings
+
+import numpy as np
+from dtdyn._engine import cbuild
+SANITIZE = ("-fsanitize=address,undefined", "-fno-sanitize-recover=all", "-fno-omit-frame-pointer")
+cbuild.CFLAGS = tuple(f for f in cbuild.CFLAGS if f != "-O3") + ("-O1", "-g", *SANITIZE)
+cbuild.LIBS = cbuild.LIBS + SANITIZE[:1]
+warnings.simplefilter("ignore")
+warnings.simplefilter("error", cbuild.DtdynFallbackWarning)  # C or nothing
+import dtdyn  # noqa: E402
+from dtdyn._engine import kernels  # noqa: E402
+
+if sys.argv[1:] == ["overflow"]:
+    fn = kernels.c_chain_function("newmark")
+    N = 300
+    work = np.zeros(kernels.WORK_ROWS["stable"] * N - 1)  # one double short, malloc'ed
+    m, hist, force = np.ones(N), np.zeros((3, N)), np.ones((3, 1))
+    loaded, params = np.array([N - 1], dtype=np.int64), np.array([0.25, 0.5])
+    fn(0, 0, N, 2, m.ctypes.data, m.ctypes.data, m.ctypes.data, None, None, 1e-3,
+       params.ctypes.data, 1, loaded.ctypes.data, force.ctypes.data, hist.ctypes.data, 0, None,
+       None, None, None, work.ctypes.data, work.size + 1, None, None, 1)
+    print("not caught")
+    sys.exit(0)
+rng = np.random.default_rng(0)
+N = 9
+m, k, c = 1 + rng.random(N), 1e4 * (1 + rng.random(N)), 0.5 + rng.random(N)
+f = rng.standard_normal((41, 2))
+for sweep in ("stable", "plain"):
+    for form in ("displacement", "acceleration"):
+        dtdyn.chain_response(m, k, c, f, 1e-3, force_dofs=[0, 8], sweep=sweep, form=form,
+                             scheme="hht", alpha=-0.1)
+dtdyn.shaft_response(dtdyn.Shaft(np.ones(5), 1e4 * np.ones(5), 0.1 * np.ones(5)), f[:, 0], 1e-3,
+                     force_dofs=[4])
+dtdyn.beam_response(dtdyn.Beam(E=2e11, I=1e-8, rho_A=1.0, length=1.0, elements=4), f[:, 0],
+                    1e-4, force_dofs=[7])
+M, C, K = dtdyn.chain_matrices(m, k, c)
+dtdyn.mck_response(M, C, K, f, 1e-3, force_dofs=[0, 8])
+cubic = [dtdyn.Cubic(0, k3=1e8)]
+dtdyn.nonlinear_mck_response(M, C, K, 50 * f, 1e-3, force_dofs=[0, 8], elements=cubic,
+                             scheme="newmark")
+dtdyn.nonlinear_chain_response(m, k, c, 50 * f, 1e-3, force_dofs=[0, 8], elements=cubic)
+print("ok")
