@@ -12,7 +12,7 @@ time histories and their ODE reference), `dtdyn.app` (scenes, the `dtdyn` comman
 the reference problems) and the private engine `dtdyn._engine`. The generated kernels live in
 `dtdyn.generated`, the SymPy derivations in `dtdyn.derive` (needs the ``[derive]`` extra).
 """
-from dtdyn._engine.errors import (DtdynAccuracyWarning, DtdynFallbackWarning,
+from dtdyn._engine.errors import (DtdynAccuracyWarning, DtdynCacheError, DtdynFallbackWarning,
                                   DtdynStabilityWarning, DtdynStepStabilityError,
                                   DtdynUnstableError, NewtonError, SingularMassError,
                                   SRSSamplingWarning)
@@ -22,7 +22,7 @@ from dtdyn._engine.result_io import load_result
 from dtdyn.app.batch import run_batch
 from dtdyn.app.problems import problem
 from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
-from dtdyn.linear.chain import chain_matrices, rayleigh_chain_damping, chain_response
+from dtdyn.linear.chain import Chain, chain_matrices, rayleigh_chain_damping, chain_response
 from dtdyn.linear.beam import (Beam, PointMass, Support, beam_frequencies, beam_matrices,
                                beam_response)
 from dtdyn.linear.beam_frequency import beam_frequency_response, beam_modes
@@ -30,10 +30,11 @@ from dtdyn.linear.discrete_model import DiscreteModel
 from dtdyn.linear.discretize import discretize, first_order_form
 from dtdyn.linear.exact import exact_response
 from dtdyn.linear.frequencies import chain_frequencies, chain_poles
-from dtdyn.linear.mck import mck_response
+from dtdyn.linear.mck import Matrices, mck_response
 from dtdyn.linear.shaft import (Branch, ContinuousShaft, Shaft, shaft_frequencies, shaft_matrices,
                                 shaft_response)
 from dtdyn.linear.shaft_frequency import shaft_frequency_response, shaft_modes
+from dtdyn.linear.solver import Solver
 from dtdyn.linear.stability import Stability, critical_omega_dt, stability
 from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
 from dtdyn.linear.tmm import chain_frequency_response
@@ -55,17 +56,20 @@ __version__ = "0.1.0"
 __all__ = [
     # linear time histories and discrete models
     "chain_response", "chain_matrices", "rayleigh_chain_damping", "Beam", "PointMass", "Support",
+    "Matrices", "Chain", "Solver",
     "beam_matrices", "beam_frequencies", "beam_response", "beam_modes",
     "beam_frequency_response", "mck_response", "exact_response",
     "newmark_ss", "discrete_state_space", "state_space_response",
     "discretize", "first_order_form", "DiscreteModel",
-    "chain_frequency_response", "chain_frequencies", "chain_poles", "stability", "critical_omega_dt",
+    "chain_frequency_response", "chain_frequencies", "chain_poles", "stability",
+    "critical_omega_dt",
     "Stability",
     # torsional shafts and trees
     "Shaft", "Branch", "ContinuousShaft", "shaft_response", "shaft_matrices",
     "shaft_frequencies", "shaft_modes", "shaft_frequency_response",
     # modal
-    "mck_modes", "Modes", "modal_model", "from_poles_residues", "ModalModel", "modal_filter_response", "to_sos",
+    "mck_modes", "Modes", "modal_model", "from_poles_residues", "ModalModel",
+    "modal_filter_response", "to_sos",
     "discrete_frequency_response", "continuous_frequency_response", "ramp_bias",
     "truncation_error", "shock_response_spectrum", "sdof_response", "SRS", "load_record",
     "response_spectrum", "ResponseSpectrum",
@@ -74,13 +78,14 @@ __all__ = [
     "nonlinear_beam_response", "reference_response", "check_reference",
     "Cubic", "Polynomial", "Gap", "Law", "BoucWen",
     # scenes, results, reference problems
-    "ground_acceleration_from", "Scene", "load_scene", "scene_from_dict", "run_scene", "Response", "load_result",
+    "ground_acceleration_from", "Scene", "load_scene", "scene_from_dict", "run_scene", "Response",
+    "load_result",
     "run_batch",
     "problem",
     # errors and warnings
     "NewtonError", "DtdynStepStabilityError", "DtdynUnstableError", "SingularMassError",
     "DtdynAccuracyWarning",
-    "DtdynStabilityWarning", "DtdynFallbackWarning", "SRSSamplingWarning",
+    "DtdynStabilityWarning", "DtdynFallbackWarning", "SRSSamplingWarning", "DtdynCacheError",
     "__version__",
 ]
 

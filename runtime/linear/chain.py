@@ -13,21 +13,17 @@ elastic supports. docs/dttmm.md has the station matrices and the sweep.
 """
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 import scipy.sparse as sps
 
-from dtdyn._engine import ground as support
 from dtdyn._engine import kernels
-from dtdyn._engine import stepping
 from dtdyn._engine import threads as cpu
 from dtdyn._engine import validate
 from dtdyn._engine.result import Response
-from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.errors import DtdynAccuracyWarning
-from dtdyn._engine.public import warn
-from dtdyn.linear.stability import chain_highest_frequency, check_dt
+from dtdyn._engine.public import public, warn
+from dtdyn.linear.solver import Model, Solver, schemes_of_run
+from dtdyn.linear.stability import chain_highest_frequency
 
 #: the plain sweep warns above this estimated relative error
 PLAIN_SWEEP_TOLERANCE = 1e-6
@@ -46,33 +42,151 @@ def sweep_threads(workers, n_masses: int) -> int:
     return 2 if workers >= 2 and n_masses >= 2 else 1
 
 
-class Chain(NamedTuple):
-    """A checked chain: masses m, station springs k and dampers c (station n joins mass n to
-    mass n - 1, station 0 to the ground), each mass's spring kg and damper cg to the ground."""
+class Chain(Model):
+    """A chain of masses, springs and dampers: the model of `chain_response`.
 
-    m: np.ndarray
-    k: np.ndarray
-    c: np.ndarray
-    kg: np.ndarray
-    cg: np.ndarray
+    ::
+
+        ground |--[k0,c0]--(m0)--[k1,c1]--(m1)-- ... --(mN-1)  free
+                            [kg0,cg0] to the ground (optional)
+
+    Station n joins mass n to mass n - 1 (station 0 to the ground) by a spring k_n parallel to
+    a damper c_n; each mass may also have a spring kg_n and a damper cg_n to the ground.
+    Checked once when made; ``solver(dt, ...)`` prepares it for many load cases (`Solver`).
+    It unpacks as ``m, k, c, kg, cg = chain``.
+
+    Parameters
+    ----------
+    mass, stiffness, damping : (N,) array_like
+        m_n > 0, k_n >= 0, c_n >= 0 (N s/m) of station n (0-based); every station connected
+        (k_n + c_n > 0).
+    ground_stiffness, ground_damping : (N,) array_like, optional
+        kg_n >= 0, cg_n >= 0: a spring and a damper from mass n to the ground (zeros).
+
+    Attributes
+    ----------
+    mass, stiffness, damping, ground_stiffness, ground_damping : (N,) ndarray
+        The checked values (read-only copies); also ``m``, ``k``, ``c``, ``kg``, ``cg``.
+    n_dof : int
+        N, the number of masses.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> chain = dd.Chain([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], ground_stiffness=[5.0, 0.0])
+    >>> solver = chain.solver(0.02, scheme="hht", alpha=-0.1)
+    >>> [solver.run(np.full(501, f), force_dofs=[1]).x.shape for f in (1.0, 2.0)]
+    [(501, 2), (501, 2)]
+    """
+
+    _fields = ("m", "k", "c", "kg", "cg")
+
+    def __init__(self, mass, stiffness, damping, *, ground_stiffness=None, ground_damping=None):
+        m = validate.vector("mass", mass, positive=True)
+        k = validate.vector("stiffness", stiffness, nonnegative=True, length=m.size)
+        c = validate.vector("damping", damping, nonnegative=True, length=m.size)
+        kg, cg = (np.zeros(m.size) if v is None else
+                  validate.vector(name, v, nonnegative=True, length=m.size)
+                  for name, v in (("ground_stiffness", ground_stiffness),
+                                  ("ground_damping", ground_damping)))
+        loose = np.flatnonzero((k == 0.0) & (c == 0.0))
+        if loose.size:
+            raise ValueError(f"station {int(loose[0])} has stiffness = damping = 0: the chain "
+                             "is disconnected there")
+        arrays = []
+        for arr in (m, k, c, kg, cg):
+            arr = np.array(arr, dtype=float)     # a copy: the model does not change under it
+            arr.flags.writeable = False
+            arrays.append(arr)
+        self._arrays = tuple(arrays)
+
+    m = mass = property(lambda self: self._arrays[0], doc="m_n, kg")
+    k = stiffness = property(lambda self: self._arrays[1], doc="k_n, N/m")
+    c = damping = property(lambda self: self._arrays[2], doc="c_n, N s/m")
+    kg = ground_stiffness = property(lambda self: self._arrays[3], doc="kg_n, N/m")
+    cg = ground_damping = property(lambda self: self._arrays[4], doc="cg_n, N s/m")
+
+    def __iter__(self):
+        return iter(self._arrays)
+
+    def __getitem__(self, i):
+        return self._arrays[i]
+
+    def __len__(self) -> int:
+        return 5
+
+    @property
+    def n_dof(self) -> int:
+        return self._arrays[0].size
+
+    def __repr__(self) -> str:
+        grounded = " with ground elements" if self.kg.any() or self.cg.any() else ""
+        return f"Chain({self.n_dof} masses{grounded})"
+
+    def matrices(self, sparse: bool | None = None):
+        """(M, C, K) of the chain, as `chain_matrices`."""
+        return chain_matrices(self.m, self.k, self.c, sparse, ground_stiffness=self.kg,
+                              ground_damping=self.cg)
+
+    @public
+    def solver(self, dt, *, scheme="newmark", form="displacement", sweep="stable", backend="c",
+               outputs=None, quantities=("x", "v", "a"), unstable="raise", workers=None,
+               **scheme_params) -> ChainSolver:
+        """Prepare the chain for many load cases at the sample step ``dt``.
+
+        Checks the options and the stability limit (the chain's highest mode) and loads the
+        C kernels of the scheme (and of its start-up scheme), once. Each ``run`` of the
+        returned solver is one load case, the results of `chain_response` bitwise.
+
+        Parameters
+        ----------
+        dt : float
+            Sample step, s, > 0.
+        scheme : str
+            Any scheme of `chain_response`; its parameters as keywords.
+        form : {"displacement", "acceleration"}
+            As `chain_response`.
+        sweep : {"stable", "plain"}
+            As `chain_response` (the plain sweep warns with its error estimate per run).
+        backend : {"c", "numpy"}
+            As `chain_response`.
+        outputs : sequence of int, optional
+            Masses whose response is stored (all by default).
+        quantities : subset of ("x", "v", "a")
+            What is stored; the others are None in the results.
+        unstable : {"raise", "warn"}
+            As `chain_response`: refused here, or warned about.
+        workers : int, optional
+            Threads of the C stable sweep of each run, as `chain_response`.
+        **scheme_params
+            The scheme's parameters.
+
+        Returns
+        -------
+        Solver
+            ``run(force, force_dofs=..., x0=..., v0=..., ground_acceleration=...)`` per load
+            case; safe to call from several threads at once.
+
+        Examples
+        --------
+        >>> import numpy as np, dtdyn as dd
+        >>> solver = dd.Chain([2.0, 3.0], [20.0, 15.0], [5.0, 6.0]).solver(0.02, outputs=[1])
+        >>> r = solver.run(np.ones(501), force_dofs=[1], x0=[0.01, 0.0])
+        >>> bool((r.x == dd.chain_response([2.0, 3.0], [20.0, 15.0], [5.0, 6.0], np.ones(501),
+        ...                                0.02, force_dofs=[1], x0=[0.01, 0.0],
+        ...                                outputs=[1]).x).all())
+        True
+        """
+        return ChainSolver(self, dt, scheme, form, sweep, backend, outputs, quantities,
+                           unstable, workers, scheme_params)
 
 
 def chain_parameters(mass, stiffness, damping, ground_stiffness=None,
                      ground_damping=None) -> Chain:
     """The checked `Chain`: m > 0, k, c, kg, cg >= 0 (kg, cg zeros when None), same length,
     each station connected (k_n + c_n > 0)."""
-    m = validate.vector("mass", mass, positive=True)
-    k = validate.vector("stiffness", stiffness, nonnegative=True, length=m.size)
-    c = validate.vector("damping", damping, nonnegative=True, length=m.size)
-    kg, cg = (np.zeros(m.size) if v is None else
-              validate.vector(name, v, nonnegative=True, length=m.size)
-              for name, v in (("ground_stiffness", ground_stiffness),
-                              ("ground_damping", ground_damping)))
-    loose = np.flatnonzero((k == 0.0) & (c == 0.0))
-    if loose.size:
-        raise ValueError(f"station {int(loose[0])} has stiffness = damping = 0: the chain is "
-                         "disconnected there")
-    return Chain(m, k, c, kg, cg)
+    return Chain(mass, stiffness, damping, ground_stiffness=ground_stiffness,
+                 ground_damping=ground_damping)
 
 
 def rayleigh_chain_damping(mass, stiffness, rayleigh, ground_stiffness=None):
@@ -148,12 +262,18 @@ def chain_matrices(mass, stiffness, damping, sparse: bool | None = None, *,
         diag[:-1] += e[1:]
         return sps.diags([diag, -e[1:], -e[1:]], [0, 1, -1], format="csr")
 
+    if not sparse:  # before anything is assembled: three dense n x n matrices
+        validate.memory(f"chain_matrices(sparse=False): {m.size:,} masses as three dense "
+                        f"{m.size:,} x {m.size:,} matrices", 3 * 8 * m.size * m.size,
+                        "use sparse=True (scipy.sparse CSR, for mck_response and mck_modes) "
+                        "or chain_response, which never forms the matrices")
     M, C, K = sps.diags(m, format="csr"), band(c, cg), band(k, kg)
     return (M, C, K) if sparse else (M.toarray(), C.toarray(), K.toarray())
 
 
 def chain_response(mass, stiffness, damping, force, dt, *, ground_stiffness=None,
-                   ground_damping=None, force_dofs=None, scheme="newmark", form="displacement", sweep="stable", backend="c", outputs=None,
+                   ground_damping=None, force_dofs=None, scheme="newmark", form="displacement",
+                   sweep="stable", backend="c", outputs=None,
                    quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
                    progress=False, ground_acceleration=None, ground_velocity=None,
                    ground_displacement=None, influence=None, workers=None,
@@ -223,6 +343,10 @@ def chain_response(mass, stiffness, damping, force, dt, *, ground_stiffness=None
         `SPLIT_MASSES` masses on, when this process may use two CPUs (its affinity, capped by
         the environment variable DTDYN_THREADS), else 1.
         ``info["workers"]`` says how many ran.
+    **scheme_params
+        The scheme's parameters by name (``beta``, ``gamma`` of "newmark", ``theta`` of
+        "wilson", ``alpha`` of "hht", ``rho_inf`` of "generalized_alpha"; `dtdyn show` lists
+        them; defaults as there); a misspelled name is a TypeError that names the closest one.
 
     Returns
     -------
@@ -249,50 +373,67 @@ def chain_response(mass, stiffness, damping, force, dt, *, ground_stiffness=None
     Rui, Wang, Rong, He & Lu (2008), Discrete time transfer matrix method for multibody system
     dynamics. Horner & Pilkey (1978), The Riccati transfer matrix method.
     """
-    chain = chain_parameters(mass, stiffness, damping, ground_stiffness, ground_damping)
-    m, k, c, kg, cg = chain
-    force, force_dofs, ground = support.prepare(sps.diags(m), force, force_dofs, m.size,
-                                                ground_acceleration, influence, dt=dt,
-                                                ground_velocity=ground_velocity,
-                                                ground_displacement=ground_displacement)
-    force, dt, loaded = validate.time_history(force, dt, force_dofs, m.size)
-    x0, v0 = validate.initial_conditions(x0, v0, m.size)
-    outputs = validate.dof_indices("outputs", outputs, m.size)
-    quantities = stepping.check_quantities(quantities)
-    if sweep not in kernels.SWEEP_CODE:
-        raise ValueError(f"sweep must be 'stable' or 'plain', got {sweep!r}")
-    if backend not in ("c", "numpy"):
-        raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
-    info = get_scheme(scheme, **scheme_params)
-    check_dt(info, dt, lambda limit: chain_highest_frequency(m, k, limit, kg), unstable)
-    K0 = info.coefficients(form, dt)
-    kappa = k * K0["p"] + c * K0["r"]
-    if np.any(kappa == 0.0):  # (a ground damper does not help: the station's row divides)
-        n = int(np.flatnonzero(kappa == 0.0)[0])
-        raise ValueError(f"damping[{n}] = 0 with the explicit scheme {info.name!r}: the acceleration-"
-                         "form spring row divides by k Dx + c Dv = 0; give every station a damper "
-                         "or use an implicit scheme")
+    chain = Chain(mass, stiffness, damping, ground_stiffness=ground_stiffness,
+                  ground_damping=ground_damping)
+    solver = chain.solver(dt, scheme=scheme, form=form, sweep=sweep, backend=backend,
+                          outputs=outputs, quantities=quantities, unstable=unstable,
+                          workers=workers, **scheme_params)
+    return solver.run(force, force_dofs=force_dofs, x0=x0, v0=v0, progress=progress,
+                      ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
+                      ground_displacement=ground_displacement, influence=influence)
 
-    tracker = kernels.PlainSweepError(m.size) if sweep == "plain" else None
-    threads = sweep_threads(workers, m.size) if sweep == "stable" and backend == "c" else 1
 
-    def make_advance(sch, coeffs):
-        return kernels.chain_advance(backend, sch, coeffs, form, sweep, chain, dt, loaded,
-                                     outputs, tracker, threads)
+class ChainSolver(Solver):
+    """The `Solver` of `Chain`: the scheme checked against the chain (an explicit scheme needs
+    a damper on every station in the acceleration form), the kernels loaded, the matrices of
+    the initial acceleration assembled once; each run sweeps the chain (DT-TMM)."""
 
-    f0 = np.zeros(m.size)
-    f0[loaded] = force[0]
-    if x0.any() or v0.any():  # a_0 = M^-1 (f_0 - C v_0 - K x_0), consistent with the start
-        _, C, K = chain_matrices(m, k, c, sparse=True, ground_stiffness=kg, ground_damping=cg)
-        f0 = f0 - C @ v0 - K @ x0
-    a0 = f0 / m
-    res = stepping.integrate(info, form, dt, force, (x0, v0, a0), make_advance, outputs,
-                             quantities, progress)
-    used = "c" if backend == "c" and kernels.c_chain_function(info.name) else "numpy"
-    res.info.update(method="DT-TMM", sweep=sweep, backend=used,
-                    workers=threads if used == "c" else 1)
-    if sweep == "plain" and res.info["error_estimate"] > PLAIN_SWEEP_TOLERANCE:
-        warn(f"plain DT-TMM sweep on {m.size} masses: estimated relative error "
-             f"{res.info['error_estimate']:.1e} (cancellation in the transfer-matrix "
-             "product); use sweep='stable'", DtdynAccuracyWarning)
-    return support.finish(res, ground)
+    def __init__(self, chain, dt, scheme, form, sweep, backend, outputs, quantities, unstable,
+                 workers, scheme_params):
+        m, k, c, kg, cg = chain
+        if sweep not in kernels.SWEEP_CODE:
+            raise ValueError(f"sweep must be 'stable' or 'plain', got {sweep!r}")
+        super().__init__(chain, dt, scheme, form, backend, outputs, quantities, unstable,
+                         lambda limit: chain_highest_frequency(m, k, limit, kg), scheme_params)
+        info = self._info
+        K0 = info.coefficients(form, self.dt)
+        kappa = k * K0["p"] + c * K0["r"]
+        if np.any(kappa == 0.0):  # (a ground damper does not help: the station's row divides)
+            n = int(np.flatnonzero(kappa == 0.0)[0])
+            raise ValueError(f"damping[{n}] = 0 with the explicit scheme {info.name!r}: the "
+                             "acceleration-form spring row divides by k Dx + c Dv = 0; give "
+                             "every station a damper or use an implicit scheme")
+        self.sweep = sweep
+        self.threads = (sweep_threads(workers, m.size) if sweep == "stable" and backend == "c"
+                        else 1)
+        self._ground_mass = sps.diags(m)
+        _, self._C, self._K = chain.matrices(sparse=True)
+        if backend == "c":  # compile or load the kernels now, not in the first run
+            for sch in schemes_of_run(info):
+                kernels.c_chain_function(sch.name)
+        self._used = "c" if backend == "c" and kernels.c_chain_function(info.name) else "numpy"
+
+    def _initial_acceleration(self, case):
+        f0 = case.f0
+        if case.x0.any() or case.v0.any():  # a_0 = M^-1 (f_0 - C v_0 - K x_0)
+            f0 = f0 - self._C @ case.v0 - self._K @ case.x0
+        return f0 / self.model.m
+
+    def _stepper(self, loaded):
+        tracker = kernels.PlainSweepError(self.model.n_dof) if self.sweep == "plain" else None
+        model, backend, form, sweep, dt = self.model, self.backend, self.form, self.sweep, self.dt
+        outputs, threads = self.outputs, self.threads
+
+        def make_advance(sch, coeffs):
+            return kernels.chain_advance(backend, sch, coeffs, form, sweep, model, dt, loaded,
+                                         outputs, tracker, threads)
+        return make_advance
+
+    def _annotate(self, res):
+        used = self._used
+        res.info.update(method="DT-TMM", sweep=self.sweep, backend=used,
+                        workers=self.threads if used == "c" else 1)
+        if self.sweep == "plain" and res.info["error_estimate"] > PLAIN_SWEEP_TOLERANCE:
+            warn(f"plain DT-TMM sweep on {self.model.n_dof} masses: estimated relative error "
+                 f"{res.info['error_estimate']:.1e} (cancellation in the transfer-matrix "
+                 "product); use sweep='stable'", DtdynAccuracyWarning)

@@ -1,0 +1,153 @@
+"""Many load cases on one model: one solver's runs against as many mck_response calls, same run.
+
+A batch of load cases on one model (a load-case table, a Monte Carlo of forces) repeats, in
+each `mck_response` call, everything that does not depend on the load: the checks of M, C, K,
+the stability check, the sparse LU of the effective matrix and of M, the C loop's operands.
+``dd.Matrices(M, C, K).solver(dt)`` does that once; each ``solver.run(force)`` then checks its
+own inputs, allocates its outputs and runs the loop.
+
+The model: a chain of 2,000 masses (random masses 1..2 kg, springs 1e5..2e5 N/m, dampers
+0.1..1 N s/m) assembled sparse (``chain_matrices(..., sparse=True)``); 1,000 load cases of 100
+steps (dt = 1e-3 s, average acceleration), a random force on the last mass. Three ways, timed
+in turn within each repeat (same run, same machine state):
+
+- ``solver.run``: one solver, one run per case;
+- ``mck_response``: one call per case (the results are bitwise those of the runs);
+- the loop: the C loop of each case alone (`dtdyn.linear.mck.step_operator`, the object the
+  solver keeps), called on preallocated history and output arrays: the floor of a case.
+
+Each is run twice: storing x, v, a of 3 DOFs, and of every DOF (4.8 MB per case, which each run
+allocates and reads once for its finite-value check); each case's result is dropped before the
+next. Times: per case, the median
+[min, max] of the repeats after a warm-up, BLAS pinned to one thread (dtdyn.app.timing).
+
+Usage: python benchmarks/solver_reuse.py [--quick]    (--quick: 100 cases, 2 repeats)
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+
+import dtdyn as dd
+from dtdyn._engine.stepping import history_from_states
+from dtdyn.app.timing import SPREAD, Timing, pin_blas
+from dtdyn.linear.solver import scheme_key
+
+N_DOF, N_STEPS, DT = 2000, 100, 1e-3
+
+
+def interleaved(fns: dict, repeats: int) -> dict:
+    """Timing of each function, called in turn within each of ``repeats`` rounds after one
+    warm-up round (a drift of the machine's speed then reaches every function alike)."""
+    first, times = {}, {name: [] for name in fns}
+    for r in range(repeats + 1):
+        for name, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            wall = time.perf_counter() - t0
+            (times[name].append(wall) if r else first.__setitem__(name, wall))
+    return {name: Timing(times[name], first[name]) for name in fns}
+
+
+def loop_only(solver, forces, loaded):
+    """The C loop of every case alone: the solver's factorized step, bound to ``loaded``,
+    called on preallocated arrays (the history reset to the first case's initial state)."""
+    info = solver._info
+    advance = solver._steps[scheme_key(info)](loaded)
+    out = solver.outputs
+    f0 = np.zeros(N_DOF)
+    f0[loaded] = forces[0][0]
+    state = (np.zeros(N_DOF), np.zeros(N_DOF), solver._mass_solve(f0))
+    H0 = history_from_states(info.history, [state])
+    H = H0.copy()
+    xo, vo, ao = (np.empty((N_STEPS + 1, out.size)) for _ in range(3))
+    columns = [np.ascontiguousarray(f[:, None]) for f in forces]
+
+    def run():
+        for f in columns:
+            H[...] = H0
+            advance(f, H, xo, vo, ao)
+        return xo, vo, ao
+    return run
+
+
+def case(n_cases, repeats, outputs, label):
+    rng = np.random.default_rng(0)
+    M, C, K = dd.chain_matrices(rng.uniform(1, 2, N_DOF), rng.uniform(1e5, 2e5, N_DOF),
+                                rng.uniform(0.1, 1, N_DOF), sparse=True)
+    forces = rng.standard_normal((n_cases, N_STEPS + 1))
+    load = [N_DOF - 1]
+    setup = interleaved({"solver": lambda: dd.Matrices(M, C, K).solver(DT, outputs=outputs)},
+                        repeats)["solver"]
+    solver = dd.Matrices(M, C, K).solver(DT, outputs=outputs)
+    # the three ways give the same numbers (the loop: its first case)
+    ref = dd.mck_response(M, C, K, forces[0], DT, force_dofs=load, outputs=outputs)
+    assert all(np.array_equal(getattr(solver.run(forces[0], force_dofs=load), q),
+                              getattr(ref, q)) for q in "xva")
+    loop = loop_only(solver, forces[:1], np.array(load))
+    assert np.array_equal(loop()[0][1:], ref.x[1:])  # (row 0 is the initial state)
+    def runs():  # each result dropped before the next case (not 1,000 results kept)
+        for f in forces:
+            solver.run(f, force_dofs=load)
+
+    def calls():
+        for f in forces:
+            dd.mck_response(M, C, K, f, DT, force_dofs=load, outputs=outputs)
+
+    t = interleaved({"solver.run": runs, "mck_response": calls,
+                     "loop": loop_only(solver, forces, np.array(load))}, repeats)
+    per = {name: tm.scaled(1.0 / n_cases) for name, tm in t.items()}
+    print(f"{label}: {n_cases:,} cases of {N_STEPS} steps, {N_DOF:,}-DOF sparse chain; "
+          "per case, ms, " + SPREAD)
+    print(f"   {'solver.run':<14s} {per['solver.run'].format('ms'):>24s}   "
+          f"{per['solver.run'] / per['loop']:5.3f} x the loop")
+    print(f"   {'mck_response':<14s} {per['mck_response'].format('ms'):>24s}   "
+          f"{per['mck_response'] / per['loop']:5.3f} x the loop, "
+          f"{per['mck_response'] / per['solver.run']:4.2f} x solver.run")
+    print(f"   {'the loop':<14s} {per['loop'].format('ms'):>24s}")
+    share = 1.0 - per["loop"] / per["mck_response"]
+    print(f"   setup in a mck_response call: {(per['mck_response'] - per['loop']) * 1e3:.3f} ms "
+          f"({share:.0%}); making the solver once: {setup.format('ms')}\n")
+    return per
+
+
+def main(quick=False):
+    n_cases, repeats = (100, 2) if quick else (1000, 3)
+    few = case(n_cases, repeats, [0, N_DOF // 2, N_DOF - 1], "x, v, a of 3 DOFs")
+    every = case(n_cases, repeats, None, f"x, v, a of every DOF ({N_DOF:,})")
+    return few, every
+
+
+if __name__ == "__main__":
+    import contextlib
+    import io
+    import pathlib
+
+    quick = "--quick" in sys.argv
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf), pin_blas(1) as pin:
+        print(f"{pin.describe()}\n")
+        few, every = main(quick=quick)
+    print(buf.getvalue(), end="")
+    if not quick:
+        doc = pathlib.Path(__file__).resolve().parents[1] / "docs" / "solver_reuse.md"
+        doc.write_text(
+            "# Many load cases on one model\n\n"
+            "`dd.Matrices(M, C, K).solver(dt, ...)` checks the model and the options, checks the "
+            "stability limit, factorizes the effective matrix and M and loads the C loop once; "
+            "each `solver.run(force, ...)` then runs one load case and costs the loop plus the "
+            "checks of its own inputs and its outputs. `mck_response` is one solver and one "
+            "run, so a batch of calls pays the setup every time. The results are bitwise the "
+            "same ([the guide](guide/solvers.md); tests/behaviour/test_solver.py).\n\n"
+            "Output of `python benchmarks/solver_reuse.py` (2-core shared machine; the three "
+            "ways timed in turn within each repeat; \"the loop\" is the C loop of each case "
+            "called on preallocated arrays, the floor of a case):\n\n```\n"
+            + buf.getvalue() + "```\n\n"
+            f"Through one solver a case costs {few['solver.run'] / few['loop']:.2f} x the "
+            f"loop's own time with 3 outputs (the goal: at most 1.1 x) and "
+            f"{every['solver.run'] / every['loop']:.2f} x with every DOF stored, where the "
+            "run allocates 4.8 MB of outputs and reads them once to refuse a non-finite "
+            "result. A `mck_response` call "
+            f"costs {few['mck_response'] / few['solver.run']:.2f} x a run with 3 outputs.\n")
