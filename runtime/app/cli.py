@@ -75,7 +75,8 @@ def _show(args) -> int:
     print(f"{s.title} ({s.name}); {s.reference}\n{s.notes}\n\nDefining relations:")
     for rel in s.relations:
         print("   ", sp.sstr(rel.subs(s.substitutions)))
-    print(f"\nEquilibrium: M ae + C ve + K xe = ({sp.sstr(der.w0)}) F_n + ({sp.sstr(der.w1)}) F_n+1")
+    print(f"\nEquilibrium: M ae + C ve + K xe = ({sp.sstr(der.w0)}) F_n "
+          f"+ ({sp.sstr(der.w1)}) F_n+1")
     rows = [] if der.explicit else [("A", der.A), ("B", der.B), ("D", der.D), ("E", der.E)]
     rows += [("Dx", der.Dx), ("Ex", der.Ex), ("Dv", der.Dv), ("Ev", der.Ev)]
     print("Displacement form: ae = A xe + B, ve = D xe + E" if not der.explicit
@@ -407,7 +408,8 @@ def _batch(args) -> int:
                        workers=args.workers, reduce=args.reduce, out=args.out,
                        chunk=args.chunk if args.chunk is not None else "auto",
                        progress=not args.quiet, check=not args.no_check,
-                       overwrite=args.overwrite, unstable=args.unstable)
+                       overwrite=args.overwrite, unstable=args.unstable, resume=args.resume,
+                       rerun_failed=args.rerun_failed, case_timeout=args.case_timeout)
     except CBackendError as exc:
         print(f"dtdyn batch: error: {exc}", file=sys.stderr)
         return 2
@@ -417,7 +419,9 @@ def _batch(args) -> int:
     summary = json.loads(ds.attrs["dtdyn_batch"])["summary"]
     if args.quiet:
         print(f"{summary['cases']} cases: {summary['done']} done, {summary['failed']} failed; "
-              f"wall time {summary['wall_time_s']:.2f} s, {summary['cases_per_s']:.1f} cases/s")
+              f"wall time {summary['wall_time_s']:.2f} s, {summary['cases_per_s']:.1f} cases/s"
+              + (f"; {summary['skipped']} finished before (resumed)"
+                 if summary.get("skipped") else ""))
     print(f"results: {args.out}")
     return 1 if summary["failed"] else 0
 
@@ -576,6 +580,15 @@ def _parser() -> argparse.ArgumentParser:
     ba.add_argument("--out", required=True, help="the Zarr store to write (results.zarr)")
     ba.add_argument("--chunk", type=int, default=None, help="cases per task (default: auto)")
     ba.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    ba.add_argument("--resume", action="store_true",
+                    help="continue an existing --out: run only its cases not yet done (the "
+                         "same cases, reducers and dtdyn version, else an error says what "
+                         "differs); without a store, start it")
+    ba.add_argument("--rerun-failed", action="store_true",
+                    help="with --resume: run the store's failed cases again too")
+    ba.add_argument("--case-timeout", type=float, default=None, metavar="SECONDS",
+                    help="fail a case that runs longer than this (TimeoutError) and restart "
+                         "its worker, instead of waiting for it (default: no limit)")
     ba.add_argument("--no-check", action="store_true",
                     help="skip the comparison of linear cases with the exact response")
     ba.add_argument("--quiet", action="store_true", help="no progress bar")

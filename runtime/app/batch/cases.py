@@ -30,9 +30,9 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import json
 import os
 import re
-import tomllib
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["CaseSpec", "Shared", "build_cases", "parse_key", "apply_overrides", "read_table",
-           "case_seeds", "FILE_KEYS"]
+           "case_seeds", "case_hashes", "FILE_KEYS"]
 
 _PART = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)")
 _INDEX = re.compile(r"\[(\d+)\]")
@@ -149,7 +149,7 @@ def _cell(text: str):
     return text
 
 
-def read_table(vary) -> list[dict]:
+def read_table(vary) -> list[dict]:  # noqa: C901 - one branch per accepted table form
     """The rows of a table of variations as dicts (dotted key -> value), one per case.
 
     ``vary`` is a CSV file (first row: the dotted keys; an empty cell leaves that key as the
@@ -274,15 +274,10 @@ def _load_base(item, k: int):
     if isinstance(item, dict):
         return item, f"<scene {k}>", Path.cwd()
     if isinstance(item, (str, os.PathLike)):
+        from dtdyn.app.scene.parse import parse_toml, read_scene_text
+
         path = Path(item)
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ValueError(f"{str(path)}: cannot read the scene file: {exc}") from None
-        try:
-            return tomllib.loads(text), str(path), path.parent
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{str(path)}: invalid TOML: {exc}") from None
+        return parse_toml(read_scene_text(path), str(path)), str(path), path.parent
     raise ValueError(f"cases[{k}] = {item!r}: a case is a scene file path, a scene's tables "
                      "(dict) or a Scene")
 
@@ -308,7 +303,8 @@ def case_seeds(root: int, n_cases: int, counts: list[int]) -> list[list[int]]:
             for child, c in zip(children, counts)]
 
 
-def build_cases(cases, vary=None, seed=None) -> tuple[Shared, list[CaseSpec], list[dict]]:
+def build_cases(cases, vary=None,  # noqa: C901 - checks each input by name
+                seed=None) -> tuple[Shared, list[CaseSpec], list[dict]]:
     """(shared, case specs, the parameters of each case) from ``run_batch``'s ``cases``, ``vary``
     and ``seed``: every given scene with every row of ``vary`` (scene-major), or each scene once.
     """
@@ -385,3 +381,32 @@ def _get(data: dict, key: str):
     if isinstance(value, bool) or not isinstance(value, int):
         return -1
     return int(value) if 0 <= value < 2**63 else -1
+
+
+def case_hashes(shared: Shared, specs: list[CaseSpec], extra) -> list[str]:
+    """Each case's content hash (SHA-256, 32 hex digits): its scene's tables after its
+    overrides (the files they name by their content hashes, its seeds among the overrides) or
+    a Scene object's pickle, its first seed, and ``extra`` (JSON-able: the reducers and
+    ``check``)."""
+    import pickle
+
+    tail = json.dumps(extra, sort_keys=True, default=repr)
+    scene_bytes: dict[int, bytes] = {}
+    out = []
+    for spec in specs:
+        base = shared.bases[spec.scene]
+        if isinstance(base, dict):
+            data = json.dumps(apply_overrides(base, spec.overrides), sort_keys=True,
+                              default=repr).encode()
+        else:
+            if spec.scene not in scene_bytes:
+                try:
+                    scene_bytes[spec.scene] = pickle.dumps(base, protocol=5)
+                except Exception:  # noqa: BLE001 - an unpicklable part: its repr
+                    scene_bytes[spec.scene] = repr(base).encode()
+            data = scene_bytes[spec.scene]
+        h = hashlib.sha256(data)
+        h.update(f"|seed={spec.seed}|files={sorted(spec.files)}|".encode())
+        h.update(tail.encode())
+        out.append(h.hexdigest()[:32])
+    return out

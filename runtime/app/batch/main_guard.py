@@ -41,7 +41,8 @@ def check_main_guard() -> None:
     script = getattr(main, "__file__", None)
     if script is None:                     # python -c, a notebook, an interactive session
         return
-    if multiprocessing.parent_process() is not None and getattr(main, "__name__", "") == "__mp_main__":
+    if multiprocessing.parent_process() is not None and \
+            getattr(main, "__name__", "") == "__mp_main__":
         raise RuntimeError(MESSAGE.format(script=script, line="?"))
     frame = sys._getframe(1)
     while frame is not None and not (frame.f_globals is vars(main)

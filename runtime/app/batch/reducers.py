@@ -110,7 +110,7 @@ class Spectrum:
              "in the next release", DeprecationWarning)
         return self.damping_ratio
 
-    def resolved(self, dt) -> "Spectrum":
+    def resolved(self, dt) -> Spectrum:
         """This spectrum with its periods set: the given ones, or the default for a record of
         step ``dt`` (s)."""
         if self.periods is not None:
@@ -219,3 +219,22 @@ def reducer_coords(reducers) -> dict:
 
 def reducer_name(r) -> str:
     return getattr(r, "name", None) or getattr(r, "__name__", "reducer")
+
+
+def reducer_fingerprint(r) -> str:
+    """What a resumed batch compares of a reducer: its name, and its parameters (`Spectrum`)
+    or the source of a callable (its code's bytes when the source is not available)."""
+    import hashlib
+    import inspect
+
+    if isinstance(r, Spectrum):
+        return repr(r)
+    fn = r.fn if isinstance(r, _User) else r
+    if fn in REDUCERS.values():
+        return reducer_name(r)
+    try:
+        text = inspect.getsource(fn).encode()
+    except (OSError, TypeError):
+        code = getattr(fn, "__code__", None)
+        text = code.co_code if code is not None else repr(type(fn)).encode()
+    return f"{reducer_name(r)}:{hashlib.sha256(text).hexdigest()[:16]}"

@@ -1,6 +1,7 @@
 """`run_batch`: many scenes and load cases on Dask distributed, on this machine or a cluster."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
@@ -13,10 +14,11 @@ import numpy as np
 from dtdyn._engine.extras import require
 from dtdyn._engine.public import warn
 from dtdyn.app.batch import store, worker
-from dtdyn.app.batch.cases import build_cases
+from dtdyn.app.batch.cases import build_cases, case_hashes
 from dtdyn.app.batch.main_guard import check_main_guard
 from dtdyn.app.batch.worker import CBackendError
-from dtdyn.app.batch.reducers import reducer_coords, reducer_name, reducers_from, resolve
+from dtdyn.app.batch.reducers import (Spectrum, reducer_coords, reducer_fingerprint,
+                                      reducer_name, reducers_from, resolve)
 
 __all__ = ["run_batch", "auto_chunk", "local_cluster", "TASK_BYTES", "TASKS_PER_WORKER",
            "PROBE_CASES", "WORKER_ENVIRON", "CLUSTER_CONFIG"]
@@ -103,22 +105,22 @@ def _case_coords(params: list[dict]) -> dict:
     return out
 
 
-def _meta_vars(metas: list[dict], params: list[dict]) -> dict:
-    return {
-        "status": np.array([m["status"] for m in metas], dtype=str),
-        "message": np.array([m["message"] for m in metas], dtype=str),
-        "backend": np.array([m["backend"] for m in metas], dtype=str),
-        "worker": np.array([m["worker"] for m in metas], dtype=str),
-        "run_time": np.array([m["run_time"] for m in metas], dtype=float),
-        "max_rel_error": np.array([m["max_rel_error"] for m in metas], dtype=float),
-        "max_residual": np.array([m["max_residual"] for m in metas], dtype=float),
-        "error_estimate": np.array([m["error_estimate"] for m in metas], dtype=float),
-        "seed": np.array([m["seed"] for m in metas], dtype=np.int64),
-        "params": np.array([json.dumps(p) for p in params], dtype=str),
-    }
+def _meta_vars(records: list[dict], names=None) -> dict:
+    """The per-case metadata variables from the cases' records (``names``: those to make)."""
+    def col(key, dtype):
+        default = np.nan if dtype is float else ""
+        return np.array([r.get(key, default) if r.get(key) is not None else default
+                         for r in records], dtype=dtype)
+
+    out = {"status": col("status", str), "message": col("message", str),
+           "backend": col("backend", str), "worker": col("worker", str),
+           "run_time": col("run_time", float), "max_rel_error": col("max_rel_error", float),
+           "max_residual": col("max_residual", float),
+           "error_estimate": col("error_estimate", float)}
+    return out if names is None else {k: out[k] for k in names}
 
 
-def _in_memory(layout, n, blocks_by_start, meta_vars, case_coords, attrs):
+def _in_memory(layout, n, rows, meta_vars, case_coords, attrs):
     import xarray as xr
 
     coords = {"case": ("case", np.arange(n))}
@@ -128,8 +130,8 @@ def _in_memory(layout, n, blocks_by_start, meta_vars, case_coords, attrs):
     data = {}
     for name, (dims, shape) in layout["vars"].items():
         values = np.full((n, *shape), np.nan)
-        for start, blocks in blocks_by_start.items():
-            values[start:start + blocks[name].shape[0]] = blocks[name]
+        for index, got in rows.items():
+            values[index] = got[name]
         data[name] = (("case", *dims), values)
     data.update({k: ("case", v) for k, v in meta_vars.items()})
     return xr.Dataset(data, coords=coords, attrs={"dtdyn_batch": json.dumps(attrs)})
@@ -145,13 +147,13 @@ def _task_failed(specs, exc: BaseException) -> list[dict]:
     message += " (run alone, its task did not return: its worker died or lost the scenes)"
     return [{"index": s.index, "status": "failed", "message": message, "backend": "",
              "worker": "", "run_time": np.nan, "max_rel_error": np.nan, "max_residual": np.nan,
-             "error_estimate": np.nan, "seed": s.seed} for s in specs]
+             "error_estimate": np.nan, "seed": s.seed, "warnings": []} for s in specs]
 
 
 def _stop(client, futures, timeout: float = 60.0) -> None:
-    """Stop a batch's tasks before its store is removed: cancel those not yet running, wait
-    (at most ``timeout`` s) for those a worker is running (a running task cannot be stopped
-    and would write its block into a removed store), then cancel them too."""
+    """Stop a batch's tasks: cancel those not yet running, wait (at most ``timeout`` s) for
+    those a worker is running (a running task cannot be stopped: it writes its cases to the
+    store as they finish), then cancel them too."""
     from distributed import wait
 
     if not futures:
@@ -170,30 +172,125 @@ def _stop(client, futures, timeout: float = 60.0) -> None:
         pass
 
 
-def _warning_counts(metas: list[dict]) -> list[tuple]:
+def _category(c):
+    """A warning category from its class or its name (a record read back from a store)."""
+    if not isinstance(c, str):
+        return c
+    import builtins
+
+    from dtdyn._engine import errors
+    got = getattr(errors, c, None) or getattr(builtins, c, None)
+    return got if isinstance(got, type) and issubclass(got, Warning) else UserWarning
+
+
+def _warning_counts(records: list[dict]) -> list[tuple]:
     """[(category, message, number of cases)] of the cases' warnings, each distinct warning
     once, the most frequent first."""
     counts: dict = {}
-    for m in metas:
-        for key in m.get("warnings", ()):
+    for m in records:
+        for c, msg in m.get("warnings", ()):
+            key = (c if isinstance(c, str) else c.__name__, msg)
             counts[key] = counts.get(key, 0) + 1
-    return [(c, msg, k) for (c, msg), k in sorted(counts.items(), key=lambda kv: -kv[1])]
+    return [(_category(c), msg, k) for (c, msg), k in sorted(counts.items(),
+                                                             key=lambda kv: -kv[1])]
 
 
-def _summary_lines(summary: dict, metas: list[dict]) -> list[str]:
+def _summary_lines(summary: dict, records: list[dict]) -> list[str]:
     lines = [f"{summary['cases']} cases: {summary['done']} done, {summary['failed']} failed; "
              f"wall time {summary['wall_time_s']:.2f} s, {summary['cases_per_s']:.1f} cases/s "
              f"on {summary['workers']} worker(s), {summary['tasks']} tasks of up to "
              f"{summary['chunk']} cases"]
+    if summary.get("skipped"):
+        lines.append(f"  resumed: {summary['skipped']} case(s) finished before, "
+                     f"{summary['ran']} run now")
+    if summary.get("lost_tasks"):
+        lines.append(f"  {summary['lost_tasks']} task attempt(s) lost with their worker and run "
+                     "again")
+    if summary.get("timed_out"):
+        lines.append(f"  {summary['timed_out']} case(s) failed past case_timeout = "
+                     f"{summary['case_timeout_s']:g} s (their workers restarted)")
     for w in summary.get("warnings", ()):
         lines.append(f"  {w['category']} x{w['cases']}: {w['message']}")
-    failed = [m for m in metas if m["status"] != "done"]
-    for m in failed[:LISTED_FAILURES]:
-        lines.append(f"  case {m['index']} failed: {m['message']}")
+    failed = [(i, m) for i, m in enumerate(records) if m.get("status") == "failed"]
+    for i, m in failed[:LISTED_FAILURES]:
+        lines.append(f"  case {i} failed: {m.get('message', '')}")
     if len(failed) > LISTED_FAILURES:
         lines.append(f"  ... and {len(failed) - LISTED_FAILURES} more (the result's status and "
                      "message variables list every case)")
     return lines
+
+
+def _tasks(pending: list[int], chunk: int, size: int) -> list[list[int]]:
+    """The pending cases in tasks of at most ``size`` cases (at least one chunk), whole
+    chunks of ``chunk`` cases each: no two tasks write the same chunk of the store."""
+    groups: dict[int, list[int]] = {}
+    for i in pending:
+        groups.setdefault(i // chunk, []).append(i)
+    tasks, current = [], []
+    for group in groups.values():
+        if current and len(current) + len(group) > size:
+            tasks.append(current)
+            current = []
+        current = current + group
+    if current:
+        tasks.append(current)
+    return tasks
+
+
+def _suspicious(keys, dask_scheduler=None) -> int:
+    """On the scheduler: how many times a worker died while running one of ``keys``."""
+    return sum(getattr(dask_scheduler.tasks.get(k), "suspicious", 0) for k in keys)
+
+
+def _lost_attempts(client, futures, seen: int) -> int:
+    """The task attempts of ``futures`` lost with their worker (the scheduler's count, which
+    includes the attempts it ran again by itself; else the ``seen`` lost results)."""
+    try:
+        return max(seen, int(client.run_on_scheduler(_suspicious, [f.key for f in futures])))
+    except Exception:  # noqa: BLE001 - a scheduler without dtdyn: what the client saw
+        return seen
+
+
+def _restart(client, address) -> None:
+    """Restart the worker process ``address`` (a timed-out case's thread still runs there)."""
+    try:
+        client.restart_workers([address], timeout=120)
+    except Exception:  # noqa: BLE001 - no nanny, or gone already: the thread runs on
+        pass
+
+
+def _resume_match(path, state, hashes, params, fingerprints, check, code) -> None:
+    """Refuse (ResumeMismatchError) a store whose code version, reducers, check or cases
+    differ from this batch's, saying what differs."""
+    info = state["attrs"]["resume"]
+    problems = []
+    if info.get("code") != code:
+        old = info.get("code") or {}
+        problems.append(f"it was written by dtdyn {old.get('dtdyn')} with the generated kernels "
+                        f"{old.get('generated')}, this is dtdyn {code['dtdyn']} with "
+                        f"{code['generated']} (its finished cases may differ from what this "
+                        "code computes)")
+    if info.get("cases") != len(hashes):
+        problems.append(f"it has {info.get('cases')} cases, this batch {len(hashes)}")
+    if info.get("reducers") != fingerprints:
+        problems.append(f"its reducers are {info.get('reducers')}, this batch's {fingerprints}")
+    if info.get("check") != bool(check):
+        problems.append(f"it was run with check={info.get('check')}, this batch with "
+                        f"check={bool(check)}")
+    if not problems:
+        differ = [i for i, (a, b) in enumerate(zip(state["hashes"], hashes)) if a != b]
+        if differ:
+            shown = ", ".join(str(i) for i in differ[:10]) + (" ..." if len(differ) > 10 else "")
+            first = differ[0]
+            problems.append(f"{len(differ)} of its {len(hashes)} cases differ from this batch's "
+                            f"(their scenes after the variations, files or seeds): cases "
+                            f"{shown}; case {first} has params {state['params'][first]} in the "
+                            f"store and {json.dumps(params[first])} here")
+    if problems:
+        raise store.ResumeMismatchError(
+            f"out = {str(path)!r} cannot be resumed by this batch: " + "; ".join(problems) +
+            ". Resume it with the cases and the code that wrote it, or pass overwrite=True "
+            "(CLI: --overwrite) to run the batch again")
 
 
 def _runnable(shared, specs, unstable) -> None:
@@ -229,8 +326,11 @@ def _runnable(shared, specs, unstable) -> None:
                 shared.bases[k] = {**base, "scheme": {**scheme, "unstable": unstable}}
 
 
-def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=None, out=None,
-              chunk="auto", progress=True, check=True, overwrite=False, unstable=None):
+# noqa below: the entry point validates each keyword by name, then runs the warm-up, the rounds
+# of tasks and their retries, which share the progress bar, the counts and the store
+def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=None,  # noqa: C901
+              out=None, chunk="auto", progress=True, check=True, overwrite=False,
+              unstable=None, resume=False, rerun_failed=False, case_timeout=None):
     """Run many scenes and load cases on Dask distributed: this machine or a cluster.
 
     Each case is a scene, run by `run_scene` on a Dask worker exactly as it runs alone (the
@@ -244,6 +344,12 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
     exception, a non-finite stored value, a case that kills its worker) is recorded with its
     message and the batch goes on. A task that does not return (its worker died) runs again,
     then its cases one at a time, each alone: only a case that fails alone is failed.
+
+    With ``out``, each case is written to the store as it finishes (its rows, its record, its
+    status last): a batch stopped at any moment (an error, Ctrl-C, a killed client, a lost
+    scheduler, a power cut) leaves a store holding every finished case, and
+    ``resume=True`` runs only the others; the final store equals an uninterrupted run's, bit
+    for bit per case.
 
     Parameters
     ----------
@@ -277,9 +383,10 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         ``"history"``, or callables ``f(response, scene) -> {name: value or (dims, value)}``;
         a comma-separated string or a list.
     out : path, optional
-        A Zarr store (``*.zarr``) written by the workers as their tasks finish, so memory stays
-        bounded by a task; under a temporary name until the batch ends (renamed then, removed
-        on an error). None: the results come back in memory.
+        A Zarr store (``*.zarr``) written by the workers case by case as the cases finish, so
+        memory stays bounded by a task and a stopped batch keeps its finished cases (created
+        when the warm-up has given the layout; per case ``status`` "pending", "done" or
+        "failed"). None: the results come back in memory.
     chunk : int or "auto"
         Cases per task; "auto" gives about 4 tasks per worker, each holding at most 64 MB of
         results.
@@ -291,7 +398,21 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
     check : bool
         Linear cases: compare with `exact_response` (the ``max_rel_error`` of each case).
     overwrite : bool
-        Replace an existing ``out`` (only once the new store is complete).
+        Replace an existing ``out``: it is removed when the new store is created (after the
+        warm-up; a batch refused before keeps it).
+    resume : bool
+        Continue an existing ``out``: run only its cases not done (status "pending"); its
+        cases must be this batch's (matched by each case's content hash: the scene after
+        its variations, the files it names, its seeds, the reducers and ``check``) and it
+        must have been written by this code (``dtdyn.__version__`` and the hash of the
+        generated kernels' manifest), else `ResumeMismatchError` says what differs. Without
+        a store at ``out``, the batch starts one.
+    rerun_failed : bool
+        With ``resume``: run the store's failed cases again too.
+    case_timeout : float, optional
+        Seconds: a case running longer is failed (``"TimeoutError: case exceeded 60 s"``),
+        its worker process restarted (the stuck computation cannot be stopped otherwise) and
+        the rest of its task runs again; None: no limit.
     unstable : {"raise", "warn"} or None
         Linear cases whose dt is past the scheme's stability limit: fail (DtdynUnstableError)
         or run anyway with a warning; sets ``scheme.unstable`` of every linear scene (a
@@ -306,8 +427,11 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         ``info["error_estimate"]``, NaN: none), ``seed`` (of the first random load, -1: none),
         ``params`` (JSON) and each varied key as a coordinate; ``attrs["dtdyn_batch"]`` (JSON)
         holds the summary (its ``warnings``: category, message and number of cases of each
-        distinct warning; a done case's ``message`` holds its own warnings). Opened lazily
-        from ``out`` when given.
+        distinct warning; a done case's ``message`` holds its own warnings; ``ran``: the
+        cases this call ran, ``skipped``: those a resumed store had finished, ``lost_tasks``:
+        task attempts lost with their worker and run again, ``timed_out``: cases failed by
+        ``case_timeout``), ``case_hash`` per case. Opened lazily from ``out`` when given
+        (with ``case_record``, the JSON of each finished case's metadata).
 
     Raises
     ------
@@ -316,6 +440,8 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         load that no ``vary`` column sets (before anything runs), reducer
         variables whose names clash (the warm-up), or no case of the first ten succeeded (the
         warm-up: nothing to take the layout from).
+    dtdyn.app.batch.ResumeMismatchError
+        ``resume=True`` on a store of other cases, reducers or code (a ValueError).
     dtdyn.app.batch.CBackendError
         A worker cannot run the C backend the scenes ask for.
 
@@ -341,143 +467,253 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
                              "given client has its own workers")
         if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
             raise ValueError(f"workers = {workers!r}: must be an integer >= 1")
+    if case_timeout is not None and (isinstance(case_timeout, bool) or not isinstance(
+            case_timeout, (int, float, np.integer, np.floating)) or not
+            math.isfinite(case_timeout) or case_timeout <= 0):
+        raise ValueError(f"case_timeout = {case_timeout!r}: must be a number of seconds > 0 "
+                         "(or None: no limit)")
+    if resume and out is None:
+        raise ValueError("resume=True continues a store: give out= (the .zarr store to resume)")
+    if resume and overwrite:
+        raise ValueError("resume=True and overwrite=True: resume continues the store, "
+                         "overwrite replaces it; give one")
+    if rerun_failed and not resume:
+        raise ValueError("rerun_failed=True reruns the failed cases of a resumed store: give "
+                         "resume=True too")
     if client is None:
         check_main_guard()
     shared, specs, params = build_cases(cases, vary, seed)
     _runnable(shared, specs, unstable)
     n = len(specs)
-    out_path = store.check_out(out, overwrite) if out is not None else None
+    out_path = store.check_out(out, overwrite, resume) if out is not None else None
+    fingerprints = [reducer_fingerprint(r) for r in reducers]
+    hashes = case_hashes(shared, specs, {"reducers": fingerprints, "check": bool(check)})
+    code = store.code_version()
+    state = None
+    if resume and out_path.exists():
+        state = store.read_state(out_path, check_chunks=True)
+        _resume_match(out_path, state, hashes, params, fingerprints, check, code)
+        pending = [i for i, st in enumerate(state["status"])
+                   if st == store.STATUS_PENDING or (rerun_failed and st == "failed")]
+        periods = state["layout"]["coords"].get("period")
+        if periods is not None:   # the store's periods, not those of this run's first case
+            reducers = [dataclasses.replace(r, periods=tuple(float(T) for T in periods))
+                        if isinstance(r, Spectrum) and r.periods is None else r
+                        for r in reducers]
+    else:
+        pending = list(range(n))
+    case_coords = _case_coords(params)
+    base_attrs = {"summary": None, "scenes": shared.sources, "root_seed": seed,
+                  "reducers": [reducer_name(r) for r in reducers], "check": check,
+                  "versions": _versions(), "resume": {"code": code, "reducers": fingerprints,
+                                                      "check": bool(check), "cases": n}}
 
     own = client is None
-    cluster = tmp = shared_f = None
+    cluster = shared_f = None
     futures = []
+    counts = {"ran": 0, "found": 0, "lost_seen": 0, "lost": 0, "timed_out": 0}
     started = time.perf_counter()
+    cluster_time = warm = 0.0
+    addresses, tasks, size = [], [], 0
+    metas: list[dict | None] = [None] * n
+    rows: dict = {}
     try:
-        if own:
-            from distributed import Client
+        if pending:
+            if own:
+                from distributed import Client
 
-            cluster = local_cluster(workers)
-            client = Client(cluster)
-        cluster_time = time.perf_counter() - started
+                cluster = local_cluster(workers)
+                client = Client(cluster)
+            cluster_time = time.perf_counter() - started
         start = time.perf_counter()
-        if not client.scheduler_info()["workers"]:
-            client.wait_for_workers(1, timeout=120)
-        addresses = list(client.scheduler_info()["workers"])
-        shared_f = client.scatter(shared, broadcast=True, hash=False)
-        warm = time.perf_counter()
-        futures = [client.submit(worker.probe, shared_f, specs[:PROBE_CASES], reducers, check,
-                                 workers=[a], allow_other_workers=False, pure=False)
-                   for a in addresses]
-        probes, lost = [], []
-        for fut in futures:
-            try:
-                probes.append(fut.result())
-            except (CBackendError, ValueError):
-                raise
-            except Exception as exc:  # noqa: BLE001 - a worker died in its warm-up
-                lost.append(f"{type(exc).__name__}: {exc}")
-        futures = []
-        if not probes:
-            raise RuntimeError("every worker's warm-up failed:\n  " + "\n  ".join(lost))
-        layout = probes[0]
-        warm = time.perf_counter() - warm
-        if layout["vars"] is None:
-            raise ValueError(f"the first {min(n, PROBE_CASES)} case(s) all failed, so the batch "
-                             "has no layout to store:\n  " + "\n  ".join(layout["failed"]))
-        reducers = resolve(reducers, layout["dt"])   # default periods: the first case's dt
-        layout["coords"].update(reducer_coords(reducers))
-        case_coords = _case_coords(params)
-        for name in layout["vars"]:
-            if name in case_coords:
-                raise worker.NameClash(f"reduce: the variable {name!r} has the name of a varied "
-                                       "key (a per-case coordinate); rename it")
-        case_bytes = 8 * sum(int(np.prod(shape)) for _, shape in layout["vars"].values())
-        size = auto_chunk(n, len(addresses), case_bytes) if chunk == "auto" else int(chunk)
-        if out_path is not None:
-            tmp = store.temporary_path(out_path)
-            store.create(tmp, layout, n, size, case_coords)
-        tasks = [(a, min(size, n - a)) for a in range(0, n, size)]
-        metas: list[dict | None] = [None] * n
-        blocks_by_start = {}
-        failed = 0
+        if pending:
+            if not client.scheduler_info()["workers"]:
+                client.wait_for_workers(1, timeout=120)
+            addresses = list(client.scheduler_info()["workers"])
+            shared_f = client.scatter(shared, broadcast=True, hash=False)
+            warm = time.perf_counter()
+            probe_specs = [specs[i] for i in pending[:PROBE_CASES]]
+            futures = [client.submit(worker.probe, shared_f, probe_specs, reducers, check,
+                                     case_timeout, workers=[a], allow_other_workers=False,
+                                     pure=False)
+                       for a in addresses]
+            probes, lost = [], []
+            for fut in futures:
+                try:
+                    probes.append(fut.result())
+                except (CBackendError, ValueError):
+                    raise
+                except Exception as exc:  # noqa: BLE001 - a worker died in its warm-up
+                    lost.append(f"{type(exc).__name__}: {exc}")
+            futures = []
+            if not probes:
+                raise RuntimeError("every worker's warm-up failed:\n  " + "\n  ".join(lost))
+            for p in probes:
+                if p.get("stuck"):
+                    _restart(client, p["worker"])
+            warm = time.perf_counter() - warm
+            if state is not None:
+                layout = state["layout"]
+            else:
+                layout = probes[0]
+                if layout["vars"] is None:
+                    raise ValueError(f"the first {min(n, PROBE_CASES)} case(s) all failed, so "
+                                     "the batch has no layout to store:\n  " +
+                                     "\n  ".join(layout["failed"]))
+                reducers = resolve(reducers, layout["dt"])  # default periods: first case's dt
+                layout["coords"].update(reducer_coords(reducers))
+                for name in layout["vars"]:
+                    if name in case_coords:
+                        raise worker.NameClash(f"reduce: the variable {name!r} has the name of "
+                                               "a varied key (a per-case coordinate); rename it")
+            case_bytes = 8 * sum(int(np.prod(shape)) for _, shape in layout["vars"].values())
+            size = (auto_chunk(len(pending), len(addresses), case_bytes) if chunk == "auto"
+                    else int(chunk))
+            if out_path is None:
+                per_chunk = size
+            elif state is not None:
+                per_chunk = state["chunk"]
+            else:
+                per_chunk = store.store_chunk(size, case_bytes)
+            size = max(per_chunk, size // per_chunk * per_chunk)
+            if out_path is not None and state is None:
+                store.create(out_path, layout, n, per_chunk, case_coords,
+                             {"seed": np.array([s.seed for s in specs], dtype=np.int64),
+                              "params": np.array([json.dumps(p) for p in params], dtype=object),
+                              "case_hash": np.array(hashes, dtype=object)},
+                             {**base_attrs, "resume": {**base_attrs["resume"],
+                                                       "vars": list(layout["vars"])}})
+            elif out_path is not None and rerun_failed:
+                store.reset(out_path, [i for i in pending
+                                       if state["status"][i] == "failed"])
+            tasks = _tasks(pending, per_chunk, size)
+        holder = {"shared": shared_f}
 
-        def submit(shared_f, a, k):
-            return client.submit(worker.run_chunk, shared_f, specs[a:a + k], reducers, check,
-                                 layout, None if tmp is None else str(tmp), a, pure=False)
+        def submit(idx):
+            return client.submit(worker.run_chunk, holder["shared"], [specs[i] for i in idx],
+                                 reducers, check, layout,
+                                 None if out_path is None else str(out_path), case_timeout,
+                                 pure=False)
 
-        def record(got, blocks):
-            nonlocal failed
-            for m in got:
+        def record(got, ac):
+            failed = 0
+            for m in got["metas"]:
                 metas[m["index"]] = m
+                counts["found" if m.get("found") else "ran"] += 1
                 failed += m["status"] != "done"
-            if blocks is not None:
-                blocks_by_start[got[0]["index"]] = blocks
-            bar.update(len(got))
-            bar.set_postfix(failed=failed)
+            if got["rows"] is not None:
+                rows.update(got["rows"])
+            bar.update(len(got["metas"]))
+            bar.set_postfix(failed=sum(1 for m in metas if m and m["status"] != "done"))
+            if got["stuck"]:
+                counts["timed_out"] += 1
+                _restart(client, got["worker"])
+                if got["rest"]:
+                    fut = submit(got["rest"])
+                    futures.append(fut)
+                    ac.add(fut)
+                    return fut, got["rest"]
+            return None
 
-        def run_round(shared_f, round_tasks):
+        def run_round(round_tasks):
             """Run tasks concurrently; record those that return; the others with their error."""
             nonlocal futures
-            futures = [submit(shared_f, a, k) for a, k in round_tasks]
+            futures = [submit(t) for t in round_tasks]
             task_of = {fut.key: t for fut, t in zip(futures, round_tasks)}
             lost = []
-            for fut in as_completed(futures):
+            ac = as_completed(list(futures))
+            for fut in ac:
                 try:
-                    record(*fut.result())
+                    extra = record(fut.result(), ac)
                 except CBackendError:
                     raise
                 except Exception as exc:  # noqa: BLE001 - e.g. KilledWorker
                     lost.append((task_of[fut.key], exc))
-            return sorted(lost, key=lambda t: t[0])
+                    continue
+                if extra is not None:
+                    task_of[extra[0].key] = extra[1]
+            counts["lost_seen"] += len(lost)
+            counts["lost"] += _lost_attempts(client, futures, len(lost))
+            return sorted(lost, key=lambda t: t[0][0])
 
-        with tqdm(total=n, unit="case", disable=not progress, file=sys.stderr,
-                  desc="batch") as bar:
-            lost = run_round(shared_f, tasks)
+        def write_failed(got):
+            if out_path is not None:
+                store.Writer(out_path, list(layout["vars"])).write(
+                    [(m["index"], None, worker._record(m)) for m in got])
+
+        with tqdm(total=n, initial=n - len(pending), unit="case",
+                  disable=not progress or not pending, file=sys.stderr, desc="batch") as bar:
+            lost = run_round(tasks) if tasks else []
             # A task that did not return died with its worker, or lost the scattered scenes
             # when every worker holding them died: maybe beside the case that killed them.
             # Its tasks run again with the scenes scattered anew, concurrently when there are
-            # several; the cases of those failing again, one at a time, each alone on the
-            # cluster: only a case that fails alone is failed.
+            # several (a case the store shows finished is not run again); the cases of those
+            # failing again, one at a time, each alone on the cluster: only a case that fails
+            # alone is failed.
             if len(lost) > 1:
-                shared_f = client.scatter(shared, broadcast=True, hash=False)
-                lost = run_round(shared_f, [t for t, _ in lost])
+                holder["shared"] = client.scatter(shared, broadcast=True, hash=False)
+                lost = run_round([t for t, _ in lost])
             fresh = False   # the scenes scattered since the last failure
-            for (a, k), _ in lost:
-                for i in range(a, a + k):
+            for idx, _ in lost:
+                for i in idx:
+                    if metas[i] is not None:
+                        continue   # returned by a task of the case's timed-out task mate
                     if not fresh:
-                        shared_f = client.scatter(shared, broadcast=True, hash=False)
-                    alone = run_round(shared_f, [(i, 1)])
+                        holder["shared"] = client.scatter(shared, broadcast=True, hash=False)
+                    alone = run_round([[i]])
                     for _, exc in alone:   # it failed alone: it is failed
-                        record(_task_failed(specs[i:i + 1], exc), None)
+                        got = _task_failed(specs[i:i + 1], exc)
+                        write_failed(got)
+                        metas[i] = got[0]
+                        counts["ran"] += 1
+                        bar.update(1)
                     fresh = not alone
         wall = time.perf_counter() - start
-        warned = _warning_counts(metas)
-        summary = {"cases": n, "done": n - failed, "failed": failed, "wall_time_s": wall,
-                   "cases_per_s": n / wall if wall > 0 else float("inf"),
-                   "cluster_start_s": cluster_time if own else None, "warm_up_s": warm,
-                   "workers": len(addresses), "tasks": len(tasks), "chunk": size,
+        if out_path is not None:
+            final = store.read_state(out_path)
+            records = final["records"]
+            for i, st in enumerate(final["status"]):
+                records[i] = {**records[i], "status": st}
+        else:
+            records = [worker._record(m) for m in metas]
+        statuses = [r.get("status") for r in records]
+        done, failed = statuses.count("done"), statuses.count("failed")
+        warned = _warning_counts(records)
+        summary = {"cases": n, "done": done, "failed": failed,
+                   "pending": n - done - failed, "ran": counts["ran"] + counts["found"],
+                   "skipped": n - len(pending), "lost_tasks": counts["lost"],
+                   "timed_out": counts["timed_out"], "case_timeout_s": case_timeout,
+                   "wall_time_s": wall,
+                   "cases_per_s": (counts["ran"] + counts["found"]) / wall if wall > 0
+                   else float("inf"),
+                   "cluster_start_s": cluster_time if own and pending else None,
+                   "warm_up_s": warm, "workers": len(addresses), "tasks": len(tasks),
+                   "chunk": size,
                    "warnings": [{"category": c.__name__, "message": msg, "cases": k}
                                 for c, msg, k in warned]}
-        attrs = {"summary": summary, "scenes": shared.sources, "root_seed": seed,
-                 "reducers": [reducer_name(r) for r in reducers], "check": check,
-                 "versions": _versions()}
-        meta_vars = _meta_vars(metas, params)
+        if state is not None:
+            base_attrs = {**state["attrs"], "versions": base_attrs["versions"]}
+        else:
+            base_attrs["resume"]["vars"] = list(layout["vars"])
+        attrs = {**base_attrs, "summary": summary}
         if out_path is not None:
-            store.finish(tmp, out_path, meta_vars, attrs)
-            tmp = None
+            store.finish(out_path, _meta_vars(records, store.FINAL_VARS), attrs)
         if progress:
-            print("\n".join(_summary_lines(summary, metas)))
+            print("\n".join(_summary_lines(summary, records)))
         else:  # no summary printed: each distinct warning of the cases once, at the caller
             for category, msg, k in warned:
                 warn(f"{k} of {n} case(s): {msg}", category)
         if out_path is None:
-            return _in_memory(layout, n, blocks_by_start, meta_vars, case_coords, attrs)
+            meta_vars = _meta_vars(records)
+            meta_vars.update({"seed": np.array([s.seed for s in specs], dtype=np.int64),
+                              "params": np.array([json.dumps(p) for p in params], dtype=str),
+                              "case_hash": np.array(hashes, dtype=str)})
+            return _in_memory(layout, n, rows, meta_vars, case_coords, attrs)
     except BaseException:
         if client is not None:
             _stop(client, futures)
         raise
     finally:
-        store.discard(tmp)
         if client is not None and shared_f is not None:
             try:
                 client.run(worker.cleanup, shared.token)

@@ -8,9 +8,11 @@ Nothing here holds a ctypes object across tasks or ships one: every worker proce
 from __future__ import annotations
 
 import atexit
+import json
 import os
 import shutil
 import tempfile
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -32,7 +34,7 @@ RUN_ERRORS = (NewtonError, DtdynStepStabilityError, DtdynUnstableError, Singular
 #: the per-case metadata variables and the coordinates of a batch: no reducer may make them
 META = ("index", "status", "message", "backend", "worker", "run_time", "max_rel_error",
         "max_residual", "error_estimate", "seed", "params", "case", "time", "output",
-        "output_name", "period")
+        "output_name", "period", "case_record", "case_hash")
 
 _FOLDERS: dict[str, Path] = {}
 
@@ -173,7 +175,7 @@ def run_case(shared: Shared, spec: CaseSpec, reducers, check: bool, layout=None,
     return meta, arrays
 
 
-def _run_case(shared, spec, reducers, check, layout, coords, strict, caught):
+def _run_case(shared, spec, reducers, check, layout, coords, strict, caught):  # noqa: C901 - each stage fails the case with its own message
     from dtdyn.app.batch.reducers import reducer_name
     from dtdyn.app.scene.run import run_scene
 
@@ -280,39 +282,119 @@ def _step(t) -> str:
     return f"{float(t[1] - t[0]):g}" if len(t) > 1 else "?"
 
 
-def probe(shared: Shared, specs: list[CaseSpec], reducers, check: bool) -> dict:
+def probe(shared: Shared, specs: list[CaseSpec], reducers, check: bool,
+          case_timeout: float | None = None) -> dict:
     """The warm-up of one worker: the C compiler required, then the given cases in order until
     one succeeds (its kernels compiled or loaded into this process). Returns the batch layout
-    (its variables' dims and shapes, the coordinates), the case's run time, and the messages
-    of the cases that failed before it."""
-    failed = []
+    (its variables' dims and shapes, the coordinates), the case's run time, the messages
+    of the cases that failed before it, and ``stuck`` (a case passed ``case_timeout``: its
+    thread still runs, the caller restarts this worker)."""
+    failed, stuck = [], False
     for spec in specs:
-        meta, arrays = run_case(shared, spec, reducers, check, coords=True, strict=True)
+        meta, arrays, late = _timed(shared, spec, reducers, check, None, case_timeout,
+                                    coords=True, strict=True)
+        stuck = stuck or late
         if arrays is None:
             failed.append(f"case {spec.index}: {meta['message']}")
             continue
         coords = meta["coords"]
         return {"vars": {k: (tuple(d), tuple(np.shape(v))) for k, (d, v) in arrays.items()},
                 "coords": coords, "dt": meta["dt"], "case": spec.index,
-                "run_time": meta["run_time"], "failed": failed, "worker": _address()}
-    return {"vars": None, "failed": failed, "worker": _address()}
+                "run_time": meta["run_time"], "failed": failed, "worker": _address(),
+                "stuck": stuck}
+    return {"vars": None, "failed": failed, "worker": _address(), "stuck": stuck}
+
+
+def _timed(shared, spec, reducers, check, layout, case_timeout, **kw):
+    """run_case in a thread of its own, waited for at most ``case_timeout`` s: (meta, arrays,
+    stuck). A case past its time is failed (``TimeoutError: case exceeded 60 s``) and left
+    running in its thread (stuck = True: the caller has its worker restarted)."""
+    if case_timeout is None:
+        return (*run_case(shared, spec, reducers, check, layout, **kw), False)
+    box, done = {}, threading.Event()
+
+    def target():
+        try:
+            box["got"] = run_case(shared, spec, reducers, check, layout, **kw)
+        except BaseException as exc:  # noqa: BLE001 - re-raised in the task's thread
+            box["exc"] = exc
+        finally:
+            done.set()
+
+    start = time.perf_counter()
+    threading.Thread(target=target, name=f"dtdyn-case-{spec.index}", daemon=True).start()
+    if not done.wait(case_timeout):
+        meta = {"index": spec.index, "status": "failed", "backend": "",
+                "run_time": time.perf_counter() - start, "max_rel_error": np.nan,
+                "max_residual": np.nan, "error_estimate": np.nan, "seed": spec.seed,
+                "worker": _address(), "warnings": [],
+                "message": f"TimeoutError: case exceeded {case_timeout:g} s"}
+        return meta, None, True
+    if "exc" in box:
+        raise box["exc"]
+    return (*box["got"], False)
 
 
 def run_chunk(shared: Shared, specs: list[CaseSpec], reducers, check: bool, layout: dict,
-              store: str | None, start: int):
-    """Run the cases ``specs`` (indices ``start ..``) and write their block of every variable to
-    the Zarr store (or return the blocks when ``store`` is None). Returns (metadata per case,
-    blocks or None)."""
-    metas, blocks = [], {name: np.full((len(specs), *shape), np.nan)
-                         for name, (dims, shape) in layout["vars"].items()}
-    for row, spec in enumerate(specs):
-        meta, arrays = run_case(shared, spec, reducers, check, layout)
-        metas.append(meta)
-        if arrays is not None:
-            for name, (dims, values) in arrays.items():
-                blocks[name][row] = values
-    if store is None:
-        return metas, blocks
-    from dtdyn.app.batch.store import write_block
-    write_block(store, start, blocks)
-    return metas, None
+              store: str | None, case_timeout: float | None = None) -> dict:
+    """Run the cases ``specs`` and write each to the Zarr store ``store`` as it finishes (its
+    rows, its record, its status last), or keep their rows for the caller when ``store`` is
+    None. Cases the store already shows done or failed (an earlier attempt of this task,
+    before its worker died) are not run again. A case past ``case_timeout`` s is failed and
+    the task ends there: the cases after it are returned in ``rest`` (to run again on a fresh
+    worker process, the stuck case's thread dies with this one).
+
+    Returns
+    -------
+    dict
+        ``metas`` (the metadata of each case run or found finished, in order), ``rows``
+        ({index: {name: values}} of the done cases, without a store), ``rest`` (indices not
+        run), ``stuck`` (a case timed out: restart this worker), ``found`` (cases found
+        finished in the store) and ``worker`` (this worker's address).
+    """
+    from dtdyn.app.batch.store import STATUS_PENDING, AsyncWriter, Writer
+
+    out = {"metas": [], "rows": {} if store is None else None, "rest": [], "stuck": False,
+           "found": 0, "worker": _address()}
+    writer = None
+    if store is not None:
+        base = Writer(store, list(layout["vars"]))
+        state = base.status([s.index for s in specs])
+        todo = []
+        for spec in specs:
+            status, record = state[spec.index]
+            if status != STATUS_PENDING:
+                out["metas"].append({**json.loads(record), "index": spec.index,
+                                     "status": status, "found": True})
+                out["found"] += 1
+            else:
+                todo.append(spec)
+        specs = todo
+        writer = AsyncWriter(base)
+    try:
+        for pos, spec in enumerate(specs):
+            meta, arrays, stuck = _timed(shared, spec, reducers, check, layout, case_timeout)
+            out["metas"].append(meta)
+            rows = None if arrays is None else {name: values
+                                                for name, (dims, values) in arrays.items()}
+            if writer is not None:
+                writer.put(spec.index, rows, _record(meta))
+            elif rows is not None:
+                out["rows"][spec.index] = rows
+            if stuck:
+                out["stuck"] = True
+                out["rest"] = [s.index for s in specs[pos + 1:]]
+                break
+    finally:
+        if writer is not None:
+            writer.close()
+    return out
+
+
+#: the fields of a case's metadata kept in the store's case_record
+RECORD = ("status", "message", "backend", "worker", "run_time", "max_rel_error",
+          "max_residual", "error_estimate", "warnings")
+
+
+def _record(meta: dict) -> dict:
+    return {k: meta.get(k, [] if k == "warnings" else "") for k in RECORD}
