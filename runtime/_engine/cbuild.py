@@ -213,7 +213,7 @@ _PH_FIELDS = {
 }
 
 
-def _elf_problem(path: str | os.PathLike[str]) -> str | None:
+def _elf_problem(path: str | os.PathLike[str]) -> str | None:  # noqa: C901 (one check a field)
     """What makes ``path`` not a complete ELF shared library for this process, or ``None``.
 
     The loader maps each PT_LOAD segment's file range ``[p_offset, p_offset + p_filesz)``; a range
@@ -230,78 +230,103 @@ def _elf_problem(path: str | os.PathLike[str]) -> str | None:
         return None
     try:
         with open(path, "rb") as fh:
-            size = os.fstat(fh.fileno()).st_size
-
-            def read(offset: int, n: int) -> bytes:
-                fh.seek(offset)
-                return fh.read(n)
-
-            ident = read(0, 16)
-            if len(ident) < 16 or ident[:4] != b"\x7fELF":
-                return f"is not an ELF file ({size} bytes, starts {ident[:4]!r})"
-            bits, order = _ELFCLASS.get(ident[4]), _ELFDATA.get(ident[5])
-            if bits is None or order is None or ident[6] != 1:
-                return f"has an unknown ELF class, byte order or version ({ident[4:7].hex()})"
-            if bits != 8 * struct.calcsize("P") or order != sys.byteorder:
-                return (f"is a {bits}-bit {order}-endian ELF file; this Python is "
-                        f"{8 * struct.calcsize('P')}-bit {sys.byteorder}-endian")
-            end = "<" if order == "little" else ">"
-            eh_fmt, ph_fmt, sh_fmt = (end + f for f in _ELF_LAYOUT[bits])
-            head = read(16, struct.calcsize(eh_fmt))
-            if len(head) < struct.calcsize(eh_fmt):
-                return f"ends inside its ELF header ({size} bytes)"
-            (e_type, _machine, _version, _entry, phoff, shoff, _flags, _ehsize, phentsize,
-             phnum, shentsize, shnum, _shstrndx) = struct.unpack(eh_fmt, head)
-            if e_type != _ET_DYN:
-                return f"is not a shared library (ELF e_type {e_type}, expected {_ET_DYN})"
-            ph_size, sh_size = struct.calcsize(ph_fmt), struct.calcsize(sh_fmt)
-
-            def table(offset: int, count: int, entsize: int, what: str) -> str | None:
-                if offset + count * entsize > size:
-                    return (f"is cut short: its {what} table ends at byte "
-                            f"{offset + count * entsize}, the file has {size} bytes")
-                return None
-
-            sections: list[tuple] = []
-            if shoff:  # section 0 holds the real counts when they overflow the header's fields
-                if shentsize != sh_size:
-                    return f"has section headers of {shentsize} bytes, expected {sh_size}"
-                bad = table(shoff, max(shnum, 1), sh_size, "section header")
-                if bad:
-                    return bad
-                first = struct.unpack(sh_fmt, read(shoff, sh_size))
-                shnum = shnum or first[5]
-                phnum = first[7] if phnum == _PN_XNUM else phnum
-                bad = table(shoff, shnum, sh_size, "section header")
-                if bad:
-                    return bad
-                data = read(shoff, shnum * sh_size)
-                sections = [struct.unpack_from(sh_fmt, data, i * sh_size) for i in range(shnum)]
-            if phentsize != ph_size or phnum == 0:
-                return f"has no usable program headers ({phnum} of {phentsize} bytes)"
-            bad = table(phoff, phnum, ph_size, "program header")
-            if bad:
-                return bad
-            data = read(phoff, phnum * ph_size)
-            loads = 0
-            for i in range(phnum):
-                ph = dict(zip(_PH_FIELDS[bits], struct.unpack_from(ph_fmt, data, i * ph_size)))
-                loads += ph["type"] == _PT_LOAD
-                if ph["filesz"] and ph["offset"] + ph["filesz"] > size:
-                    return (f"is cut short: segment {i} (type {ph['type']:#x}) ends at byte "
-                            f"{ph['offset'] + ph['filesz']}, the file has {size} bytes")
-                if ph["type"] == _PT_LOAD and ph["filesz"] > ph["memsz"]:
-                    return f"has a PT_LOAD segment {i} larger in the file than in memory"
-            if loads == 0:
-                return "has no PT_LOAD segment"
-            for i, sh in enumerate(sections):
-                sh_type, sh_offset, sh_bytes = sh[1], sh[4], sh[5]
-                if sh_type != _SHT_NOBITS and sh_bytes and sh_offset + sh_bytes > size:
-                    return (f"is cut short: section {i} ends at byte {sh_offset + sh_bytes}, "
-                            f"the file has {size} bytes")
+            return _ElfReader(fh).problem()
     except (OSError, struct.error) as exc:
         return f"cannot be read ({type(exc).__name__}: {exc})"
-    return None
+
+
+class _ElfReader:
+    """The checks of :func:`_elf_problem` on an open file; each returns a problem or None."""
+
+    def __init__(self, fh):
+        self.fh = fh
+        self.size = os.fstat(fh.fileno()).st_size
+
+    def read(self, offset: int, n: int) -> bytes:
+        self.fh.seek(offset)
+        return self.fh.read(n)
+
+    def table(self, offset: int, count: int, entsize: int, what: str) -> str | None:
+        if offset + count * entsize > self.size:
+            return (f"is cut short: its {what} table ends at byte {offset + count * entsize}, "
+                    f"the file has {self.size} bytes")
+        return None
+
+    def problem(self) -> str | None:
+        size, ident = self.size, self.read(0, 16)
+        if len(ident) < 16 or ident[:4] != b"\x7fELF":
+            return f"is not an ELF file ({size} bytes, starts {ident[:4]!r})"
+        bits, order = _ELFCLASS.get(ident[4]), _ELFDATA.get(ident[5])
+        if bits is None or order is None or ident[6] != 1:
+            return f"has an unknown ELF class, byte order or version ({ident[4:7].hex()})"
+        host = 8 * struct.calcsize("P")
+        if bits != host or order != sys.byteorder:
+            return (f"is a {bits}-bit {order}-endian ELF file; this Python is {host}-bit "
+                    f"{sys.byteorder}-endian")
+        end = "<" if order == "little" else ">"
+        eh_fmt, self.ph_fmt, self.sh_fmt = (end + f for f in _ELF_LAYOUT[bits])
+        self.fields = _PH_FIELDS[bits]
+        head = self.read(16, struct.calcsize(eh_fmt))
+        if len(head) < struct.calcsize(eh_fmt):
+            return f"ends inside its ELF header ({size} bytes)"
+        (e_type, _machine, _version, _entry, phoff, shoff, _flags, _ehsize, phentsize,
+         phnum, shentsize, shnum, _shstrndx) = struct.unpack(eh_fmt, head)
+        if e_type != _ET_DYN:
+            return f"is not a shared library (ELF e_type {e_type}, expected {_ET_DYN})"
+        sections: list[tuple] = []
+        if shoff:
+            bad = self.sections(shoff, shnum, shentsize, sections)
+            if bad:
+                return bad
+            if phnum == _PN_XNUM:  # the real count is in section 0's sh_info
+                phnum = sections[0][7]
+        return self.segments(phoff, phnum, phentsize) or self.section_extents(sections)
+
+    def sections(self, shoff: int, shnum: int, shentsize: int, out: list) -> str | None:
+        """The section header table inside the file (section 0 holds the real count when it
+        overflows e_shnum); ``out`` receives the headers."""
+        sh_size = struct.calcsize(self.sh_fmt)
+        if shentsize != sh_size:
+            return f"has section headers of {shentsize} bytes, expected {sh_size}"
+        bad = self.table(shoff, max(shnum, 1), sh_size, "section header")
+        if bad:
+            return bad
+        shnum = shnum or struct.unpack(self.sh_fmt, self.read(shoff, sh_size))[5]
+        bad = self.table(shoff, shnum, sh_size, "section header")
+        if bad:
+            return bad
+        data = self.read(shoff, shnum * sh_size)
+        out.extend(struct.unpack_from(self.sh_fmt, data, i * sh_size) for i in range(shnum))
+        return None
+
+    def segments(self, phoff: int, phnum: int, phentsize: int) -> str | None:
+        """The program header table and every segment's file range inside the file."""
+        ph_size = struct.calcsize(self.ph_fmt)
+        if phentsize != ph_size or phnum == 0:
+            return f"has no usable program headers ({phnum} of {phentsize} bytes)"
+        bad = self.table(phoff, phnum, ph_size, "program header")
+        if bad:
+            return bad
+        data = self.read(phoff, phnum * ph_size)
+        loads = 0
+        for i in range(phnum):
+            ph = dict(zip(self.fields, struct.unpack_from(self.ph_fmt, data, i * ph_size)))
+            loads += ph["type"] == _PT_LOAD
+            if ph["filesz"] and ph["offset"] + ph["filesz"] > self.size:
+                return (f"is cut short: segment {i} (type {ph['type']:#x}) ends at byte "
+                        f"{ph['offset'] + ph['filesz']}, the file has {self.size} bytes")
+            if ph["type"] == _PT_LOAD and ph["filesz"] > ph["memsz"]:
+                return f"has a PT_LOAD segment {i} larger in the file than in memory"
+        return None if loads else "has no PT_LOAD segment"
+
+    def section_extents(self, sections) -> str | None:
+        """Every section with file contents (not SHT_NOBITS) inside the file."""
+        for i, sh in enumerate(sections):
+            sh_type, sh_offset, sh_bytes = sh[1], sh[4], sh[5]
+            if sh_type != _SHT_NOBITS and sh_bytes and sh_offset + sh_bytes > self.size:
+                return (f"is cut short: section {i} ends at byte {sh_offset + sh_bytes}, "
+                        f"the file has {self.size} bytes")
+        return None
 
 
 def _sidecar_problem(so_path: Path) -> str | None:

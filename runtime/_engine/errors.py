@@ -1,6 +1,9 @@
-"""Every exception and warning dtdyn raises of its own, in one place (all re-exported by `dtdyn`)."""
+"""Every exception and warning dtdyn raises of its own, in one place (all re-exported by
+`dtdyn`)."""
 
-__all__ = ["NewtonError", "DtdynStepStabilityError", "DtdynUnstableError", "DtdynStabilityWarning", "DtdynAccuracyWarning", "SingularMassError", "SRSSamplingWarning", "DtdynFallbackWarning"]
+__all__ = ["NewtonError", "DtdynStepStabilityError", "DtdynUnstableError", "DtdynStabilityWarning",
+           "DtdynAccuracyWarning", "SingularMassError", "SRSSamplingWarning",
+           "DtdynFallbackWarning", "DtdynCacheError"]
 
 
 class NewtonError(RuntimeError):
@@ -34,3 +37,8 @@ class SRSSamplingWarning(RuntimeWarning):
 
 class DtdynFallbackWarning(RuntimeWarning):
     """The C backend is unavailable and the NumPy implementation is used instead."""
+
+
+class DtdynCacheError(RuntimeError):
+    """A compiled library in the cache failed its checks (incomplete ELF file, missing entry
+    points or the stamp of another cache key) again after it was removed and rebuilt once."""

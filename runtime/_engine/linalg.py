@@ -6,6 +6,8 @@ import scipy.linalg as sla
 import scipy.sparse as sps
 import scipy.sparse.linalg as spla
 
+from dtdyn._engine import validate
+
 
 def square_matrix(name: str, value, n: int | None = None, keep_sparse: bool = False):
     """A finite, non-empty, square float64 matrix (``n`` x ``n`` to match M when given).
@@ -17,10 +19,13 @@ def square_matrix(name: str, value, n: int | None = None, keep_sparse: bool = Fa
         data = arr.data
     else:
         if sps.issparse(value):
+            validate.dense_conversion(name, value)
             value = value.toarray()
+        if np.iscomplexobj(value) or isinstance(value, (str, bytes)):
+            validate.real_array(name, value, "a real numeric matrix")
         try:
             arr = np.array(value, dtype=float)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):  # OverflowError: int beyond float
             raise ValueError(f"{name} must be a real numeric matrix, got "
                              f"{type(value).__name__}") from None
         data = arr
@@ -38,7 +43,11 @@ def square_matrix(name: str, value, n: int | None = None, keep_sparse: bool = Fa
 
 
 def mck(M, C, K, keep_sparse: bool = False, physical: bool = True):
-    """Checked (M, C, K) of one size; ``physical``: M is a mass matrix (`check_mass`)."""
+    """Checked (M, C, K) of one size; ``physical``: M is a mass matrix (`check_mass`). A sparse
+    M that is to be made dense is first checked to fit three times (M, C and K) in memory
+    (`validate.dense_conversion`)."""
+    if sps.issparse(M) and not keep_sparse:
+        validate.dense_conversion("M", M, copies=3)
     M = square_matrix("M", M, keep_sparse=keep_sparse)
     if physical:
         check_mass(M)

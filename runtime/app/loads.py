@@ -39,7 +39,10 @@ def finite_number(name: str, value) -> float:
     """A finite real number from TOML (int or float; not bool, not a string)."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ValueError(f"{name} = {value!r}: must be a number")
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # a TOML integer beyond the float range
+        raise ValueError(f"{name} = {value!r}: must be finite") from None
     if not np.isfinite(v):
         raise ValueError(f"{name} = {value!r}: must be finite")
     return v
@@ -83,9 +86,11 @@ def _read_file(name: str, spec: dict, n: int | None, base_dir: Path) -> np.ndarr
     if data.ndim == 1:
         data = data[:, None]
     if data.ndim != 2:
-        raise ValueError(f"{name}.path = {raw!r}: expected a 1-D or 2-D array, got shape {data.shape}")
+        raise ValueError(f"{name}.path = {raw!r}: expected a 1-D or 2-D array, "
+                         f"got shape {data.shape}")
     if column >= data.shape[1]:
-        raise ValueError(f"{name}.column = {column}: the file {raw!r} has {data.shape[1]} column(s)")
+        raise ValueError(f"{name}.column = {column}: the file {raw!r} has "
+                         f"{data.shape[1]} column(s)")
     samples = data[:, column]
     if (n is not None and samples.size != n) or samples.size < 2:
         raise ValueError(f"{name}.path = {raw!r}: has {samples.size} samples, expected "
@@ -139,7 +144,7 @@ def sample_load(spec: dict, t: np.ndarray, base_dir: Path, *, name: str = "load"
         raise ValueError(f"t must be 1-D, got shape {t.shape}")
 
     kind = spec.get("kind")
-    if kind not in LOAD_KINDS:
+    if not isinstance(kind, str) or kind not in LOAD_KINDS:  # [] would be unhashable
         allowed = ", ".join(repr(k) for k in LOAD_KINDS)
         raise ValueError(f"{name}.kind = {kind!r}: unknown load kind, allowed: {allowed}")
     required, optional = LOAD_KINDS[kind]
@@ -171,8 +176,8 @@ def sample_load(spec: dict, t: np.ndarray, base_dir: Path, *, name: str = "load"
         amplitude, phase = num("amplitude"), num("phase")
         frequency = validate.positive_scalar(f"{name}.frequency", num("frequency"))
         if dt and frequency > 0.5 / dt:
-            raise ValueError(f"{name}.frequency = {spec['frequency']!r}: above the Nyquist frequency "
-                             f"0.5/dt = {0.5 / dt:g} Hz of the time grid")
+            raise ValueError(f"{name}.frequency = {spec['frequency']!r}: above the Nyquist "
+                             f"frequency 0.5/dt = {0.5 / dt:g} Hz of the time grid")
         return amplitude * np.sin(2.0 * np.pi * frequency * t + phase)
 
     if kind == "white_noise":

@@ -66,6 +66,7 @@ def chain_frequency_response(mass, stiffness, damping, omega, force_dofs, output
         (len(omega),) when both ``force_dofs`` and ``outputs`` are single ints.
     """
     chain = chain_parameters(mass, stiffness, damping, ground_stiffness, ground_damping)
+    omega = validate.frequencies("omega", omega)
 
     def index(name, value):
         return int(validate.dof_indices(name, [value], chain.m.size)[0])

@@ -28,15 +28,15 @@ sum_r 2 Re R_r; acceleration s_r^2 R_r plus sum_r 2 Re(s_r R_r) (= M^-1 with eve
 remaining term of the acceleration, s sum_r 2 Re R_r, is zero for a complete mode set of a
 mechanical system and is dropped for a truncated one (part of the truncation error).
 
-Force convention: samples x_n at t_n = n dt (fs = 1 / dt), shape (n_samples, len(force_dofs)); the filters start
-at rest with x_{-1} = 0 (the ramp invariant then assumes the force ramps up from 0 over the sample
-before t_0: start records at zero force to compare with `exact_response`).
+Force convention: samples x_n at t_n = n dt (fs = 1 / dt), shape (n_samples, len(force_dofs));
+the filters start at rest with x_{-1} = 0 (the ramp invariant then assumes the force ramps up
+from 0 over the sample before t_0: start records at zero force to compare with `exact_response`).
 """
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from importlib import resources
 
 import numpy as np
@@ -229,7 +229,7 @@ def modal_states(model: ModalModel, fs: float, invariant="ramp",
                        w[:, None] * u, direct)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _c_bank():
     source = resources.files("dtdyn.generated").joinpath("filter_bank.c").read_text()
     lib = cbuild.load_library(source, "filter_bank")
@@ -239,7 +239,7 @@ def _c_bank():
     return lib
 
 
-@lru_cache(maxsize=None)
+@cache
 def _c_modes():
     source = resources.files("dtdyn.generated").joinpath("modal_states.c").read_text()
     lib = cbuild.load_library(source, "modal_states")
@@ -477,12 +477,13 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     quantities = check_quantities(quantities)
     grounded = support.given(ground_acceleration, ground_velocity, ground_displacement)
     M_ = None if grounded is None else linalg.mck(M, C, K)[0]
-    force, force_dofs, ground = support.prepare(M_, force, force_dofs, np.shape(M)[0],
+    n_dof = linalg.square_matrix("M", M, keep_sparse=True).shape[0]  # M checked, then sized
+    force, force_dofs, ground = support.prepare(M_, force, force_dofs, n_dof,
                                                 ground_acceleration, influence, dt=dt,
                                                 ground_velocity=ground_velocity,
                                                 ground_displacement=ground_displacement)
     if x0 is not None or v0 is not None:  # checked before the run, used after it
-        validate.initial_conditions(x0, v0, np.shape(M)[0])
+        validate.initial_conditions(x0, v0, n_dof)
     model = modal_model(M, C, K, force_dofs, outputs)
     if modes is not None:
         model = model.select(modes)

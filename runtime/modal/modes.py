@@ -154,7 +154,8 @@ def mck_modes(M, C, K, *, count=None, influence=None) -> Modes:
     2.0
     """
     sparse = sps.issparse(M) or sps.issparse(K)
-    M, K, _ = linalg.mck(M, K, K, keep_sparse=sparse)
+    # M in C's place (checked as M first): an error in K names K, not C
+    M, _, K = linalg.mck(M, M, K, keep_sparse=sparse)
     n = M.shape[0]
     _check_symmetric("K", K)
     if count is not None:
@@ -232,7 +233,7 @@ def _damped(M, C, K, m):
     keep = np.flatnonzero(np.isfinite(s) & (s.imag > 0))
     keep = keep[np.argsort(np.abs(s[keep]))][:m]
     if keep.size < m:
-        raise ValueError(f"only {keep.size} of the {m} modes are underdamped (oscillatory): "
+        raise ValueError(f"C: only {keep.size} of the {m} modes are underdamped (oscillatory): "
                          "complex modes need Im s > 0; the others are overdamped")
     s = s[keep]
     psi = Z[:n, keep]

@@ -219,10 +219,10 @@ def response_spectrum(ground_acceleration, dt, periods=None, damping_ratio=0.05,
     if periods is None:
         T = default_periods(dt)
     else:
-        T = validate.vector("periods", np.atleast_1d(np.asarray(periods, dtype=float)),
+        T = validate.vector("periods", np.atleast_1d(validate.real_array("periods", periods)),
                             positive=True)
-    zetas = validate.vector("damping_ratio", np.atleast_1d(np.asarray(damping_ratio,
-                                                                      dtype=float)),
+    zetas = validate.vector("damping_ratio",
+                            np.atleast_1d(validate.real_array("damping_ratio", damping_ratio)),
                             nonnegative=True)
     bad = np.flatnonzero(zetas >= 1.0)
     if bad.size:
@@ -230,6 +230,11 @@ def response_spectrum(ground_acceleration, dt, periods=None, damping_ratio=0.05,
                          "(underdamped)")
     if backend not in ("c", "scipy"):
         raise ValueError(f"backend must be 'c' or 'scipy', got {backend!r}")
+    # the four spectra kept (damping ratios x periods each) and one damping ratio's two SRS
+    # results (maximax, positive, negative per period) while they are computed
+    validate.memory(f"response_spectrum: {zetas.size:,} damping ratios x {T.size:,} periods x "
+                    "4 spectra (sd, psv, psa, sa)", 8 * (4 * zetas.size + 6) * T.size,
+                    "ask for fewer periods or damping ratios")
     _warn_short_periods(T, dt)
     freqs = 1.0 / T
     omega = 2.0 * np.pi * freqs

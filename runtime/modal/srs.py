@@ -10,11 +10,12 @@ zeta, relative displacement z = x - x_base:
 
     z'' + 2 zeta omega z' + omega^2 z = -a(t),
 
-where a(t) is the base acceleration. The record a_0 .. a_{N-1} (a_n at t_n = n dt, fs = 1/dt) is taken to be
-**linear between samples**, starting at rest at t_{-1} = -1/fs with a_{-1} = 0 (a ramp up to a_0
-over one sample) and ramping back to 0 over [t_{N-1}, t_N] (zero input afterwards). For that
-piecewise-linear input the ramp-invariant filter is exact at the samples: this is the shock
-response spectrum of the linearly interpolated record, computed without discretisation error.
+where a(t) is the base acceleration. The record a_0 .. a_{N-1} (a_n at t_n = n dt, fs = 1/dt) is
+taken to be **linear between samples**, starting at rest at t_{-1} = -1/fs with a_{-1} = 0 (a
+ramp up to a_0 over one sample) and ramping back to 0 over [t_{N-1}, t_N] (zero input
+afterwards). For that piecewise-linear input the ramp-invariant filter is exact at the samples:
+this is the shock response spectrum of the linearly interpolated record, computed without
+discretisation error.
 
 Responses (all strictly proper transfer functions of s, poles s1, conj(s1) with
 s1 = -zeta omega + j omega sqrt(1 - zeta^2)); the residue R at s1 (by partial fractions of
@@ -234,7 +235,7 @@ def bias_error_bound(freqs_hz, fs):
 
 # --- inputs ---------------------------------------------------------------------------------
 def _check_record(ground_acceleration) -> np.ndarray:
-    a = np.asarray(ground_acceleration, dtype=float)
+    a = validate.real_array("ground_acceleration", ground_acceleration, "a 1-D record")
     if a.ndim != 1 or a.size == 0:
         raise ValueError(f"ground_acceleration must be a non-empty 1-D record, got shape "
                          f"{a.shape}")
@@ -250,11 +251,11 @@ def _check_common(ground_acceleration, dt, freqs_hz, damping_ratio, response, po
     """Checked (record, fs = 1/dt, freqs_hz, zeta, points_per_cycle)."""
     a = _check_record(ground_acceleration)
     fs = 1.0 / validate.positive_scalar("dt", dt)
-    f = validate.vector("freqs_hz", np.atleast_1d(np.asarray(freqs_hz, dtype=float)),
+    f = validate.vector("freqs_hz", np.atleast_1d(validate.real_array("freqs_hz", freqs_hz)),
                         positive=True)
     try:
         zeta = float(damping_ratio)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"damping_ratio must be a number, got {damping_ratio!r}") from None
     if not (np.isfinite(zeta) and 0.0 <= zeta < 1.0):
         raise ValueError(f"damping_ratio must be a ratio with 0 <= damping_ratio < 1 "
@@ -283,7 +284,13 @@ def _poles_residues(freqs, zeta, response):
 def _upsample_factor(f_max, fs, ppc):
     if ppc is None:
         return 1
-    return max(1, math.ceil(ppc * f_max / fs - 1e-9))
+    ratio = ppc * f_max / fs
+    if not ratio < 2.0**53:  # inf, or beyond any record that fits in memory
+        raise ValueError(f"freqs_hz (or 1 / periods) up to {f_max:.6g} Hz at dt = "
+                         f"{1.0 / fs:.6g} s: the record would be upsampled {ratio:.3g} times "
+                         f"({ppc:g} points per cycle); ask for lower freqs_hz (longer periods) "
+                         "or sample the record at a smaller dt")
+    return max(1, math.ceil(ratio - 1e-9))
 
 
 def _extended_input(a: np.ndarray, u: int) -> np.ndarray:
@@ -577,8 +584,12 @@ def _spectrum(a, fs, f, zeta, response, window, ppc, exact_peaks, backend, worke
 
     N = a.size
     # the record upsampled u times, and a block of filter outputs per worker
-    validate.output_size(f"shock_response_spectrum (the record upsampled {u} times)",
-                         u * (N + 1), 1 + 2 * max(1, min(f.size, _BLOCK_BYTES // (8 * u * (N + 1)))))
+    cols = 1 + 2 * max(1, min(f.size, _BLOCK_BYTES // (8 * u * (N + 1))))
+    validate.memory(f"shock_response_spectrum: the record ({N:,} samples at dt = {1.0 / fs:.6g} "
+                    f"s) upsampled {u:,} times for freqs_hz (or 1 / periods) up to "
+                    f"{f_max:.6g} Hz, {u * (N + 1):,} samples x {cols} values",
+                    8 * u * (N + 1) * cols, "ask for lower freqs_hz (longer periods), fewer "
+                    "points_per_cycle or a shorter record")
     e = _extended_input(a, u)
     J_end, j_N = u * N, u * (N + 1)
     s1, R = _poles_residues(f, zeta, response)

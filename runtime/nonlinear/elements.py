@@ -64,7 +64,7 @@ def _number(name: str, value, *, positive=False, nonnegative=False) -> float:
         raise ValueError(f"{name} must be a number, got {value!r}")
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond float range
         raise ValueError(f"{name} must be a number, got {value!r}") from None
     if not math.isfinite(v) or (positive and v <= 0) or (nonnegative and v < 0):
         need = "> 0" if positive else (">= 0" if nonnegative else "finite")
@@ -264,8 +264,9 @@ class Law(Element):
         self.__post_init__()
 
     def __post_init__(self):
-        from dtdyn.nonlinear.expressions import parse_expression
+        from dtdyn.nonlinear.expressions import check_count, parse_expression
         super().__post_init__()
+        check_count("Law", len(self.constants))  # before any constant is looked at
         for k, c in self.constants.items():
             if isinstance(c, str) and suggest(str(k), ("expression",)):
                 raise unknown_keyword("Law", str(k), ("i", "j", "expression"))
