@@ -36,7 +36,7 @@ class Ground:
     def __init__(self, record, influence, n_dof: int, n_samples: int | None,
                  quantity: str = "acceleration", dt: float | None = None):
         name = RECORDS[quantity]
-        a = np.asarray(record, dtype=float)
+        a = validate.real_array(name, record, "a record of samples")
         if a.ndim == 1:
             a = a[:, None]
         least = 3 if quantity == "displacement" else 2
@@ -56,7 +56,7 @@ class Ground:
                                  "matrix (n_dof, n_directions)")
             r = np.ones((n_dof, 1))
         else:
-            r = np.asarray(influence, dtype=float)
+            r = validate.real_array("influence", influence)
             if r.ndim == 1:
                 r = r[:, None]
             if r.shape != (n_dof, a.shape[1]) or not np.isfinite(r).all():

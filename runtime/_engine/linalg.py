@@ -14,6 +14,10 @@ def square_matrix(name: str, value, n: int | None = None, keep_sparse: bool = Fa
 
     scipy.sparse input stays sparse (CSR) when ``keep_sparse``, else it is densified.
     """
+    if sps.issparse(value) and np.iscomplexobj(value.data):
+        raise ValueError(f"{name} is a complex sparse matrix (dtype {value.dtype}): dtdyn takes "
+                         f"real values; pass {name}.real explicitly if the imaginary part is to "
+                         "be dropped")
     if sps.issparse(value) and keep_sparse:
         arr = sps.csr_matrix(value, dtype=float)
         data = arr.data

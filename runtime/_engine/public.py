@@ -20,6 +20,13 @@ import warnings
 
 _PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 _SEEN = contextvars.ContextVar("dtdyn_warnings_seen", default=None)
+_CALL = contextvars.ContextVar("dtdyn_public_call", default=None)
+
+
+def current_call() -> str | None:
+    """The name of the outermost public function being called (None outside one): what an
+    error deep inside names as the entry point."""
+    return _CALL.get()
 
 
 def _scheme_parameter_names() -> frozenset:
@@ -76,8 +83,13 @@ def _wrap(function, name, renamed, scheme_keywords):
             for key in kwargs:
                 if key not in valid:
                     raise unknown_keyword(name, key, valid | set(renamed))
-        with warning_scope():
-            return function(*args, **kwargs)
+        token = _CALL.set(name) if _CALL.get() is None else None
+        try:
+            with warning_scope():
+                return function(*args, **kwargs)
+        finally:
+            if token is not None:
+                _CALL.reset(token)
 
     wrapper.__dtdyn_public__ = True
     return wrapper

@@ -27,6 +27,8 @@ import hashlib
 import io
 import json
 import os
+import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -284,8 +286,11 @@ def load_result(path):
     reader = {".npz": _read_npz, ".nc": _read_nc, ".csv": _read_csv}[suffix]
     try:
         return reader(path)
-    except (KeyError, ValueError, OSError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{str(path)!r} is not a dtdyn result file ({suffix}): {exc}") from None
+    except (KeyError, ValueError, OSError, json.JSONDecodeError, zipfile.BadZipFile, EOFError,
+            zlib.error) as exc:  # a truncated or empty .npz: BadZipFile, EOFError, zlib.error
+        raise ValueError(f"{str(path)!r} is not a dtdyn result file ({suffix}; "
+                         f"{path.stat().st_size:,} bytes): {type(exc).__name__}: "
+                         f"{exc}") from None
 
 
 def _build(t, outputs, quantities: dict, metadata, dof_names=None, arrays=None):

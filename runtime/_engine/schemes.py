@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import importlib
+import math
 from dataclasses import dataclass
 
 from dtdyn._engine.public import suggest
@@ -49,7 +50,20 @@ class SchemeInfo:
                 raise ValueError(f"scheme {self.name!r} is explicit (beta = 0): it has no "
                                  "displacement form; use form='acceleration'")
             raise ValueError(f"form must be 'displacement' or 'acceleration', got {form!r}")
-        return self.module.coefficients(form, dt, *(self.params[p] for p in self.module.PARAMS))
+        # the coefficients hold 1/dt and 1/dt^2: a dt so small that they overflow (dt^2
+        # underflows below ~1e-308) is named here, not met as a ZeroDivisionError or an inf
+        # in the step
+        try:
+            coef = self.module.coefficients(form, dt, *(self.params[p]
+                                                        for p in self.module.PARAMS))
+        except (ZeroDivisionError, OverflowError):
+            coef = None
+        if coef is None or not all(math.isfinite(v) for v in coef.values()
+                                   if isinstance(v, (int, float))):
+            raise ValueError(f"dt = {dt!r}: the coefficients of scheme {self.name!r} (1/dt, "
+                             "1/dt^2) overflow a float; dt must be above about 1e-150 s (in "
+                             "the model's units)")
+        return coef
 
 
 def get_scheme(name: str, **params) -> SchemeInfo:

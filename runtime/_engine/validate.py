@@ -9,7 +9,7 @@ import numpy as np
 def positive_scalar(name: str, value) -> float:
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):  # OverflowError: an int beyond float range
         raise ValueError(f"{name} must be a number, got {value!r}") from None
     if not np.isfinite(v) or v <= 0.0:
         raise ValueError(f"{name} must be finite and > 0, got {value!r}")
@@ -18,7 +18,7 @@ def positive_scalar(name: str, value) -> float:
 
 def frequencies(name: str, omega) -> np.ndarray:
     """A non-empty 1-D array of finite frequencies >= 0 (rad/s), else ValueError naming it."""
-    w = np.atleast_1d(np.asarray(omega, dtype=float))
+    w = np.atleast_1d(real_array(name, omega, "an array of frequencies (rad/s)"))
     if w.ndim != 1 or w.size == 0 or not np.all(np.isfinite(w)) or np.any(w < 0):
         raise ValueError(f"{name} = {omega!r}: must be a non-empty 1-D array of finite "
                          "frequencies >= 0 (rad/s)")
@@ -41,7 +41,7 @@ def step_count(name: str, value) -> int:
 def vector(name: str, values, *, positive: bool = False, nonnegative: bool = False,
            length: int | None = None) -> np.ndarray:
     """A finite 1-D float array; ``positive``/``nonnegative`` check every entry."""
-    arr = np.asarray(values, dtype=float)
+    arr = real_array(name, values, "a sequence of numbers")
     if arr.ndim != 1 or arr.size == 0:
         raise ValueError(f"{name} must be a non-empty 1-D sequence, got shape {arr.shape}")
     if length is not None and arr.size != length:
@@ -109,7 +109,7 @@ def initial_conditions(x0, v0, n_dof: int):
 def force_record(force, n_inputs: int, what: str = "force_dofs") -> np.ndarray:
     """Force samples of shape (n_samples, n_inputs), n_samples >= 1, finite, float, C-contiguous
     (a 1-D array is one column when n_inputs is 1); ``what`` names the DOF list in errors."""
-    f = np.asarray(force, dtype=float)
+    f = real_array("force", force, "a record of force samples")
     if f.ndim == 1 and n_inputs == 1:
         f = f[:, None]
     if f.ndim != 2 or f.shape[1] != n_inputs or f.shape[0] < 1:
@@ -156,16 +156,77 @@ def available_memory() -> int | None:
     return avail
 
 
+def memory(what: str, need: int, advice: str) -> int:
+    """The one up-front size check: refuse, before anything is allocated, work that needs
+    ``need`` bytes when fewer are available (`available_memory`), with a MemoryError that
+    names ``what`` (the input and its size), the bytes needed and available, and ``advice``
+    (what to do instead). Returns ``need``."""
+    need = int(need)
+    avail = available_memory()
+    if avail is not None and need > avail:
+        raise MemoryError(f"{what} need {_bytes(need)}, more than the {_bytes(avail)} "
+                          f"available; {advice}")
+    return need
+
+
 def output_size(what: str, n_samples: int, n_columns: int, itemsize: int = 8) -> int:
     """Refuse, before anything is allocated, a result of n_samples x n_columns values that does
     not fit in the memory available (MemoryError naming ``what``, the shape and the size)."""
-    need = int(n_samples) * int(n_columns) * itemsize
-    avail = available_memory()
-    if avail is not None and need > avail:
-        raise MemoryError(f"{what}: {int(n_samples):,} samples x {int(n_columns):,} values need "
-                          f"{_bytes(need)}, more than the {_bytes(avail)} available; ask for "
-                          "fewer outputs or quantities, or a shorter record")
-    return need
+    return memory(f"{what}: {int(n_samples):,} samples x {int(n_columns):,} values",
+                  int(n_samples) * int(n_columns) * itemsize,
+                  "ask for fewer outputs or quantities, or a shorter record")
+
+
+#: what to use instead of a dense conversion of a large sparse model
+SPARSE_PATHS = ("mck_response (implicit schemes on sparse M, C, K: a sparse LU), "
+                "mck_modes(M, None, K, count=...) (the lowest modes by a sparse eigensolver), "
+                "or chain_response for a chain")
+
+
+def dense_conversion(name: str, A, what: str | None = None, copies: int = 1) -> None:
+    """Refuse, before ``A.toarray()``, a dense copy of a scipy.sparse matrix ``A`` (named
+    ``name``) that does not fit in the memory available: n x n x 8 bytes times ``copies`` (the
+    dense matrices the caller builds from it). The message names the entry point (``what``,
+    default the public function being called), the shape, the size and the sparse paths to
+    use instead (`SPARSE_PATHS`)."""
+    if not hasattr(A, "shape") or len(A.shape) != 2:
+        return
+    from dtdyn._engine.public import current_call
+
+    what = what or current_call() or "a dense conversion"
+    rows, cols = (int(n) for n in A.shape)
+    memory(f"{what}: {name} is a sparse {rows:,} x {cols:,} matrix; as dense matrices "
+           f"({copies} of this size) they would",
+           copies * rows * cols * 8,
+           f"{what} works on dense matrices: for a sparse model use {SPARSE_PATHS}")
+
+
+def real_array(name: str, value, what: str = "an array of numbers") -> np.ndarray:
+    """``value`` as a float ndarray; a file name (str or path) or complex values are a
+    ValueError naming ``name`` (numpy would say "could not convert string to float", or drop
+    the imaginary part with only a ComplexWarning)."""
+    if isinstance(value, (str, bytes, os.PathLike)):
+        if "record" in what or "samples" in what:  # a record given by its file name
+            raise ValueError(f"{name} = {value!r} is a file name, not {what}: read the file "
+                             f"first, e.g. {name}=dd.load_record({str(value)!r}) (a .csv, .txt "
+                             "or .npy record), and pass the array")
+        raise ValueError(f"{name} must be {what}, got the string {value!r}")
+    try:
+        listed = isinstance(value, (list, tuple)) and np.iscomplexobj(np.asarray(value))
+    except (TypeError, ValueError):  # ragged nesting: float conversion below names it
+        listed = False
+    if np.iscomplexobj(value) or listed:
+        arr = np.atleast_1d(np.asarray(value))
+        where = np.argwhere(arr.imag != 0)
+        first = (f" ({name}[{', '.join(str(int(i)) for i in where[0])}] = "
+                 f"{complex(arr[tuple(where[0])])!r})") if where.size else ""
+        raise ValueError(f"{name} is complex (dtype {arr.dtype}){first}: dtdyn takes real "
+                         f"values; pass {name}.real explicitly if the imaginary part is to be "
+                         "dropped")
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:  # OverflowError: int beyond float
+        raise ValueError(f"{name} must be {what}, got {type(value).__name__}: {exc}") from None
 
 
 def _bytes(n: float) -> str:

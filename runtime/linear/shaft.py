@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from typing import NamedTuple
 
 import numpy as np
@@ -33,6 +33,13 @@ from dtdyn.linear.stability import check_dt, highest_frequency
 
 #: the ends a line of disks may have
 ENDS = ("free", "clamped", "elastic")
+#: the smallest |gear ratio| (and 1 / the largest): 1 / ratio^2 <= 1e200, so that a branch's
+#: stiffness seen through the gear stays finite, and its square in the solvers too
+MIN_RATIO = 1e-100
+#: bytes the lumped tree holds per DOF while `Shaft` builds it (Python lists of its parent,
+#: ratio, inertia, stiffness, damping, ground terms and name, then their arrays): 263 B
+#: measured at the peak (tracemalloc, a ContinuousShaft of 2e5 elements)
+SHAFT_BYTES_PER_DOF = 270
 
 
 @dataclass(frozen=True)
@@ -124,7 +131,8 @@ class Branch:
                  ground_stiffness=None, ground_damping=None, right="free", right_stiffness=0.0,
                  right_damping=0.0, branches=(), name=None):
         if isinstance(at, bool) or not isinstance(at, (int, np.integer)):
-            raise ValueError(f"branch {name or ''!s} at = {at!r}: must be a 0-based disk index".replace("  ", " "))
+            raise ValueError(f"branch {name or ''!s} at = {at!r}: must be a 0-based disk "
+                             "index".replace("  ", " "))
         self.at = int(at)
         if ratio is not None:
             if not (isinstance(ratio, (int, float, np.floating, np.integer))
@@ -132,6 +140,12 @@ class Branch:
                 raise ValueError(f"branch {name or ''} ratio = {ratio!r}: a gear ratio must be "
                                  "finite and != 0".replace("  ", " "))
             ratio = float(ratio)
+            if not MIN_RATIO <= abs(ratio) <= 1.0 / MIN_RATIO:
+                raise ValueError(f"branch {name or ''} ratio = {ratio!r}: a gear ratio must be "
+                                 f"within {MIN_RATIO:g} .. {1.0 / MIN_RATIO:g} in magnitude (the "
+                                 "branch's stiffness and inertia seen by its parent scale as "
+                                 "1 / ratio^2, which must stay a finite, normal float with room "
+                                 "for the solvers)".replace("  ", " "))
         self.ratio = ratio
         self.name = name
         self._args = (inertia, stiffness, damping, ground_stiffness, ground_damping, right,
@@ -141,8 +155,9 @@ class Branch:
 class _Line:
     """A checked line of disks (the main line or a branch)."""
 
-    def __init__(self, label, inertia, stiffness, damping, ground_stiffness, ground_damping, right,
-                 right_stiffness, right_damping, branches, first_connected: bool | None):
+    def __init__(  # noqa: C901 (one check per argument)
+            self, label, inertia, stiffness, damping, ground_stiffness, ground_damping, right,
+            right_stiffness, right_damping, branches, first_connected: bool | None):
         self.label = label
         J = validate.vector(f"{label}inertia", inertia, nonnegative=True)
         N = J.size
@@ -150,7 +165,8 @@ class _Line:
         if len(stiffness) != N:
             raise ValueError(f"{label}stiffness has length {len(stiffness)}, expected {N} (one "
                              "shaft before each disk)")
-        damping = [0.0] * N if damping is None else list(np.atleast_1d(np.asarray(damping, dtype=object)))
+        damping = ([0.0] * N if damping is None
+                   else list(np.atleast_1d(np.asarray(damping, dtype=object))))
         if len(damping) != N:
             raise ValueError(f"{label}damping has length {len(damping)}, expected {N}")
         self.k, self.c, self.cont = [], [], []
@@ -321,6 +337,13 @@ class Shaft:
             self.lines.append((line, pi, br.at, br.ratio))
             li = len(self.lines) - 1
             stack.extend((li, b) for b in reversed(line.branches))
+        # before the lumped tree is built: its DOFs, a continuous shaft's points included
+        lumped = sum(line.J.size + sum(seg.elements - 1 for seg in
+                                       (*line.cont, line.right_segment) if seg is not None)
+                     for line, *_ in self.lines)
+        validate.memory(f"Shaft: its lumped model of {lumped:,} DOFs (the ContinuousShaft "
+                        "elements)", lumped * SHAFT_BYTES_PER_DOF,
+                        "give the ContinuousShaft fewer elements")
         self._lumped = self._build(exact=False)
         bad = np.flatnonzero(self._lumped.J <= 0)
         if bad.size:
@@ -477,7 +500,7 @@ def shaft_matrices(shaft: Shaft):
 
 # -- time histories ------------------------------------------------------------------------------
 
-@lru_cache(maxsize=None)
+@cache
 def _c_function(scheme: str):
     source = cbuild.generated_source(f"shaft_{scheme}.c")
     lib = cbuild.load_library(source, f"shaft_{scheme}")
@@ -667,7 +690,8 @@ def _count(tree: Tree, gS, lam, pivmin):
     return gen.wittrick_williams(lam, tree.parent, gS, tree.J, kg, a, b, j0, pivmin)
 
 
-def shaft_frequencies(shaft: Shaft, count=None, below=None, *, exact=True) -> np.ndarray:
+def shaft_frequencies(shaft: Shaft, count=None, below=None, *,  # noqa: C901 (lumped and exact)
+                      exact=True) -> np.ndarray:
     """Undamped natural frequencies (rad/s, ascending) by the Wittrick-Williams count.
 
     The count of frequencies below omega is the number of negative pivots of the tree's

@@ -32,9 +32,10 @@ counterpart::
 Refused: attributes (``x.real``), indexing, calls of anything else or with keywords or ``*args``,
 lambda, comprehensions, comparisons, ``and``/``or``/``not``, ``a if c else b``, ``:=``,
 strings and f-strings, True/False/None, complex literals, ``%``, ``//``, ``@``, bit operators,
-undeclared names, empty text, text longer than `MAX_LENGTH` characters and nesting deeper than
-`MAX_DEPTH` levels. Every message names the field (the ``name`` argument, e.g.
-``"elements[2].expression"``) and shows the offending piece.
+undeclared names, empty text, text longer than `MAX_LENGTH` characters, nesting deeper than
+`MAX_DEPTH` levels and more than `MAX_CONSTANTS` declared names. Parsing and checking take
+time linear in the text and the number of names. Every message names the field (the ``name``
+argument, e.g. ``"elements[2].expression"``) and shows the offending piece.
 
 Example
 -------
@@ -62,6 +63,9 @@ MAX_LENGTH = 1000
 #: the deepest nesting of operations accepted (keeps every tree walk far from Python's
 #: recursion limit; a sum of n terms nests n deep)
 MAX_DEPTH = 200
+#: the most named constants (and variables) an expression may declare: a text of at most
+#: MAX_LENGTH characters cannot use more than MAX_LENGTH // 2 names
+MAX_CONSTANTS = MAX_LENGTH // 2
 #: the largest |exponent| a constant power may have (x**400 overflows for |x| > 6: no force law
 #: needs more; 9**9**9 would otherwise be an exact integer of 370 million digits)
 MAX_EXPONENT = 64
@@ -236,13 +240,24 @@ def _constant(node):
     return None
 
 
+def check_count(field_name: str, n: int, kind: str = "constants") -> None:
+    """ValueError when more than `MAX_CONSTANTS` names are declared (checked before any of them
+    is looked at: an expression of at most `MAX_LENGTH` characters cannot use more)."""
+    if n > MAX_CONSTANTS:
+        raise ValueError(f"{field_name}: {n:,} {kind} declared; the limit is {MAX_CONSTANTS} "
+                         f"(an expression of at most {MAX_LENGTH} characters cannot use more)")
+
+
 def _names(kind: str, names, field_name: str) -> tuple:
     if isinstance(names, str):
         names = (names,)
+    if hasattr(names, "__len__"):
+        check_count(field_name, len(names), kind)
     try:
         names = tuple(names)
     except TypeError:
         raise ValueError(f"{field_name}: {kind} must be a list of names, got {names!r}") from None
+    check_count(field_name, len(names), kind)
     for n in names:
         if not isinstance(n, str) or not n.isascii() or not n.isidentifier() \
                 or keyword.iskeyword(n):
@@ -414,7 +429,10 @@ def parse_expression(text, variables=("x", "v"), constants=(), name="expression"
     variables = _names("variables", variables, name)
     constants = _names("constants", constants, name)
     declared = variables + constants
-    both = sorted({n for n in declared if declared.count(n) > 1})
+    seen, twice = set(), set()  # linear in the number of names
+    for n in declared:
+        (twice if n in seen else seen).add(n)
+    both = sorted(twice)
     if both:
         raise ValueError(f"{name}: {', '.join(both)} declared twice (variables {variables}, "
                          f"constants {constants})")

@@ -20,6 +20,10 @@ from dtdyn.app.scene.matrices import _parse_matrix_model
 from dtdyn.app.scene.schema import MODEL_MODULES, model_module
 from dtdyn.app.scene.elements import _parse_elements, _parse_nonlinear
 
+#: the largest scene file read (bytes): TOML is parsed at about 6 MB/s into Python objects
+MAX_SCENE_BYTES = 64 * 2**20
+
+
 def _parse_time(tbl) -> tuple[float, int]:
     _table("time", tbl, _TIME_KEYS)
     dt = validate.positive_scalar("time.dt", finite_number("time.dt", _required("time", tbl, "dt")))
@@ -171,6 +175,61 @@ def _parse_ground(tbl, n_dof: int, t: np.ndarray, base_dir: Path, kind: str):
     return samples * scale * (STANDARD_GRAVITY if units == "g" else 1.0), quantity, influence
 
 
+def stored_columns(n_dof: int, n_loaded: int, ground: bool, n_outputs: int,
+                   n_quantities: int) -> int:
+    """Values per time sample a scene's run stores, for its up-front size check: the time,
+    one force column per loaded DOF (with a [ground] record: its column, and the effective
+    load -M r a_g on every DOF, the most it can reach), and each output's quantities.
+
+    Examples
+    --------
+    >>> stored_columns(2000, 1, False, 1, 1)   # a 2,000-mass chain, one load, one output
+    3
+    >>> stored_columns(2000, 1, True, 1, 1)    # with support motion: every DOF is loaded
+    2003
+    """
+    force = n_dof + 1 if ground else n_loaded
+    return 1 + force + n_outputs * n_quantities
+
+
+def _check_run_size(data, source: str, n_dof: int, names, n_steps: int, n_stored: int) -> None:
+    """The up-front size check of a scene's run (`stored_columns`), before any load is
+    sampled."""
+    n_loaded = _load_dofs(data["load"], n_dof, names)[1].size if "load" in data else 0
+    validate.output_size(f"{source}: time.duration / time.dt = {n_steps} steps", n_steps + 1,
+                         stored_columns(n_dof, n_loaded, "ground" in data, n_stored, 1))
+
+
+def read_scene_text(path: Path) -> str:
+    """The text of a scene file, at most `MAX_SCENE_BYTES` (checked before it is read);
+    ValueError naming the file otherwise."""
+    source = str(path)
+    try:
+        size = path.stat().st_size
+        if size > MAX_SCENE_BYTES:
+            raise ValueError(f"{source}: the scene file is {size:,} bytes; the limit is "
+                             f"{MAX_SCENE_BYTES:,} (64 MiB): give large matrices as files "
+                             "(model.file = \"model.npz\" or .mtx paths) and long records as "
+                             "kind = \"file\" loads")
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{source}: cannot read the scene file: {exc}") from None
+
+
+def parse_toml(text: str, source: str) -> dict:
+    """``tomllib.loads(text)``; invalid TOML, or arrays and inline tables nested deeper than
+    the reader's recursion allows (about 300 levels; a scene needs 2), is a ValueError naming
+    ``source``."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{source}: invalid TOML: {exc}") from None
+    except RecursionError:  # tomllib recurses once per level
+        raise ValueError(f"{source}: invalid scene: arrays or inline tables nested too deep "
+                         "for the TOML reader (a scene needs at most a matrix's 2 levels)"
+                         ) from None
+
+
 # ----------------------------------------------------------------------------------------------
 # public API
 
@@ -281,9 +340,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
     loads, loaded, force = [], np.zeros(0, dtype=np.int64), None
     ground, ground_quantity, influence = None, "acceleration", None
     if dt is not None:  # the loads are sampled at the scene's times
-        # the time, the force of each loaded DOF and the outputs asked, before any is built
-        validate.output_size(f"{source}: time.duration / time.dt = {n_steps} steps",
-                             n_steps + 1, 1 + n_dof + outputs.size * len(quantities))
+        _check_run_size(data, source, n_dof, names, n_steps, outputs.size * len(quantities))
         t = np.arange(n_steps + 1) * dt
         if "load" in data:
             loads, loaded, force = _parse_loads(data["load"], n_dof, t, base_dir, names)
@@ -340,15 +397,9 @@ def load_scene(path: str | os.PathLike | None = None) -> Scene:
     else:
         file = Path(path)
         source = str(file)
-        try:
-            text = file.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ValueError(f"{source}: cannot read the scene file: {exc}") from None
+        text = read_scene_text(file)
         base_dir = file.parent
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{source}: invalid TOML: {exc}") from None
+    data = parse_toml(text, source)
     try:
         return scene_from_dict(data, base_dir, source)
     except ValueError as exc:
