@@ -139,7 +139,8 @@ def main():
           f"{(overhead - steady) * 1e3:.2f} ms per case; without it {steady * 1e3:.2f} ms = "
           f"{100 * steady / per_case:.1f} %")
     dflt_over = (dflt["wall_time_s"] - loop_time) / n
-    print(f"1 worker with Dask's default worker settings (MALLOC_TRIM_THRESHOLD_=65536, profiler on): "
+    print("1 worker with Dask's default worker settings (MALLOC_TRIM_THRESHOLD_=65536, profiler "
+          "on): "
           f"{default_run * 1e3:.1f} ms a case on the worker, overhead {dflt_over * 1e3:.2f} ms "
           f"= {100 * dflt_over / per_case:.1f} %")
     print(f"CPU time per case: plain loop {loop_cpu / n * 1e3:.1f} ms, the 1-worker process "

@@ -23,6 +23,7 @@ Usage: python benchmarks/chain_speed.py [--quick]
 """
 from __future__ import annotations
 
+import functools
 import sys
 import time
 
@@ -66,14 +67,18 @@ def main(quick=False):
                                            quantities=("x",)), 1 if quick else 3)
     diff = np.max(np.abs(rc.x - rm.x)) / np.max(np.abs(rm.x))
     print(f"1) {n} masses x {steps} steps, Newmark average acceleration")
-    print(f"   C DT-TMM                        {t_c.format():>26s}  ({t_c / steps * 1e6:.2f} us/step)")
-    print(f"   mck_response sparse, NumPy loop {t_mck.format():>26s}  ({t_mck / steps * 1e6:.2f} us/step)")
-    print(f"   mck_response sparse, C loop     {t_mc.format():>26s}  ({t_mc / steps * 1e6:.2f} us/step)")
+    print(f"   C DT-TMM                        {t_c.format():>26s}  "
+          f"({t_c / steps * 1e6:.2f} us/step)")
+    print(f"   mck_response sparse, NumPy loop {t_mck.format():>26s}  "
+          f"({t_mck / steps * 1e6:.2f} us/step)")
+    print(f"   mck_response sparse, C loop     {t_mc.format():>26s}  "
+          f"({t_mc / steps * 1e6:.2f} us/step)")
     print(f"   speed-up {t_mck / t_c:.1f}x against the scipy.sparse loop (target >= 5x), "
           f"{t_mc / t_c:.1f}x against the C loop (SuperLU); max relative difference {diff:.1e}\n")
 
     print("2) C kernel cost per step against N (1,000 steps, outputs: last mass), on one thread\n"
-          f"   and with the default workers (two threads from SPLIT_MASSES = {SPLIT_MASSES} masses on)")
+          f"   and with the default workers (two threads from SPLIT_MASSES = {SPLIT_MASSES} "
+          "masses on)")
     Ns = [100, 1000, 10_000, 30_000, 100_000]
     per, one = [], []
     for N in Ns:
@@ -82,9 +87,9 @@ def main(quick=False):
         F = np.ones((s + 1, 1))
         times = []
         for workers in (1, None):
-            t, r = best_of(lambda: chain_response(m, k, c, F, dt, force_dofs=[N - 1],
-                                                  outputs=[N - 1], quantities=("x",),
-                                                  workers=workers), 3)
+            t, r = best_of(functools.partial(chain_response, m, k, c, F, dt, force_dofs=[N - 1],
+                                             outputs=[N - 1], quantities=("x",),
+                                             workers=workers), 3)
             times.append(t.scaled(1 / s))
         one.append(times[0])
         per.append(times[1])
@@ -132,11 +137,13 @@ def main(quick=False):
     for form, (d, scheme, e) in worst.items():
         print(f"   {form} form, largest relative difference: {d:.1e} ({scheme}; NumPy against "
               f"mck_response, same scheme: {e:.1e}) (target <= max(1e-12, that))")
-    print(f"   C on two threads against one (k = 1e8, dt = 1e-3, the unconditionally stable schemes): "
+    print("   C on two threads against one (k = 1e8, dt = 1e-3, the unconditionally stable "
+          "schemes): "
           f"largest relative difference "
           f"{split[0]:.1e} ({split[1]}, {split[2]} form; the split reorders two sums)")
     print("   (both evaluate the same generated expressions in the same order; the C kernel's\n"
-          "    recurrences take four masses a round, so the backends agree to rounding, as closely\n"
+          "    recurrences take four masses a round, so the backends agree to rounding, as "
+          "closely\n"
           "    as the scheme's rounding lets two solvers of it agree: mck_response's sparse LU)\n")
     memory_traffic(Ns[-1], one[-1])
 

@@ -1,9 +1,10 @@
 """How closely the DT-TMM chain sweep equals the assembled-matrix solution of the same scheme.
 
-For P1, P2, P3 (`dtdyn.problem("P1")` .. `problem("P3")`, unit step on the last mass) and dt = 1e-2 .. 1e-5 (the
-full duration, at most 3,000 steps), every implicit scheme, both forms, C backend: the largest
-max-over-time relative difference of x, v and a (each relative to its max over time and masses)
-against `mck_response`, which works in the acceleration form. Writes docs/dttmm_accuracy.md.
+For P1, P2, P3 (`dtdyn.problem("P1")` .. `problem("P3")`, unit step on the last mass) and
+dt = 1e-2 .. 1e-5 (the full duration, at most 3,000 steps), every implicit scheme, both forms,
+C backend: the largest max-over-time relative difference of x, v and a (each relative to its max
+over time and masses) against `mck_response`, which works in the acceleration form. Writes
+docs/dttmm_accuracy.md.
 Usage: python benchmarks/dttmm_vs_mck.py
 """
 from __future__ import annotations

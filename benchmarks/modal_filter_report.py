@@ -141,7 +141,8 @@ def time_case(fs, over=64, T_end=10.0):
     truth = exact_response(M, C, K, smooth_force(tf)[:, None], 1 / (fs * over), force_dofs=[1],
                            outputs=[1]).x[:, 0]
     ys = {inv: modal_filter_response(M, C, K, smooth_force(t)[:, None], 1 / fs, force_dofs=[1],
-                                     outputs=[1], invariant=inv, quantities=("x",)).x[:, 0] for inv in INVARIANTS}
+                                     outputs=[1], invariant=inv, quantities=("x",)).x[:, 0]
+          for inv in INVARIANTS}
     at = truth[::over]
     half = truth[over // 2::over][: n - 1]  # truth at t_n - T/2 for n = 1..n-1
     scale = np.max(np.abs(at))
@@ -226,7 +227,8 @@ def part_c():
             f[0] = 0.0
             ex = exact_response(M, C, K, f[:, None], 1 / fs, force_dofs=prob["force_dofs"])
             e = [rel_error(modal_filter_response(M, C, K, f[:, None], 1 / fs,
-                                                 force_dofs=prob["force_dofs"], outputs=list(range(n)),
+                                                 force_dofs=prob["force_dofs"],
+                                                 outputs=list(range(n)),
                                                  invariant=inv, quantities=("x",)).x, ex.x)
                  for inv in INVARIANTS]
             print(f"| {name} | {fs:g} | {N} | {e[0]:.2e} | {e[1]:.2e} | {e[2]:.2e} |")

@@ -40,6 +40,7 @@ BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import os
 import pathlib
@@ -129,19 +130,20 @@ def main():
         st = modal_states(model, FS, "ramp")
         sos6 = np.column_stack([sos[:, :3], np.ones(len(sos)), sos[:, 3:]])
         rep = 3 if n_out == 1 else 2
-        t_bank, y_bank = best_of(lambda: run_bank(sos, in_col, out_col, direct, x, n_out), rep)
-        t_modes, y_modes = best_of(lambda: run_modes(st, x), rep)
+        t_bank, y_bank = best_of(functools.partial(run_bank, sos, in_col, out_col, direct, x,
+                                                   n_out), rep)
+        t_modes, y_modes = best_of(functools.partial(run_modes, st, x), rep)
 
-        def rowwise():
+        def rowwise(n_out=n_out, sos6=sos6, out_col=out_col):
             y = np.zeros((N, n_out))
             for row, o in zip(sos6, out_col):
                 y[:, o] += sig.sosfilt(row[None, :], force)
             return y
 
         t_rows, y_rows = best_of(rowwise, 3)
-        t_lf, _ = best_of(lambda: run_bank(sos, in_col, out_col, direct, x[:N_LF], n_out,
-                                           backend="numpy"), 3)
-        t_lfm, _ = best_of(lambda: run_modes(st, x[:N_LF], backend="numpy"), 3)
+        t_lf, _ = best_of(functools.partial(run_bank, sos, in_col, out_col, direct, x[:N_LF],
+                                            n_out, backend="numpy"), 3)
+        t_lfm, _ = best_of(functools.partial(run_modes, st, x[:N_LF], backend="numpy"), 3)
         scale = N / N_LF
         kernel[n_out] = (t_bank, t_modes, t_rows)
         label = "DOF 14" if n_out == 1 else "all 15 DOFs"
@@ -153,7 +155,7 @@ def main():
         print(f"      sosfilt, each row separately, summed      {ms(t_rows)}  "
               f"({t_rows / N / len(sos) * 1e9:.2f} ns per sample and section)")
         if n_out == 1:
-            t_casc, _ = best_of(lambda: sig.sosfilt(sos6, force), 3)
+            t_casc, _ = best_of(functools.partial(sig.sosfilt, sos6, force), 3)
             print(f"      sosfilt, one call, rows as a cascade      {ms(t_casc)}  "
                   "(reference only: a different filter)")
         print(f"      NumPy fallback, lfilter per section       {ms(t_lf.scaled(scale))}  "
@@ -175,7 +177,7 @@ def main():
         Cm = np.zeros((n_out, 2 * n))
         Cm[np.arange(n_out), outputs] = 1.0
         system = (A, B[:, [LOADED]], Cm, np.zeros((n_out, 1)))
-        t_ls, (_, y_ls, _) = best_of(lambda: sig.lsim(system, force[:N_LSIM], t), 3)
+        t_ls, (_, y_ls, _) = best_of(functools.partial(sig.lsim, system, force[:N_LSIM], t), 3)
         y_ls = np.reshape(y_ls, (N_LSIM, n_out))
         t_ls_full = t_ls.scaled(N / N_LSIM)
         label = "DOF 14" if n_out == 1 else "all 15 DOFs"
@@ -183,9 +185,9 @@ def main():
         print(f"      scipy.signal.lsim              {ms(t_ls_full)}  (extrapolated; measured "
               f"{t_ls.format()} on {N_LSIM:,} samples)")
         for method in ("modes", "sections", "auto"):
-            t_mf, r = best_of(lambda: modal_filter_response(M, C, K, x, 1 / FS, force_dofs=[LOADED],
-                                                            outputs=outputs, algorithm=method,
-                                                            quantities=("x",)),
+            t_mf, r = best_of(functools.partial(modal_filter_response, M, C, K, x, 1 / FS,
+                                                force_dofs=[LOADED], outputs=outputs,
+                                                algorithm=method, quantities=("x",)),
                               3 if n_out == 1 else 2)
             diff = rel_diff(r.x[:N_LSIM], y_ls)
             print(f"      method={method + ',':10s} {r.info['filters']:8s}  {ms(t_mf)}  "
@@ -208,7 +210,8 @@ def main():
                                                            quantities=("x",)).x[:, 0],
         "modes (lfilter, pole e^sT)": modal_filter_response(M, C, K, x, 1 / FS, force_dofs=[LOADED],
                                                             outputs=[LOADED], algorithm="modes",
-                                                            backend="numpy", quantities=("x",)).x[:, 0],
+                                                            backend="numpy",
+                                                            quantities=("x",)).x[:, 0],
         "sections (C)": modal_filter_response(M, C, K, x, 1 / FS, force_dofs=[LOADED],
                                               outputs=[LOADED], algorithm="sections",
                                               quantities=("x",)).x[:, 0],
@@ -230,7 +233,8 @@ def main():
     w1 = model.omega[0]
     eps = np.finfo(float).eps
     print(f"   mode 1: theta = |s_1| T = {w1 / FS:.2e}. A section stores a1 = -2 cos(theta), "
-          f"whose rounding moves theta by ~ eps / theta = {eps / (w1 / FS):.1e} (a relative frequency "
+          f"whose rounding moves theta by ~ eps / theta = {eps / (w1 / FS):.1e} (a relative "
+          "frequency "
           f"error ~ {eps / (w1 / FS) ** 2:.1e}, a phase error that grows with n); the per-mode "
           f"form stores d = e^(sT) - 1 to ~ eps |d| = {eps * w1 / FS:.1e}.")
 

@@ -43,8 +43,9 @@ def main(n_steps=20_000):
             for _ in range(5):
                 for reuse in (None, 1):
                     response.LU_REUSE_MIN = reuse
-                    r = dd.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[N - 1], elements=els,
-                                              scheme="newmark", quantities=("x",))
+                    r = dd.nonlinear_mck_response(M, C, K, f, 1e-3, force_dofs=[N - 1],
+                                                  elements=els, scheme="newmark",
+                                                  quantities=("x",))
                     times[reuse].append(r.info["run_time"])
                     runs[reuse] = r
             best = {k: Timing(v) for k, v in times.items()}

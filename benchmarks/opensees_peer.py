@@ -36,6 +36,7 @@ ground_acceleration=ag)``.
 
     python benchmarks/opensees_peer.py [n_steps ...]     (default: 20000 200000)
 """
+import functools
 import os
 import sys
 import tempfile
@@ -185,7 +186,7 @@ def main(steps=(20_000, 200_000)):
     for n in steps:
         ag = record(n, dt)
         repeats = 5 if n <= 50_000 else 3
-        t_dd = median_time(lambda: dtdyn_run(M, C, K, ag, dt), repeats)
+        t_dd = median_time(functools.partial(dtdyn_run, M, C, K, ag, dt), repeats)
         t_os = {s: Timing([opensees(ops, ag, dt, a0, a1, system=s)[0]
                            for _ in range(repeats)]) for s in SYSTEMS}
         best = min(t_os, key=t_os.get)

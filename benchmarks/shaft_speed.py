@@ -9,10 +9,13 @@
 2. Cost per step of the tree loop for N = 1e3 .. 1e5 stations; the fitted slope of log(time)
    over log(N) is 1 for O(N) per step.
 
-Times: median [min, max] of repeats after one warm-up run, BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
+Times: median [min, max] of repeats after one warm-up run, BLAS pinned to one thread
+(dtdyn.app.timing.pin_blas, threadpoolctl).
 Usage: python benchmarks/shaft_speed.py
 """
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 
@@ -59,8 +62,8 @@ def scaling(n_steps=500):
     per = []
     for n in sizes:
         s = tree(n)
-        t, _ = best_of(lambda: dd.shaft_response(s, np.ones(n_steps + 1), 1e-4,
-                                                 force_dofs=[n - 1], outputs=[0]))
+        t, _ = best_of(functools.partial(dd.shaft_response, s, np.ones(n_steps + 1), 1e-4,
+                                         force_dofs=[n - 1], outputs=[0]))
         per.append(t.scaled(1 / n_steps))
         print(f"  N = {n:7d}: {per[-1].format('us'):>24s} per step, "
               f"{per[-1] / n * 1e9:6.2f} ns per station-step")

@@ -39,6 +39,7 @@ if __name__ == "__main__":
     (DOCS / "stability.md").write_text(
         "# Stability of every scheme\n\n"
         "Output of `dtdyn stability --plot docs/stability.png` (amplification matrices derived "
-        "from each scheme's relations; zeta = 0), written by `python benchmarks/stability_table.py`:"
+        "from each scheme's relations; zeta = 0), written by "
+        "`python benchmarks/stability_table.py`:"
         "\n\n```\n" + out + "```\n\n"
         "![spectral radius, period elongation, algorithmic damping](stability.png)\n\n" + NOTES)

@@ -1,7 +1,8 @@
 """state_space_response (generated C loop) against scipy.signal.dlsim, measured in one run.
 
 A 50-state model (25-DOF chain, Newmark discrete state space) driven by white noise on every
-DOF over 100,000 steps. Times: median [min, max] of repeats after a warm-up, BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
+DOF over 100,000 steps. Times: median [min, max] of repeats after a warm-up, BLAS pinned to one
+thread (dtdyn.app.timing.pin_blas, threadpoolctl).
 Writes docs/state_space_speed.md.
 Usage: python benchmarks/state_space_speed.py
 """
@@ -39,7 +40,8 @@ def main():
     diff = np.max(np.abs(y_c - y_ref)) / np.max(np.abs(y_ref))
     print(f"{A.shape[0]}-state model, {n_steps} steps, {B.shape[1]} inputs, {Cm.shape[0]} outputs")
     print(f"   state_space_response (C)  {t_c.format():>26s}  ({t_c / n_steps * 1e9:.0f} ns/step)")
-    print(f"   scipy.signal.dlsim        {t_ref.format():>26s}  ({t_ref / n_steps * 1e9:.0f} ns/step)")
+    print(f"   scipy.signal.dlsim        {t_ref.format():>26s}  "
+          f"({t_ref / n_steps * 1e9:.0f} ns/step)")
     print(f"   NumPy fallback loop       {t_np.scaled(n_steps / 20_000).format():>26s}  "
           "(extrapolated from 20,000 steps)")
     print(f"   speed-up over dlsim {t_ref / t_c:.1f}x (target >= 10x); max relative difference "
@@ -53,6 +55,7 @@ if __name__ == "__main__":
         main()
     print(buf.getvalue(), end="")
     doc = pathlib.Path(__file__).resolve().parents[1] / "docs" / "state_space_speed.md"
-    doc.write_text("# State-space time loop speed\n\nOutput of `python benchmarks/state_space_speed.py`"
+    doc.write_text("# State-space time loop speed\n\n"
+                   "Output of `python benchmarks/state_space_speed.py`"
                    " (2-core shared machine; ratios measured in one run):\n\n```\n"
                    + buf.getvalue() + "```\n")

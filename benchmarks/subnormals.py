@@ -16,6 +16,7 @@ Usage: python benchmarks/subnormals.py [--quick]
 """
 from __future__ import annotations
 
+import functools
 import sys
 import warnings
 
@@ -51,9 +52,8 @@ def main(quick=False):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", dd.SRSSamplingWarning)
         for zeta in (0.05, 0.3):
-            t = [best_of(lambda a=a: dd.shock_response_spectrum(a, 1 / fs, freqs,
-                                                                damping_ratio=zeta, workers=1),
-                         repeats)
+            t = [best_of(functools.partial(dd.shock_response_spectrum, a, 1 / fs, freqs,
+                                           damping_ratio=zeta, workers=1), repeats)
                  for a in (pulse, floor)]
             row(f"SRS, half-sine then quiet, zeta {zeta}", *t, "sample-oscillator",
                 n * freqs.size)
@@ -95,7 +95,8 @@ if __name__ == "__main__":
         doc.write_text(
             "# Responses that decay to zero\n\n"
             "A response that dies out passes through the subnormal numbers (|x| < 2.2e-308) on its "
-            "way to zero, where each operation can cost about a hundred cycles, and a lightly damped "
+            "way to zero, where each operation can cost about a hundred cycles, and a lightly "
+            "damped "
             "recursion can stay there for the rest of the record. dtdyn's C kernels set the "
             "processor to flush subnormal results and operands to zero while they run (x86: "
             "MXCSR's FTZ and DAZ bits; AArch64: FPCR's FZ bit) and restore the caller's mode on "
@@ -104,7 +105,8 @@ if __name__ == "__main__":
             "decaying recursion through the subnormals to 0, the flushed one can settle into a "
             "limit cycle just above 2.2e-308 (below 1e-300 for the filters of "
             "tests/behaviour/test_subnormals.py, which checks them against scipy.signal.lfilter). "
-            "The NumPy and SciPy paths do not flush.\n\nOutput of `python benchmarks/subnormals.py` (2-core shared machine; each "
+            "The NumPy and SciPy paths do not flush.\n\n"
+            "Output of `python benchmarks/subnormals.py` (2-core shared machine; each "
             "ratio is measured in one run, against the same case kept away from underflow by a "
             "noise floor of 1e-12 or a random initial state):\n\n```\n" + buf.getvalue() + "```\n"
             "\nThe same script on the code before the flush (commit aae8357), same machine and "

@@ -12,8 +12,8 @@
    sweep), the direct solve of (K + i w C - w^2 M) at a few frequencies, and the natural
    frequencies of `shaft_frequencies`. -> docs/img/shaft_tree_frf.png
 3. The residuals of `beam_modes`' shapes (200 elements) and, for an undamped 40-element beam
-   between and next to its resonances, the error of the unpivoted block sweep and of the pivoted banded LU
-   against a dense solve, in units of eps cond(Z) |u|.
+   between and next to its resonances, the error of the unpivoted block sweep and of the pivoted
+   banded LU against a dense solve, in units of eps cond(Z) |u|.
 
 Usage: python benchmarks/vector_state_figures.py [--no-plot]
 """

@@ -14,7 +14,8 @@ import re
 KERNELS = {
     "dtdyn_chain": ("int", (
         "int form", "int sweep", "long N", "long n_steps", "const double *m", "const double *k",
-        "const double *c", "const double *kg", "const double *cg", "double dt", "const double *params", "long n_loaded",
+        "const double *c", "const double *kg", "const double *cg", "double dt",
+        "const double *params", "long n_loaded",
         "const long *loaded", "const double *force", "double *hist", "long n_out",
         "const long *out_idx", "double *xo", "double *vo", "double *ao", "double *work",
         "long n_work", "double *ehist", "double *err", "int threads")),

@@ -10,10 +10,11 @@ with p, r, alpha the same at every mass (integrator and dt only) and q, s, b fro
 history. Acceleration form: p = Dx, q = Ex, r = Dv, s = Ev, alpha = 1, b = 0.
 Displacement form, in increments: u = xe - x_n, so p = 1, q = x_n, r = D, s = D x_n + E,
 alpha = A, b = A x_n + B. It is the source's displacement form (ae = A xe + B, ve = D xe + E,
-the same station matrices up to their load column) with the unknown shifted by x_n. Written in xe itself, B holds
-A x_n, a term of size |x| / dt^2 that cancels against the rest of B: its rounding, eps |x| /
-dt^2, acts as a force and costs eps / (omega dt)^2 of relative accuracy (up to 5.7e-10 on P3
-for dt down to 1e-5, benchmarks/dttmm_vs_mck.py at commit 99ff3e0). In u the terms are of size |v| / dt, and the cost is eps / (omega dt).
+the same station matrices up to their load column) with the unknown shifted by x_n. Written
+in xe itself, B holds A x_n, a term of size |x| / dt^2 that cancels against the rest of B: its
+rounding, eps |x| / dt^2, acts as a force and costs eps / (omega dt)^2 of relative accuracy (up
+to 5.7e-10 on P3 for dt down to 1e-5, benchmarks/dttmm_vs_mck.py at commit 99ff3e0). In u the
+terms are of size |v| / dt, and the cost is eps / (omega dt).
 For the multistep schemes, b and s keep the lags of x in combinations whose coefficients sum
 to zero; dtdyn.derive.kernels writes those in increments (x_n - x_{n-1}, ...).
 

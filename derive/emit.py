@@ -234,7 +234,8 @@ def _newmark_ss_context() -> dict:
 
     blocks = state_space.newmark_blocks()
     num_damp, params = state_space.sharpy_alpha_params()
-    return {"blocks": [(n, [[block(b) for b in row] for row in rows]) for n, rows in blocks.items()],
+    return {"blocks": [(n, [[block(b) for b in row] for row in rows])
+                       for n, rows in blocks.items()],
             "sharpy_beta": printing.py(params[I.beta]),
             "sharpy_gamma": printing.py(params[I.gamma]),
             "sharpy_text": ", ".join(f"{k} = {sp.sstr(v)}" for k, v in params.items())}
@@ -372,7 +373,8 @@ def render_all() -> dict[str, str]:
     render("numpy/scheme_table.py.jinja", "scheme_table.py",
            "dtdyn.derive.integrators.scheme_table", table=I.scheme_table())
     out = format_sources(out)
-    manifest = {n: {"sha256": hashlib.sha256(t.encode()).hexdigest()} for n, t in sorted(out.items())}
+    manifest = {n: {"sha256": hashlib.sha256(t.encode()).hexdigest()}
+                for n, t in sorted(out.items())}
     out["manifest.json"] = json.dumps(manifest, indent=1, sort_keys=True) + "\n"
     return out
 

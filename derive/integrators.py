@@ -19,7 +19,7 @@ Park 1975; Hilber, Hughes & Taylor 1977; Chung & Hulbert 1993).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache
 
 import sympy as sp
 
@@ -34,7 +34,8 @@ alpha_m, alpha_f = sp.symbols("alpha_m alpha_f", real=True)
 
 HALF = sp.Rational(1, 2)
 
-#: Newmark kinematics with the equilibrium point of the alpha methods (alpha_m = alpha_f = 0: Newmark).
+#: Newmark kinematics with the equilibrium point of the alpha methods (alpha_m = alpha_f = 0:
+#: Newmark).
 NEWMARK_ALPHA = (
     sp.Eq(x1, x0 + dt * v0 + dt**2 * ((HALF - beta) * a0 + beta * a1)),
     sp.Eq(v1, v0 + dt * ((1 - gamma) * a0 + gamma * a1)),
@@ -138,8 +139,9 @@ SCHEMES: dict[str, Scheme] = {s.name: s for s in (
                     2, NEWMARK_REF, "Stable for omega dt < 2.449."),
     _newmark_preset("newmark_1_8", "Newmark beta = 1/8 (the source's favourite)", sp.Rational(1, 8),
                     HALF, 2, NEWMARK_REF, "Stable for omega dt < 2.828."),
-    _newmark_preset("central_difference", "Central difference (Newmark beta = 0, explicit)", 0, HALF,
-                    2, NEWMARK_REF, "Explicit: acceleration form only; stable for omega dt < 2."),
+    _newmark_preset("central_difference", "Central difference (Newmark beta = 0, explicit)", 0,
+                    HALF, 2, NEWMARK_REF,
+                    "Explicit: acceleration form only; stable for omega dt < 2."),
     _newmark_preset("fox_euler", "Fox-Euler (Newmark beta = 1/2, gamma = 1)", HALF, 1, 1,
                     "Fox & Euler as defined in the DT-TMM source",
                     "First order, dissipative."),
@@ -166,7 +168,8 @@ SCHEMES: dict[str, Scheme] = {s.name: s for s in (
            substitutions={alpha_m: (2 * rho_inf - 1) / (rho_inf + 1),
                           alpha_f: rho_inf / (rho_inf + 1),
                           gamma: HALF - (2 * rho_inf - 1) / (rho_inf + 1) + rho_inf / (rho_inf + 1),
-                          beta: (1 - (2 * rho_inf - 1) / (rho_inf + 1) + rho_inf / (rho_inf + 1)) ** 2 / 4},
+                          beta: (1 - (2 * rho_inf - 1) / (rho_inf + 1)
+                                 + rho_inf / (rho_inf + 1)) ** 2 / 4},
            order=2, reference="Chung & Hulbert (1993), J. Appl. Mech. 60",
            notes="rho_inf in [0, 1]: spectral radius at infinite frequency."),
 )}
@@ -210,7 +213,7 @@ def _affine(expr, var):
     return coeff, sp.factor_terms(rest)
 
 
-@lru_cache(maxsize=None)
+@cache
 def derive_scheme(name: str) -> Derived:
     """Derive the displacement-form and acceleration-form coefficients of a scheme."""
     s = SCHEMES[name]

@@ -30,7 +30,7 @@ makes the phase error of a lightly damped mode after n samples ~ n eps |sT| inst
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import sympy as sp
 
@@ -71,7 +71,7 @@ def _input_between_samples(name):
     raise ValueError(name)
 
 
-@lru_cache(maxsize=None)
+@cache
 def derive_invariant(name: str) -> Invariant:
     """Evaluate the convolution integral for one hold and identify its phi-function form."""
     if name == "impulse":
@@ -89,7 +89,8 @@ def derive_invariant(name: str) -> Invariant:
 
 
 def _phi_form(c, name):
-    """(k0, k1, k2) with c = R T (k0 + k1 phi1(sT) + k2 phi2(sT)), found and checked symbolically."""
+    """(k0, k1, k2) with c = R T (k0 + k1 phi1(sT) + k2 phi2(sT)), found and checked
+    symbolically."""
     k0, k1, k2 = sp.symbols("k0 k1 k2")
     target = R * T * (k0 + k1 * phi1(s * T) + k2 * phi2(s * T))
     for cand in ((0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (0, 1, -1)):
@@ -103,9 +104,10 @@ def _phi_form(c, name):
 pr, pi, c0r, c0i, c1r, c1i = sp.symbols("p_re p_im c0_re c0_im c1_re c1_im", real=True)
 
 
-@lru_cache(maxsize=None)
+@cache
 def fold_pair():
-    """Real SOS of  (c1 + c0 z^-1)/(1 - p z^-1) + conjugate  for y_n = p y_{n-1} + c1 x_n + c0 x_{n-1}.
+    """Real SOS of  (c1 + c0 z^-1)/(1 - p z^-1) + conjugate  for
+    y_n = p y_{n-1} + c1 x_n + c0 x_{n-1}.
 
     Returns {b0, b1, b2, a1, a2} in p = p_re + j p_im, c0, c1 (real and imaginary parts).
     """
@@ -138,7 +140,7 @@ g0r, g0i, g1r, g1i = sp.symbols("g0_re g0_im g1_re g1_im", real=True)
 xa, xb = sp.symbols("x_a x_b", real=True)  # input sample before (x_n) and after (x_{n+1})
 
 
-@lru_cache(maxsize=None)
+@cache
 def increment_form():
     """Real increments of eta_{n+1} = e^{sT} eta_n + g0 x_n + g1 x_{n+1} with e^{sT} = 1 + d.
 

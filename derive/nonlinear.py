@@ -22,7 +22,7 @@ z_k = z_{k-1} + h/2 (z'(w_k, z_k) + z'(w_{k-1}, z_{k-1})), solved together with 
 """
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import sympy as sp
 
@@ -34,7 +34,7 @@ phi_L, psi_f, psi_L = sp.symbols("phi_L psi_f psi_L")  # L phi, psi at f's DOF, 
 s, T = modal_filters.s, modal_filters.T
 
 
-@lru_cache(maxsize=None)
+@cache
 def modal_step() -> dict:
     """One complex modal term: y_n = (L phi) eta_n with the ramp-invariant recursion.
 
@@ -51,7 +51,7 @@ def modal_step() -> dict:
     return {"c0": c0, "c1": c1, "B0": sp.factor(B0), "Q": Q}
 
 
-@lru_cache(maxsize=None)
+@cache
 def scheme_coefficient(name: str) -> sp.Expr:
     """p w1 of a one-step scheme: B0 = p w1 L (M + r C + p K)^-1 L^T."""
     spec = kernels.scheme_spec(name)
@@ -77,7 +77,7 @@ zz = modal_filters.z
 uu = modal_filters.u
 
 
-@lru_cache(maxsize=None)
+@cache
 def parabola_coefficient() -> dict:
     """N2(s, T) in closed form, as T * (2 phi3(z) - phi2(z)) / 2 with z = sT, and its series."""
     closed = sp.simplify(sp.integrate(sp.exp(s * (T - uu)) * uu * (uu - T) / (2 * T**2),
@@ -155,7 +155,7 @@ def _kernel_coefficients(poly, n_terms: int) -> dict:
     return {"phi": phis, "series": series, "a": a, "b": b}
 
 
-@lru_cache(maxsize=None)
+@cache
 def polynomial_weights(degree: int, explicit: bool = False, n_terms: int = 40) -> dict:
     """The weights W_j / h (j over `polynomial_nodes`) and the estimate's E / h (module
     comment), each as phi coefficients and a Taylor series in z; the difference stencil of
@@ -193,7 +193,7 @@ def characteristic_polynomial(degree: int, explicit: bool = False) -> sp.Expr:
     return sp.expand((lam_ - 1) ** 2 * lam_ ** (-lo) + mu * ((lam_ - 1) * A + B))
 
 
-@lru_cache(maxsize=None)
+@cache
 def polynomial_stability(degree: int, explicit: bool = False) -> dict:
     """The largest mu (and theta = a_n mu, a_n h^2 the weight of the newest sample in y: g_{k+1}
     implicit, whose theta is the |B0 dg/dy| the loops measure; g_k explicit, whose theta is

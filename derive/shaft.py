@@ -3,7 +3,8 @@
 State z = [phi, T, 1]: the rotation and the internal torque (twisting the shaft positively when
 the right end turns ahead of the left). Elements, Laplace domain (s):
 
-    disk (inertia J, spring k_g and damper c_g to the ground):  T_R = T_L + (J s^2 + k_g + c_g s) phi
+    disk (inertia J, spring k_g and damper c_g to the ground):
+        T_R = T_L + (J s^2 + k_g + c_g s) phi
     shaft spring-damper (k_t, c_t):                             phi_R = phi_L + T / (k_t + c_t s)
     gear mesh, ratio n (side 2 turns n times slower, backwards): phi_2 = -phi_1 / n,  T_2 = -n T_1
     continuous uniform shaft (G, J_p, rho, length L):           z_R = exp(A L) z_L,
@@ -227,7 +228,8 @@ def numpy_context() -> dict:
     scalar = lambda e: printing.py(sp.sympify(e).xreplace(emit.SCALAR))  # noqa: E731
     py = lambda e, names=emit.PY_ARRAY: printing.py(sp.sympify(e).xreplace(names))  # noqa: E731
     return {
-        "gear_u": printing.py(gr["u"].subs(n, ratio)), "gear_S": printing.py(gr["S"].subs(n, ratio)),
+        "gear_u": printing.py(gr["u"].subs(n, ratio)),
+        "gear_S": printing.py(gr["S"].subs(n, ratio)),
         "gear_R": printing.py(gr["R"].subs(n, ratio)),
         "cont_a": _np(sp.simplify(a_c * L / (G * Jp)) * sp.Symbol("z")),
         "cont_b": _np(sp.simplify(b_c * L / (G * Jp)) * sp.Symbol("z")),
@@ -368,7 +370,8 @@ def receptance_sweep():
     _, D_ww, _ = frequency_pivot()
     assert sp.simplify(pivot.subs({s**2: -lam, cg: 0}).subs(s, 0) - D_ww) == 0
     del gsym
-    return {"mu": mu_s, "pivot": pivot, "S_L": S_L, "R_L": R_L, "forward": fwd.subs(g, sp.Symbol("g"))}
+    return {"mu": mu_s, "pivot": pivot, "S_L": S_L, "R_L": R_L,
+            "forward": fwd.subs(g, sp.Symbol("g"))}
 
 
 def receptance_context() -> dict:

@@ -13,7 +13,7 @@ algorithmic damping xi_bar (Hilber & Hughes 1978).
 """
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import sympy as sp
 
@@ -27,7 +27,7 @@ def _scale(name):
     return {"x": 0, "v": 1, "a": 2}[name[0]]
 
 
-@lru_cache(maxsize=None)
+@cache
 def amplification_matrix(name: str) -> sp.Matrix:
     """A(Omega, zeta, params) acting on the scaled history (x, dt v, dt^2 a, lags)."""
     spec = kernels.scheme_spec(name)

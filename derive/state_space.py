@@ -67,6 +67,7 @@ def newmark_blocks() -> dict:
 
 
 def sharpy_alpha_params():
-    """SHARPy's parameterization: gamma = 1/2 + alpha, beta = (1 + alpha)^2 / 4, alpha = num_damp."""
+    """SHARPy's parameterization: gamma = 1/2 + alpha, beta = (1 + alpha)^2 / 4,
+    alpha = num_damp."""
     num_damp = sp.Symbol("num_damp")
     return num_damp, {gamma: HALF + num_damp, beta: (1 + num_damp) ** 2 / 4}

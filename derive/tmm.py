@@ -79,7 +79,8 @@ def transfer_function(n, output, load):
 
 
 def characteristic_polynomial(n):
-    """U22(s) of the unloaded chain times prod (k_n + c_n s): a polynomial whose roots are the poles."""
+    """U22(s) of the unloaded chain times prod (k_n + c_n s): a polynomial whose roots are the
+    poles."""
     ms, ks, cs, _ = chain_symbols(n)
     U, _ = system_matrix(ms, ks, cs, [0] * n)
     scale = sp.Mul(*[k + c * s for k, c in zip(ks, cs)])

@@ -1,7 +1,7 @@
 """Load the generated DT-TMM chain kernels: C when a compiler exists, else the NumPy sweep."""
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -76,7 +76,7 @@ class PlainSweepError:
         return e / (xmax - e) if xmax > e else float("inf")
 
 
-@lru_cache(maxsize=None)
+@cache
 def c_chain_function(scheme: str):
     """The ctypes function dtdyn_chain_<scheme>, or None when C is unavailable."""
     source = cbuild.generated_source(f"chain_{scheme}.c")

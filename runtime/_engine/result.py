@@ -199,8 +199,8 @@ class Response:
     def plot(self, quantities=None, outputs=None, *, fig=None, ax=None):
         """Plot the stored quantities against time: one subplot per quantity (and per unit,
         where a beam's outputs mix w and psi), a line per output with the DOF's name (or ``DOF
-        <0-based index>``) in the legend, the unit on the y axis, ``t [s]`` on the x axis. More than 8
-        outputs are drawn as a heat map (time x DOF). Needs matplotlib (``dtdyn[plot]``).
+        <0-based index>``) in the legend, the unit on the y axis, ``t [s]`` on the x axis. More
+        than 8 outputs are drawn as a heat map (time x DOF). Needs matplotlib (``dtdyn[plot]``).
 
         Parameters
         ----------

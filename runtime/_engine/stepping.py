@@ -8,7 +8,7 @@ for the progress bar, and allocates only the outputs asked for.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -153,35 +153,35 @@ def bench_p3(quick=False, log=print):
         ref = exact_response(M, C, K, f, dt, force_dofs=[14], outputs=[out]).x[:, 0]
         setting = f"dt={dt:g}"
         for name, params in P3_SCHEMES:
-            r, t_run, t_b = _timed(lambda: chain_response(P["mass"], P["stiffness"], P["damping"],
-                                                          f, dt, force_dofs=[14], scheme=name,
-                                                          outputs=[out], quantities=("x",),
-                                                          **params), reps)
+            r, t_run, t_b = _timed(functools.partial(
+                chain_response, P["mass"], P["stiffness"], P["damping"], f, dt, force_dofs=[14],
+                scheme=name, outputs=[out], quantities=("x",), **params), reps)
             add(f"DT-TMM {name}", "DT-TMM (C)", setting, r.x[:, 0], ref, t_run, t_b)
 
-        def ss(build):  # the model and its response, from rest at t_0 (its state is shifted)
+        def ss(build, f=f):  # the model and its response, from rest at t_0 (state shifted)
             return state_space_response(build(), f, force_dofs=[14], outputs=[out],
                                         quantities=("x",))
-        r, t_run, t_b = _timed(lambda: ss(lambda: discrete_state_space(M, C, K, dt)), reps)
+        r, t_run, t_b = _timed(functools.partial(
+            ss, functools.partial(discrete_state_space, M, C, K, dt)), reps)
         add("state space (Newmark)", "state space", setting, r.x[:, 0], ref, t_run, t_b)
-        r, t_run, t_b = _timed(lambda: ss(lambda: discretize(M, C, K, dt, hold="foh")), reps)
+        r, t_run, t_b = _timed(functools.partial(
+            ss, functools.partial(discretize, M, C, K, dt, hold="foh")), reps)
         add("exact discretization (foh)", "state space", setting, r.x[:, 0], ref, t_run, t_b)
         for inv in ("ramp", "step", "impulse"):
-            r, t_run, t_b = _timed(lambda: modal_filter_response(M, C, K, f, dt, force_dofs=[14],
-                                                                 outputs=[out], invariant=inv,
-                                                                 quantities=("x",)), reps)
+            r, t_run, t_b = _timed(functools.partial(
+                modal_filter_response, M, C, K, f, dt, force_dofs=[14], outputs=[out],
+                invariant=inv, quantities=("x",)), reps)
             add(f"modal filters {inv}", "modal filters", setting, r.x[:, 0], ref, t_run, t_b)
         for keep in (5, 10):
-            r, t_run, t_b = _timed(lambda: modal_filter_response(M, C, K, f, dt, force_dofs=[14],
-                                                                 outputs=[out], modes=range(keep),
-                                                                 invariant="ramp",
-                                                                 quantities=("x",)), reps)
+            r, t_run, t_b = _timed(functools.partial(
+                modal_filter_response, M, C, K, f, dt, force_dofs=[14], outputs=[out],
+                modes=range(keep), invariant="ramp", quantities=("x",)), reps)
             add(f"modal filters ramp, {keep} modes", "modal filters", setting, r.x[:, 0], ref,
                 t_run, t_b)
         A, B = first_order_form(M, C, K)[:2]
         sys = signal.StateSpace(A, B[:, [14]], np.eye(30)[[out]], np.zeros((1, 1)))
         tt = np.arange(n + 1) * dt
-        (_, y, _), t_run, t_b = _timed(lambda: signal.lsim(sys, f[:, 0], tt), reps)
+        (_, y, _), t_run, t_b = _timed(functools.partial(signal.lsim, sys, f[:, 0], tt), reps)
         add("scipy lsim", "peer", setting, y, ref, t_run, t_b)
 
     # adaptive peers on the dt = 1e-3 grid
@@ -198,8 +198,8 @@ def bench_p3(quick=False, log=print):
     for solver in ("RK45", "DOP853", "LSODA", "Radau"):
         for rtol in ((1e-4, 1e-7) if quick else (1e-3, 1e-5, 1e-7, 1e-9)):
             implicit = {"jac": lambda _t, _s: A} if solver in ("Radau", "LSODA") else {}
-            sol, t_run, t_b = _timed(lambda: solve_ivp(
-                rhs, (0, T), np.zeros(30), method=solver, t_eval=tt, rtol=rtol,
+            sol, t_run, t_b = _timed(functools.partial(
+                solve_ivp, rhs, (0, T), np.zeros(30), method=solver, t_eval=tt, rtol=rtol,
                 atol=rtol * 1e-4, **implicit), reps)
             add(f"solve_ivp {solver}", "peer", f"rtol={rtol:g}", sol.y[out], ref, t_run, t_b)
     meta = {"problem": "P3", "description": "15-DOF chain (Kumar & Sankar 1986), undamped, unit "
@@ -243,8 +243,8 @@ def _modal_flops(method, r, S, ne, n_modes, no):
     sub = 2 * nm * ne + 2 * (nw * nf + nw * ne) + step + 2 * nm * (nh + nf) + 3 * nm + 2 * nw * nm
     per_sample = 2 * no * (nm + nf + ne)
     if "error_estimate" in r.info:  # the polynomial methods' embedded estimate
-        sub += (2 * len(stencil) * ne + 8 + 2 * ne * nw * nw + 2 * nw * nm + 4 * nw * ne + 2 * ne * nw
-                + 3 * nm + 4 * nm * ne)
+        sub += (2 * len(stencil) * ne + 8 + 2 * ne * nw * nw + 2 * nw * nm + 4 * nw * ne
+                + 2 * ne * nw + 3 * nm + 4 * nm * ne)
         per_sample += 2 * no * (nm + ne)
     return S * sub + per_sample
 
@@ -339,9 +339,9 @@ def bench_p4(quick=False, log=print):
                   "modal_explicit": (1, 2) if params else (1, 2, 4),
                   "modal_parabolic": (1, 2, 3, 4, 8, 12)}.get(method, (1, 2, 3, 4, 8))
         for S in levels:
-            r, t_run, t_b = _timed(lambda: nonlinear_mck_response(
-                *args, **kw, scheme=method, substeps=S, quantities=("x",), **params), 5,
-                loop_time, lin_time)
+            r, t_run, t_b = _timed(functools.partial(
+                nonlinear_mck_response, *args, **kw, scheme=method, substeps=S,
+                quantities=("x",), **params), 5, loop_time, lin_time)
             note = ""
             if method.startswith("modal_"):
                 fl = _modal_flops(method, r, S, len(P["elements"]), 4, 4)
@@ -355,8 +355,9 @@ def bench_p4(quick=False, log=print):
     # estimates' own work (differences and extrapolations of the records)
     for scheme in ("auto", "modal_parabolic"):
         for target in P4_ACCURACY:
-            r, t_run, t_b = _timed(lambda: nonlinear_mck_response(
-                *args, **kw, scheme=scheme, accuracy=target, quantities=("x",)), 5,
+            r, t_run, t_b = _timed(functools.partial(
+                nonlinear_mck_response, *args, **kw, scheme=scheme, accuracy=target,
+                quantities=("x",)), 5,
                 lambda r: r.info["run_time"] + r.info["estimate_time"], lin_time)
             i = r.info
             note = (f"{i['scheme']}: estimate {i['error_estimate']:.2e} (x, all 4 DOFs), "
@@ -371,9 +372,9 @@ def bench_p4(quick=False, log=print):
         f"{Timing(tuple(lin_times)).format()}  (median [min, max] of {len(lin_times)}: 5 before, "
         "one before each timed nonlinear run, 5 after)")
     for S in (4, 8):
-        r, t_run, t_b = _timed(lambda: nonlinear_mck_response(
-            *args, **kw, scheme="newmark", substeps=S, backend="casadi", solver="fast_newton",
-            compiled=True, quantities=("x",)), 1)
+        r, t_run, t_b = _timed(functools.partial(
+            nonlinear_mck_response, *args, **kw, scheme="newmark", substeps=S, backend="casadi",
+            solver="fast_newton", compiled=True, quantities=("x",)), 1)
         add("CasADi newmark (compiled)", "peer", f"substeps={S}", r.x[:, out], ref,
             r.info["run_time"], t_b, "fast_newton in mapaccum")
 
@@ -399,7 +400,7 @@ def bench_p4(quick=False, log=print):
     for solver, n_win in (("RK45", 1000), ("DOP853", 1000), ("LSODA", 1000), ("Radau", 200)):
         n_win = min(n_win, n)
         for rtol in ((1e-5, 1e-7) if quick else (1e-4, 1e-6, 1e-8)):
-            y, t_run, _ = _timed(lambda: run_ivp(solver, rtol, n_win), 0)
+            y, t_run, _ = _timed(functools.partial(run_ivp, solver, rtol, n_win), 0)
             add(f"solve_ivp {solver}", "peer", f"rtol={rtol:g}", y, ref[:n_win],
                 t_run.scaled(n / n_win), 0.0,
                 f"window of {n_win} samples, time extrapolated x{n // n_win}")

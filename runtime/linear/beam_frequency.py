@@ -14,8 +14,9 @@ value of s. A held DOF has the identity's row and column. :math:`P_i` is the dyn
 of nodes i .. N condensed onto node i, the matrix form of the Riccati relation f = S u + R.
 The sweep eliminates without pivoting: at an s inside the spectrum of an undamped beam it can
 meet a small pivot (element growth; about 20 eps cond(Z) on a 40-element pinned-pinned beam
-next to its resonances, `python benchmarks/vector_state_figures.py`). So the receptance and the last step of each shape use LAPACK's banded LU with
-partial pivoting on the same blocks (`scipy.linalg.solve_banded`: backward stable, also O(N)).
+next to its resonances, `python benchmarks/vector_state_figures.py`). So the receptance and the
+last step of each shape use LAPACK's banded LU with partial pivoting on the same blocks
+(`scipy.linalg.solve_banded`: backward stable, also O(N)).
 
 Mode shapes: inverse iteration with the sweep at each Wittrick-Williams root
 (`dtdyn.linear.sweep_modes`), then one more step by the pivoted banded LU, which leaves the

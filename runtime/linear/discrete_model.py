@@ -15,7 +15,8 @@ The model is iterable as ``(A, B, C, D)`` for scipy and python-control:
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
+from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse
@@ -151,7 +152,8 @@ def _matrix(name, value) -> np.ndarray:
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a real numeric matrix, got {type(value).__name__}") from None
+        raise ValueError(f"{name} must be a real numeric matrix, "
+                         f"got {type(value).__name__}") from None
     if arr.ndim != 2:
         raise ValueError(f"{name} must be a 2-D matrix, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):

@@ -79,8 +79,8 @@ def first_order_form(M, C, K):
 
 def _hold_name(hold) -> str:
     if not isinstance(hold, str) or hold.lower() not in HOLDS:
-        raise ValueError(f"hold must be one of 'zoh', 'foh', 'impulse', 'tustin' (alias 'bilinear'), "
-                         f"got {hold!r}")
+        raise ValueError("hold must be one of 'zoh', 'foh', 'impulse', 'tustin' "
+                         f"(alias 'bilinear'), got {hold!r}")
     hold = hold.lower()
     return "tustin" if hold == "bilinear" else hold
 
@@ -157,8 +157,9 @@ def discretize(M, C, K, dt, hold="zoh") -> DiscreteModel:
 
     so :math:`y_n = x_n + \Gamma_2 f_n = z_n`; a simulation from :math:`z_0` starts at
     :math:`x_0 = z_0 - \Gamma_2 f_0` (the same device as the Newmark state space,
-    :math:`x_n = y_n - A_{ss1}^{-1}B_{ss1} f_n`); `DiscreteModel.initial_state` does it. (:math:`\Gamma_1, \Gamma_2` are
-    :math:`\Gamma_a, \Gamma_b` of :func:`dtdyn.linear.exact.foh_matrices`.)
+    :math:`x_n = y_n - A_{ss1}^{-1}B_{ss1} f_n`); `DiscreteModel.initial_state` does it.
+    (:math:`\Gamma_1, \Gamma_2` are :math:`\Gamma_a, \Gamma_b` of
+    :func:`dtdyn.linear.exact.foh_matrices`.)
 
     **Impulse invariance** (``"impulse"``; the discrete impulse response is :math:`\Delta t`
     times the sampled continuous impulse response :math:`C e^{At}B`, including the

@@ -29,9 +29,10 @@ until its bracket :math:`(l_j, h_j]` holds it alone (count :math:`j` at :math:`l
 \lambda_{\max}]`: Gershgorin above (:math:`\max_i (2 (k_i + k_{i+1}) + k_{g,i})/m_i` for
 :math:`M^{-1} K`), and below :math:`\lambda_1 \ge 1/\operatorname{tr}(K^{-1} M) =
 1 / \sum_i m_i \sum_{n \le i} 1/k_n = \lambda_{\rm low}` (the flexibility of the fixed-free
-chain; ground springs only stiffen it; 0 for a chain in parts), halving at the geometric mean while :math:`h > 4 l` (the lowest roots of a long chain
-lie many decades below :math:`\lambda_{\max}`) and at the arithmetic mean after. Brackets that
-coincide share their evaluation.
+chain; ground springs only stiffen it; 0 for a chain in parts), halving at the geometric mean
+while :math:`h > 4 l` (the lowest roots of a long chain lie many decades below
+:math:`\lambda_{\max}`) and at the arithmetic mean after. Brackets that coincide share their
+evaluation.
 
 Each isolated root is then polished by Laguerre's iteration on :math:`p(\lambda) = \det(K -
 \lambda M) = \prod_i d_i`, a polynomial of degree N whose roots are all real. Its logarithmic
@@ -73,7 +74,7 @@ pass over the chain), with a NumPy fallback.
 """
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from importlib import resources
 
 import numpy as np
@@ -109,7 +110,7 @@ def _coefficients(mass, stiffness, ground_stiffness=None):
     return m, k, kg, pivmin
 
 
-@lru_cache(maxsize=None)
+@cache
 def _c_kernels():
     source = resources.files("dtdyn.generated").joinpath("sturm.c").read_text()
     lib = cbuild.load_library(source, "sturm")

@@ -137,7 +137,8 @@ def shaft_frequency_response(shaft: Shaft, omega, force_dofs, outputs, *,
     -------
     complex ndarray
         Shape (len(omega), len(outputs), len(force_dofs)), or (len(omega),) when both are
-        single DOFs. The receptances; equal to (K + i omega C - omega^2 M)^-1 on `shaft_matrices` (lumped).
+        single DOFs. The receptances; equal to (K + i omega C - omega^2 M)^-1 on
+        `shaft_matrices` (lumped).
         At a natural frequency of an undamped shaft it is infinite.
 
     Examples

@@ -76,6 +76,10 @@ def stability(scheme, omega_dt, damping_ratio=0.0, **scheme_params) -> Stability
         Omega = omega dt values.
     damping_ratio : float
         Physical damping ratio zeta, in [0, 1).
+    **scheme_params
+        The scheme's parameters by name (``beta``, ``gamma`` of "newmark", ``theta`` of
+        "wilson", ``alpha`` of "hht", ``rho_inf`` of "generalized_alpha"; `dtdyn show` lists
+        them; defaults as there); a misspelled name is a TypeError that names the closest one.
 
     Returns
     -------
@@ -122,6 +126,10 @@ def critical_omega_dt(scheme, damping_ratio=0.0, upper=1e4, **scheme_params) -> 
         Physical damping ratio zeta, in [0, 1).
     upper : float
         Largest Omega searched.
+    **scheme_params
+        The scheme's parameters by name (``beta``, ``gamma`` of "newmark", ``theta`` of
+        "wilson", ``alpha`` of "hht", ``rho_inf`` of "generalized_alpha"; `dtdyn show` lists
+        them; defaults as there); a misspelled name is a TypeError that names the closest one.
 
     Returns
     -------

@@ -17,7 +17,7 @@ A = Phi, B = Gamma0 + Phi Gamma1, and the outputs y_n = S z_n = S x_n + S Gamma1
 from __future__ import annotations
 
 import time
-from functools import lru_cache
+from functools import cache
 from importlib import resources
 
 import numpy as np
@@ -153,6 +153,10 @@ def discrete_state_space(M, C, K, dt, scheme="newmark", acceleration=False,
         Any scheme of the scheme table (`dtdyn show --help` lists them); parameters as keywords.
     acceleration : bool
         Output [q; q'; q''] instead of [q; q'].
+    **scheme_params
+        The scheme's parameters by name (``beta``, ``gamma`` of "newmark", ``theta`` of
+        "wilson", ``alpha`` of "hht", ``rho_inf`` of "generalized_alpha"; `dtdyn show` lists
+        them; defaults as there); a misspelled name is a TypeError that names the closest one.
 
     Returns
     -------
@@ -221,7 +225,7 @@ def scheme_blocks(M, C, K, dt, scheme="newmark", acceleration=False, **scheme_pa
 SS_BLOCK = 4096
 
 
-@lru_cache(maxsize=None)
+@cache
 def _c_loop():
     source = resources.files("dtdyn.generated").joinpath("ss_response.c").read_text()
     lib = cbuild.load_library(source, "ss_response")

@@ -124,7 +124,8 @@ class ModalModel:
         outputs = _index_array("outputs", self.outputs, None, "DOF")
         poles = np.asarray(self.poles)
         if poles.ndim != 1 or poles.size == 0 or not np.issubdtype(poles.dtype, np.number):
-            raise ValueError(f"poles must be a non-empty 1-D numeric array, got shape {poles.shape}")
+            raise ValueError("poles must be a non-empty 1-D numeric array, "
+                             f"got shape {poles.shape}")
         poles = poles.astype(complex)
         n_modes = poles.size
         residues = np.asarray(self.residues)
@@ -191,7 +192,7 @@ class ModalModel:
         warn("ModalModel.damping_ratios is now ModalModel.damping_ratio", DeprecationWarning)
         return self.damping_ratio
 
-    def select(self, modes) -> "ModalModel":
+    def select(self, modes) -> ModalModel:
         """The model with only ``modes`` (indices into the sorted modes, kept in sorted order)."""
         idx = np.sort(_index_array("modes", modes, self.n_modes, "mode"))
         return ModalModel(self.poles[idx], self.residues[idx], self.oscillatory[idx],
@@ -243,14 +244,17 @@ def from_poles_residues(poles, residues, force_dofs=(0,), outputs=(0,)) -> Modal
     poles : (n_modes,) complex array_like
         Per oscillatory mode its pole with Im s > 0; per real pole its real value. Re s <= 0
         (undamped modes, Re s = 0, are allowed); s = 0 and Re s > 0 are refused.
-    residues : complex array_like, shape (n_modes, n_outputs, n_inputs), or (n_modes,) for one
-        input and one output
-        Displacement-receptance residues (module docstring); a real pole's must be real (an
-        imaginary part up to 1e-12 of its magnitude is dropped as round-off).
+    residues : (n_modes, n_outputs, n_inputs) complex array_like
+        Displacement-receptance residues (module docstring); shape (n_modes,) for one input
+        and one output. A real pole's must be real (an imaginary part up to 1e-12 of its
+        magnitude is dropped as round-off).
     force_dofs, outputs : sequence of int
         0-based DOF labels of the inputs (loaded DOFs) and outputs.
 
-    The modes are sorted by |s| ascending (stable).
+    Returns
+    -------
+    ModalModel
+        The modes sorted by |s| ascending (stable).
 
     Examples
     --------

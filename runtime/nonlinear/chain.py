@@ -369,7 +369,8 @@ def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
         *[0 if a is None else a.ctypes.data for a in xs])
     stats = np.zeros(4)
     fail = np.zeros(1, dtype=np.int64)
-    work = np.zeros(c_api.CHAIN_ROWS_STABLE * N + 2 * nl + nw + 2 * nz + nu * (nu + 1) + ne + nz + n_w + 1)
+    work = np.zeros(c_api.CHAIN_ROWS_STABLE * N + 2 * nl + nw + 2 * nz + nu * (nu + 1) + ne + nz
+                    + n_w + 1)
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
     args = (dims.ctypes.data, ctypes.cast(chain, ctypes.c_void_p), pointers(idx),
             pointers(mats), *(a.ctypes.data for a in state),

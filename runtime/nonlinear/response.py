@@ -432,7 +432,9 @@ QUANTITIES = ("x", "v", "a", "g", "z")
 
 
 
-def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=None,
+# noqa below: one function on purpose, the entry point that validates and dispatches its keywords
+# (schemes, accuracy targets, backends); issue 27's solver layer splits it
+def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=None,  # noqa: C901
                        substeps=1, outputs=None, quantities=("x", "v", "a"), modes=None,
                        backend="c", tol=1e-12, max_iter=30, solver="newton", compiled=False,
                        ground_acceleration=None, ground_velocity=None,
@@ -556,6 +558,10 @@ def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, sch
         (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
     influence : (N,) or (N, n_dir) array_like, optional
         r, each DOF's motion per unit support motion (default: ones).
+    **scheme_params
+        The scheme's parameters by name (``beta``, ``gamma`` of "newmark", ``theta`` of
+        "wilson", ``alpha`` of "hht", ``rho_inf`` of "generalized_alpha"; `dtdyn show` lists
+        them; defaults as there); a misspelled name is a TypeError that names the closest one.
 
     Returns
     -------

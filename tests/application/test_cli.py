@@ -126,7 +126,8 @@ def test_cli_imports_without_derive_or_sympy():
         "from dtdyn.app.cli import main\n"
         "assert main(['--help']) == 0\n"
         "assert main(['show', 'newmark']) == 2\n"
-        "assert not [m for m in sys.modules if m.startswith(('sympy', 'jinja2', 'dtdyn.derive'))]\n")
+        "assert not [m for m in sys.modules\n"
+        "            if m.startswith(('sympy', 'jinja2', 'dtdyn.derive'))]\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120)
     assert proc.returncode == 0, proc.stderr

@@ -42,7 +42,8 @@ def _blocks() -> tuple[list, list]:
             line = text.count("\n", 0, m.start()) + 1
             before = text[:m.start()].rstrip()
             last_line = before.splitlines()[-1] if before else ""
-            reason = SKIP.search(last_line + "\n") if last_line.lstrip().startswith("<!--") else None
+            reason = (SKIP.search(last_line + "\n") if last_line.lstrip().startswith("<!--")
+                      else None)
             name = f"{page.relative_to(ROOT)}:{line}"
             if reason:
                 skipped.append((name, reason.group(1)))

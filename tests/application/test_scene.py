@@ -183,7 +183,8 @@ BAD_SCENES = {
     "unknown scheme key": (dict(scheme='[scheme]\nname = "newmark"\nbetta = 0.25\n'),
                            r"scheme\.betta = 0\.25: unknown key, allowed: .*beta, gamma"),
     "unknown scheme": (dict(scheme='[scheme]\nname = "rk4"\n'), r"scheme\.name = 'rk4'.*houbolt"),
-    "hht alpha range": (dict(scheme='[scheme]\nname = "hht"\nalpha = 0.2\n'), r"scheme\.alpha = 0\.2"),
+    "hht alpha range": (dict(scheme='[scheme]\nname = "hht"\nalpha = 0.2\n'),
+                        r"scheme\.alpha = 0\.2"),
     "unknown backend": (dict(scheme='[scheme]\nname = "houbolt"\nbackend = "fortran"\n'),
                         r"scheme\.backend = 'fortran'"),
     "unknown top-level table": (dict(extra="[solver]\ntol = 1.0\n"),
@@ -196,7 +197,8 @@ BAD_SCENES = {
     "unknown load key": (dict(loads='[[load]]\ndof = 0\nkind = "sine"\namplitude = 1.0\n'
                                     'frequency = 2.0\nfreq = 3.0\n'),
                          r"load\[0\]\.freq = 3\.0: unknown key .*frequency"),
-    "missing load field": (dict(loads='[[load]]\ndof = 0\nkind = "ramp"\n'), r"load\[0\]\.slope is required"),
+    "missing load field": (dict(loads='[[load]]\ndof = 0\nkind = "ramp"\n'),
+                           r"load\[0\]\.slope is required"),
     "negative frequency": (dict(loads='[[load]]\ndof = 0\nkind = "sine"\namplitude = 1.0\n'
                                       'frequency = -2.0\n'), r"load\[0\]\.frequency .*-2\.0"),
     "dof out of range": (dict(loads=STEP_LOAD + '[[load]]\ndof = 3\nkind = "step"\n'),
@@ -244,7 +246,8 @@ def test_load_file_with_wrong_length(tmp_path, suffix):
     else:
         np.save(tmp_path / "f.npy", data)
     loads = f'[[load]]\ndof = 1\nkind = "file"\npath = "f{suffix}"\n'
-    with pytest.raises(ValueError, match=rf"load\[0\]\.path = 'f{suffix}': has 100 samples, expected 101"):
+    with pytest.raises(ValueError,
+                       match=rf"load\[0\]\.path = 'f{suffix}': has 100 samples, expected 101"):
         load_scene(write_scene(tmp_path, loads=loads))
 
 
@@ -269,7 +272,8 @@ def fake_response(scene) -> Response:
 
 
 def test_save_results_stores_requested_quantities(tmp_path):
-    s = load_scene(write_scene(tmp_path, extra='[output]\noutputs = [2, 0]\nquantities = ["x", "a"]\n'))
+    s = load_scene(write_scene(tmp_path,
+                               extra='[output]\noutputs = [2, 0]\nquantities = ["x", "a"]\n'))
     r = fake_response(s)
     out = tmp_path / "res.npz"
     save_results(out, r, s)
@@ -448,7 +452,8 @@ def test_ground_scene_displacement_and_velocity_records(tmp_path):
     u = 0.01 * (1 - np.cos(2 * np.pi * 1.5 * t))
     np.savetxt(tmp_path / "disp.csv", u)
     np.savetxt(tmp_path / "vel.csv", np.gradient(u, 0.01))
-    chain = '[model]\nmass = [2e5, 2e5, 2e5]\nstiffness = [3e8, 3e8, 2e8]\ndamping = [4e5, 4e5, 4e5]\n'
+    chain = ('[model]\nmass = [2e5, 2e5, 2e5]\nstiffness = [3e8, 3e8, 2e8]\n'
+             'damping = [4e5, 4e5, 4e5]\n')
     rest = ('[scheme]\nname = "average_acceleration"\n[time]\ndt = 0.01\nduration = 3.0\n'
             '[output]\nquantities = ["x", "a"]\n')
     for quantity, name in (("displacement", "disp.csv"), ("velocity", "vel.csv")):

@@ -120,8 +120,9 @@ def test_matrix_market_files_give_sparse_scene(tmp_path):
 @pytest.mark.parametrize("scheme", ["central_difference", "houbolt", "generalized_alpha", "wilson"])
 def test_any_scheme_dense_and_sparse_agree(tmp_path, scheme):
     time = "[time]\ndt = 0.01\nduration = 0.5\n"
-    dense = load_scene(write_scene(tmp_path, inline_model(), scheme=f'[scheme]\nname = "{scheme}"\n',
-                                   time=time, name="d.toml"))
+    dense = load_scene(write_scene(tmp_path, inline_model(),
+                                   scheme=f'[scheme]\nname = "{scheme}"\n', time=time,
+                                   name="d.toml"))
     sparse = load_scene(write_scene(tmp_path, inline_model(extra="sparse = true\n"),
                                     scheme=f'[scheme]\nname = "{scheme}"\n', time=time))
     rd, rep_d = run_scene(dense)
@@ -207,7 +208,8 @@ def test_named_dofs_in_loads_and_outputs(tmp_path):
 
 
 def test_default_dof_names_are_indices_as_strings(tmp_path):
-    s = load_scene(write_scene(tmp_path, inline_model(), loads='[[load]]\ndof = "1"\nkind = "step"\n'))
+    s = load_scene(write_scene(tmp_path, inline_model(),
+                               loads='[[load]]\ndof = "1"\nkind = "step"\n'))
     assert_array_equal(s.loaded, [1])
 
 
@@ -241,7 +243,8 @@ BAD = {
     "non-finite entry": (NAN_M, r"model\.M\[1\]\[1\] = nan: must be finite"),
     "string entry": ('[model]\nkind = "matrices"\nM = [[1.0, "x"], [0.0, 1.0]]\nK = [[1.0]]\n',
                      r"model\.M\[0\]\[1\] = 'x': must be a number"),
-    "wrong dof name count": (inline_model(extra='dofs = ["a"]\n'), r"model\.dofs has 1 names, expected 2"),
+    "wrong dof name count": (inline_model(extra='dofs = ["a"]\n'),
+                             r"model\.dofs has 1 names, expected 2"),
     "repeated dof name": (inline_model(extra='dofs = ["a", "a"]\n'),
                           r"model\.dofs\[1\] = 'a': repeats a DOF name"),
     "dof name not a string": (inline_model(extra='dofs = ["a", 2]\n'), r"model\.dofs\[1\] = 2"),
@@ -255,12 +258,14 @@ BAD = {
     "negative rayleigh": (inline_model(extra="[model.damping]\nrayleigh = [0.1, -1.0]\n"),
                           r"model\.damping\.rayleigh\[1\] = -1\.0"),
     "modal length": (inline_model(extra="[model.damping]\nmodal = [0.1, 0.2, 0.3]\n"),
-                     r"model\.damping\.modal = \[0\.1, 0\.2, 0\.3\]: has 3 ratios, give one .* or 2"),
+                     r"model\.damping\.modal = \[0\.1, 0\.2, 0\.3\]: has 3 ratios, "
+                     r"give one .* or 2"),
     "unknown damping key": (inline_model(extra="[model.damping]\nstiffness_proportional = 0.1\n"),
                             r"model\.damping\.stiffness_proportional = 0\.1: unknown key"),
     "modal with indefinite M": (inline_model(M=[[1.0, 0.0], [0.0, -1.0]],
                                              extra="[model.damping]\nmodal = [0.02]\n"),
-                                r"model\.damping\.modal needs a symmetric positive definite model\.M; "
+                                r"model\.damping\.modal needs a symmetric positive definite "
+                                r"model\.M; "
                                 r"M is not positive definite"),
     "modal with unsymmetric M": (inline_model(M=[[1.0, 0.5], [0.0, 1.0]],
                                               extra="[model.damping]\nmodal = [0.02]\n"),
@@ -279,12 +284,14 @@ BAD = {
     "unknown load dof name": (inline_model(extra='dofs = ["floor", "roof"]\n'),
                               r"load\[0\]\.dof = 'attic': unknown DOF name, model\.dofs has "
                               r"'floor', 'roof'", '[[load]]\ndof = "attic"\nkind = "step"\n'),
-    "load dof index out of range": (inline_model(), r"load\[0\]\.dof = 2: must be a DOF index in 0\.\.1 "
-                                                    r"or a DOF name", '[[load]]\ndof = 2\nkind = "step"\n'),
+    "load dof index out of range": (inline_model(),
+                                    r"load\[0\]\.dof = 2: must be a DOF index in 0\.\.1 "
+                                    r"or a DOF name", '[[load]]\ndof = 2\nkind = "step"\n'),
     "unknown output dof name": (inline_model(extra='dofs = ["floor", "roof"]\n'),
                                 r"output\.outputs\[1\] = 'cellar': unknown DOF name"),
     "repeated output dof": (inline_model(extra='dofs = ["floor", "roof"]\n'),
-                            r"output\.outputs = \['roof', 1\]: entry 1 \(1\) repeats DOF 1 \('roof'\)"),
+                            r"output\.outputs = \['roof', 1\]: entry 1 \(1\) repeats DOF 1 "
+                            r"\('roof'\)"),
     "chain-only form": (inline_model(), r"scheme\.form = 'displacement': only for chain models",
                         None, '[scheme]\nname = "newmark"\nform = "displacement"\n'),
     "chain-only sweep": (inline_model(), r"scheme\.sweep = 'plain': only for chain models",

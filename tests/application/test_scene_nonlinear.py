@@ -15,7 +15,6 @@ from dtdyn.linear.chain import chain_matrices
 from dtdyn.app.cli import main
 from dtdyn.nonlinear.elements import Cubic, Gap, Law
 from dtdyn.nonlinear.reference import reference_response
-from dtdyn._engine.errors import DtdynAccuracyWarning
 from dtdyn.nonlinear.response import DtdynStepStabilityError, NewtonError, nonlinear_mck_response
 from dtdyn.app.scene import load_scene, run_scene
 

@@ -24,8 +24,10 @@ def test_element_matrices_are_the_textbook_ones():
     EI, L, rA = 3.0, 0.7, 2.0
     K = EI / L**3 * np.array([[12, 6 * L, -12, 6 * L], [6 * L, 4 * L**2, -6 * L, 2 * L**2],
                               [-12, -6 * L, 12, -6 * L], [6 * L, 2 * L**2, -6 * L, 4 * L**2]])
-    M = rA * L / 420 * np.array([[156, 22 * L, 54, -13 * L], [22 * L, 4 * L**2, 13 * L, -3 * L**2],
-                                 [54, 13 * L, 156, -22 * L], [-13 * L, -3 * L**2, -22 * L, 4 * L**2]])
+    M = rA * L / 420 * np.array([[156, 22 * L, 54, -13 * L],
+                                 [22 * L, 4 * L**2, 13 * L, -3 * L**2],
+                                 [54, 13 * L, 156, -22 * L],
+                                 [-13 * L, -3 * L**2, -22 * L, 4 * L**2]])
     np.testing.assert_allclose(derived.element_stiffness(EI, L), K, rtol=1e-15)
     np.testing.assert_allclose(derived.element_mass(rA, L), M, rtol=1e-15)
     lumped = derived.element_mass_lumped(rA, L)

@@ -71,7 +71,7 @@ def p2_force(n_steps):
     return dt, (1.0 - np.cos(P2_OMEGA_F * t))[:, None]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def p2_exact(n_steps):
     dt, force = p2_force(n_steps)
     M, C, K = chain_matrices(P2_MASS, P2_STIFF, P2_DAMP)

@@ -32,8 +32,8 @@ def _run_both(prob, dt, n_steps, scheme, forms=("displacement", "acceleration"),
     for form in forms:
         for backend in backends:
             r = chain_response(prob["mass"], prob["stiffness"], prob["damping"], F, dt,
-                               force_dofs=prob["force_dofs"], scheme=scheme, form=form, backend=backend,
-                               **kw)
+                               force_dofs=prob["force_dofs"], scheme=scheme, form=form,
+                               backend=backend, **kw)
             for q in "xva":
                 err = rel_error(getattr(r, q), getattr(ref, q))
                 assert err < TOL, (scheme, form, backend, dt, q, err)
@@ -69,8 +69,8 @@ def test_long_uniform_chain(n_mass, backends):
     F = np.ones((n_steps + 1, 1))
     outputs = np.unique(np.r_[0, n_mass // 2, np.arange(n_mass - 50, n_mass)])
     M, C, K = chain_matrices(prob["mass"], prob["stiffness"], prob["damping"], sparse=True)
-    ref = mck_response(M, C, K, F, dt, force_dofs=prob["force_dofs"], scheme="newmark", outputs=outputs,
-                       quantities=("x",))
+    ref = mck_response(M, C, K, F, dt, force_dofs=prob["force_dofs"], scheme="newmark",
+                       outputs=outputs, quantities=("x",))
     for form in ("displacement", "acceleration"):
         for backend in backends:
             r = chain_response(prob["mass"], prob["stiffness"], prob["damping"], F, dt,

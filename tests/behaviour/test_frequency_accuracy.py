@@ -110,3 +110,43 @@ def test_rigid_modes_exact_zeros_and_fast():
     w = dd.beam_frequencies(pinned_free, count=3)
     assert w[0] == 0.0 and w[1] > 0.0
     assert dd.linear.beam.rigid_body_modes(pinned_free) == 1
+
+
+def test_roots_do_not_depend_on_count_and_few_counts(monkeypatch):
+    """Every root's path depends on the beam and its index alone (the same bits for count,
+    below and all); regula falsi inside each isolating bracket needs far fewer counts than
+    bisecting to adjacent floats (93 for this beam)."""
+    beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=L, elements=200, left="clamped", right="free")
+    inertia = dd.linear.beam._inertia
+    calls = []
+
+    def counted(*args, **kwargs):
+        calls.append(args[1].size)
+        return inertia(*args, **kwargs)
+
+    monkeypatch.setattr(dd.linear.beam, "_inertia", counted)
+    w5 = dd.beam_frequencies(beam, count=5)
+    assert len(calls) <= 30, len(calls)
+    monkeypatch.setattr(dd.linear.beam, "_inertia", inertia)
+    w = dd.beam_frequencies(beam, count=40)
+    assert np.array_equal(w[:5], w5)
+    assert np.array_equal(dd.beam_frequencies(beam, below=float(w[12]) * (1 + 1e-9)), w[:13])
+    # the count agrees with LAPACK between the roots
+    M, _, K = (A.toarray() for A in dd.beam_matrices(beam))
+    lam = sla.eigh(K, M, eigvals_only=True)
+    between = np.sqrt(lam[:39] * lam[1:40])
+    assert np.array_equal(dd.linear.beam.wittrick_williams_counts(beam, between),
+                          np.arange(1, 40))
+
+
+def test_guarded_pass_gives_the_same_counts():
+    """The guarded pass (taken when a pivot cancels exactly) counts as the plain one."""
+    beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=L, elements=30, left="pinned", right="free",
+                   supports=[dd.Support(node=12, k_w=1e6)])
+    mod = dd.linear.beam
+    blocks = mod._count_blocks(beam)
+    lam = np.geomspace(1.0, 1e14, 200).astype(mod._WIDE) * mod._WIDE(blocks[-1])
+    plain, logdet = mod._inertia(blocks, lam, det=True)
+    guarded, logdet_g = mod._inertia(blocks, lam, det=True, guard=True)
+    assert np.array_equal(plain, guarded)
+    assert np.allclose(logdet, logdet_g, rtol=0, atol=1e-9)

@@ -44,7 +44,8 @@ def test_pair_sections_equal_matlab_lines():
         B = 2 * np.convolve(N.real, Dd.real) + 2 * np.convolve(N.imag, Dd.imag)
         A = np.real(np.convolve(Dd, np.conj(Dd)))
         b0, b1, b2, a1, a2 = G.pair_sections("ramp", np.array([S]), np.array([Rr]), T)
-        np.testing.assert_allclose([b0[0], b1[0], b2[0]], B, rtol=1e-9, atol=1e-15 * np.abs(B).max())
+        np.testing.assert_allclose([b0[0], b1[0], b2[0]], B, rtol=1e-9,
+                                   atol=1e-15 * np.abs(B).max())
         np.testing.assert_allclose([1, a1[0], a2[0]], A, rtol=1e-13)
 
 

@@ -23,7 +23,8 @@ def private_cache(tmp_path, monkeypatch):
 
 def _args(P, elements=None):
     return dict(M=P["M"], C=P["C"], K=P["K"], force=P["force"], dt=P["dt"],
-                force_dofs=P["force_dofs"], elements=P["elements"] if elements is None else elements)
+                force_dofs=P["force_dofs"],
+                elements=P["elements"] if elements is None else elements)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -65,7 +65,7 @@ def test_parabola_coefficient_series_and_closed_form():
     from scipy.integrate import quad
     T = 1e-2
     for s in (-3.0 + 80.0j, -0.5 + 20.0j, -40.0 + 300.0j, -2.0 + 0.0j):
-        def part(u, f):
+        def part(u, f, s=s):
             return f(np.exp(s * (T - u)) * u * (u - T) / (2 * T**2))
         want = quad(part, 0, T, args=(np.real,), epsabs=0, epsrel=1e-13)[0] + 1j * quad(
             part, 0, T, args=(np.imag,), epsabs=0, epsrel=1e-13)[0]
@@ -167,7 +167,8 @@ def test_velocity_law_against_reference():
     f = (np.random.default_rng(3).standard_normal(n) * 50)[:, None]
     els = [Law(0, 1, expression="c*v*abs(v)", c=20.0)]
     ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[1], elements=els, cache=False)
-    errs = [_err(NL.nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[1], elements=els, substeps=S), ref, dof=1)
+    errs = [_err(NL.nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[1], elements=els,
+                                           substeps=S), ref, dof=1)
             for S in (2, 4)]
     assert errs[1] < 2e-3 and 3.0 <= errs[0] / errs[1] <= 5.0, errs
 
@@ -295,8 +296,9 @@ def test_casadi_backend_checks_every_step():
     f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]
     els = [Gap(0, gap=1e-2, stiffness=1e12, smoothing=1e-4)]
     with pytest.raises(NL.NewtonError, match="step"):
-        NL.nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, scheme="newmark",
-                              backend="casadi", solver="fast_newton", max_iter=5)
+        NL.nonlinear_mck_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els,
+                                  scheme="newmark", backend="casadi", solver="fast_newton",
+                                  max_iter=5)
 
 
 # --- bad input ----------------------------------------------------------------------------------
@@ -552,7 +554,7 @@ def test_polynomial_weights_against_quadrature(pole, method, nodes):
                   epsrel=1e-13, limit=200)[0]
         return re + 1j * im
     for j in nodes:
-        want = integral(lambda v: _lagrange(j, v, nodes))
+        want = integral(lambda v, j=j: _lagrange(j, v, nodes))
         assert abs(W[j][0] - want) <= 1e-11 * abs(want), j
     want = integral(lambda v: np.prod([v - i for i in nodes]) / factorial(len(nodes)))
     assert abs(E[0] - want) <= 1e-11 * abs(want)

@@ -5,7 +5,8 @@
 (2) The classic closed-form undamped half-sine shock spectrum (primary and residual).
 (3) Peak picking at 5 points per cycle errs by > 10 % (within 1 - cos(pi f / fs)); upsampling and
     exact peaks fix it.
-(4) pyyeti.srs and endaq.calc.shock.shock_spectrum where installed. (5) Bad inputs and the sampling warning. (6) The CLI.
+(4) pyyeti.srs and endaq.calc.shock.shock_spectrum where installed. (5) Bad inputs and the
+    sampling warning. (6) The CLI.
 """
 import warnings
 
@@ -91,7 +92,8 @@ class IVP:
                 i = int(np.argmax(sign * y[j]))
                 cand = y[j, i]
                 if 0 < i < n - 1:
-                    r = minimize_scalar(lambda t: -sign * f_j(t), method="bounded",
+                    r = minimize_scalar(lambda t, sign=sign, f_j=f_j: -sign * f_j(t),
+                                        method="bounded",
                                         bounds=(ts[i - 1], ts[i + 1]),
                                         options={"xatol": 1e-15 * max(1.0, abs(t1))})
                     cand = sign * max(sign * cand, -r.fun)

@@ -24,7 +24,8 @@ def test_frequency_response_equals_dynamic_stiffness_solve():
     M, C, K = chain_matrices(P2["mass"], P2["stiffness"], P2["damping"], sparse=False)
     for load in (0, 1):
         for out in (0, 1):
-            H = chain_frequency_response(P2["mass"], P2["stiffness"], P2["damping"], omega, load, out)
+            H = chain_frequency_response(P2["mass"], P2["stiffness"], P2["damping"], omega, load,
+                                         out)
             ref = [np.linalg.solve(-w * w * M + 1j * w * C + K, np.eye(2)[load])[out]
                    for w in omega]
             np.testing.assert_allclose(H, ref, rtol=1e-12)

@@ -481,7 +481,8 @@ def test_dttmm_riccati_bounded_at_random_points(name):
         maps = dttmm.form_maps(form, der)
         for _ in range(20):
             h = 10 ** rng.uniform(-5, -1)
-            pv, rv, av = (float(maps[n].subs(defaults).subs(I.dt, h)) for n in ("p", "r", "alpha_u"))
+            pv, rv, av = (float(maps[n].subs(defaults).subs(I.dt, h))
+                          for n in ("p", "r", "alpha_u"))
             assert pv >= 0 and rv > 0 and av > 0
             S_R = 0.0
             for _n in range(30):

@@ -92,7 +92,7 @@ def _nonlinear_methods() -> tuple[str, ...]:
     return MODAL + tuple(s for s in SCHEMES if s not in MULTISTEP)
 
 
-def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:
+def _parse_nonlinear(tbl, scheme_tbl) -> tuple[str, dict, dict, str]:  # noqa: C901 (one check per key)
     """(method, scheme parameters, options, backend) of a nonlinear scene (module docstring)."""
     from dtdyn.nonlinear.linear_step import MODAL
 

@@ -83,8 +83,8 @@ def plot_response(path: str | os.PathLike, response: Response, scene: Scene) -> 
 
     Up to 8 DOFs (``result_plot.MAX_LINES``): one line per DOF, labelled by the scene's DOF
     name or its 0-based index. More: a heat map (time x DOF) with a colour bar, so that a long
-    chain stays readable. Uses the Agg canvas directly (no pyplot, no global backend switch); the format
-    follows the suffix of ``path`` (``.png`` when none).
+    chain stays readable. Uses the Agg canvas directly (no pyplot, no global backend switch);
+    the format follows the suffix of ``path`` (``.png`` when none).
     """
     path, fmt = plot_checked_path(path)
     from matplotlib.backends.backend_agg import FigureCanvasAgg

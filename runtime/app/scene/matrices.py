@@ -78,7 +78,8 @@ def _npz_matrices(raw, base_dir: Path) -> dict:
             out = {}
             for key in names:
                 arr = z[key]
-                if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)):
+                if not (np.issubdtype(arr.dtype, np.floating)
+                        or np.issubdtype(arr.dtype, np.integer)):
                     raise ValueError(f"model.file = {raw!r}: array {key} has dtype {arr.dtype}, "
                                      "must be real numbers")
                 out[key] = np.array(arr, dtype=float)
@@ -195,8 +196,8 @@ def _parse_damping_options(tbl, n: int) -> tuple[str | None, np.ndarray | None]:
     if "modal" in tbl:
         zeta = _number_list("model.damping.modal", tbl["modal"], nonnegative=True)
         if zeta.size not in (1, n):
-            raise ValueError(f"model.damping.modal = {tbl['modal']!r}: has {zeta.size} ratios, give "
-                             f"one (all modes) or {n} (one per mode, ascending frequency)")
+            raise ValueError(f"model.damping.modal = {tbl['modal']!r}: has {zeta.size} ratios, "
+                             f"give one (all modes) or {n} (one per mode, ascending frequency)")
         return "modal", zeta
     return None, None
 
@@ -210,7 +211,8 @@ def _parse_dof_names(value, n: int) -> tuple[str, ...]:
         if not isinstance(v, str) or not v.strip():
             raise ValueError(f"model.dofs[{i}] = {v!r}: every DOF name must be a non-empty string")
     if len(value) != n:
-        raise ValueError(f"model.dofs has {len(value)} names, expected {n} (one per row of model.M)")
+        raise ValueError(f"model.dofs has {len(value)} names, expected {n} (one per row of "
+                         "model.M)")
     seen = set()
     for i, v in enumerate(value):
         if v in seen:

@@ -1,5 +1,5 @@
-"""Scene files: the schema. A scene is a model (a chain or general M, C, K matrices), its loads, a scheme and a time grid,
-read from a TOML file.
+"""Scene files: the schema. A scene is a model (a chain or general M, C, K matrices), its loads,
+a scheme and a time grid, read from a TOML file.
 
 Layout of a scene file (``load_scene(None)`` reads the embedded default ``scenes/p3.toml``,
 reference problem P3)::
@@ -119,18 +119,18 @@ element classes)::
     gap         gap (m, >= 0), stiffness (N/m, > 0), smoothing (m, >= 0) [0.0],
                 side ("both", "positive", "negative") ["both"]
     law         expression = "k*x**3 + c*v"         g(x, v): x = y, v = y'; arithmetic and the
-                [element.constants]                 functions of dtdyn.nonlinear.expressions (parsed,
-                k = 2e7                             never evaluated as Python); constants: a table
-                c = 0.5                             of numbers [none]
+                [element.constants]                 functions of dtdyn.nonlinear.expressions
+                k = 2e7                             (parsed, never evaluated as Python);
+                c = 0.5                             constants: a table of numbers [none]
     bouc_wen    stiffness (> 0), beta, gamma, alpha (>= 0) [0.1], A [1.0], n (>= 1) [1.0]
 
 The scheme of a nonlinear scene is ``scheme.name`` (default ``"modal_ramp"``): a modal method
 (no parameters) or a one-step scheme with its parameters (``beta = 0.3``, ...); ``scheme.form``,
-``.sweep`` and ``.backend`` are refused (``nonlinear.backend`` chooses the backend). ``[nonlinear]`` without any ``[[element]]`` is an
-error. A nonlinear scene runs ``nonlinear_mck_response`` on dense M, C, K (a chain's from
-``chain_matrices``; ``model.sparse = true`` is refused) with the loads sampled every ``dt``
-and the stored outputs and quantities the scene asks for; it is not compared
-with the exact solution.
+``.sweep`` and ``.backend`` are refused (``nonlinear.backend`` chooses the backend).
+``[nonlinear]`` without any ``[[element]]`` is an error. A nonlinear scene runs
+``nonlinear_mck_response`` on dense M, C, K (a chain's from ``chain_matrices``;
+``model.sparse = true`` is refused) with the loads sampled every ``dt`` and the stored outputs
+and quantities the scene asks for; it is not compared with the exact solution.
 
 Every error is a ``ValueError`` that names the file and the field, e.g.
 ``p3.toml: model.mass[3] = -1.0: every entry must be finite and > 0`` or
@@ -279,7 +279,13 @@ class Scene:
     ----------
     title, source : str
         The scene's title and file.
-    kind : {"chain", "matrices"}
+    base_dir : Path
+        The folder that relative file paths of the scene are read from (the scene file's).
+    kind : {"chain", "matrices", "shaft", "beam"}
+    model : object or None
+        The model object of the kinds that build one (a `Shaft`, a `Beam`).
+    dof_names : tuple of str or None
+        One name per DOF where the model names them.
     mass, stiffness, damping : ndarray or None
         A chain's stations.
     ground_stiffness, ground_damping : ndarray or None
@@ -301,6 +307,8 @@ class Scene:
     ground, ground_quantity, influence : ndarray or None, str, ndarray or None
         The ``[ground]`` record at the scene's times in SI units, what it samples
         ("acceleration", "velocity", "displacement"), and r (None: ones).
+    x0, v0 : ndarray or None
+        The ``[initial]`` displacement and velocity of every DOF (None: rest).
 
     Examples
     --------
@@ -419,7 +427,7 @@ class Scene:
         >>> s.require_run("dtdyn simulate")
         Traceback (most recent call last):
         ...
-        ValueError: <scene>: dtdyn simulate needs a [time] table with dt and duration (e.g. [time] dt = 0.01, duration = 1.0); the scene has none
+        ValueError: <scene>: dtdyn simulate needs a [time] table with dt and duration ...
         """
         if self.dt is None:
             raise ValueError(f"{self.source}: {command} needs a [time] table with dt and "
@@ -445,7 +453,8 @@ def _table(name: str, value, allowed: tuple[str, ...]) -> dict:
         raise ValueError(f"{name} = {value!r}: must be a table [{name}]")
     for key in value:
         if key not in allowed:
-            raise ValueError(f"{name}.{key} = {value[key]!r}: unknown key, allowed: {', '.join(allowed)}")
+            raise ValueError(f"{name}.{key} = {value[key]!r}: unknown key, allowed: "
+                             f"{', '.join(allowed)}")
     return value
 
 
@@ -469,7 +478,8 @@ def _number_list(name: str, value, **checks) -> np.ndarray:
 
 def _choice(name: str, value, allowed: tuple[str, ...]) -> str:
     if value not in allowed:
-        raise ValueError(f"{name} = {value!r}: unknown value, allowed: {', '.join(map(repr, allowed))}")
+        raise ValueError(f"{name} = {value!r}: unknown value, allowed: "
+                         f"{', '.join(map(repr, allowed))}")
     return value
 
 
