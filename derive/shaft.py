@@ -199,9 +199,15 @@ def frequency_pivot():
     # the lumped spring (a = k, b = -k) gives the time-domain recursion with kappa = k
     chain_S = dttmm.derive_sweeps().S_expr.subs({dttmm.kappa: kt, dttmm.mu: mu_})
     assert sp.simplify(S_L.subs({a: kt, b: -kt}) - chain_S) == 0
-    # S_L written in the pivot D itself (k_g eliminated through D)
+    # S_L in the pivot D (the guarded divisor) and in s = D - a = k_g - lam J - S_R, what the
+    # node adds to its connection: S_L = -(a s + (a - b)(a + b)) / D. For a lumped spring
+    # (b = -a, so the product is exactly 0) this is -a s / (a + s), the series springs of
+    # chain_frequencies, where -a + b^2 / D would cancel to about eps a absolute (a stiff
+    # spring next to soft ones: 1.8e-7 relative on mode 1)
     Dsym = sp.Symbol("D")
-    S_in_D = sp.simplify(S_L.subs(kg, sp.solve(sp.Eq(Dsym, D), kg)[0]))
+    s_node = kg - lam * J - S_R
+    S_in_D = -(a * s_node + (a - b) * (a + b)) / Dsym
+    assert sp.simplify(S_in_D.subs(Dsym, D) - S_L) == 0
     return lam, D, S_in_D
 
 
@@ -237,7 +243,8 @@ def numpy_context() -> dict:
         "j0": _np(j0),
         "pivot": printing.py(D.xreplace({kg: sp.Symbol("kg[n]"), J: sp.Symbol("J[n]"),
                                           a: sp.Symbol("a[n]")})),
-        "S_L_pivot": printing.py(S_D.xreplace({a: sp.Symbol("a[n]"), b: sp.Symbol("b[n]")})),
+        "S_L_pivot": printing.py(S_D.xreplace({a: sp.Symbol("a[n]"), b: sp.Symbol("b[n]"),
+                                               kg: sp.Symbol("kg[n]"), J: sp.Symbol("J[n]")})),
         "S_py": scalar(sw.S_expr), "g_py": scalar(sw.g), "a_py": scalar(sw.a_fwd),
         "den_py": scalar(sw.den), "S_doc": py(sw.S_expr), "g_doc": py(sw.g),
         "a_doc": py(sw.a_fwd), "den_doc": py(sw.den),

@@ -15,7 +15,7 @@ forward u_n = a g_u u_parent + b / den, a = -kp/(SR - kp - mu), b = -Dl + Fe + R
 The two passes are triangular solves with the tree's sparsity (SuperLU factors of the
 triangular matrices in the natural order: no fill), so a step costs O(N).
 
-Frequencies (Wittrick-Williams): pivot D = -J[n]*lam - S_R + a[n] + kg[n], S_L = -a[n] + (b[n]*b[n])/D (S_R summed over
+Frequencies (Wittrick-Williams): pivot D = -J[n]*lam - S_R + a[n] + kg[n], S_L = (-a[n]*(-J[n]*lam - S_R + kg[n]) - (a[n] - b[n])*(a[n] + b[n]))/D (S_R summed over
 the children with g_S); a continuous segment has a = beta*z/tan(beta), b = -beta*z/sin(beta)
 (z = G J_p / L, beta = omega L*sqrt(rho)/sqrt(G)) and J_0 = floor(beta/pi).
 """
@@ -76,7 +76,9 @@ def wittrick_williams(lam, parent, gS, J, kg, a, b, j0, pivmin):
         D = np.where(np.abs(D) < pivmin, -pivmin, D)
         count += D < 0.0
         if parent[n] >= 0:
-            SRs[parent[n]] += gS[n] * (-a[n] + (b[n] * b[n]) / D)
+            SRs[parent[n]] += gS[n] * (
+                (-a[n] * (-J[n] * lam - S_R + kg[n]) - (a[n] - b[n]) * (a[n] + b[n])) / D
+            )
     return count
 
 
