@@ -75,7 +75,8 @@ def dof_indices(name: str, values, n_dof: int, default_all: bool = True,
         values = [names.index(v) if isinstance(v, str) else v for v in vals]
     idx = np.atleast_1d(np.asarray(values))
     if idx.ndim != 1 or idx.size == 0 or not np.issubdtype(idx.dtype, np.integer):
-        raise ValueError(f"{name} must be a non-empty sequence of integer DOF indices, got {values!r}")
+        raise ValueError(f"{name} must be a non-empty sequence of integer DOF indices, got "
+                         f"{values!r}")
     if idx.min() < 0 or idx.max() >= n_dof:
         raise ValueError(f"{name} = {idx.tolist()} has an index outside 0..{n_dof - 1}")
     if np.unique(idx).size != idx.size:

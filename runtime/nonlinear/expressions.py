@@ -131,7 +131,7 @@ class _Parser:
     def allowed_names(self) -> str:
         return ", ".join(self.variables + self.constants + BUILTIN_NAMES)
 
-    def check(self, node, depth: int = 0) -> set:
+    def check(self, node, depth: int = 0) -> set:  # noqa: C901 (one branch per node type)
         """The declared names used under ``node``; ValueError for anything not whitelisted."""
         if depth > MAX_DEPTH:
             self.refuse(f"nesting deeper than {MAX_DEPTH} levels is not allowed")

@@ -233,13 +233,14 @@ def parse_toml(text: str, source: str) -> dict:
 # ----------------------------------------------------------------------------------------------
 # public API
 
-def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scene>") -> Scene:
+def scene_from_dict(data: dict, base_dir: Path | str = ".",  # noqa: C901 (a check a table)
+                    source: str = "<scene>") -> Scene:
     """Validate a parsed scene (the dict ``tomllib`` returns) and build a :class:`Scene`.
 
     Only ``[model]`` is required (enough for `dtdyn modes`); a run also needs ``[time]`` and a
     load (`Scene.require_run`). ``base_dir`` is where ``file`` loads and matrix files
-    (``model.file``, ``.mtx`` paths) are looked for. Errors are ``ValueError`` naming the field (without the file name;
-    :func:`load_scene` adds it).
+    (``model.file``, ``.mtx`` paths) are looked for. Errors are ``ValueError`` naming the field
+    (without the file name; :func:`load_scene` adds it).
 
     Parameters
     ----------
@@ -271,7 +272,8 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".", source: str = "<scen
         raise ValueError(f"a scene must be a table, got {type(data).__name__}")
     for key in data:
         if key not in _TOP_KEYS:
-            raise ValueError(f"{key}: unknown top-level key or table, allowed: {', '.join(_TOP_KEYS)}")
+            raise ValueError(f"{key}: unknown top-level key or table, allowed: "
+                             f"{', '.join(_TOP_KEYS)}")
     nonlinear = bool(data.get("element"))
     # [model] alone is a valid scene (dtdyn modes); a run also needs [time] and a load, which
     # Scene.require_run checks where a run starts, naming the command
