@@ -311,7 +311,10 @@ def chain_frequencies(mass, stiffness, count=None, below=None, backend="c", *,
         raise ValueError("give count or below, not both")
     if below is not None:
         below = validate.positive_scalar("below", below)
-        count = int(_counts(m, k, kg, pivmin, [np.ldexp(below**2, em - ek)], backend)[0])
+        with np.errstate(over="ignore"):     # below^2 beyond the floats: every frequency
+            lam = np.ldexp(np.float64(below) ** 2, em - ek)
+        count = m.size if not np.isfinite(lam) else int(
+            _counts(m, k, kg, pivmin, [lam], backend)[0])
     elif count is None:
         count = n
     else:

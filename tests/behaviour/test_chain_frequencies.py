@@ -245,3 +245,10 @@ def test_a_part_without_ground_is_refused():
     with pytest.raises(ValueError, match=r"stiffness\[0\] = 0.0: every entry must be finite "
                                          "and > 0"):
         dd.chain_frequencies([1.0, 1.0], [0.0, 1.0])    # without ground springs: k > 0
+
+
+def test_below_beyond_the_floats_gives_every_frequency():
+    """below^2 overflows a float (found by the fuzzer): every frequency is below it."""
+    m, k = [1.0, 2.0], [100.0, 50.0]
+    np.testing.assert_array_equal(dd.chain_frequencies(m, k, below=1.34e154),
+                                  dd.chain_frequencies(m, k))

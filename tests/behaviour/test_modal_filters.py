@@ -9,6 +9,7 @@ import pytest
 import scipy.signal as sig
 import sympy as sp
 
+from dtdyn._engine.cbuild import include_dirs
 from dtdyn.derive import modal_filters as D
 from dtdyn.generated import modal_filters as G
 from dtdyn.linear.chain import chain_matrices
@@ -341,8 +342,10 @@ def test_filter_kernels_compile_without_warnings(name, tmp_path):
     cc = shutil.which("cc") or shutil.which("gcc")
     src = tmp_path / f"{name}.c"
     src.write_text(resources.files("dtdyn.generated").joinpath(f"{name}.c").read_text())
-    proc = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-c",
-                           str(src), "-o", str(tmp_path / "k.o")], capture_output=True, text=True)
+    includes = [f"-I{d}" for d in include_dirs()]       # c_api.h, the hand-written headers
+    proc = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *includes,
+                           "-c", str(src), "-o", str(tmp_path / "k.o")], capture_output=True,
+                          text=True)
     assert proc.returncode == 0, proc.stderr
 
 
