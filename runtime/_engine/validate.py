@@ -251,4 +251,5 @@ def finite_response(what: str, dt: float, *records) -> None:
     if first is not None:
         raise FloatingPointError(f"{what}: the response is not finite from step {first} "
                                  f"(t = {first * dt:.6g} s): the model grows without bound "
-                                 "(an unstable pole) or the inputs overflow")
+                                 f"(an unstable pole), or the inputs or dt = {dt:.6g} s make it "
+                                 "overflow")
