@@ -37,7 +37,7 @@ from dtdyn.linear.mck import mck_response
 from dtdyn.app.timing import measure, pin_blas
 
 
-def best_of(fn, repeats):
+def timed(fn, repeats):
     """(Timing: median and spread of ``repeats`` calls after a warm-up, last result)."""
     out, t = measure(fn, repeats)
     return t, out
@@ -58,12 +58,12 @@ def main(quick=False):
     F = np.ones((steps + 1, 1))
     out = [0, n // 2, n - 1]
     M, C, K = chain_matrices(m, k, c, sparse=True)
-    t_c, rc = best_of(lambda: chain_response(m, k, c, F, dt, force_dofs=[n - 1], outputs=out,
+    t_c, rc = timed(lambda: chain_response(m, k, c, F, dt, force_dofs=[n - 1], outputs=out,
                                              backend="c", quantities=("x",)), 5)
-    t_mck, rm = best_of(lambda: mck_response(M, C, K, F, dt, force_dofs=[n - 1], outputs=out,
+    t_mck, rm = timed(lambda: mck_response(M, C, K, F, dt, force_dofs=[n - 1], outputs=out,
                                              quantities=("x",), backend="numpy"),
                         1 if quick else 3)
-    t_mc, _ = best_of(lambda: mck_response(M, C, K, F, dt, force_dofs=[n - 1], outputs=out,
+    t_mc, _ = timed(lambda: mck_response(M, C, K, F, dt, force_dofs=[n - 1], outputs=out,
                                            quantities=("x",)), 1 if quick else 3)
     diff = np.max(np.abs(rc.x - rm.x)) / np.max(np.abs(rm.x))
     print(f"1) {n} masses x {steps} steps, Newmark average acceleration")
@@ -87,7 +87,7 @@ def main(quick=False):
         F = np.ones((s + 1, 1))
         times = []
         for workers in (1, None):
-            t, r = best_of(functools.partial(chain_response, m, k, c, F, dt, force_dofs=[N - 1],
+            t, r = timed(functools.partial(chain_response, m, k, c, F, dt, force_dofs=[N - 1],
                                              outputs=[N - 1], quantities=("x",),
                                              workers=workers), 3)
             times.append(t.scaled(1 / s))
@@ -161,7 +161,7 @@ def memory_traffic(N, t_step, rows=10):
     doubles = sum(SWEEP_TRAFFIC.values())
     x = np.ones(rows * N // 2)
     y = np.ones_like(x)
-    t_peer, _ = best_of(lambda: np.add(x, y, out=x), 50)
+    t_peer, _ = timed(lambda: np.add(x, y, out=x), 50)
     peer = 3 * 8 * x.size / t_peer
     rate = doubles * 8 * N / t_step
     print(f"4) memory traffic of one thread at N = {N} (the {rows} rows the sweep touches each "

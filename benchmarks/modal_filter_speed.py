@@ -72,7 +72,7 @@ FS = 2000.0
 LOADED = 14
 
 
-def best_of(fn, repeats):
+def timed(fn, repeats):
     """(Timing: median and spread of ``repeats`` calls after a warm-up, last result)."""
     out, t = measure(fn, repeats)
     return t, out
@@ -130,9 +130,9 @@ def main():
         st = modal_states(model, FS, "ramp")
         sos6 = np.column_stack([sos[:, :3], np.ones(len(sos)), sos[:, 3:]])
         rep = 3 if n_out == 1 else 2
-        t_bank, y_bank = best_of(functools.partial(run_bank, sos, in_col, out_col, direct, x,
+        t_bank, y_bank = timed(functools.partial(run_bank, sos, in_col, out_col, direct, x,
                                                    n_out), rep)
-        t_modes, y_modes = best_of(functools.partial(run_modes, st, x), rep)
+        t_modes, y_modes = timed(functools.partial(run_modes, st, x), rep)
 
         def rowwise(n_out=n_out, sos6=sos6, out_col=out_col):
             y = np.zeros((N, n_out))
@@ -140,10 +140,10 @@ def main():
                 y[:, o] += sig.sosfilt(row[None, :], force)
             return y
 
-        t_rows, y_rows = best_of(rowwise, 3)
-        t_lf, _ = best_of(functools.partial(run_bank, sos, in_col, out_col, direct, x[:N_LF],
+        t_rows, y_rows = timed(rowwise, 3)
+        t_lf, _ = timed(functools.partial(run_bank, sos, in_col, out_col, direct, x[:N_LF],
                                             n_out, backend="numpy"), 3)
-        t_lfm, _ = best_of(functools.partial(run_modes, st, x[:N_LF], backend="numpy"), 3)
+        t_lfm, _ = timed(functools.partial(run_modes, st, x[:N_LF], backend="numpy"), 3)
         scale = N / N_LF
         kernel[n_out] = (t_bank, t_modes, t_rows)
         label = "DOF 14" if n_out == 1 else "all 15 DOFs"
@@ -155,7 +155,7 @@ def main():
         print(f"      sosfilt, each row separately, summed      {ms(t_rows)}  "
               f"({t_rows / N / len(sos) * 1e9:.2f} ns per sample and section)")
         if n_out == 1:
-            t_casc, _ = best_of(functools.partial(sig.sosfilt, sos6, force), 3)
+            t_casc, _ = timed(functools.partial(sig.sosfilt, sos6, force), 3)
             print(f"      sosfilt, one call, rows as a cascade      {ms(t_casc)}  "
                   "(reference only: a different filter)")
         print(f"      NumPy fallback, lfilter per section       {ms(t_lf.scaled(scale))}  "
@@ -177,7 +177,7 @@ def main():
         Cm = np.zeros((n_out, 2 * n))
         Cm[np.arange(n_out), outputs] = 1.0
         system = (A, B[:, [LOADED]], Cm, np.zeros((n_out, 1)))
-        t_ls, (_, y_ls, _) = best_of(functools.partial(sig.lsim, system, force[:N_LSIM], t), 3)
+        t_ls, (_, y_ls, _) = timed(functools.partial(sig.lsim, system, force[:N_LSIM], t), 3)
         y_ls = np.reshape(y_ls, (N_LSIM, n_out))
         t_ls_full = t_ls.scaled(N / N_LSIM)
         label = "DOF 14" if n_out == 1 else "all 15 DOFs"
@@ -185,7 +185,7 @@ def main():
         print(f"      scipy.signal.lsim              {ms(t_ls_full)}  (extrapolated; measured "
               f"{t_ls.format()} on {N_LSIM:,} samples)")
         for method in ("modes", "sections", "auto"):
-            t_mf, r = best_of(functools.partial(modal_filter_response, M, C, K, x, 1 / FS,
+            t_mf, r = timed(functools.partial(modal_filter_response, M, C, K, x, 1 / FS,
                                                 force_dofs=[LOADED], outputs=outputs,
                                                 algorithm=method, quantities=("x",)),
                               3 if n_out == 1 else 2)

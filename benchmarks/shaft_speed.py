@@ -23,7 +23,7 @@ import dtdyn as dd
 from dtdyn.app.timing import measure, pin_blas
 
 
-def best_of(fn, repeats=3):
+def timed(fn, repeats=3):
     """(Timing: median and spread of ``repeats`` calls after a warm-up, last result)."""
     out, t = measure(fn, repeats)
     return t, out
@@ -45,9 +45,9 @@ def compare(name, shaft, n_steps=2000, dt=1e-4):
     M, C, K = dd.shaft_matrices(shaft)
     f = np.ones(n_steps + 1)
     kw = dict(force_dofs=[n - 1], outputs=[0, n - 1], scheme="average_acceleration")
-    t_tmm, r = best_of(lambda: dd.shaft_response(shaft, f, dt, **kw))
-    t_c, rc = best_of(lambda: dd.mck_response(M, C, K, f, dt, **kw))
-    t_np, rn = best_of(lambda: dd.mck_response(M, C, K, f, dt, backend="numpy", **kw), 3)
+    t_tmm, r = timed(lambda: dd.shaft_response(shaft, f, dt, **kw))
+    t_c, rc = timed(lambda: dd.mck_response(M, C, K, f, dt, **kw))
+    t_np, rn = timed(lambda: dd.mck_response(M, C, K, f, dt, backend="numpy", **kw), 3)
     diff = max(np.abs(r.x - ref.x).max() / np.abs(ref.x).max() for ref in (rc, rn))
     print(f"{name}: {n} stations, {n_steps} steps of dt = {dt:g}")
     print(f"  DT-TMM tree sweep (C)              {t_tmm.format():>26s}")
@@ -62,7 +62,7 @@ def scaling(n_steps=500):
     per = []
     for n in sizes:
         s = tree(n)
-        t, _ = best_of(functools.partial(dd.shaft_response, s, np.ones(n_steps + 1), 1e-4,
+        t, _ = timed(functools.partial(dd.shaft_response, s, np.ones(n_steps + 1), 1e-4,
                                          force_dofs=[n - 1], outputs=[0]))
         per.append(t.scaled(1 / n_steps))
         print(f"  N = {n:7d}: {per[-1].format('us'):>24s} per step, "

@@ -20,7 +20,7 @@ from dtdyn.app.timing import measure, pin_blas
 from dtdyn.linear.state_space import newmark_ss, state_space_response
 
 
-def best_of(fn, repeats):
+def timed(fn, repeats):
     """(Timing: median and spread of ``repeats`` calls after a warm-up, last result)."""
     out, t = measure(fn, repeats)
     return t, out
@@ -32,11 +32,11 @@ def main():
     model = newmark_ss(M, C, K, dt, num_damp=1e-4)
     A, B, Cm, D = model
     u = np.random.default_rng(0).standard_normal((n_steps, n_dof))
-    t_c, r = best_of(lambda: state_space_response(model, u), 5)  # from rest at t_0
+    t_c, r = timed(lambda: state_space_response(model, u), 5)  # from rest at t_0
     y_c = np.hstack([r.x, r.v])
-    t_np, _ = best_of(lambda: state_space_response(model, u[:20_000], backend="numpy"), 3)
+    t_np, _ = timed(lambda: state_space_response(model, u[:20_000], backend="numpy"), 3)
     x0 = model.initial_state(f0=u[0])  # the same start for dlsim (the state is shifted)
-    t_ref, (_, y_ref, _) = best_of(lambda: sig.dlsim((A, B, Cm, D, dt), u, x0=x0), 3)
+    t_ref, (_, y_ref, _) = timed(lambda: sig.dlsim((A, B, Cm, D, dt), u, x0=x0), 3)
     diff = np.max(np.abs(y_c - y_ref)) / np.max(np.abs(y_ref))
     print(f"{A.shape[0]}-state model, {n_steps} steps, {B.shape[1]} inputs, {Cm.shape[0]} outputs")
     print(f"   state_space_response (C)  {t_c.format():>26s}  ({t_c / n_steps * 1e9:.0f} ns/step)")

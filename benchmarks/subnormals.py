@@ -26,7 +26,7 @@ import dtdyn as dd
 from dtdyn.app.timing import measure, pin_blas
 
 
-def best_of(fn, repeats):
+def timed(fn, repeats):
     """Timing (median, spread) of ``repeats`` calls after a warm-up (and compilation)."""
     return measure(fn, repeats)[1]
 
@@ -52,7 +52,7 @@ def main(quick=False):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", dd.SRSSamplingWarning)
         for zeta in (0.05, 0.3):
-            t = [best_of(functools.partial(dd.shock_response_spectrum, a, 1 / fs, freqs,
+            t = [timed(functools.partial(dd.shock_response_spectrum, a, 1 / fs, freqs,
                                            damping_ratio=zeta, workers=1), repeats)
                  for a in (pulse, floor)]
             row(f"SRS, half-sine then quiet, zeta {zeta}", *t, "sample-oscillator",
@@ -63,7 +63,7 @@ def main(quick=False):
     m, k, c = np.ones(N), np.full(N, 1e4), np.ones(N)
     F = np.ones((steps + 1, 1))
     x0 = 1e-3 * rng.standard_normal(N)
-    t = [best_of(lambda x0=x0: dd.chain_response(m, k, c, F, 1e-4, force_dofs=[N - 1],
+    t = [timed(lambda x0=x0: dd.chain_response(m, k, c, F, 1e-4, force_dofs=[N - 1],
                                                  outputs=[N - 1], quantities=("x",), x0=x0),
                  repeats) for x0 in (None, x0)]
     row(f"DT-TMM chain, {N} masses, from rest", *t, "mass-step", N * steps)
@@ -74,7 +74,7 @@ def main(quick=False):
     imp = np.zeros((n, 1))
     imp[0, 0] = 100.0
     imp_floor = imp + 1e-12 * rng.standard_normal(imp.shape)
-    t = [best_of(lambda f=f: dd.modal_filter_response(M, C, K, f, p4["dt"], force_dofs=[3],
+    t = [timed(lambda f=f: dd.modal_filter_response(M, C, K, f, p4["dt"], force_dofs=[3],
                                                       quantities=("x",)), repeats)
          for f in (imp, imp_floor)]
     row("modal filters, P4L, impulse then quiet", *t, "sample", n)
