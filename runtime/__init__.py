@@ -50,6 +50,8 @@ from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
 from dtdyn.nonlinear.reference import check_reference, reference_response
 from dtdyn.nonlinear.response import nonlinear_mck_response
 from dtdyn.nonlinear.stations import nonlinear_beam_response, nonlinear_shaft_response
+from dtdyn.random_vibration import (RandomResponse, beam_random_response, chain_random_response,
+                                    psd_table, random_response, shaft_random_response)
 
 __version__ = "0.1.0"
 
@@ -77,6 +79,9 @@ __all__ = [
     "nonlinear_mck_response", "nonlinear_chain_response", "nonlinear_shaft_response",
     "nonlinear_beam_response", "reference_response", "check_reference",
     "Cubic", "Polynomial", "Gap", "Law", "BoucWen",
+    # random vibration
+    "psd_table", "random_response", "chain_random_response", "beam_random_response",
+    "shaft_random_response", "RandomResponse",
     # scenes, results, reference problems
     "ground_acceleration_from", "Scene", "load_scene", "scene_from_dict", "run_scene", "Response",
     "load_result",
