@@ -4,7 +4,11 @@ compiler checks each definition against it) and as the ctypes bindings of genera
 the runtime never types argtypes by hand); the codes, work-array row counts and offsets
 (`CONSTANTS`), as ``#define DTDYN_<name>`` in c_api.h and as ``<name>`` in c_api.py. A kernel
 with a work array receives its length (``n_work``) and returns ``DTDYN_ERR_WORK`` before
-touching it when it is too short."""
+touching it when it is too short. Where the length is a count of rows, the count is a constant
+here (the runtime allocates ``<ROWS> * N``); where it is a formula of the problem's sizes (the
+modal filters, the nonlinear loops), the kernel's source defines a size function in `KERNELS`
+(``dtdyn_modal_filters_work``, ``dtdyn_nl_work``, ``dtdyn_nl_chain_work``) that the runtime calls
+to allocate and the kernel calls to check, so the formula is written once."""
 from __future__ import annotations
 
 import re
@@ -43,7 +47,7 @@ KERNELS = {
         "long n_shift",
         "const long *restrict shift", "const long *restrict rows", "double *restrict H",
         "long n_out", "const long *restrict out_idx", "double *restrict xo",
-        "double *restrict vo", "double *restrict ao", "double *restrict work")),
+        "double *restrict vo", "double *restrict ao", "double *restrict work", "long n_work")),
     # csrc/block_chain.h: 2 x 2 node-block chains (beam_response)
     "dtdyn_block_chain_factor": ("int", (
         "long N", "const double *restrict A", "double *restrict fac")),
@@ -56,7 +60,7 @@ KERNELS = {
         "long n_shift", "const long *restrict shift", "const long *restrict rows",
         "double *restrict H", "long n_out", "const long *restrict out_idx",
         "double *restrict xo", "double *restrict vo", "double *restrict ao",
-        "double *restrict work")),
+        "double *restrict work", "long n_work")),
     "dtdyn_sturm_counts": ("int", (
         "long N", "const double *restrict k", "const double *restrict kg",
         "const double *restrict m", "double pivmin", "long n_lam", "const double *restrict lam",
@@ -67,27 +71,41 @@ KERNELS = {
         "long *restrict counts", "double *restrict G", "double *restrict H")),
     # csrc/fma_peak.h: the multiply-add peak that `dtdyn bench` measures the loops against
     "dtdyn_fma_peak": ("double", ("long rounds",)),
+    # csrc/rainflow.h: rainflow counting (ASTM E1049-85), reversals then the stack count
+    "dtdyn_turning_points": ("long", ("long n", "const double *restrict x", "long *restrict tp")),
+    "dtdyn_rainflow": ("long", (
+        "long n_tp", "const double *restrict x", "long *restrict tp", "long *restrict start",
+        "long *restrict end", "double *restrict count", "long *restrict residue_size")),
     "dtdyn_modal_filters_lanes": ("int", ("long m",)),
     "dtdyn_modal_filters_work": ("long", ("long m", "long n_out")),
     "dtdyn_modal_filters": ("int", (
         "long n", "long m", "long n_in", "long n_out", "int im_out",
         "const double *restrict coef", "const double *restrict wt", "const double *restrict x",
-        "double *restrict e", "double *restrict y", "double *restrict work")),
+        "double *restrict e", "double *restrict y", "double *restrict work", "long n_work")),
     "dtdyn_nl_run": ("int", (
         "const long *dims", "const double *const *mats", "const double *restrict force",
         "double *restrict x", "double *restrict u", "double *restrict g",
         "double *restrict rate", "double *restrict out", "double tol", "double theta_limit",
-        "double *stats", "long *fail", "double *restrict work", "nl_int *restrict iwork")),
+        "double *stats", "long *fail", "double *restrict work", "long n_work",
+        "nl_int *restrict iwork", "long n_iwork")),
+    # csrc/nl_loop.h: the doubles dtdyn_nl_run's work needs for these dims (CasADi's work, then
+    # the embedded estimate's block)
+    "dtdyn_nl_work": ("long", ("const long *dims",)),
     # the elements' residual, Jacobian and forces: CasADi's code generation, appended to
     # nl_loop.c and nl_chain.c at run time (CasADi's calling convention)
     "nl_residual": ("int", ("const double **arg", "double **res", "nl_int *iw", "double *w",
                             "int mem")),
+    # ... and the sizes of its work arrays (the kernels check n_work and n_iwork against them)
+    "nl_residual_work": ("int", ("nl_int *sz_arg", "nl_int *sz_res", "nl_int *sz_iw",
+                                 "nl_int *sz_w")),
     "dtdyn_nl_chain": ("int", (
         "const long *dims", "chain_fn sweep", "const long *const *idx",
         "const double *const *mats", "double *restrict H", "double *restrict u",
         "double *restrict g", "double *restrict rate", "double *const *out", "double h",
-        "double tol", "double *stats", "long *fail", "double *restrict work",
-        "nl_int *restrict iwork")),
+        "double tol", "double *stats", "long *fail", "double *restrict work", "long n_work",
+        "nl_int *restrict iwork", "long n_iwork")),
+    # csrc/nl_chain.h: the doubles dtdyn_nl_chain's work needs for these dims
+    "dtdyn_nl_chain_work": ("long", ("const long *dims",)),
 }
 
 #: the contract's numbers: name -> (value, meaning); ``#define DTDYN_<name> <value>`` in
@@ -115,6 +133,21 @@ CONSTANTS = {
     "CHAIN_ROWS_PLAIN": (30, "rows of the plain sweep"),
     # dtdyn_shaft_<scheme>'s work (shaft_loop.h)
     "SHAFT_ROWS": (15, "rows of the torsional tree loop"),
+    # dtdyn_mck_loop's work (mck_loop.h): rows of n doubles (n: DOFs)
+    "MCK_ROW_Q": (0, "row of q, the displacements' history terms"),
+    "MCK_ROW_S": (1, "row of s, the velocities' history terms"),
+    "MCK_ROW_RHS": (2, "row of the right side, solved in place for u"),
+    "MCK_ROW_UPDATE": (3, "first of the 3 rows of x1, v1, a1"),
+    "MCK_ROW_Z": (6, "row of the sparse solve's intermediate z"),
+    "MCK_ROW_B": (7, "row of b, the accelerations' history terms"),
+    "MCK_ROWS": (8, "rows of the mck loop"),
+    # dtdyn_block_chain_loop's work (block_chain.h): rows of P doubles (P: the node stride,
+    # N + 1 rounded up to 8), each after a gap whose last double is z[-1] = 0
+    "BLOCK_CHAIN_ROWS": (2, "rows of the block chain loop: z, components 0 and 1"),
+    "BLOCK_CHAIN_GAP": (8, "doubles before each row (64 bytes: the rows stay aligned)"),
+    # dtdyn_modal_filters' work (modal_filters.h): 2 m (MODAL_BLOCK + n_out) doubles
+    "MODAL_BLOCK": (256, "samples per block of the modal filters (the states' rows of a block "
+                         "are kept in work: 2 m MODAL_BLOCK doubles, then 2 m n_out weights)"),
 }
 
 #: the C types the signatures name besides int, long and double (generated/c_api.h)
@@ -127,12 +160,22 @@ def constant(name: str) -> int:
 
 
 def check_layout(plain_rows: int = 0) -> None:
-    """Raise ValueError when the chain's work rows in `CONSTANTS` overlap or do not fit
-    ``plain_rows`` station-entry rows (the most any scheme's plain sweep uses)."""
+    """Raise ValueError when the chain's or the mck loop's work rows in `CONSTANTS` overlap or
+    do not fit ``plain_rows`` station-entry rows (the most any scheme's plain sweep uses)."""
     c = constant
     need = {"CHAIN_ROW_DEN": c("CHAIN_ROWS_STABLE") - 1,
             "CHAIN_ROW_PAIRS": c("CHAIN_ROWS_STABLE"),
             "CHAIN_ROW_PLAIN": c("CHAIN_ROW_PAIRS") + 8}
+    # the mck loop's rows in order, each one row long but the update (x1, v1, a1)
+    mck = [("MCK_ROW_Q", 1), ("MCK_ROW_S", 1), ("MCK_ROW_RHS", 1), ("MCK_ROW_UPDATE", 3),
+           ("MCK_ROW_Z", 1), ("MCK_ROW_B", 1), ("MCK_ROWS", 0)]
+    for (name, _), (prev, length) in zip(mck[1:], mck):
+        need[name] = c(prev) + length
+    # the block chain reads z[-1] before each row and keeps its rows 64-byte aligned
+    if c("BLOCK_CHAIN_ROWS") < 2 or c("BLOCK_CHAIN_GAP") < 1 or c("BLOCK_CHAIN_GAP") % 8:
+        raise ValueError("c_api.CONSTANTS: BLOCK_CHAIN_ROWS must be at least 2 and "
+                         "BLOCK_CHAIN_GAP a positive multiple of 8 doubles, not "
+                         f"{c('BLOCK_CHAIN_ROWS')} and {c('BLOCK_CHAIN_GAP')}")
     for name, value in need.items():
         if c(name) != value:
             raise ValueError(f"c_api.CONSTANTS[{name!r}] = {c(name)}, expected {value}")
@@ -146,21 +189,23 @@ def check_layout(plain_rows: int = 0) -> None:
 #: generated source of `SOURCES` consists of, besides c_api.h and its entry points
 BODIES = {"ss_response.c": "ss_response.h", "filter_bank.c": "filter_bank.h",
           "sturm.c": "sturm.h", "fma_peak.c": "fma_peak.h", "mck_loop.c": "mck_loop.h",
-          "block_chain.c": "block_chain.h", "nl_loop.c": "nl_loop.h", "nl_chain.c": "nl_chain.h"}
+          "block_chain.c": "block_chain.h", "nl_loop.c": "nl_loop.h", "nl_chain.c": "nl_chain.h",
+          "rainflow.c": "rainflow.h"}
 
 #: the kernels each generated source defines
 SOURCES = {
     "ss_response.c": ("dtdyn_ss_states",),
     "filter_bank.c": ("dtdyn_set_stop", "dtdyn_filter_bank"),
     "sturm.c": ("dtdyn_sturm_counts", "dtdyn_sturm_laguerre"),
+    "rainflow.c": ("dtdyn_turning_points", "dtdyn_rainflow"),
     "fma_peak.c": ("dtdyn_fma_peak",),
     "mck_loop.c": ("dtdyn_set_stop", "dtdyn_mck_loop"),
     "block_chain.c": ("dtdyn_set_stop", "dtdyn_block_chain_factor", "dtdyn_block_chain_solve",
                       "dtdyn_block_chain_loop"),
     "modal_states.c": ("dtdyn_set_stop", "dtdyn_modal_filters_lanes", "dtdyn_modal_filters_work",
                        "dtdyn_modal_filters"),
-    "nl_loop.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_run"),
-    "nl_chain.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_chain"),
+    "nl_loop.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_work", "dtdyn_nl_run"),
+    "nl_chain.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_chain_work", "dtdyn_nl_chain"),
 }
 
 #: kernel -> the loop it runs with subnormals flushed to zero (csrc/flush_subnormals.h): the

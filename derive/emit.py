@@ -71,7 +71,7 @@ def _lin(prefix: str, coeffs: dict, array: str = "", zero: str = "0.0") -> str:
 
 def _shift_lines(history, array: str = ""):
     lines = []
-    for qty in "xv":
+    for qty in "xva":
         lags = sorted((int(h[2:]) for h in history if h.startswith(qty + "m")), reverse=True)
         for lag in lags:
             prev = f"{qty}0" if lag == 1 else f"{qty}m{lag - 1}"
@@ -97,9 +97,9 @@ def _plain_entries(T, printer, element: str) -> dict:
     return out
 
 
-def _scheme_context(name: str) -> dict:
-    spec = kernels.scheme_spec(name)
-    sch = spec.scheme
+def _scheme_context(scheme: str | I.Scheme) -> dict:
+    spec = kernels.scheme_spec(scheme)
+    sch, name = spec.scheme, spec.name
     sw = dttmm.derive_sweeps()
     forms_py, forms_c = [], []
     for form, fs in spec.forms.items():
@@ -163,12 +163,11 @@ def _dttmm_context() -> dict:
     return ctx
 
 
-def _latex_rows(der: I.Derived) -> list[tuple[str, str]]:
-    rows = [("w_0", der.w0), ("w_1", der.w1)]
-    if not der.explicit:
-        rows += [("A", der.A), ("B", der.B), ("D", der.D), ("E", der.E)]
-    rows += [("D_x", der.Dx), ("E_x", der.Ex), ("D_v", der.Dv), ("E_v", der.Ev)]
-    return [(n, sp.latex(e)) for n, e in rows]
+def _readable_markdown(der: I.Derived) -> str:
+    """The derivation as `dtdyn scheme show --markdown` prints it (dtdyn.derive.readable)."""
+    from . import readable
+
+    return readable.readable(der).markdown(level=2)
 
 
 def _increment_rows(spec: kernels.SchemeSpec) -> list[tuple[str, str]]:
@@ -181,9 +180,11 @@ def _increment_rows(spec: kernels.SchemeSpec) -> list[tuple[str, str]]:
     def symbol(h):
         if h.startswith("d"):
             new, old = kernels.increment_pair(h)
-            return sp.Symbol(rf"\Delta {new[0]}_{{{new[1:]}}}")  # new - old
+            return sp.Symbol(rf"\delta {new[0]}_{{{new[1:]}}}")  # new - old
         return sp.Symbol(h)
-    return [(name, sp.latex(sp.Add(*(cf * symbol(h) for h, cf in fs.hist_terms[key].items()),
+    dt = {I.dt: sp.Symbol(r"\Delta t")}  # as dtdyn.derive.readable writes it
+    return [(name, sp.latex(sp.Add(*(cf.xreplace(dt) * symbol(h)
+                                     for h, cf in fs.hist_terms[key].items()),
                                    evaluate=False)))
             for name, key in (("B_u", "b"), ("E_u", "s"))]
 
@@ -263,10 +264,11 @@ def _nonlinear_context() -> dict:
                         for n in one_step]}
 
 
-def _stability_context() -> dict:
+def _stability_context(schemes=None) -> dict:
     out = []
-    for name, sch in I.SCHEMES.items():
-        A = stability.amplification_matrix(name)
+    for sch in schemes or I.SCHEMES.values():
+        name = sch.name
+        A = stability.amplification_matrix(sch)
         n = A.shape[0]
         rows = [((i, j), A[i, j]) for i in range(n) for j in range(n)]
         temps, reduced = printing.cse_assignments([(f"{i},{j}", e) for (i, j), e in rows], "t")
@@ -318,6 +320,39 @@ def render_contract() -> dict[str, str]:
     return format_sources(_contract(environment()))
 
 
+def _render_scheme(render, scheme, src: str, shaft: bool = True) -> None:
+    """A scheme's own files through ``render`` (render_all's): scheme_<name>.py, .md,
+    chain_<name>.c and (``shaft``) shaft_<name>.c."""
+    ctx = _scheme_context(scheme)
+    name = ctx["name"]
+    render("numpy/scheme.py.jinja", f"scheme_{name}.py", src, **ctx, forms=ctx["forms_py"])
+    render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, **_chain_macros(ctx))
+    render("markdown/scheme.md.jinja", f"scheme_{name}.md", src, **ctx,
+           derivation=_readable_markdown(ctx["derived"]),
+           increments=_increment_rows(ctx["spec"]))
+    if shaft:
+        from . import shaft as shaft_module
+        render("c/shaft.c.jinja", f"shaft_{name}.c", f"dtdyn.derive.shaft with {src}",
+               **shaft_module.c_context(ctx, _chain_macros(ctx)))
+
+
+def render_scheme(scheme: I.Scheme, src: str) -> dict[str, str]:
+    """A scheme file's kernels, unformatted: the files `_render_scheme` writes (for each stage
+    of a composite scheme), plus stability_<name>.py (its amplification matrix). They #include
+    "c_api.h"."""
+    env = environment()
+    out: dict[str, str] = {}
+
+    def render(template, dest, source, **ctx):
+        out[dest] = env.get_template(template).render(template=template, source=source, **ctx)
+
+    for part in scheme.stages or (scheme,):
+        _render_scheme(render, part, src)
+    render("numpy/stability.py.jinja", f"stability_{scheme.name}.py", src,
+           **_stability_context([scheme]))
+    return out
+
+
 def render_all() -> dict[str, str]:
     """Every generated file as {name: text}."""
     env = environment()
@@ -356,16 +391,7 @@ def render_all() -> dict[str, str]:
            **_stability_context())
     names = list(I.SCHEMES)
     for name in names:
-        ctx = _scheme_context(name)
-        src = f"dtdyn.derive.integrators.SCHEMES[{name!r}]"
-        render("numpy/scheme.py.jinja", f"scheme_{name}.py", src, **ctx, forms=ctx["forms_py"])
-        render("c/chain.c.jinja", f"chain_{name}.c", src, **ctx, **_chain_macros(ctx))
-        render("markdown/scheme.md.jinja", f"scheme_{name}.md", src, **ctx,
-               latex=_latex_rows(ctx["derived"]),
-               increments=_increment_rows(ctx["spec"]), relations=[sp.latex(r) for r in
-                                                             ctx["derived"].scheme.relations],
-               substitutions=[(sp.latex(k), sp.latex(v)) for k, v in
-                              ctx["derived"].scheme.substitutions.items()])
+        _render_scheme(render, name, f"dtdyn.derive.integrators.SCHEMES[{name!r}]", shaft=False)
     from . import shaft  # torsional shafts and trees: shaft.py, shaft.md, shaft_<scheme>.c
     shaft.render(render, _scheme_context, _chain_macros, names)
     render("numpy/init.py.jinja", "__init__.py", "dtdyn.derive.integrators.scheme_table")
@@ -441,6 +467,29 @@ def write(dest: Path = GENERATED) -> list[str]:
              and p.suffix in (".py", ".c", ".h", ".md", ".json")]
     for name in stale:
         (dest / name).unlink()
+    return sorted(files)
+
+
+def write_vendor(dest: Path, schemes=()) -> list[str]:
+    """A standalone copy of the C kernels in ``dest`` (created if missing), for vendoring: every
+    generated C source and header (but nl_loop.c, which the run completes with the elements'
+    CasADi code), the hand-written headers they include, the kernels of the
+    scheme files' ``schemes`` (`integrators.Scheme` values) and example.c, each source of which
+    compiles as it is there (``cc -O2 -c chain_hht.c``)."""
+    # nl_loop.c is completed at run time by the CasADi code of the user's elements: not vendored
+    files = {n: t for n, t in render_all().items()
+             if n.endswith((".c", ".h")) and n != "nl_loop.c"}
+    for sch in schemes:
+        rendered = render_scheme(sch, f"scheme file {sch.name!r}")
+        files.update({n: t for n, t in rendered.items() if n.endswith(".c")})
+    env = environment()
+    files["example.c"] = env.get_template("c/example.c.jinja").render(scheme="hht", params="-0.05")
+    files = format_sources(files)
+    for path in sorted(CSOURCES.glob("*.h")):
+        files[path.name] = path.read_text()
+    dest.mkdir(parents=True, exist_ok=True)
+    for name, text in files.items():
+        _atomic_write(dest / name, text)
     return sorted(files)
 
 

@@ -26,7 +26,7 @@ import sympy as sp
 dt = sp.Symbol("dt", positive=True)
 x1, v1, a1 = sp.symbols("x1 v1 a1")
 x0, v0, a0 = sp.symbols("x0 v0 a0")
-xm1, xm2, vm1, vm2 = sp.symbols("xm1 xm2 vm1 vm2")
+xm1, xm2, vm1, vm2, am1 = sp.symbols("xm1 xm2 vm1 vm2 am1")
 xe, ve, ae = sp.symbols("xe ve ae")
 F0, F1 = sp.symbols("F0 F1")
 beta, gamma, theta, alpha, rho_inf = sp.symbols("beta gamma theta alpha rho_inf", real=True)
@@ -84,6 +84,7 @@ PARAMETER_RANGES = {
     "theta": (1.0, None),          # unconditionally stable only from (1 + sqrt 3)/2 = 1.366
     "alpha": (-1.0 / 3.0, 0.0),    # HHT
     "rho_inf": (0.0, 1.0),         # generalized-alpha: spectral radius at infinite frequency
+    "alpha_m": (-0.5, 0.0),        # Bossak: rho_inf = (1 + alpha_m) / (1 - alpha_m), 1/3..1
 }
 
 #: the scheme that starts the multistep schemes (fills their lags), second order like them
@@ -96,7 +97,9 @@ class Scheme:
 
     ``params`` are what a user types (e.g. ``beta``, ``gamma``); ``substitutions`` express the
     relations' symbols in those parameters (HHT: alpha_f = -alpha, ...); ``fixed`` gives presets.
-    ``lags`` are the extra history arrays the scheme needs beyond (x0, v0, a0).
+    ``lags`` are the extra history arrays the scheme needs beyond (x0, v0, a0). ``ranges``
+    gives a parameter's admissible closed interval where it differs from `PARAMETER_RANGES`
+    (a scheme file declares its own). Schemes hash by content (derivations are cached on them).
     """
 
     name: str
@@ -111,6 +114,18 @@ class Scheme:
     order: int = 2
     reference: str = ""
     notes: str = ""
+    ranges: dict = field(default_factory=dict)
+    #: a composite scheme's sub-steps, each a scheme run in turn within one step of dt (their
+    #: ``dt`` is the whole step; a later stage's lags xm1, vm1 are the earlier stage's start)
+    stages: tuple = ()
+
+    def __hash__(self):
+        return hash((self.name, self.relations, self.force_weights, self.params,
+                     tuple(self.substitutions.items()), self.lags, self.stages))
+
+    def parameter_range(self, p: str) -> tuple:
+        """The closed interval (lo, hi) of parameter ``p`` (None: unbounded)."""
+        return self.ranges.get(p) or PARAMETER_RANGES[p]
 
     @property
     def history(self) -> tuple:
@@ -172,7 +187,22 @@ SCHEMES: dict[str, Scheme] = {s.name: s for s in (
                                  + rho_inf / (rho_inf + 1)) ** 2 / 4},
            order=2, reference="Chung & Hulbert (1993), J. Appl. Mech. 60",
            notes="rho_inf in [0, 1]: spectral radius at infinite frequency."),
+    Scheme("bossak", "Wood-Bossak-Zienkiewicz alpha", NEWMARK_ALPHA, NEWMARK_ALPHA_FORCE,
+           params=("alpha_m",), defaults={"alpha_m": -0.1},
+           substitutions={alpha_f: 0, gamma: HALF - alpha_m, beta: (1 - alpha_m) ** 2 / 4},
+           order=2, reference="Wood, Bossak & Zienkiewicz (1980), Int. J. Numer. Meth. Eng. 15",
+           notes="alpha_m in [-1/2, 0]: rho_inf = (1 + alpha_m) / (1 - alpha_m)."),
 )}
+
+
+def resolve(scheme) -> Scheme:
+    """A built-in scheme by name, or a `Scheme` value (a scheme file's) as it is."""
+    if isinstance(scheme, Scheme):
+        return scheme
+    try:
+        return SCHEMES[scheme]
+    except KeyError:
+        raise ValueError(f"unknown scheme {scheme!r}; available: {', '.join(SCHEMES)}") from None
 
 
 @dataclass(frozen=True)
@@ -213,10 +243,14 @@ def _affine(expr, var):
     return coeff, sp.factor_terms(rest)
 
 
+def derive_scheme(scheme: str | Scheme) -> Derived:
+    """Derive the displacement-form and acceleration-form coefficients of a scheme (a built-in
+    name or a `Scheme` value)."""
+    return _derive(resolve(scheme))
+
+
 @cache
-def derive_scheme(name: str) -> Derived:
-    """Derive the displacement-form and acceleration-form coefficients of a scheme."""
-    s = SCHEMES[name]
+def _derive(s: Scheme) -> Derived:
     rel = tuple(r.subs(s.substitutions) for r in s.relations)
     w0, w1 = (sp.sympify(w).subs(s.substitutions) for w in s.force_weights)
     sol_a = _solve(rel, ae)  # everything in terms of ae: always exists (explicit schemes too)
@@ -237,28 +271,30 @@ def derive_scheme(name: str) -> Derived:
 
 
 def param_symbols(scheme: Scheme) -> tuple:
-    """The SymPy symbols of the user parameters, in order."""
-    table = {"beta": beta, "gamma": gamma, "theta": theta, "alpha": alpha, "rho_inf": rho_inf}
-    return tuple(table[p] for p in scheme.params)
+    """The SymPy symbols of the user parameters, in order (real, as in the relations)."""
+    return tuple(sp.Symbol(p, real=True) for p in scheme.params)
 
 
 def scheme_table() -> dict:
     """Every scheme as plain data (no SymPy): title, parameters with default and range, the
     preset values of the Newmark family, start-up, explicitness, order, reference, notes."""
-    table = {}
-    for name, s in SCHEMES.items():
-        presets = {str(k): float(v) for k, v in s.substitutions.items()
-                   if str(k) in ("beta", "gamma") and sp.sympify(v).is_number}
-        table[name] = {
-            "title": s.title,
-            "params": {p: {"default": float(s.defaults[p]), "range": PARAMETER_RANGES[p]}
-                       for p in s.params},
-            "presets": presets,
-            "startup_steps": s.startup_steps,
-            "startup_scheme": STARTUP_SCHEME if s.startup_steps else None,
-            "explicit": bool(derive_scheme(name).explicit),
-            "order": s.order,
-            "reference": s.reference,
-            "notes": s.notes,
-        }
-    return table
+    return {name: table_row(s) for name, s in SCHEMES.items()}
+
+
+def table_row(s: Scheme) -> dict:
+    """One scheme's row of `scheme_table`."""
+    presets = {str(k): float(v) for k, v in s.substitutions.items()
+               if str(k) in ("beta", "gamma") and sp.sympify(v).is_number}
+    return {
+        "title": s.title,
+        "params": {p: {"default": float(s.defaults[p]), "range": s.parameter_range(p)}
+                   for p in s.params},
+        "presets": presets,
+        "startup_steps": s.startup_steps,
+        "startup_scheme": STARTUP_SCHEME if s.startup_steps else None,
+        "explicit": any(derive_scheme(part).explicit for part in s.stages or (s,)),
+        "stages": [part.name for part in s.stages],
+        "order": s.order,
+        "reference": s.reference,
+        "notes": s.notes,
+    }

@@ -85,9 +85,11 @@ def in_increments(terms: dict, history: tuple) -> dict:
     return {h: out[h] for h in order if h in out}
 
 
-def scheme_spec(name: str) -> SchemeSpec:
-    der = I.derive_scheme(name)
+def scheme_spec(scheme: str | I.Scheme) -> SchemeSpec:
+    """The kernel spec of a built-in scheme (by name) or of a `Scheme` value."""
+    der = I.derive_scheme(scheme)
     scheme = der.scheme
+    name = scheme.name
     hist = [sp.Symbol(h) for h in scheme.history]
     forms = {}
     for form in dttmm.FORMS:

@@ -28,8 +28,15 @@ def _scale(name):
 
 
 @cache
-def amplification_matrix(name: str) -> sp.Matrix:
-    """A(Omega, zeta, params) acting on the scaled history (x, dt v, dt^2 a, lags)."""
+def amplification_matrix(name: str | I.Scheme) -> sp.Matrix:
+    """A(Omega, zeta, params) acting on the scaled history (x, dt v, dt^2 a, lags) of a built-in
+    scheme (by name) or a `Scheme` value."""
+    scheme = I.resolve(name)
+    if scheme.stages:  # a composite scheme: its sub-steps in turn, A = A_k ... A_2 A_1
+        A = sp.eye(len(scheme.history))
+        for part in scheme.stages:
+            A = (amplification_matrix(part) * A).applyfunc(sp.cancel)
+        return A
     spec = kernels.scheme_spec(name)
     fs = spec.forms["acceleration"]
     dt, omega = I.dt, sp.Symbol("omega", positive=True)

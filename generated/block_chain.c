@@ -13,11 +13,11 @@ int dtdyn_block_chain_loop(long N, long n_hist, long n_steps, long n_loaded,
                            const long *restrict shift, const long *restrict rows,
                            double *restrict H, long n_out, const long *restrict out_idx,
                            double *restrict xo, double *restrict vo, double *restrict ao,
-                           double *restrict work) {
+                           double *restrict work, long n_work) {
     const unsigned long long mode = dtdyn_flush_on();
     const int rc =
         block_chain_loop_run(N, n_hist, n_steps, n_loaded, loaded, force, mats, L, c_u, w0, w1,
-                             n_shift, shift, rows, H, n_out, out_idx, xo, vo, ao, work);
+                             n_shift, shift, rows, H, n_out, out_idx, xo, vo, ao, work, n_work);
     dtdyn_flush_off(mode);
     return rc;
 }

@@ -49,6 +49,27 @@ typedef int (*chain_fn)(int form, int sweep, long N, long n_steps, const double 
 #define DTDYN_CHAIN_ROWS_PLAIN (30)
 /* rows of the torsional tree loop */
 #define DTDYN_SHAFT_ROWS (15)
+/* row of q, the displacements' history terms */
+#define DTDYN_MCK_ROW_Q (0)
+/* row of s, the velocities' history terms */
+#define DTDYN_MCK_ROW_S (1)
+/* row of the right side, solved in place for u */
+#define DTDYN_MCK_ROW_RHS (2)
+/* first of the 3 rows of x1, v1, a1 */
+#define DTDYN_MCK_ROW_UPDATE (3)
+/* row of the sparse solve's intermediate z */
+#define DTDYN_MCK_ROW_Z (6)
+/* row of b, the accelerations' history terms */
+#define DTDYN_MCK_ROW_B (7)
+/* rows of the mck loop */
+#define DTDYN_MCK_ROWS (8)
+/* rows of the block chain loop: z, components 0 and 1 */
+#define DTDYN_BLOCK_CHAIN_ROWS (2)
+/* doubles before each row (64 bytes: the rows stay aligned) */
+#define DTDYN_BLOCK_CHAIN_GAP (8)
+/* samples per block of the modal filters (the states' rows of a block are kept in work: 2 m
+ * MODAL_BLOCK doubles, then 2 m n_out weights) */
+#define DTDYN_MODAL_BLOCK (256)
 
 int dtdyn_chain_newmark(int form, int sweep, long N, long n_steps, const double *m, const double *k,
                         const double *c, const double *kg, const double *cg, double dt,
@@ -125,6 +146,12 @@ int dtdyn_chain_generalized_alpha(int form, int sweep, long N, long n_steps, con
                                   const long *out_idx, double *xo, double *vo, double *ao,
                                   double *work, long n_work, double *ehist, double *err,
                                   int threads);
+int dtdyn_chain_bossak(int form, int sweep, long N, long n_steps, const double *m, const double *k,
+                       const double *c, const double *kg, const double *cg, double dt,
+                       const double *params, long n_loaded, const long *loaded, const double *force,
+                       double *hist, long n_out, const long *out_idx, double *xo, double *vo,
+                       double *ao, double *work, long n_work, double *ehist, double *err,
+                       int threads);
 int dtdyn_shaft_newmark(int form, long N, long n_steps, const long *parent, const double *gu,
                         const double *gS, const double *gR, const double *m, const double *k,
                         const double *c, const double *kg, const double *cg, double dt,
@@ -205,6 +232,12 @@ int dtdyn_shaft_generalized_alpha(int form, long N, long n_steps, const long *pa
                                   const double *force, double *hist, long n_out,
                                   const long *out_idx, double *xo, double *vo, double *ao,
                                   double *work, long n_work);
+int dtdyn_shaft_bossak(int form, long N, long n_steps, const long *parent, const double *gu,
+                       const double *gS, const double *gR, const double *m, const double *k,
+                       const double *c, const double *kg, const double *cg, double dt,
+                       const double *params, long n_loaded, const long *loaded, const double *force,
+                       double *hist, long n_out, const long *out_idx, double *xo, double *vo,
+                       double *ao, double *work, long n_work);
 int dtdyn_ss_states(long ns, long n_steps, const double *restrict At, const double *restrict w,
                     double *restrict X);
 int dtdyn_filter_bank(long n, long n_in, long n_out, long n_sec, const double *restrict sos,
@@ -217,7 +250,7 @@ int dtdyn_mck_loop(int solver, long n, long n_hist, long n_steps, long n_loaded,
                    const double *restrict c_u, double w0, double w1, long n_shift,
                    const long *restrict shift, const long *restrict rows, double *restrict H,
                    long n_out, const long *restrict out_idx, double *restrict xo,
-                   double *restrict vo, double *restrict ao, double *restrict work);
+                   double *restrict vo, double *restrict ao, double *restrict work, long n_work);
 int dtdyn_block_chain_factor(long N, const double *restrict A, double *restrict fac);
 int dtdyn_block_chain_solve(long N, const double *restrict fac, double *restrict b);
 int dtdyn_block_chain_loop(long N, long n_hist, long n_steps, long n_loaded,
@@ -227,7 +260,7 @@ int dtdyn_block_chain_loop(long N, long n_hist, long n_steps, long n_loaded,
                            const long *restrict shift, const long *restrict rows,
                            double *restrict H, long n_out, const long *restrict out_idx,
                            double *restrict xo, double *restrict vo, double *restrict ao,
-                           double *restrict work);
+                           double *restrict work, long n_work);
 int dtdyn_sturm_counts(long N, const double *restrict k, const double *restrict kg,
                        const double *restrict m, double pivmin, long n_lam,
                        const double *restrict lam, long *restrict counts);
@@ -236,21 +269,27 @@ int dtdyn_sturm_laguerre(long N, const double *restrict k, const double *restric
                          const double *restrict lam, long *restrict counts, double *restrict G,
                          double *restrict H);
 double dtdyn_fma_peak(long rounds);
+long dtdyn_turning_points(long n, const double *restrict x, long *restrict tp);
+long dtdyn_rainflow(long n_tp, const double *restrict x, long *restrict tp, long *restrict start,
+                    long *restrict end, double *restrict count, long *restrict residue_size);
 int dtdyn_modal_filters_lanes(long m);
 long dtdyn_modal_filters_work(long m, long n_out);
 int dtdyn_modal_filters(long n, long m, long n_in, long n_out, int im_out,
                         const double *restrict coef, const double *restrict wt,
                         const double *restrict x, double *restrict e, double *restrict y,
-                        double *restrict work);
+                        double *restrict work, long n_work);
 int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
                  double *restrict x, double *restrict u, double *restrict g, double *restrict rate,
                  double *restrict out, double tol, double theta_limit, double *stats, long *fail,
-                 double *restrict work, nl_int *restrict iwork);
+                 double *restrict work, long n_work, nl_int *restrict iwork, long n_iwork);
+long dtdyn_nl_work(const long *dims);
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem);
+int nl_residual_work(nl_int *sz_arg, nl_int *sz_res, nl_int *sz_iw, nl_int *sz_w);
 int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                    const double *const *mats, double *restrict H, double *restrict u,
                    double *restrict g, double *restrict rate, double *const *out, double h,
-                   double tol, double *stats, long *fail, double *restrict work,
-                   nl_int *restrict iwork);
+                   double tol, double *stats, long *fail, double *restrict work, long n_work,
+                   nl_int *restrict iwork, long n_iwork);
+long dtdyn_nl_chain_work(const long *dims);
 
 #endif /* DTDYN_C_API_H */

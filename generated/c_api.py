@@ -112,6 +112,7 @@ SIGNATURES = {
             "c_void_p",
             "c_void_p",
             "c_void_p",
+            "c_long",
         ),
     ),
     "dtdyn_block_chain_factor": ("c_int", ("c_long", "c_void_p", "c_void_p")),
@@ -140,6 +141,7 @@ SIGNATURES = {
             "c_void_p",
             "c_void_p",
             "c_void_p",
+            "c_long",
         ),
     ),
     "dtdyn_sturm_counts": (
@@ -171,6 +173,11 @@ SIGNATURES = {
         ),
     ),
     "dtdyn_fma_peak": ("c_double", ("c_long",)),
+    "dtdyn_turning_points": ("c_long", ("c_long", "c_void_p", "c_void_p")),
+    "dtdyn_rainflow": (
+        "c_long",
+        ("c_long", "c_void_p", "c_void_p", "c_void_p", "c_void_p", "c_void_p", "c_void_p"),
+    ),
     "dtdyn_modal_filters_lanes": ("c_int", ("c_long",)),
     "dtdyn_modal_filters_work": ("c_long", ("c_long", "c_long")),
     "dtdyn_modal_filters": (
@@ -187,6 +194,7 @@ SIGNATURES = {
             "c_void_p",
             "c_void_p",
             "c_void_p",
+            "c_long",
         ),
     ),
     "dtdyn_nl_run": (
@@ -205,10 +213,14 @@ SIGNATURES = {
             "c_void_p",
             "c_void_p",
             "c_void_p",
+            "c_long",
             "c_void_p",
+            "c_long",
         ),
     ),
+    "dtdyn_nl_work": ("c_long", ("c_void_p",)),
     "nl_residual": ("c_int", ("c_void_p", "c_void_p", "c_void_p", "c_void_p", "c_int")),
+    "nl_residual_work": ("c_int", ("c_void_p", "c_void_p", "c_void_p", "c_void_p")),
     "dtdyn_nl_chain": (
         "c_int",
         (
@@ -226,9 +238,12 @@ SIGNATURES = {
             "c_void_p",
             "c_void_p",
             "c_void_p",
+            "c_long",
             "c_void_p",
+            "c_long",
         ),
     ),
+    "dtdyn_nl_chain_work": ("c_long", ("c_void_p",)),
 }
 
 #: success
@@ -261,6 +276,26 @@ CHAIN_ROW_PLAIN = 20
 CHAIN_ROWS_PLAIN = 30
 #: rows of the torsional tree loop
 SHAFT_ROWS = 15
+#: row of q, the displacements' history terms
+MCK_ROW_Q = 0
+#: row of s, the velocities' history terms
+MCK_ROW_S = 1
+#: row of the right side, solved in place for u
+MCK_ROW_RHS = 2
+#: first of the 3 rows of x1, v1, a1
+MCK_ROW_UPDATE = 3
+#: row of the sparse solve's intermediate z
+MCK_ROW_Z = 6
+#: row of b, the accelerations' history terms
+MCK_ROW_B = 7
+#: rows of the mck loop
+MCK_ROWS = 8
+#: rows of the block chain loop: z, components 0 and 1
+BLOCK_CHAIN_ROWS = 2
+#: doubles before each row (64 bytes: the rows stay aligned)
+BLOCK_CHAIN_GAP = 8
+#: samples per block of the modal filters (the states' rows of a block are kept in work: 2 m MODAL_BLOCK doubles, then 2 m n_out weights)
+MODAL_BLOCK = 256
 
 #: every constant above by name
 CONSTANTS = {
@@ -279,4 +314,14 @@ CONSTANTS = {
     "CHAIN_ROW_PLAIN": CHAIN_ROW_PLAIN,
     "CHAIN_ROWS_PLAIN": CHAIN_ROWS_PLAIN,
     "SHAFT_ROWS": SHAFT_ROWS,
+    "MCK_ROW_Q": MCK_ROW_Q,
+    "MCK_ROW_S": MCK_ROW_S,
+    "MCK_ROW_RHS": MCK_ROW_RHS,
+    "MCK_ROW_UPDATE": MCK_ROW_UPDATE,
+    "MCK_ROW_Z": MCK_ROW_Z,
+    "MCK_ROW_B": MCK_ROW_B,
+    "MCK_ROWS": MCK_ROWS,
+    "BLOCK_CHAIN_ROWS": BLOCK_CHAIN_ROWS,
+    "BLOCK_CHAIN_GAP": BLOCK_CHAIN_GAP,
+    "MODAL_BLOCK": MODAL_BLOCK,
 }

@@ -12,11 +12,11 @@ int dtdyn_mck_loop(int solver, long n, long n_hist, long n_steps, long n_loaded,
                    const double *restrict c_u, double w0, double w1, long n_shift,
                    const long *restrict shift, const long *restrict rows, double *restrict H,
                    long n_out, const long *restrict out_idx, double *restrict xo,
-                   double *restrict vo, double *restrict ao, double *restrict work) {
+                   double *restrict vo, double *restrict ao, double *restrict work, long n_work) {
     const unsigned long long mode = dtdyn_flush_on();
     const int rc =
         mck_loop_run(solver, n, n_hist, n_steps, n_loaded, loaded, force, idx, val, L, c_u, w0, w1,
-                     n_shift, shift, rows, H, n_out, out_idx, xo, vo, ao, work);
+                     n_shift, shift, rows, H, n_out, out_idx, xo, vo, ao, work, n_work);
     dtdyn_flush_off(mode);
     return rc;
 }

@@ -9,11 +9,11 @@
 int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                    const double *const *mats, double *restrict H, double *restrict u,
                    double *restrict g, double *restrict rate, double *const *out, double h,
-                   double tol, double *stats, long *fail, double *restrict work,
-                   nl_int *restrict iwork) {
+                   double tol, double *stats, long *fail, double *restrict work, long n_work,
+                   nl_int *restrict iwork, long n_iwork) {
     const unsigned long long mode = dtdyn_flush_on();
-    const int rc =
-        nl_chain_run(dims, sweep, idx, mats, H, u, g, rate, out, h, tol, stats, fail, work, iwork);
+    const int rc = nl_chain_run(dims, sweep, idx, mats, H, u, g, rate, out, h, tol, stats, fail,
+                                work, n_work, iwork, n_iwork);
     dtdyn_flush_off(mode);
     return rc;
 }

@@ -9,10 +9,10 @@
 int dtdyn_nl_run(const long *dims, const double *const *mats, const double *restrict force,
                  double *restrict x, double *restrict u, double *restrict g, double *restrict rate,
                  double *restrict out, double tol, double theta_limit, double *stats, long *fail,
-                 double *restrict work, nl_int *restrict iwork) {
+                 double *restrict work, long n_work, nl_int *restrict iwork, long n_iwork) {
     const unsigned long long mode = dtdyn_flush_on();
     const int rc = nl_loop_run(dims, mats, force, x, u, g, rate, out, tol, theta_limit, stats, fail,
-                               work, iwork);
+                               work, n_work, iwork, n_iwork);
     dtdyn_flush_off(mode);
     return rc;
 }

@@ -74,6 +74,11 @@ HISTORY = {
         "v0",
         "a0",
     ),
+    "bossak": (
+        "x0",
+        "v0",
+        "a0",
+    ),
 }
 
 
@@ -466,6 +471,46 @@ def amplification_generalized_alpha(Omega, zeta, rho_inf):
         * (-Omega * t2 - Omega * t7 - Omega - rho_inf * t18 - t16 * zeta - t18 * t7 - 2.0 * zeta)
     ) * one
     A[:, 2, 2] = (t11 * (-t1 * t17 + t1 - t12 + t13 - t15 - t16 - t17 - t3 + 1.0)) * one
+    return A
+
+
+def amplification_bossak(Omega, zeta, alpha_m):
+    """A of bossak, shape (len(Omega), 3, 3)."""
+    Omega = np.asarray(Omega, dtype=float).reshape(-1)
+    zeta = np.asarray(zeta, dtype=float) * np.ones_like(Omega)
+    one = np.ones_like(Omega)
+    t0 = Omega * Omega
+    t1 = alpha_m - 1.0
+    t2 = t0 * t1
+    t3 = (1.0 / 4.0) * t2
+    t4 = 1.0 / t1
+    t5 = 2.0 * alpha_m
+    t6 = t5 - 1.0
+    t7 = Omega * zeta
+    t8 = 4.0 * zeta
+    t9 = Omega * t8
+    t10 = t6 * t9
+    t11 = 1.0 / (t1 * (4.0 - t2) + t10)
+    t12 = 2.0 * zeta
+    t13 = Omega * (Omega + t12)
+    t14 = t1 * (-t0 * t1 + 4.0) + t10
+    t15 = alpha_m * alpha_m
+    t16 = t0 * t5
+    t17 = t0 * t15
+    t18 = 4.0 * alpha_m
+    t19 = t17 - t18 + 4.0
+    t20 = 1.0 / (-8.0 * alpha_m * t7 + t0 - t16 + t19 + t9)
+    t21 = t0 * t11
+    A = np.empty((Omega.size, 3, 3))
+    A[:, 0, 0] = (t3 / (-t3 + t4 * t6 * t7 + 1.0) + 1.0) * one
+    A[:, 0, 1] = (t11 * ((t1 * t1) * t13 + t14)) * one
+    A[:, 0, 2] = (t20 * (-Omega * t12 * t15 - t15 + 1.0)) * one
+    A[:, 1, 0] = (t21 * (2.0 - t18)) * one
+    A[:, 1, 1] = (t20 * (-t0 + t16 + t19)) * one
+    A[:, 1, 2] = (t20 * (t17 + 2.0)) * one
+    A[:, 2, 0] = (4.0 * t21) * one
+    A[:, 2, 1] = (4.0 * t11 * t13) * one
+    A[:, 2, 2] = (t11 * t4 * (Omega * (Omega * t1 * (alpha_m + 1.0) - t8) + alpha_m * t14)) * one
     return A
 
 

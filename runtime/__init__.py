@@ -19,6 +19,7 @@ from dtdyn._engine.errors import (DtdynAccuracyWarning, DtdynCacheError, DtdynFa
 from dtdyn._engine.ground import ground_acceleration_from
 from dtdyn._engine.result import Response
 from dtdyn._engine.result_io import load_result
+from dtdyn._engine.scheme_files import FileScheme, load_scheme
 from dtdyn.app.batch import run_batch
 from dtdyn.app.problems import problem
 from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
@@ -49,9 +50,18 @@ from dtdyn.nonlinear.chain import nonlinear_chain_response
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
 from dtdyn.nonlinear.reference import check_reference, reference_response
 from dtdyn.nonlinear.response import nonlinear_mck_response
+from dtdyn.nonlinear.harmonic_balance import HarmonicBalanceResult, harmonic_balance
 from dtdyn.nonlinear.stations import nonlinear_beam_response, nonlinear_shaft_response
-from dtdyn.random_vibration import (RandomResponse, beam_random_response, chain_random_response,
-                                    psd_table, random_response, shaft_random_response)
+from dtdyn.random_vibration import (CycleHistogram, Cycles, RandomResponse, SNCurve,
+                                    beam_random_response, chain_random_response, miner_damage,
+                                    psd_table, rainflow_cycles, random_response,
+                                    shaft_random_response, spectral_damage,
+                                    spectral_damage_from_moments, spectral_moments, turning_points,
+                                    random_time_history, shock_time_history, ShockTimeHistory,
+                                    VibrationSpectrum, extreme_response_spectrum,
+                                    fatigue_damage_spectrum, fds_equivalent_psd, sdof_moments,
+                                    vibration_response_spectrum)
+from dtdyn.app.derivation import derivation
 
 __version__ = "0.1.0"
 
@@ -65,7 +75,7 @@ __all__ = [
     "discretize", "first_order_form", "DiscreteModel",
     "chain_frequency_response", "chain_frequencies", "chain_poles", "stability",
     "critical_omega_dt",
-    "Stability",
+    "Stability", "load_scheme", "FileScheme", "derivation",
     # torsional shafts and trees
     "Shaft", "Branch", "ContinuousShaft", "shaft_response", "shaft_matrices",
     "shaft_frequencies", "shaft_modes", "shaft_frequency_response",
@@ -78,10 +88,16 @@ __all__ = [
     # nonlinear
     "nonlinear_mck_response", "nonlinear_chain_response", "nonlinear_shaft_response",
     "nonlinear_beam_response", "reference_response", "check_reference",
+    "harmonic_balance", "HarmonicBalanceResult",
     "Cubic", "Polynomial", "Gap", "Law", "BoucWen",
     # random vibration
     "psd_table", "random_response", "chain_random_response", "beam_random_response",
     "shaft_random_response", "RandomResponse",
+    "rainflow_cycles", "turning_points", "Cycles", "CycleHistogram", "SNCurve", "miner_damage",
+    "spectral_damage", "spectral_damage_from_moments", "spectral_moments",
+    "random_time_history", "shock_time_history", "ShockTimeHistory",
+    "vibration_response_spectrum", "extreme_response_spectrum", "fatigue_damage_spectrum",
+    "fds_equivalent_psd", "sdof_moments", "VibrationSpectrum",
     # scenes, results, reference problems
     "ground_acceleration_from", "Scene", "load_scene", "scene_from_dict", "run_scene", "Response",
     "load_result",
@@ -102,8 +118,9 @@ def _check_keywords():
     from dtdyn._engine.public import public
     for name in __all__:
         obj = globals()[name]
-        if isinstance(obj, type) and issubclass(obj, BaseException) or not callable(obj):
-            continue
+        if isinstance(obj, type) and (issubclass(obj, BaseException)
+                                      or obj.__init__ is object.__init__) or not callable(obj):
+            continue                   # errors, and tuples built by __new__ (no keywords here)
         if getattr(obj, "__dtdyn_public__", False) or \
                 getattr(getattr(obj, "__init__", None), "__dtdyn_public__", False):
             continue

@@ -1,13 +1,13 @@
 """Load the generated DT-TMM chain kernels: C when a compiler exists, else the NumPy sweep."""
 from __future__ import annotations
 
-from functools import cache
 
 import numpy as np
 
 from dtdyn.generated import c_api, dttmm_sweep
 
 from dtdyn._engine import cbuild
+from dtdyn._engine.schemes import SchemeInfo, get_scheme
 from dtdyn._engine.stepping import history_from_states
 
 # the kernels' codes and work rows (doubles per mass) from the one spec, dtdyn.derive.c_api
@@ -76,15 +76,25 @@ class PlainSweepError:
         return e / (xmax - e) if xmax > e else float("inf")
 
 
-@cache
-def c_chain_function(scheme: str):
-    """The ctypes function dtdyn_chain_<scheme>, or None when C is unavailable."""
-    source = cbuild.generated_source(f"chain_{scheme}.c")
-    lib = cbuild.load_library(source, f"chain_{scheme}")
-    if lib is None:
-        return None
-    fn = cbuild.bind(lib, "dtdyn_chain", f"dtdyn_chain_{scheme}")
-    return fn
+_FUNCTIONS: dict = {}
+
+
+def c_scheme_function(kind: str, scheme):
+    """The ctypes function dtdyn_<kind>_<scheme> (``kind`` "chain" or "shaft"; ``scheme`` a
+    name, a scheme file's FileScheme or a SchemeInfo, a composite scheme's stage too), or None
+    when C is unavailable. Bound once per kernel and process."""
+    info = scheme if isinstance(scheme, SchemeInfo) else get_scheme(scheme)
+    key = (kind, info.key)
+    if key not in _FUNCTIONS:
+        lib = cbuild.load_library(info.c_source(kind), f"{kind}_{info.key}")
+        _FUNCTIONS[key] = None if lib is None else cbuild.bind(
+            lib, f"dtdyn_{kind}", f"dtdyn_{kind}_{info.name}")
+    return _FUNCTIONS[key]
+
+
+def c_chain_function(scheme):
+    """The ctypes function dtdyn_chain_<scheme> (`c_scheme_function`), or None."""
+    return c_scheme_function("chain", scheme)
 
 
 def _p(a):
@@ -114,7 +124,7 @@ def chain_advance(backend, scheme, coeffs, form, sweep, chain, dt, loaded, out_i
     plain = sweep == "plain"
     m, k, c = chain[:3]
     kg, cg = ground_elements(chain)
-    fn = c_chain_function(scheme.name) if backend == "c" else None
+    fn = c_chain_function(scheme) if backend == "c" else None
     if fn is None:
         def advance(force, H, xo, vo, ao):
             E = tracker.history(scheme.history) if plain else None

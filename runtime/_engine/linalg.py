@@ -25,6 +25,7 @@ def square_matrix(name: str, value, n: int | None = None, keep_sparse: bool = Fa
         if sps.issparse(value):
             validate.dense_conversion(name, value)
             value = value.toarray()
+        validate.matrix_rows(name, value)
         if np.iscomplexobj(value) or isinstance(value, (str, bytes)):
             validate.real_array(name, value, "a real numeric matrix")
         try:

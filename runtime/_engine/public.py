@@ -69,6 +69,9 @@ def _wrap(function, name, renamed, scheme_keywords):
         valid = None                       # free keywords (e.g. a Law's constants)
     else:
         valid = named | (_scheme_parameter_names() if scheme_keywords else frozenset())
+    positional = [p.name for p in parameters.values()
+                  if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    scheme_at = positional.index("scheme") if scheme_keywords and "scheme" in positional else None
 
     @functools.wraps(function)
     def wrapper(*args, **kwargs):
@@ -82,7 +85,9 @@ def _wrap(function, name, renamed, scheme_keywords):
         if valid is not None:
             for key in kwargs:
                 if key not in valid:
-                    raise unknown_keyword(name, key, valid | set(renamed))
+                    extra = _file_scheme_parameters(kwargs, args, scheme_at)
+                    if key not in extra:
+                        raise unknown_keyword(name, key, valid | set(renamed) | extra)
         token = _CALL.set(name) if _CALL.get() is None else None
         try:
             with warning_scope():
@@ -93,6 +98,16 @@ def _wrap(function, name, renamed, scheme_keywords):
 
     wrapper.__dtdyn_public__ = True
     return wrapper
+
+
+def _file_scheme_parameters(kwargs, args, scheme_at) -> set:
+    """The parameters of a scheme file's scheme passed as ``scheme`` (empty set otherwise)."""
+    from dtdyn._engine.scheme_files import FileScheme
+
+    scheme = kwargs.get("scheme")
+    if scheme is None and scheme_at is not None and len(args) > scheme_at:
+        scheme = args[scheme_at]
+    return set(scheme.params) if isinstance(scheme, FileScheme) else set()
 
 
 @contextlib.contextmanager

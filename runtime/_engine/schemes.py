@@ -1,4 +1,5 @@
-"""Scheme registry: names users type -> generated coefficient modules, checked parameters."""
+"""Scheme registry: names users type (or a scheme file's `FileScheme`) -> generated coefficient
+modules, checked parameters, C kernel sources."""
 from __future__ import annotations
 
 import importlib
@@ -6,31 +7,78 @@ import math
 from dataclasses import dataclass
 
 from dtdyn._engine.public import suggest
+from dtdyn._engine.scheme_files import FileScheme
 from dtdyn.generated.scheme_table import TABLE
 
 NAMES = tuple(TABLE)
 
 
-def check_parameter(scheme: str, key: str, value, field: str | None = None) -> float:
+def row(scheme) -> dict:
+    """The scheme table's row of a built-in name or a `FileScheme`."""
+    return scheme.table if isinstance(scheme, FileScheme) else TABLE[scheme]
+
+
+def check_parameter(scheme, key: str, value, field: str | None = None) -> float:
     """``value`` as a float inside the scheme table's range for ``key``; a ValueError names
     ``field`` (default ``key``), the value and the range otherwise."""
     field = field or key
+    name = getattr(scheme, "name", scheme)
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise ValueError(f"{field} must be a number, got {value!r}") from None
-    lo, hi = TABLE[scheme]["params"][key]["range"]
+    lo, hi = row(scheme)["params"][key]["range"]
     if v != v or (lo is not None and v < lo) or (hi is not None and v > hi):
         shown = f"[{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}]"
-        raise ValueError(f"{field} = {value!r} is outside {shown} for scheme {scheme!r}")
+        raise ValueError(f"{field} = {value!r} is outside {shown} for scheme {name!r}")
     return v
 
 
 @dataclass(frozen=True)
 class SchemeInfo:
+    """A resolved scheme: its coefficient module, checked parameter values and, for a scheme
+    file, the `FileScheme` it came from (None: built-in)."""
+
     name: str
     module: object
     params: dict
+    file: FileScheme | None = None
+    #: a composite scheme's sub-steps, each a SchemeInfo run in turn within one step
+    stages: tuple = ()
+
+    @property
+    def table(self) -> dict:
+        """Its scheme-table row (title, parameters, start-up, order, ...)."""
+        return self.file.table if self.file else TABLE[self.name]
+
+    @property
+    def ref(self):
+        """What `get_scheme` takes to resolve it again: the name, or the FileScheme."""
+        return self.file or self.name
+
+    @property
+    def key(self) -> str:
+        """The name its compiled kernels are cached under."""
+        return f"{self.name}_{self.file.sha256[:16]}" if self.file else self.name
+
+    def c_source(self, kind: str) -> str:
+        """The C source of its ``chain`` or ``shaft`` kernel (one translation unit)."""
+        if self.file:
+            return self.file.c_source(kind, self.name)
+        from dtdyn._engine import cbuild
+        return cbuild.generated_source(f"{kind}_{self.name}.c")
+
+    def amplification(self, omega_dt, zeta, params):
+        """Its amplification matrices A(Omega, zeta) (dtdyn.generated.stability)."""
+        if self.file:
+            return self.file.module("stability").amplification(self.name, omega_dt, zeta, params)
+        from dtdyn.generated import stability
+        return stability.amplification(self.name, omega_dt, zeta, params)
+
+    def startup(self):
+        """The `SchemeInfo` of the scheme that starts a multistep one (None: one-step)."""
+        first = self.table["startup_scheme"]
+        return get_scheme(first) if self.startup_steps and first else None
 
     @property
     def history(self) -> tuple:
@@ -45,6 +93,12 @@ class SchemeInfo:
         return self.module.EXPLICIT
 
     def coefficients(self, form: str, dt: float) -> dict:
+        """The per-run constants of ``form`` at ``dt`` (not of a composite scheme: of each of
+        its `stages`)."""
+        if self.stages:
+            raise ValueError(f"scheme {self.name!r} is a composite of {len(self.stages)} "
+                             "sub-steps: this entry point does not run composite schemes yet "
+                             "(the linear time histories do)")
         if form not in self.module.FORMS:
             if form == "displacement" and self.explicit:
                 raise ValueError(f"scheme {self.name!r} is explicit (beta = 0): it has no "
@@ -66,16 +120,23 @@ class SchemeInfo:
         return coef
 
 
-def get_scheme(name: str, **params) -> SchemeInfo:
-    """Resolve a scheme name and its parameters (defaults filled in, ranges checked)."""
-    if name not in NAMES:
+def get_scheme(name, **params) -> SchemeInfo:
+    """Resolve a scheme name (or a scheme file's `FileScheme`, from `load_scheme`) and its
+    parameters (defaults filled in, ranges checked)."""
+    if isinstance(name, SchemeInfo):
+        return name if not params else get_scheme(name.file or name.name, **params)
+    if isinstance(name, FileScheme):
+        parts = [name.module("scheme", part) for part in name.stages or (name.name,)]
+        _check_names(name.name, parts[0], params)
+        values = dict(parts[0].DEFAULTS)
+        values.update({k: check_parameter(name, k, v) for k, v in params.items()})
+        stages = tuple(SchemeInfo(part, module, values, name)
+                       for part, module in zip(name.stages, parts))
+        return SchemeInfo(name.name, parts[0], values, name, stages)
+    if not isinstance(name, str) or name not in NAMES:
         raise ValueError(f"unknown scheme {name!r}; available: {', '.join(NAMES)}")
     module = importlib.import_module(f"dtdyn.generated.scheme_{name}")
-    unknown = sorted(set(params) - set(module.PARAMS))
-    if unknown:
-        allowed = ", ".join(module.PARAMS) or "none"
-        raise TypeError(f"scheme {name!r} takes parameters ({allowed}), got "
-                        f"{', '.join(unknown)}{suggest(unknown[0], module.PARAMS)}")
+    _check_names(name, module, params)
     values = dict(module.DEFAULTS)
     for key, value in params.items():
         values[key] = check_parameter(name, key, value)
@@ -86,3 +147,11 @@ def get_scheme(name: str, **params) -> SchemeInfo:
                              f"got gamma = {values['gamma']!r}")
         return SchemeInfo("central_difference", module, {})
     return SchemeInfo(name, module, values)
+
+
+def _check_names(name: str, module, params) -> None:
+    unknown = sorted(set(params) - set(module.PARAMS))
+    if unknown:
+        allowed = ", ".join(module.PARAMS) or "none"
+        raise TypeError(f"scheme {name!r} takes parameters ({allowed}), got "
+                        f"{', '.join(unknown)}{suggest(unknown[0], module.PARAMS)}")

@@ -14,8 +14,7 @@ import numpy as np
 
 from dtdyn._engine import validate
 from dtdyn._engine.result import Response
-from dtdyn._engine.schemes import SchemeInfo, get_scheme
-from dtdyn.generated.scheme_table import TABLE
+from dtdyn._engine.schemes import SchemeInfo
 
 #: a stepper: (scheme, coefficients) -> advance(force_rows, H, xo, vo, ao) -> error estimate of
 #: the run so far (not of the call: an estimate that propagates through the steps is not a sum
@@ -59,7 +58,7 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
     states = [tuple(np.array(a, dtype=float) for a in state0)]
     n_start = min(scheme.startup_steps, n_steps)
     if n_start:
-        avg = get_scheme(TABLE[scheme.name]["startup_scheme"])
+        avg = scheme.startup()
         advance = make_advance(avg, avg.coefficients(form, dt))
         for _ in range(n_start):
             H = history_from_states(avg.history, states)
@@ -69,7 +68,8 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
     # a run shorter than the start-up never uses the lags; pad them with the initial state
     pad = max(_lag(nm) for nm in scheme.history) + 1 - len(states)
     H = history_from_states(scheme.history, [states[0]] * pad + states)
-    advance = make_advance(scheme, scheme.coefficients(form, dt))
+    advance = (_composite(scheme, form, dt, make_advance) if scheme.stages
+               else make_advance(scheme, scheme.coefficients(form, dt)))
     # blocks of at most CHECK_BLOCK steps and CHECK_WORK DOF-steps: a response that leaves the
     # finite numbers stops at the end of its block, named by its first non-finite step; Ctrl-C
     # acts between blocks (a fraction of a second each); the bar moves per block
@@ -93,6 +93,23 @@ def integrate(scheme: SchemeInfo, form: str, dt: float, force: np.ndarray, state
                     info={"scheme": scheme.name, "params": dict(scheme.params), "form": form,
                           "dt": dt, "n_steps": n_steps, "run_time": run_time,
                           "error_estimate": err_est})
+
+
+def _composite(scheme: SchemeInfo, form: str, dt: float, make_advance: MakeAdvance):
+    """The advance of a composite scheme: per step, each stage's advance over that step's two
+    force rows in turn (each shifts the history, so a stage's lags are the state before it);
+    only the last stage writes the outputs."""
+    stages = [make_advance(s, s.coefficients(form, dt)) for s in scheme.stages]
+
+    def advance(force, H, xo, vo, ao):
+        err = 0.0
+        for i in range(force.shape[0] - 1):
+            rows = force[i:i + 2]
+            for stage in stages[:-1]:
+                stage(rows, H, None, None, None)
+            err = stages[-1](rows, H, *(None if o is None else o[i:] for o in (xo, vo, ao)))
+        return err
+    return advance
 
 
 #: steps per block between the checks for non-finite values (and for Ctrl-C), and DOF-steps

@@ -230,6 +230,25 @@ def real_array(name: str, value, what: str = "an array of numbers") -> np.ndarra
         raise ValueError(f"{name} must be {what}, got {type(value).__name__}: {exc}") from None
 
 
+def matrix_rows(name: str, value) -> None:
+    """A matrix given as nested lists or tuples whose rows differ in length (numpy would say
+    "inhomogeneous shape"): a ValueError naming ``name``, the first row whose length differs
+    from row 0's and both lengths. Anything else passes unchanged."""
+    if not isinstance(value, (list, tuple)) or not value:
+        return
+    lengths = [len(row) if isinstance(row, (list, tuple, np.ndarray)) else None
+               for row in value]
+    if all(n is None for n in lengths):
+        return  # a flat sequence: the shape check names it
+    for i, n in enumerate(lengths):
+        if n != lengths[0]:
+            got, first = ("a number" if k is None else f"{k} entr{'y' if k == 1 else 'ies'}"
+                          for k in (n, lengths[0]))
+            raise ValueError(f"{name} must be a square matrix (every row as long as the "
+                             f"number of rows, {len(value)}); row {i} has {got}, row 0 has "
+                             f"{first}")
+
+
 def _bytes(n: float) -> str:
     units = ("B", "KiB", "MiB", "GiB", "TiB", "PiB")
     k = 0

@@ -47,59 +47,76 @@ def _generate(args) -> int:
         return 0
     files = emit.write(dest)
     print(f"wrote {len(files)} files to {dest}")
+    if args.out:  # a copy for vendoring: the C with its headers, scheme files' kernels, example
+        from dtdyn.derive import scheme_file
+
+        schemes = [scheme_file.parse(path) for path in args.schemes]
+        vendor = emit.write_vendor(dest / "vendor", schemes)
+        print(f"wrote {len(vendor)} C sources and headers to {dest / 'vendor'} (each compiles "
+              "there with `cc -O2 -c`; example.c shows a call)")
+    elif args.schemes:
+        raise ValueError("scheme files are written with --out DIR (a standalone copy); "
+                         "without it `dtdyn generate` rewrites the checkout's generated/")
     return 0
-
-
-def _matrix_text(T, latex: bool) -> str:
-    """A SymPy matrix row by row (or as LaTeX), each entry in plain text."""
-    import sympy as sp
-
-    if latex:
-        return sp.latex(T)
-    cells = [[sp.sstr(sp.simplify(e)) for e in row] for row in T.tolist()]
-    widths = [max(len(row[j]) for row in cells) for j in range(len(cells[0]))]
-    if sum(widths) <= 90:  # aligned rows
-        return "\n".join("  [ " + "  ".join(c.rjust(w) for c, w in zip(row, widths)) + " ]"
-                         for row in cells)
-    return "\n".join(f"  T[{i}, {j}] = {c}" for i, row in enumerate(cells)
-                     for j, c in enumerate(row))
 
 
 def _show(args) -> int:
+    """`dtdyn scheme show NAME|FILE` (and its alias `dtdyn show`): the derivation, readable."""
     from dtdyn._engine.extras import require
-    sp = require("sympy", "derive", "dtdyn show")
-    from dtdyn.derive import dttmm, integrators
+    require("sympy", "derive", "dtdyn scheme show")
+    from dtdyn.app.derivation import derivation
 
-    der = integrators.derive_scheme(args.scheme)
-    s = der.scheme
-    print(f"{s.title} ({s.name}); {s.reference}\n{s.notes}\n\nDefining relations:")
-    for rel in s.relations:
-        print("   ", sp.sstr(rel.subs(s.substitutions)))
-    print(f"\nEquilibrium: M ae + C ve + K xe = ({sp.sstr(der.w0)}) F_n "
-          f"+ ({sp.sstr(der.w1)}) F_n+1")
-    rows = [] if der.explicit else [("A", der.A), ("B", der.B), ("D", der.D), ("E", der.E)]
-    rows += [("Dx", der.Dx), ("Ex", der.Ex), ("Dv", der.Dv), ("Ev", der.Ev)]
-    print("Displacement form: ae = A xe + B, ve = D xe + E" if not der.explicit
-          else "Explicit: no displacement form")
-    print("Acceleration form: xe = Dx ae + Ex, ve = Dv ae + Ev\n")
-    for name, expr in rows:
-        print(f"  {name:3s}= {sp.sstr(expr)}")
-    for form in dttmm.FORMS:
-        if form == "displacement" and der.explicit:
-            continue
-        maps = dttmm.form_maps(form, der)
-        subs = {dttmm.p: maps["p"], dttmm.r: maps["r"], dttmm.alpha: maps["alpha_u"],
-                dttmm.b_n: maps["b"]}
-        T = dttmm.station_step().subs({dttmm.mu: dttmm.MU, dttmm.beta: dttmm.BETA}).subs(subs)
-        unknown = "u = xe - x0, the increment" if form == "displacement" else "u = ae"
-        print(f"\nDT-TMM station matrix, {form} form ({unknown}), "
-              "[u_n-1, f_n, 1] -> [u_n, f_n+1, 1]:")
-        print(_matrix_text(T, args.latex))
-        print(f"  kappa = {sp.sstr(sp.simplify(dttmm.KAPPA.subs(subs)))}, "
-              "Delta = k (q_n - q_n-1) + c (s_n - s_n-1) with, at each mass (k_g, c_g: its\n"
-              "  spring and damper to the ground),\n"
-              f"  q = {sp.sstr(maps['q'])}, s = {sp.sstr(maps['s'])}, b = {sp.sstr(maps['b'])}")
+    d = derivation(args.scheme)
+    print(d.markdown() if args.markdown else d.latex() if args.latex else str(d), end="")
     return 0
+
+
+def _scheme_ref(text: str):
+    """A built-in scheme's name as it is, or the scheme of a scheme file (*.toml) loaded."""
+    if text.endswith(".toml"):
+        from dtdyn._engine.scheme_files import load_scheme
+        return load_scheme(text)
+    if text not in SCHEMES:
+        raise ValueError(f"unknown scheme {text!r}; available: {', '.join(SCHEMES)}, or a scheme "
+                         "file (*.toml)")
+    return text
+
+
+def _check(args) -> int:
+    """`dtdyn scheme check NAME|FILE`: what the derivation found (order, explicitness, start-up,
+    rho at infinity, stability limit), then `dtdyn stability`'s table (and --plot) for it."""
+    import numpy as np
+
+    from dtdyn.linear.stability import stability
+
+    ref = _scheme_ref(args.scheme)
+    row = ref.table if hasattr(ref, "table") else SCHEMES[ref]
+    name = getattr(ref, "name", ref)
+    claimed = row.get("claimed_order")
+    how = ("derived from the local truncation error's Taylor series" if hasattr(ref, "table")
+           else "of the built-in scheme")
+    print(f"{row['title']} ({name})" + (f"; {row['reference']}" if row["reference"] else ""))
+    if hasattr(ref, "path"):
+        print(f"file: {ref.path} (sha256 {ref.sha256[:16]}; derived into {ref.folder})")
+    print(f"order of accuracy: {row['order']} ({how}"
+          + (f"; the file claims {claimed}, as derived" if claimed else "") + ")")
+    params = ", ".join(f"{p} = {v['default']:g} in [{v['range'][0]}, {v['range'][1]}]"
+                       for p, v in row["params"].items()) or "none"
+    print(f"parameters: {params}")
+    print("explicit: acceleration form only" if row["explicit"] else
+          "implicit: displacement and acceleration forms")
+    if row["startup_steps"]:
+        print(f"multistep: starts with {row['startup_steps']} steps of {row['startup_scheme']}")
+    rho_inf = float(stability(ref, [1e8]).spectral_radius[0])
+    print(f"spectral radius at Omega = 1e8 (rho_inf): {rho_inf:.6f}")
+    args.schemes = [args.scheme]
+    code = _stability(args)
+    return code if np.isfinite(rho_inf) else 1
+
+
+def _scheme(args) -> int:
+    """`dtdyn scheme ACTION`: one handler per action."""
+    return {"show": _show, "check": _check}[args.action](args)
 
 
 def _simulate_nonlinear(args, sc) -> int:
@@ -233,10 +250,7 @@ def _stability(args) -> int:
 
     from dtdyn.linear.stability import critical_omega_dt, stability
 
-    unknown = [n for n in args.schemes if n not in SCHEMES]
-    if unknown:
-        raise ValueError(f"unknown scheme {unknown[0]!r}; available: {', '.join(SCHEMES)}")
-    names = args.schemes or list(SCHEMES)
+    refs = [_scheme_ref(n) for n in args.schemes] or list(SCHEMES)
     if args.plot:
         from dtdyn.app.scene.io import plot_checked_path
         plot_checked_path(args.plot)
@@ -250,10 +264,11 @@ def _stability(args) -> int:
     print(f"{'scheme':22s} {'critical Omega':>14s}  " + "  ".join(f"rho({w:g})" for w in marks)
           + "  elongation(0.1)  damping(0.1)")
     curves = {}
-    for name in names:
-        st = stability(name, omega)
-        at = stability(name, marks)
-        crit = critical_omega_dt(name)
+    for ref in refs:
+        name = getattr(ref, "name", ref)
+        st = stability(ref, omega)
+        at = stability(ref, marks)
+        crit = critical_omega_dt(ref)
         curves[name] = st
         print(f"{name:22s} {crit:14.4f}  " + "  ".join(f"{r:8.4f}" for r in at.spectral_radius)
               + f"  {clean(at.period_elongation)[0]:15.3e}  "
@@ -489,6 +504,175 @@ def _srs(args) -> int:
     return 0
 
 
+def _read_psd_table(path):
+    """A PSD table from a CSV of two columns, f [Hz] and G [(unit)^2/Hz] (one header line
+    allowed), log-log between its rows."""
+    import numpy as np
+
+    from dtdyn.random_vibration.psd import psd_table
+
+    try:
+        data = np.loadtxt(path, delimiter=",", ndmin=2)
+    except ValueError:
+        data = np.loadtxt(path, delimiter=",", ndmin=2, skiprows=1)
+    if data.shape[1] != 2 or data.shape[0] < 2:
+        raise ValueError(f"{path}: expected two columns (f [Hz], PSD) and at least two rows, "
+                         f"got a table of shape {data.shape}")
+    return psd_table([(float(f), float(g)) for f, g in data])
+
+
+def _fds(args) -> int:
+    """`dtdyn fds`: the VRS, ERS and FDS of a PSD table (and the PSD equivalent to the FDS
+    over a test duration), printed, saved as CSV + JSON sidecar and plotted."""
+    import json
+
+    import numpy as np
+
+    from dtdyn._engine.atomic import write_atomic, write_atomic_files
+    from dtdyn._engine.result_io import _versions, sidecar_path
+    from dtdyn.random_vibration import spectra as S
+
+    for flag, path in (("--out", args.out), ("--plot", args.plot)):
+        if path and (Path(path).is_dir() or not Path(path).resolve().parent.is_dir()):
+            raise ValueError(f"{flag} {path!r}: not a file in an existing folder")
+    table = _read_psd_table(args.psd)
+    if args.q is not None:
+        if not args.q > 0.5 or not np.isfinite(args.q):
+            raise ValueError(f"--q must be finite and > 0.5 (damping ratio 1 / (2 Q) < 1), "
+                             f"got {args.q!r}")
+        zeta = 1.0 / (2.0 * args.q)
+    else:
+        zeta = 0.05 if args.damping_ratio is None else args.damping_ratio
+    if args.freqs is None:
+        fmin, fmax, n = float(table.freqs_hz[0]), float(table.freqs_hz[-1]), 100
+    else:
+        fmin, fmax, n = args.freqs
+        if float(n) != int(n) or int(n) < 1 or not 0.0 < fmin <= fmax:
+            raise ValueError(f"--freqs: need 0 < FMIN <= FMAX and an integer N >= 1, got "
+                             f"{fmin!r} {fmax!r} {n!r}")
+    f_n = np.geomspace(fmin, fmax, int(n))
+    vrs = S.vibration_response_spectrum(table, f_n, zeta)
+    ers = S.extreme_response_spectrum(table, f_n, zeta, duration=args.duration)
+    fds = S.fatigue_damage_spectrum(table, f_n, zeta, slope=args.slope,
+                                    coefficient=args.coefficient, duration=args.duration,
+                                    response=args.response, method=args.method)
+    test = None if args.test_duration is None else S.fds_equivalent_psd(fds, args.test_duration)
+    print(f"spectra of {args.psd}: {table.grms:.4g} grms over {table.freqs_hz[0]:g} .. "
+          f"{table.freqs_hz[-1]:g} Hz; damping ratio {zeta:g} (Q = {1 / (2 * zeta):g}), "
+          f"duration {args.duration:g} s; VRS and ERS of the absolute and pseudo "
+          f"acceleration, FDS of the {args.response.replace('_', ' ')} (slope "
+          f"{args.slope:g}, coefficient {args.coefficient:g}, {args.method.replace('_', ' ')})")
+    head = f"{'f_n [Hz]':>12s} {'VRS':>12s} {'ERS':>12s} {'FDS':>12s}"
+    print(head + (f" {'test PSD':>12s}" if test is not None else ""))
+    for i in np.unique(np.linspace(0, f_n.size - 1, min(f_n.size, 12)).round().astype(int)):
+        print(f"{f_n[i]:12.5g} {vrs.values[i]:12.5g} {ers.values[i]:12.5g} "
+              f"{fds.values[i]:12.5g}" + (f" {test.values[i]:12.5g}" if test is not None
+                                          else ""))
+    if test is not None:
+        print(f"PSD equivalent to the FDS over {args.test_duration:g} s: {test.grms:.4g} grms "
+              f"({test.grms / table.grms:.4g} x the input)")
+    if args.out:
+        cols = [f_n, vrs.values, ers.values, fds.values] + ([test.values] if test else [])
+        names = ["freq_hz", "vrs", "ers", "fds"] + (["test_psd"] if test else [])
+        lines = [",".join(names)] + [",".join(f"{v:.17g}" for v in row)
+                                     for row in np.column_stack(cols)]
+        data = ("\n".join(lines) + "\n").encode()
+        meta = {"format": "dtdyn test spectra", "version": 1, "table": Path(args.out).name,
+                "columns": names, "psd_file": str(args.psd),
+                "psd_breakpoints": [[float(f), float(g)] for f, g in
+                                    zip(table.freqs_hz, table.values)],
+                "psd_grms": table.grms, "damping_ratio": zeta, "duration_s": args.duration,
+                "vrs": {"response": vrs.response,
+                        "rms_error_estimate": vrs.info["rms_error_estimate"]},
+                "ers": {"response": ers.response, "peak": ers.info["peak"]},
+                "fds": {"response": fds.response, "slope": args.slope,
+                        "coefficient": args.coefficient, "method": args.method},
+                "test_duration_s": args.test_duration,
+                "test_psd_grms": None if test is None else test.grms,
+                "versions": _versions()}
+        side = (json.dumps(meta, indent=1) + "\n").encode()
+        write_atomic_files([(sidecar_path(args.out), lambda fh: fh.write(side)),
+                            (args.out, lambda fh: fh.write(data))])
+        print(f"results: {args.out} (metadata: {sidecar_path(args.out).name})")
+    if args.plot:
+        from dtdyn._engine.extras import require
+        require("matplotlib", "plot", "dtdyn fds --plot")
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        path = Path(args.plot)
+        fig = Figure(figsize=(7.0, 9.0), layout="constrained")
+        canvas = FigureCanvasAgg(fig)
+        fmt = path.suffix[1:].lower() or "png"
+        if fmt not in canvas.get_supported_filetypes():
+            raise ValueError(f"--plot {args.plot!r}: unsupported format {fmt!r}, allowed: "
+                             f"{', '.join(sorted(canvas.get_supported_filetypes()))}")
+        a1, a2, a3 = fig.subplots(3, 1)
+        fb = np.geomspace(table.freqs_hz[0], table.freqs_hz[-1], 400)
+        a1.loglog(fb, table(fb), "k", label=f"{Path(args.psd).name}: {table.grms:.3g} grms")
+        if test is not None:
+            a1.loglog(f_n, test.values, "r--", label=f"FDS-equivalent over "
+                                                      f"{args.test_duration:g} s: "
+                                                      f"{test.grms:.3g} grms")
+        a1.set(xlabel="f [Hz]", ylabel="PSD [(unit)^2/Hz]")
+        a2.loglog(f_n, vrs.values, label="VRS (rms absolute acceleration)")
+        a2.loglog(f_n, ers.values, label=f"ERS (pseudo-acceleration, {args.duration:g} s)")
+        a2.set(xlabel="natural frequency [Hz]", ylabel="response")
+        a3.loglog(f_n, fds.values, label=f"FDS, slope {args.slope:g}, {args.duration:g} s")
+        a3.set(xlabel="natural frequency [Hz]", ylabel="damage")
+        for ax in (a1, a2, a3):
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=8)
+        fig.suptitle(f"damping ratio {zeta:g} (Q = {1 / (2 * zeta):g})", fontsize=10)
+        write_atomic(path, lambda fh: fig.savefig(fh, format=fmt, dpi=110))
+        print(f"plot: {args.plot}")
+    return 0
+
+
+def _fds_arguments(sub) -> None:
+    """The parser of `dtdyn fds`."""
+    from dtdyn.random_vibration.fatigue import METHODS
+    from dtdyn.random_vibration.spectra import RESPONSES
+
+    fd = sub.add_parser("fds", help="vibration response, extreme response and fatigue damage "
+                                    "spectra (VRS, ERS, FDS) of a PSD table, and the PSD "
+                                    "equivalent to its FDS over a test duration")
+    fd.add_argument("psd", help="CSV of the PSD table: two columns, f [Hz] and PSD "
+                                "[(unit)^2/Hz], log-log between rows")
+    fd.add_argument("--slope", type=float, required=True,
+                    help="Basquin slope b of the S-N curve N = C S^-b")
+    fd.add_argument("--coefficient", type=float, default=1.0,
+                    help="Basquin coefficient C (default 1)")
+    fd.add_argument("--duration", type=float, required=True, help="exposure time, s")
+    damping = fd.add_mutually_exclusive_group()
+    damping.add_argument("--q", type=float, default=None,
+                         help="quality factor Q = 1 / (2 damping ratio) (default 10)")
+    damping.add_argument("--damping-ratio", type=float, default=None,
+                         help="damping ratio (default 0.05)")
+    fd.add_argument("--freqs", type=float, nargs=3, metavar=("FMIN", "FMAX", "N"),
+                    help="N log-spaced natural frequencies, Hz (default: the table's band, 100)")
+    fd.add_argument("--response", default="relative_displacement", choices=RESPONSES,
+                    help="the response whose damage the FDS sums (default relative "
+                         "displacement)")
+    fd.add_argument("--method", default="narrow_band", choices=METHODS,
+                    help="spectral damage formula (default narrow_band)")
+    fd.add_argument("--test-duration", type=float, default=None, metavar="SECONDS",
+                    help="also give the PSD whose FDS over this duration equals the input's")
+    fd.add_argument("--plot", help="draw the PSD (grms in the legend), VRS, ERS and FDS on "
+                                   "log-log axes to this image file")
+    fd.add_argument("--out", help="write freq_hz, vrs, ers, fds (, test_psd) to this CSV, "
+                                  "its parameters to <name>.csv.json")
+
+
+def _show_arguments(p) -> None:
+    """The arguments of `dtdyn scheme show` and of its alias `dtdyn show`."""
+    p.add_argument("scheme", metavar="SCHEME",
+                   help=f"a built-in scheme ({', '.join(SCHEMES)}) or a scheme file (*.toml)")
+    how = p.add_mutually_exclusive_group()
+    how.add_argument("--latex", action="store_true", help="print LaTeX (amsmath align*)")
+    how.add_argument("--markdown", action="store_true", help="print Markdown with $...$ math")
+
+
 def _parser() -> argparse.ArgumentParser:
     from dtdyn import __version__
     from dtdyn.modal.srs import RESPONSES, WINDOWS
@@ -554,10 +738,12 @@ def _parser() -> argparse.ArgumentParser:
                     help="column of a table holding the samples (default: the last)")
     sr.add_argument("--plot", help="draw maximax/positive/negative to this image file")
     sr.add_argument("--out", help="write freq_hz, maximax, positive, negative to this CSV")
+    _fds_arguments(sub)
     st = sub.add_parser("stability", help="spectral radius, period elongation and algorithmic "
                                           "damping of each scheme")
     st.add_argument("schemes", nargs="*", metavar="SCHEME",
-                    help=f"scheme names (default: all): {', '.join(SCHEMES)}")
+                    help=f"scheme names (default: all): {', '.join(SCHEMES)}, or scheme files "
+                         "(*.toml)")
     st.add_argument("--plot", help="draw the curves to this image file")
     ba = sub.add_parser("batch", help="run many scenes or variations of one on Dask (this machine "
                                       "or a cluster) into a Zarr store (needs the [batch] extra)")
@@ -605,15 +791,28 @@ def _parser() -> argparse.ArgumentParser:
                     help="threads of the BLAS libraries during the bench (threadpoolctl; "
                          "default 1: small matrices' BLAS calls on several threads of a shared "
                          "machine vary by 50x from run to run)")
-    s = sub.add_parser("show", help="a scheme's defining relations, derived coefficients and "
-                                    "DT-TMM station matrices (needs the [derive] extra)")
-    s.add_argument("scheme", choices=SCHEMES, metavar="SCHEME",
-                   help=f"one of: {', '.join(SCHEMES)}")
-    s.add_argument("--latex", action="store_true", help="print the matrices as LaTeX")
+    sc = sub.add_parser("scheme", help="a time-integration scheme: `dtdyn scheme show NAME` "
+                                       "prints its derivation")
+    actions = sc.add_subparsers(dest="action", required=True, metavar="ACTION")
+    show_help = ("a scheme's defining relations, derived coefficients and DT-TMM station "
+                 "matrices, factored (needs the [derive] extra)")
+    _show_arguments(actions.add_parser("show", help=show_help))
+    _show_arguments(sub.add_parser("show", help=show_help + "; the same as `dtdyn scheme show`"))
+    ck = actions.add_parser("check", help="a scheme's derivation report: order of accuracy, "
+                                          "explicitness, rho_inf, stability limit, spectral "
+                                          "radius and period elongation over Omega")
+    ck.add_argument("scheme", metavar="SCHEME",
+                    help=f"a built-in scheme ({', '.join(SCHEMES)}) or a scheme file (*.toml)")
+    ck.add_argument("--plot", help="draw spectral radius, period elongation and algorithmic "
+                                   "damping over Omega to this image file")
     g = sub.add_parser("generate", help="rewrite generated/ from the SymPy derivations (from a "
                                         "source checkout; needs the [derive] extra)")
     g.add_argument("--check", action="store_true", help="exit 1 if generated/ is out of date")
-    g.add_argument("--out", help="target folder (default: generated/ of the checkout you are in)")
+    g.add_argument("--out", help="target folder (default: generated/ of the checkout you are "
+                                 "in); with --out, also DIR/vendor: the C kernels, their headers "
+                                 "and example.c, standalone")
+    g.add_argument("schemes", nargs="*", metavar="SCHEME_FILE",
+                   help="scheme files (TOML) whose kernels --out adds to DIR/vendor")
     return parser
 
 
@@ -640,8 +839,8 @@ def main(argv=None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # --help, --version (0) or a usage error (2), already printed
         return int(exc.code or 0)
-    handler = {"generate": _generate, "show": _show, "simulate": _simulate,
-               "stability": _stability, "srs": _srs, "bench": _bench,
+    handler = {"generate": _generate, "show": _show, "scheme": _scheme, "simulate": _simulate,
+               "stability": _stability, "srs": _srs, "fds": _fds, "bench": _bench,
                "modes": _modes, "spectrum": _spectrum, "batch": _batch}[args.command]
     try:
         with warning_scope(), warnings.catch_warnings():

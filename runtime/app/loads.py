@@ -8,6 +8,11 @@ Kinds and their fields (defaults in brackets)::
                                                   f(t) = amplitude sin(2 pi frequency t + phase)
     white_noise  std, seed (int)                  f(t_i) = std * default_rng(seed).standard_normal
     file         path, column [0]                 one sample per time step from a .csv or .npy file
+    psd          psd, seed (int)                  a stationary Gaussian record with the one-sided
+                                                  PSD given as breakpoints [[Hz, value], ...]
+                                                  (log-log between them, a value may be a slope
+                                                  "+3 dB/oct"; dtdyn.random_vibration.psd_table),
+                                                  by random_time_history(table, dt, len(t), seed)
 
 A ``file`` path is taken relative to the scene file's folder. The file must hold exactly
 ``len(t)`` samples (one per time step ``t_0 .. t_n``, at the scene's ``dt``); a CSV is read with
@@ -32,6 +37,7 @@ LOAD_KINDS: dict[str, tuple[tuple[str, ...], dict]] = {
     "sine": (("amplitude", "frequency"), {"phase": 0.0}),
     "white_noise": (("std", "seed"), {}),
     "file": (("path",), {"column": 0}),
+    "psd": (("psd", "seed"), {}),
 }
 
 
@@ -187,5 +193,28 @@ def sample_load(spec: dict, t: np.ndarray, base_dir: Path, *, name: str = "load"
         seed = _integer(f"{name}.seed", spec["seed"], minimum=0)
         return std * np.random.default_rng(seed).standard_normal(t.size)
 
-    # kind == "file"
-    return _read_file(name, spec, t.size, Path(base_dir))
+    # kind == "psd" or "file"
+    return (_psd_record(name, spec, t, dt) if kind == "psd"
+            else _read_file(name, spec, t.size, Path(base_dir)))
+
+
+def _psd_record(name: str, spec: dict, t: np.ndarray, dt: float | None) -> np.ndarray:
+    """The samples of a "psd" load: a Gaussian record with the table's PSD at the step of t."""
+    from dtdyn.random_vibration import psd_table
+    from dtdyn.random_vibration.synthesis import random_time_history
+
+    seed = _integer(f"{name}.seed", spec["seed"], minimum=0)
+    if dt is None:
+        raise ValueError(f"{name}: a psd load needs at least two time steps")
+    raw = spec["psd"]
+    if isinstance(raw, (str, bytes, dict)) or not isinstance(raw, (list, tuple)):
+        raise ValueError(f"{name}.psd = {raw!r}: give breakpoints [[Hz, PSD], ...]")
+    try:
+        table = psd_table(raw)
+    except ValueError as exc:
+        raise ValueError(f"{name}.psd = {raw!r}: {str(exc).removeprefix('psd_table: ')}") from None
+    if table.freqs_hz[-1] > 0.5 / dt * (1.0 + 1e-12):
+        raise ValueError(f"{name}.psd reaches {table.freqs_hz[-1]:g} Hz, above the Nyquist "
+                         f"frequency 0.5/dt = {0.5 / dt:g} Hz of the time grid: take "
+                         f"dt <= {0.5 / table.freqs_hz[-1]:.6g} s")
+    return random_time_history(table, dt, t.size, seed=seed)

@@ -15,7 +15,8 @@ The natural frequencies come from the Wittrick-Williams count: the number of eig
 (K, M) below lambda is the inertia of K - lambda M, here taken in mixed form (each element's
 deformation and flexibility as unknowns, so flexibilities add node by node instead of
 element stiffnesses cancelling; `wittrick_williams_counts`); each root is isolated by that
-count and converged by regula falsi on det(K - lambda M), which the same recursion gives;
+count and converged by regula falsi on det(K - lambda M), which the same recursion gives,
+then finished on (K, M) by inverse iteration and residual correction (`beam_frequencies`);
 rigid-body modes are exact zeros (`rigid_body_modes`).
 docs/beam.md has the equations.
 """
@@ -33,6 +34,9 @@ from dtdyn.generated import beam as derived
 from dtdyn._engine import cbuild
 from dtdyn._engine import ground as support
 from dtdyn._engine import linalg, validate
+from dtdyn._engine.public import public
+from dtdyn.linear import mck
+from dtdyn.linear.solver import Model, Solver, check_backend, scheme_key, schemes_of_run
 
 __all__ = ["Beam", "PointMass", "Support", "beam_matrices", "beam_frequencies", "beam_response"]
 
@@ -109,8 +113,11 @@ def _number(name, value, positive=False):
     return float(v[0])
 
 
-class Beam:
+class Beam(Model):
     """A uniform Euler-Bernoulli beam of Hermite cubic elements (module docstring).
+
+    The model of `beam_response`; ``solver(dt, ...)`` prepares it for many load cases
+    (`Solver`).
 
     Parameters
     ----------
@@ -247,6 +254,58 @@ class Beam:
         diag = self.nodal_diagonals()
         M, C, K = (A + sps.diags(diag[d]) for A, d in ((M, "m"), (C, "c"), (K, "k")))
         return M.tocsr(), C.tocsr(), K.tocsr()
+
+    @public
+    def solver(self, dt, *, scheme="newmark", form="displacement", backend="c", outputs=None,
+               quantities=("x", "v", "a"), unstable="raise", **scheme_params) -> BeamSolver:
+        """Prepare the beam for many load cases at the sample step ``dt``.
+
+        Checks the options and the stability limit (a bound of the beam's highest mode),
+        stores the node blocks of M, C, K, factorizes M and the effective matrix of each scheme
+        the run steps with (the start-up scheme of a multistep scheme too) by the matrix
+        Riccati sweep and loads the C kernel, once (backend "numpy": the sparse LUs of M and of
+        the effective matrix). Each ``run`` of the returned solver is then one load case, the
+        results of `beam_response` bitwise.
+
+        Parameters
+        ----------
+        dt : float
+            Sample step, s, > 0.
+        scheme : str
+            Any scheme of `chain_response`; its parameters (``beta``, ``gamma``, ``theta``,
+            ``alpha``, ``rho_inf``) as keywords.
+        form : {"displacement", "acceleration"}
+            As `beam_response` (explicit schemes have only the acceleration form).
+        backend : {"c", "numpy"}
+            As `beam_response`.
+        outputs : sequence of int or DOF names, optional
+            DOFs whose response is stored: indices into ``dof_names`` or the names ("w12");
+            all by default.
+        quantities : subset of ("x", "v", "a")
+            What is stored; the others are None in the results.
+        unstable : {"raise", "warn"}
+            A conditionally stable scheme beyond its limit: refused here
+            (DtdynUnstableError), or warned about.
+        **scheme_params
+            The scheme's parameters.
+
+        Returns
+        -------
+        Solver
+            ``run(force, force_dofs=..., x0=..., v0=..., ground_acceleration=...)`` per load
+            case (``force_dofs`` by index or name); safe to call from several threads at once.
+
+        Examples
+        --------
+        >>> import numpy as np, dtdyn as dd
+        >>> beam = dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=100)
+        >>> solver = beam.solver(1e-4, outputs=["w100"])
+        >>> r1, r2 = (solver.run(np.full(201, f), force_dofs=["w100"]) for f in (1.0, 2.0))
+        >>> r1.x.shape, bool(np.allclose(r2.x, 2 * r1.x))
+        ((201, 1), True)
+        """
+        return BeamSolver(self, dt, scheme, form, backend, outputs, quantities, unstable,
+                          scheme_params)
 
 
 def beam_matrices(beam: Beam):
@@ -491,10 +550,24 @@ def beam_frequencies(beam: Beam, count=None, below=None) -> np.ndarray:
     less than half are followed by a bisection. The iteration ends at a bracket of two ulps,
     or at the count's rounding floor: once the bracket is narrower than 1e-9 relative, p is
     linear in it unless rounding dominates, and then :math:`(|p(l)| + |p(h)|) / (h - l)`
-    grows as the bracket shrinks (16 times its least value ends it). The root is the
-    bracket's midpoint. About 25 counts find the lowest ten of a 1,000-element cantilever
-    (bisection to adjacent floats took about 100). Every root's path depends on the beam and
-    its index alone, so its bits do not depend on ``count`` or ``below``. Rigid-body modes
+    grows as the bracket shrinks (16 times its least value ends it). The bracket's midpoint
+    sigma is then finished on the (K, M) of `beam_matrices` themselves, O(N) per root: two
+    steps of inverse iteration with the banded LU of :math:`K - \sigma M` (LAPACK dgbtrf,
+    partial pivoting), then three corrections :math:`x \leftarrow x - (z - \alpha y)` with
+    :math:`(K - \sigma M) z = r = (K - \rho M) x`, :math:`(K - \sigma M) y = M x`,
+    :math:`\alpha` making the step M-orthogonal to x and :math:`\rho` the Rayleigh quotient
+    (Newton's method for the eigenpair with the Jacobian frozen at sigma; Dongarra, Moler &
+    Wilkinson 1983). K x is summed with exact products and compensated sums (Dekker,
+    Knuth), so r keeps its digits where K x and rho M x cancel, and the final Rayleigh
+    quotient is good to a few ulps (docs/frequency_accuracy.md). The count confirms it:
+    exactly root j in :math:`\rho (1 \mp \delta)` (delta four times its distance from
+    sigma, and at least the lesser of 1e-7 and a quarter of the relative gap to the next root
+    found); a root it cannot confirm (a pair the count cannot part) keeps sigma. So the
+    accuracy does not rest on the count's extended precision (long double is double on some
+    platforms). About 25 counts
+    find the lowest ten of a 1,000-element cantilever (bisection to adjacent floats took about
+    100). Every root's path depends on the beam and its index alone, so its bits do not
+    depend on ``count`` or ``below``. Rigid-body modes
     (`rigid_body_modes`) are exact zeros.
 
     Parameters
@@ -607,7 +680,10 @@ def beam_frequencies(beam: Beam, count=None, below=None) -> np.ndarray:
         lo[i_lo], clo[i_lo], llo[i_lo], tlo[i_lo] = x[i_lo], c[~up], logdet[~up], logdet[~up]
         shrunk = hi[idx] - lo[idx] <= 0.5 * width[idx]
         slow[idx] = np.where(falsi[idx] & ~shrunk, slow[idx] + 1, 0)
-    return np.concatenate([np.zeros(rigid), np.sqrt(0.5 * lo + 0.5 * hi)])
+    from dtdyn.linear.beam_frequency import refined_roots  # (it imports this module)
+
+    lam = refined_roots(beam, 0.5 * lo + 0.5 * hi, j, blocks)
+    return np.concatenate([np.zeros(rigid), np.sqrt(lam)])
 
 
 def _highest_frequency_bound(beam: Beam) -> float:
@@ -703,61 +779,91 @@ def beam_response(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     >>> r.x.shape
     (201, 1)
     """
-    from dtdyn._engine import stepping
-    from dtdyn._engine.schemes import get_scheme
-    from dtdyn.linear import mck
-    from dtdyn.linear.stability import check_dt
-
     if not isinstance(beam, Beam):
         raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
-    if backend not in ("c", "numpy"):
-        raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
-    lib = _block_library() if backend == "c" else None
-    # the C kernel needs the assembled M only for a ground record's load
-    moving = support.given(ground_acceleration, ground_velocity, ground_displacement)
-    M, C, K = beam_matrices(beam) if lib is None or moving else (None, None, None)
-    n = beam.n_dof
-    force, force_dofs, ground = support.prepare_model(
-        M, force, force_dofs, beam.dof_names, lambda k: rigid_translation(beam, k), dt=dt,
-        ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
-        ground_displacement=ground_displacement, influence=influence)
-    force, dt, loaded = validate.time_history(force, dt, force_dofs, n)
-    x0, v0 = validate.initial_conditions(x0, v0, n)
-    outputs = validate.dof_indices("outputs", outputs, n, names=beam.dof_names)
-    quantities = stepping.check_quantities(quantities)
-    if form not in ("displacement", "acceleration"):
-        raise ValueError(f"form must be 'displacement' or 'acceleration', got {form!r}")
-    info = get_scheme(scheme, **scheme_params)
-    check_dt(info, dt, lambda limit: _highest_frequency_bound(beam), unstable)
-    f0 = np.zeros(n)
-    f0[loaded] = force[0]
-    full = [np.zeros(2 * (beam.elements + 1)) for _ in range(3)]
-    for z, part in zip(full, (x0, v0)):
-        z[beam.free] = part
-    if lib is not None:
-        stored = node_blocks(beam)
-        full[2] = _initial_acceleration(lib, beam, stored, f0, full[0], full[1])
-    else:
-        full[2][beam.free] = linalg.solver(M, "M")(f0 - C @ v0 - K @ x0)
-        Mg, Cg, Kg = node_system(beam)
+    solver = beam.solver(dt, scheme=scheme, form=form, backend=backend, outputs=outputs,
+                         quantities=quantities, unstable=unstable, **scheme_params)
+    return solver.run(force, force_dofs=force_dofs, x0=x0, v0=v0, progress=progress,
+                      ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
+                      ground_displacement=ground_displacement, influence=influence)
 
-    def advance_for(sch, coeffs):
+
+class BeamSolver(Solver):
+    """The `Solver` of `Beam`: the DT-TMM with the matrix Riccati sweep on the node system
+    (`node_system`; a held DOF decoupled, at rest). Backend "c": the node blocks of M, C, K
+    stored once (`node_blocks`), M and each scheme's effective matrix factorized once by the
+    block sweep (`_block_operator`); "numpy": the sparse LUs of M and of the effective
+    matrices (`dtdyn.linear.mck.step_operator`). The assembled M of a ground record's load is
+    made at the first run that has one."""
+
+    def __init__(self, beam, dt, scheme, form, backend, outputs, quantities, unstable,
+                 scheme_params):
+        lib = _block_library() if check_backend(backend) == "c" else None
+        super().__init__(beam, dt, scheme, form, backend, outputs, quantities, unstable,
+                         lambda limit: _highest_frequency_bound(beam), scheme_params)
+        self._lib = lib
+        self._rigid = lambda k: rigid_translation(beam, k)
+        self._stored = beam.free[self.outputs]
+        self._dof_names = tuple(beam.dof_names[i] for i in self.outputs)
+        self._dof_kinds = tuple("rotation" if n.startswith("psi") else "translation"
+                                for n in self._dof_names)
+        self._full = 2 * (beam.elements + 1)
+        nodes = beam.elements + 1
+        runs = schemes_of_run(self._info)
         if lib is not None:
-            return _block_advance(lib, form, sch, coeffs, stored, beam.elements + 1,
-                                  beam.free[loaded], beam.free[outputs])
-        return mck.make_advance(form, sch, coeffs, Mg, Cg, Kg, beam.free[loaded],
-                                beam.free[outputs], None)
+            self._blocks = node_blocks(beam)
+            self._mass = _mass_factor(lib, beam, self._blocks)
+            self._coeffs = {scheme_key(s): s.coefficients(form, self.dt) for s in runs}
+            self._ops = {key: _block_operator(lib, form, s, self._coeffs[key], self._blocks,
+                                              nodes)
+                         for s in runs for key in [scheme_key(s)]}
+        else:
+            M, self._C, self._K = beam_matrices(beam)
+            self._ground_mass = M
+            self._mass_solve = linalg.solver(M, "M")
+            Mg, Cg, Kg = node_system(beam)
+            self._ops = {scheme_key(s): mck.step_operator(form, s, s.coefficients(form, self.dt),
+                                                          Mg, Cg, Kg, self._stored, None)
+                         for s in runs}
 
-    res = stepping.integrate(info, form, dt, force, full, advance_for, beam.free[outputs],
-                             quantities, progress)
-    res.outputs = outputs
-    res.dof_names = tuple(beam.dof_names[i] for i in outputs)
-    res.dof_kinds = tuple("rotation" if n.startswith("psi") else "translation"
-                          for n in res.dof_names)
-    res.info.update(method="DT-TMM (matrix Riccati sweep)" if lib is not None else
-                    "assembled matrices (sparse LU)", form=form,
-                    backend="c" if lib is not None else "numpy")
-    return support.finish(res, ground)
+    def _load_case(self, force, force_dofs, x0, v0, *ground):
+        if self._ground_mass is None and support.given(*ground[:3]):
+            self._ground_mass = beam_matrices(self.model)[0]  # (two threads: made twice)
+        return super()._load_case(force, force_dofs, x0, v0, *ground)
+
+    def _initial_state(self, case):
+        beam = self.model
+        full = [np.zeros(self._full) for _ in range(3)]
+        for z, part in zip(full, (case.x0, case.v0)):
+            z[beam.free] = part
+        if self._lib is not None:
+            full[2] = _initial_acceleration(self._lib, beam, self._blocks, case.f0, full[0],
+                                            full[1], self._mass)
+        else:
+            full[2][beam.free] = self._mass_solve(case.f0 - self._C @ case.v0
+                                                  - self._K @ case.x0)
+        return full
+
+    def _stepper(self, loaded):
+        lib, form, ops, free = self._lib, self.form, self._ops, self.model.free
+        nodes = self.model.elements + 1
+        if lib is None:
+            return lambda sch, coeffs: ops[scheme_key(sch)](free[loaded])
+
+        def make_advance(sch, coeffs):
+            key = scheme_key(sch)
+            return _block_advance(lib, form, sch, self._coeffs[key], self._blocks, nodes,
+                                  free[loaded], self._stored, ops[key])
+        return make_advance
+
+    def _annotate(self, res):
+        res.outputs = self.outputs
+        res.dof_names = self._dof_names
+        res.dof_kinds = self._dof_kinds
+        c = self._lib is not None
+        res.info.update(method="DT-TMM (matrix Riccati sweep)" if c else
+                        "assembled matrices (sparse LU)", form=self.form,
+                        backend="c" if c else "numpy")
 
 
 @cache
@@ -869,9 +975,22 @@ def _from_kernel(zs, nodes):
     return np.swapaxes(zs[..., :nodes], -1, -2).reshape(zs.shape[:-2] + (2 * nodes,))
 
 
-def _initial_acceleration(lib, beam, stored, f0, x0, v0):
+def _mass_factor(lib, beam, stored):
+    """M factorized once for `_initial_acceleration`: (its block Riccati factors, None), or,
+    where the block sweep meets a singular pivot, (None, the sparse solve of M), which is a
+    ValueError naming M when M is singular."""
+    nodes = beam.elements + 1
+    fac = _aligned((11, _stride(nodes)))
+    if lib.dtdyn_block_chain_factor(nodes, stored[2].ctypes.data, fac.ctypes.data) >= 0:
+        return None, linalg.solver(beam_matrices(beam)[0], "M")
+    return fac, None
+
+
+def _initial_acceleration(lib, beam, stored, f0, x0, v0, mass=None):
     """a_0 over the node system from M a_0 = f_0 - C v_0 - K x_0 by the block Riccati solve
-    (zero on the held DOFs); a singular M falls back to the sparse solve, which names it."""
+    (zero on the held DOFs); a singular M falls back to the sparse solve, which names it.
+    ``mass``: `_mass_factor`, made once by a solver (None: made here)."""
+    fac, mass_solve = mass or _mass_factor(lib, beam, stored)
     bK, bC, bM = stored
     nodes = beam.elements + 1
     rhs = np.zeros(2 * nodes)
@@ -882,10 +1001,9 @@ def _initial_acceleration(lib, beam, stored, f0, x0, v0):
     held = np.ones(2 * nodes, dtype=bool)
     held[beam.free] = False
     rhs[held] = 0.0
-    fac = _aligned((11, _stride(nodes)))
-    if lib.dtdyn_block_chain_factor(nodes, bM.ctypes.data, fac.ctypes.data) >= 0:
-        a = np.zeros(2 * nodes)  # the sparse solve: its result, or the error naming M
-        a[beam.free] = linalg.solver(beam_matrices(beam)[0], "M")(rhs[beam.free])
+    if fac is None:
+        a = np.zeros(2 * nodes)  # the sparse solve of M
+        a[beam.free] = mass_solve(rhs[beam.free])
         return a
     a = _to_kernel(rhs, nodes)
     lib.dtdyn_block_chain_solve(nodes, fac.ctypes.data, a.ctypes.data)
@@ -907,10 +1025,12 @@ def _block_product(b, z, nodes):
     return out.ravel()
 
 
-def _block_advance(lib, form, sch, K_, stored, nodes, loaded, outputs):
-    """advance() of stepping.integrate by block_chain.c: the step of `mck.make_advance` on the
-    node system stored by `node_blocks` (K, C, M), the effective matrix factorized by the
-    matrix Riccati sweep once per call of this function (that is, per scheme of the run)."""
+def _block_operator(lib, form, sch, K_, stored, nodes):
+    """The load-independent operands of `_block_advance` for one scheme: the effective matrix
+    factorized by the matrix Riccati sweep (a ValueError when it is singular), the step's maps
+    on the history rows and the kernel's pointer array ``mats``. Returns (mats, L, c_u, shift,
+    rows, keep, names): ``keep`` the arrays ``mats`` points to; every array is only read by
+    the kernel, so one operator serves any number of runs, at once in several threads."""
     from dtdyn.generated.dttmm_sweep import error_history_maps
     from dtdyn.linear.mck import EFFECTIVE
 
@@ -927,9 +1047,6 @@ def _block_advance(lib, form, sch, K_, stored, nodes, loaded, outputs):
     c_u = np.ascontiguousarray(c_u.ravel(), dtype=float)
     shift = np.array(shifts, dtype=np.int64).reshape(-1, 2)
     rows = np.arange(len(names), dtype=np.int64)[rows]
-    order = np.argsort(loaded, kind="stable")
-    loaded = np.ascontiguousarray(np.asarray(loaded, dtype=np.int64)[order])
-    out_idx = np.ascontiguousarray(outputs, dtype=np.int64)
     # the right side of a one-step scheme (history x0, v0, a0) as sum_h B_h H_h with
     # B_h = L_q[h] K + L_s[h] C + L_b[h] M once per run (no pass for q, s, b); a multistep
     # scheme's q, s, b are differences of lags, formed first, so that K, C, M multiply what
@@ -946,7 +1063,23 @@ def _block_advance(lib, form, sch, K_, stored, nodes, loaded, outputs):
     mats = (ctypes.c_void_p * (4 + len(names)))(
         None if direct else bK.ctypes.data, bC.ctypes.data, bM.ctypes.data if with_m else None,
         fac.ctypes.data, *[ptr(b) for b in B])
-    work = _aligned((2 * _stride(nodes) + 16,))
+    return mats, L, c_u, shift, rows, keep, names
+
+
+def _block_advance(lib, form, sch, K_, stored, nodes, loaded, outputs, operator=None):
+    """advance() of stepping.integrate by block_chain.c: the step of `mck.make_advance` on the
+    node system stored by `node_blocks` (K, C, M), for the force on the node-system rows
+    ``loaded``, storing the rows ``outputs``. ``operator``: the scheme's `_block_operator`,
+    made once by a solver (None: made here, the effective matrix factorized per call). The
+    advance allocates its own scratch."""
+    mats, L, c_u, shift, rows, keep, names = operator or _block_operator(lib, form, sch, K_,
+                                                                         stored, nodes)
+    order = np.argsort(loaded, kind="stable")
+    loaded = np.ascontiguousarray(np.asarray(loaded, dtype=np.int64)[order])
+    out_idx = np.ascontiguousarray(outputs, dtype=np.int64)
+    from dtdyn.generated import c_api  # the work's rows (z), each after its gap
+
+    work = _aligned((c_api.BLOCK_CHAIN_ROWS * (_stride(nodes) + c_api.BLOCK_CHAIN_GAP),))
     n_hist = len(names)
     run = lib.dtdyn_block_chain_loop
 
@@ -957,9 +1090,15 @@ def _block_advance(lib, form, sch, K_, stored, nodes, loaded, outputs):
         args = (nodes, n_hist, frc.shape[0] - 1, loaded.size, loaded.ctypes.data,
                 frc.ctypes.data, ctypes.addressof(mats), L.ctypes.data, c_u.ctypes.data,
                 K_["w0"], K_["w1"], shift.shape[0], shift.ctypes.data, rows.ctypes.data,
-                Hs.ctypes.data, out_idx.size, out_idx.ctypes.data, *ptr, work.ctypes.data)
+                Hs.ctypes.data, out_idx.size, out_idx.ctypes.data, *ptr, work.ctypes.data,
+                work.size)
         rc = cbuild.interruptible(lib, lambda: run(*args),
                                   work=(frc.shape[0] - 1) * 100 * nodes)
+        if rc == c_api.ERR_WORK:
+            from dtdyn._engine.kernels import DtdynKernelError
+
+            raise DtdynKernelError("dtdyn_block_chain_loop", rc, f"N = {nodes}, "
+                                   f"n_work = {work.size}")
         if rc != 0:
             raise RuntimeError(f"dtdyn_block_chain_loop returned {rc} (stopped by its stop flag)")
         H[...] = _from_kernel(Hs, nodes)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
+from scipy.linalg import lapack
 
 from dtdyn._engine import linalg, validate
 from dtdyn._engine.frf import receptance_matrix
@@ -208,6 +209,145 @@ def _pivoted_step(phi, lam, K, M):
         x = x / np.sqrt(x @ (M @ x))
         out[:, r] = x * np.sign(x[np.argmax(np.abs(x))])
     return out
+
+
+#: Dekker's splitter: a = hi + lo with hi, lo of 26 bits, so hi * hi' etc. are exact
+_SPLITTER = 134217729.0
+#: modes refined together (the products over the band run on (chunk, n) arrays)
+_CHUNK = 16
+#: residual-correction steps after the two steps of inverse iteration
+_CORRECTIONS = 3
+#: the least half-width (relative) of the interval in which the count must confirm a root
+_CONFIRM = 1e-7
+
+
+def _split(a):
+    c = _SPLITTER * a
+    hi = c - (c - a)
+    return hi, a - hi
+
+
+def _exact_band_product(diags, x):
+    """K x as an unevaluated sum hi + lo, for K by its diagonals ``diags`` ((offset, K[i, i +
+    offset] for every i, its two halves)), x (k, n): every product exact (Dekker's two-product)
+    and the sums compensated (Knuth's two-sum), so hi + lo is K x to about eps^2 |K| |x|."""
+    n = x.shape[-1]
+    xh, xl = _split(x)
+    s, err = np.zeros_like(x), np.zeros_like(x)
+    for d, a, ah, al in diags:
+        rows, cols = (slice(0, n - d), slice(d, n)) if d >= 0 else (slice(-d, n),
+                                                                     slice(0, n + d))
+        b, bh, bl, t0 = x[:, cols], xh[:, cols], xl[:, cols], s[:, rows]
+        p = a * b
+        pe = ((ah * bh - p) + ah * bl + al * bh) + al * bl
+        t = t0 + p
+        bb = t - t0
+        err[:, rows] += ((t0 - (t - bb)) + (p - bb)) + pe
+        s[:, rows] = t
+    return s, err
+
+
+def _pencil_bands(beam: Beam):
+    """K and M of `beam_matrices` scaled by powers of 2 (kscale, mscale: no rounding), their
+    half-bandwidth, the diagonals of K split for `_exact_band_product`, and M's diagonals."""
+    M, _, K = beam_matrices(beam)
+    width = max(abs(int(o)) for o in (K.todia().offsets.tolist() + M.todia().offsets.tolist()))
+    kscale = 2.0 ** np.round(np.log2(abs(K).max()))
+    mscale = 2.0 ** np.round(np.log2(abs(M).max()))
+    offsets = range(-width, width + 1)
+    kd = [(d, K.diagonal(d) / kscale) for d in offsets]
+    md = [(d, M.diagonal(d) / mscale) for d in offsets]
+    return width, [(d, a, *_split(a)) for d, a in kd], md, kscale / mscale
+
+
+def refined_roots(beam: Beam, lam: np.ndarray, index: np.ndarray, blocks) -> np.ndarray:
+    r"""Each root lam_j of the count (rad^2/s^2, > 0; ``index``: j, 0-based) to a few ulps of
+    the eigenvalue of the (K, M) of `beam_matrices`: inverse iteration and residual correction
+    with the banded LU of K - lam_j M (O(N) per root), the residual in twice the working
+    precision; the result kept where the count confirms it as root j (`beam_frequencies`)."""
+    from dtdyn.linear import beam as count
+
+    if lam.size == 0:
+        return lam
+    width, kd, md, unit = _pencil_bands(beam)
+    n = beam.n_dof
+    start = np.random.default_rng(0).uniform(0.5, 1.5, n)  # the same for every root
+    sigma = lam / unit
+    rho = np.empty_like(sigma)
+    for c0 in range(0, sigma.size, _CHUNK):
+        rho[c0:c0 + _CHUNK] = _refine_chunk(sigma[c0:c0 + _CHUNK], width, kd, md, start)
+    rho = rho * unit
+    # the count confirms rho as root j: one root in rho (1 -+ delta), delta beyond the
+    # distance to the count's value and beyond the count's rounding (or a quarter of the gap
+    # to the next root found, if less: a root the count cannot resolve keeps its value)
+    gap = np.full(lam.size + 1, np.inf)
+    gap[1:-1] = np.diff(lam)
+    floor = np.minimum(_CONFIRM, 0.25 * np.minimum(gap[:-1], gap[1:]) / lam)
+    delta = np.maximum(4.0 * np.abs(rho - lam) / lam, floor)
+    ok = np.isfinite(rho) & (rho > 0.0)
+    points = np.concatenate([rho * (1.0 - delta), rho * (1.0 + delta)])
+    points = np.where(np.isfinite(points), points, 0.0)
+    c = count._inertia(blocks, points.astype(count._WIDE) * count._WIDE(blocks[-1]))[0]
+    ok &= (c[:lam.size] == index) & (c[lam.size:] == index + 1)
+    return np.where(ok, rho, lam)
+
+
+def _band_product(diags, x):
+    """K x in working precision, K by its diagonals ((offset, K[i, i + offset] for every i))."""
+    n = x.shape[-1]
+    y = np.zeros_like(x)
+    for d, a in diags:
+        if d >= 0:
+            y[:, :n - d] += a * x[:, d:]
+        else:
+            y[:, -d:] += a * x[:, :n + d]
+    return y
+
+
+def _refine_chunk(sigma, width, kd, md, start):
+    """`refined_roots` for the shifts sigma (scaled units): two steps of inverse iteration from
+    ``start``, then `_CORRECTIONS` steps x <- x - (z - alpha y), A z = r = (K - rho M) x (r in
+    twice the working precision), A y = M x, alpha making the step M-orthogonal to x, rho the
+    Rayleigh quotient; A = K - sigma M factored once (LAPACK dgbtrf, partial pivoting)."""
+    k, n = sigma.size, start.size
+
+    def band(shift):  # LAPACK's storage of K - shift M: ab[2 w + i - j, j] = A[i, j]
+        ab = np.zeros((3 * width + 1, n))
+        for (d, a, _, _), (_, m) in zip(kd, md):
+            ab[2 * width - d, slice(d, n) if d >= 0 else slice(0, n + d)] = a - shift * m
+        return ab
+
+    factors = []
+    for i in range(k):
+        lu, piv, info = lapack.dgbtrf(band(sigma[i]), width, width)
+        if info > 0:  # sigma an eigenvalue to the last bits: shifted by 2^-40 relative
+            lu, piv, info = lapack.dgbtrf(band(sigma[i] * (1.0 + 2.0 ** -40)), width, width)
+        factors.append((lu, piv) if info == 0 else None)
+
+    def solve(rhs):  # rhs (k, n) or (k, n, 2)
+        out = np.full_like(rhs, np.nan)
+        for i, f in enumerate(factors):
+            if f is not None:
+                out[i] = lapack.dgbtrs(f[0], width, width, rhs[i], f[1])[0]
+        return out
+
+    def unit(x):
+        return x / np.max(np.abs(x), axis=-1, keepdims=True)
+
+    with np.errstate(all="ignore"):
+        x = unit(solve(np.broadcast_to(_band_product(md, start[None]), (k, n)).copy()))
+        x = unit(solve(_band_product(md, x)))
+        for _ in range(_CORRECTIONS + 1):
+            kh, kl = _exact_band_product(kd, x)
+            Mx = _band_product(md, x)
+            rho = np.sum(x * (kh + kl), axis=-1) / np.sum(x * Mx, axis=-1)
+            if _ == _CORRECTIONS:
+                return rho
+            r = (kh - rho[:, None] * Mx) + kl
+            zy = solve(np.stack([r, Mx], axis=-1))
+            z, y = zy[..., 0], zy[..., 1]
+            alpha = np.sum(Mx * z, axis=-1) / np.sum(Mx * y, axis=-1)
+            x = unit(x - (z - alpha[:, None] * y))
 
 
 def _dof(name, value, beam):

@@ -396,8 +396,8 @@ class ChainSolver(Solver):
         super().__init__(chain, dt, scheme, form, backend, outputs, quantities, unstable,
                          lambda limit: chain_highest_frequency(m, k, limit, kg), scheme_params)
         info = self._info
-        K0 = info.coefficients(form, self.dt)
-        kappa = k * K0["p"] + c * K0["r"]
+        kappa = np.min([np.abs(k * K0["p"] + c * K0["r"]) for K0 in
+                        (s.coefficients(form, self.dt) for s in schemes_of_run(info))], axis=0)
         if np.any(kappa == 0.0):  # (a ground damper does not help: the station's row divides)
             n = int(np.flatnonzero(kappa == 0.0)[0])
             raise ValueError(f"damping[{n}] = 0 with the explicit scheme {info.name!r}: the "
@@ -410,8 +410,9 @@ class ChainSolver(Solver):
         _, self._C, self._K = chain.matrices(sparse=True)
         if backend == "c":  # compile or load the kernels now, not in the first run
             for sch in schemes_of_run(info):
-                kernels.c_chain_function(sch.name)
-        self._used = "c" if backend == "c" and kernels.c_chain_function(info.name) else "numpy"
+                kernels.c_chain_function(sch)
+        self._used = ("c" if backend == "c" and kernels.c_chain_function(schemes_of_run(info)[-1])
+                      else "numpy")
 
     def _initial_acceleration(self, case):
         f0 = case.f0

@@ -19,10 +19,12 @@ from importlib import resources
 import numpy as np
 import scipy.sparse as sps
 
+from dtdyn.generated import c_api
 from dtdyn.generated.dttmm_sweep import combine, error_history_maps, shift_history
 
 from dtdyn._engine import cbuild
 from dtdyn._engine import linalg
+from dtdyn._engine.kernels import DtdynKernelError
 from dtdyn._engine.public import public
 from dtdyn._engine.result import Response
 from dtdyn.linear.solver import Model, Solver, check_backend, schemes_of_run, scheme_key
@@ -195,7 +197,7 @@ def _c_operator(lib, sch, K_, A, C, K, M, blocks, outputs, what):
 
     def bind(loaded):
         loaded = np.ascontiguousarray(loaded, dtype=np.int64)
-        work = np.empty(8 * n)  # scratch of this advance alone
+        work = np.empty(c_api.MCK_ROWS * n)  # scratch of this advance alone
 
         def advance(frc, H, xo, vo, ao):
             frc = np.ascontiguousarray(frc, dtype=float)
@@ -205,9 +207,11 @@ def _c_operator(lib, sch, K_, A, C, K, M, blocks, outputs, what):
                     frc.ctypes.data, ctypes.addressof(idx), ctypes.addressof(val),
                     L.ctypes.data, c_u.ctypes.data, K_["w0"], K_["w1"], shift.shape[0],
                     shift.ctypes.data, rows.ctypes.data, Hc.ctypes.data, out_idx.size,
-                    out_idx.ctypes.data, *ptr, work.ctypes.data)
+                    out_idx.ctypes.data, *ptr, work.ctypes.data, work.size)
             rc = cbuild.interruptible(lib, lambda: run(*args),
                                       work=(frc.shape[0] - 1) * step_work)
+            if rc == c_api.ERR_WORK:
+                raise DtdynKernelError("dtdyn_mck_loop", rc, f"n = {n}, n_work = {work.size}")
             if rc != 0:
                 raise RuntimeError(f"dtdyn_mck_loop returned {rc} (stopped by its stop flag)")
             if Hc is not H:

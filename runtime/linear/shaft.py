@@ -16,20 +16,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import cache
 from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sps
 
-from dtdyn._engine import cbuild, stepping, validate
-from dtdyn._engine import ground as support
+from dtdyn._engine import validate
 from dtdyn._engine import kernels
 from dtdyn._engine.kernels import params_array
-from dtdyn._engine.schemes import get_scheme
+from dtdyn._engine.public import public
 from dtdyn.generated import c_api
 from dtdyn.generated import shaft as gen
-from dtdyn.linear.stability import check_dt, highest_frequency
+from dtdyn.linear.solver import Model, Solver, check_backend, schemes_of_run
+from dtdyn.linear.stability import highest_frequency
 
 #: the ends a line of disks may have
 ENDS = ("free", "clamped", "elastic")
@@ -260,8 +259,11 @@ class Tree(NamedTuple):
     ground_segments: tuple = ()
 
 
-class Shaft:
+class Shaft(Model):
     """A torsional system: a main line of disks, optional branches (trees) and gears.
+
+    The model of `shaft_response`; ``solver(dt, ...)`` prepares it for many load cases
+    (`Solver`).
 
     Parameters
     ----------
@@ -442,6 +444,62 @@ class Shaft:
         return self._lumped
 
     @property
+    def n_dof(self) -> int:
+        """The DOFs of the lumped model."""
+        return len(self._lumped.names)
+
+    @public
+    def solver(self, dt, *, scheme="newmark", form="displacement", backend="c", outputs=None,
+               quantities=("x", "v", "a"), unstable="raise", **scheme_params) -> ShaftSolver:
+        """Prepare the shaft for many load cases at the sample step ``dt``.
+
+        Checks the options, the stability limit (the lumped model's highest mode) and each
+        shaft's row of the sweep under the scheme, assembles the matrices of the initial
+        acceleration, makes the sweep's gear factors and loads the C kernels of the scheme
+        (and of its start-up scheme), once. Each ``run`` of the returned solver is then one
+        load case, the results of `shaft_response` bitwise.
+
+        Parameters
+        ----------
+        dt : float
+            Sample step, s, > 0.
+        scheme : str
+            Any scheme of `chain_response`; its parameters (``beta``, ``gamma``, ``theta``,
+            ``alpha``, ``rho_inf``) as keywords.
+        form : {"displacement", "acceleration"}
+            As `shaft_response` (explicit schemes have only the acceleration form).
+        backend : {"c", "numpy"}
+            As `shaft_response`.
+        outputs : sequence of int or DOF names, optional
+            DOFs whose response is stored: indices into ``dof_names`` or the names
+            ("main.3"); all by default.
+        quantities : subset of ("x", "v", "a")
+            What is stored; the others are None in the results.
+        unstable : {"raise", "warn"}
+            A conditionally stable scheme beyond its limit: refused here
+            (DtdynUnstableError), or warned about.
+        **scheme_params
+            The scheme's parameters.
+
+        Returns
+        -------
+        Solver
+            ``run(force, force_dofs=..., x0=..., v0=..., ground_acceleration=...)`` per load
+            case (``force_dofs`` by index or name); safe to call from several threads at once.
+
+        Examples
+        --------
+        >>> import numpy as np, dtdyn as dd
+        >>> s = dd.Shaft([1.0, 2.0, 1.5], [1e4, 2e4, 2e4], [1.0, 1.0, 1.0])
+        >>> solver = s.solver(1e-3, scheme="hht", alpha=-0.1, outputs=["main.2"])
+        >>> r1, r2 = (solver.run(np.full(201, f), force_dofs=["main.2"]) for f in (1.0, 2.0))
+        >>> r1.x.shape, bool(np.allclose(r2.x, 2 * r1.x))
+        ((201, 1), True)
+        """
+        return ShaftSolver(self, dt, scheme, form, backend, outputs, quantities, unstable,
+                           scheme_params)
+
+    @property
     def has_continuous(self) -> bool:
         return any(s is not None for line, *_ in self.lines
                    for s in (*line.cont, line.right_segment))
@@ -500,28 +558,34 @@ def shaft_matrices(shaft: Shaft):
 
 # -- time histories ------------------------------------------------------------------------------
 
-@cache
-def _c_function(scheme: str):
-    source = cbuild.generated_source(f"shaft_{scheme}.c")
-    lib = cbuild.load_library(source, f"shaft_{scheme}")
-    if lib is None:
-        return None
-    return cbuild.bind(lib, "dtdyn_shaft", f"dtdyn_shaft_{scheme}")
+def _c_function(scheme):
+    """dtdyn_shaft_<scheme> (a name or a resolved scheme), or None when C is unavailable."""
+    return kernels.c_scheme_function("shaft", scheme)
 
 
-def _advance_factory(backend, tree, dt, loaded, outputs, form):
+def _tree_operands(tree: Tree) -> tuple:
+    """The load-independent arrays of the tree sweep: (parent, gu, gS, gR, kg, cg), the gear
+    factors from the generated `gear_factors`, kg and cg None when no disk is grounded."""
     parent = np.ascontiguousarray(tree.parent, dtype=np.int64)
     gu, gS, gR = (np.ascontiguousarray(a) for a in gen.gear_factors(tree.ratio))
-    m, k, c = tree.J, tree.k, tree.c
     grounded = tree.kg.any() or tree.cg.any()
     kg, cg = (tree.kg, tree.cg) if grounded else (None, None)
+    return parent, gu, gS, gR, kg, cg
+
+
+def _advance_factory(backend, tree, dt, loaded, outputs, form, operands=None):
+    """``make_advance(scheme, coefficients)`` of stepping.integrate by the tree sweep (C or
+    NumPy), force on ``loaded``, storing ``outputs``; ``operands``: `_tree_operands`, made
+    once by a solver (None: made here). The advances of one call share its scratch."""
+    parent, gu, gS, gR, kg, cg = operands or _tree_operands(tree)
+    m, k, c = tree.J, tree.k, tree.c
     loaded64 = np.ascontiguousarray(loaded, dtype=np.int64)
     out64 = np.ascontiguousarray(outputs, dtype=np.int64)
     N = m.size
     work = np.empty(c_api.SHAFT_ROWS * N)  # rows from the one spec (dtdyn.derive.c_api)
 
     def make_advance(sch, coeffs):
-        fn = _c_function(sch.name) if backend == "c" else None
+        fn = _c_function(sch) if backend == "c" else None
         if fn is None:
             def advance(force, H, xo, vo, ao):
                 gen.run_tree(coeffs, sch.history, parent, gu, gS, gR, m, k, c, kg, cg, loaded,
@@ -564,8 +628,8 @@ def rigid_rotation(shaft: Shaft) -> np.ndarray:
 def check_connections(tree: Tree, info, form: str, dt: float) -> None:
     """ValueError when a shaft's row of the sweep divides by k Dx + c Dv = 0 (an undamped
     shaft under an explicit scheme)."""
-    K0 = info.coefficients(form, dt)
-    kappa = tree.k * K0["p"] + tree.c * K0["r"]
+    kappa = np.min([np.abs(tree.k * K0["p"] + tree.c * K0["r"]) for K0 in
+                    (s.coefficients(form, dt) for s in schemes_of_run(info))], axis=0)
     loose = np.flatnonzero((kappa == 0.0) & ((tree.k + tree.c) > 0))
     if loose.size:
         raise ValueError(f"shaft before {tree.names[loose[0]]!r} has damping 0 with the explicit "
@@ -619,36 +683,49 @@ def shaft_response(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
     (201, 3)
     """
     _check_shaft(shaft)
-    tree = shaft.tree
-    N = tree.J.size
-    force, loaded, ground = support.prepare_model(
-        sps.diags(tree.J), force, force_dofs, tree.names, lambda k: rigid_rotation(shaft),
-        dt=dt, ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
-        ground_displacement=ground_displacement, influence=influence)
-    force, dt, loaded = validate.time_history(force, dt, loaded, N)
-    x0, v0 = validate.initial_conditions(x0, v0, N)
-    out = validate.dof_indices("outputs", outputs, N, names=tree.names)
-    quantities = stepping.check_quantities(quantities)
-    if backend not in ("c", "numpy"):
-        raise ValueError(f"backend must be 'c' or 'numpy', got {backend!r}")
-    if form not in ("displacement", "acceleration"):
-        raise ValueError(f"form must be 'displacement' or 'acceleration', got {form!r}")
-    info = get_scheme(scheme, **scheme_params)
-    M, C, K = shaft_matrices(shaft)
-    check_dt(info, dt, lambda limit: highest_frequency(M, K, limit), unstable)
-    check_connections(tree, info, form, dt)
-    f0 = np.zeros(N)
-    f0[loaded] = force[0]
-    f0 = f0 - C @ v0 - K @ x0
-    a0 = f0 / tree.J
-    make = _advance_factory(backend, tree, dt, loaded, out, form)
-    res = stepping.integrate(info, form, dt, force, (x0, v0, a0), make, out, quantities,
-                             progress)
-    used = "c" if backend == "c" and _c_function(info.name) is not None else "numpy"
-    res.info.update(method="DT-TMM (tree)", sweep="stable", backend=used)
-    res.dof_names = tuple(tree.names[i] for i in out)
-    res.dof_kinds = ("rotation",) * len(out)   # units rad, rad/s, rad/s^2 in files and plots
-    return support.finish(res, ground)
+    solver = shaft.solver(dt, scheme=scheme, form=form, backend=backend, outputs=outputs,
+                          quantities=quantities, unstable=unstable, **scheme_params)
+    return solver.run(force, force_dofs=force_dofs, x0=x0, v0=v0, progress=progress,
+                      ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
+                      ground_displacement=ground_displacement, influence=influence)
+
+
+class ShaftSolver(Solver):
+    """The `Solver` of `Shaft`: the lumped tree checked against the scheme (an explicit scheme
+    needs a damper on every shaft), its matrices assembled (for the stability limit and the
+    initial acceleration), the sweep's gear factors made and the C kernels loaded, once; each
+    run sweeps the tree (DT-TMM, T = S phi + R from the leaves to the root)."""
+
+    def __init__(self, shaft, dt, scheme, form, backend, outputs, quantities, unstable,
+                 scheme_params):
+        M, C, K = shaft_matrices(shaft)
+        super().__init__(shaft, dt, scheme, form, check_backend(backend), outputs, quantities,
+                         unstable, lambda limit: highest_frequency(M, K, limit), scheme_params)
+        tree = shaft.tree
+        check_connections(tree, self._info, form, self.dt)
+        self._C, self._K = C, K
+        self._ground_mass = sps.diags(tree.J)
+        self._rigid = lambda k: rigid_rotation(shaft)
+        self._operands = _tree_operands(tree)
+        self._dof_names = tuple(tree.names[i] for i in self.outputs)
+        if backend == "c":  # compile or load the kernels now, not in the first run
+            for sch in schemes_of_run(self._info):
+                _c_function(sch)
+        last = schemes_of_run(self._info)[-1]
+        self._used = "c" if backend == "c" and _c_function(last) is not None else "numpy"
+
+    def _initial_acceleration(self, case):
+        f0 = case.f0 - self._C @ case.v0 - self._K @ case.x0
+        return f0 / self.model.tree.J
+
+    def _stepper(self, loaded):
+        return _advance_factory(self.backend, self.model.tree, self.dt, loaded, self.outputs,
+                                self.form, self._operands)
+
+    def _annotate(self, res):
+        res.info.update(method="DT-TMM (tree)", sweep="stable", backend=self._used)
+        res.dof_names = self._dof_names
+        res.dof_kinds = ("rotation",) * len(self._dof_names)  # rad, rad/s, rad/s^2
 
 
 # -- frequencies ---------------------------------------------------------------------------------

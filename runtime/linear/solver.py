@@ -17,7 +17,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from dtdyn.generated.scheme_table import TABLE
 
 from dtdyn._engine import ground as support
 from dtdyn._engine import stepping
@@ -52,14 +51,21 @@ class LoadCase(NamedTuple):
 
 def load_case(M, n_dof: int, dt: float, force, force_dofs=None, x0=None, v0=None,
               ground_acceleration=None, ground_velocity=None, ground_displacement=None,
-              influence=None) -> LoadCase:
+              influence=None, names=None, rigid=None) -> LoadCase:
     """The `LoadCase` of one run of a model with mass matrix ``M`` (for the support motion's
     load f - M r a_g): the ground record turned into a load, the force and ``force_dofs``
-    checked, the initial conditions checked (rest when None), f_0 scattered to every DOF."""
-    force, force_dofs, ground = support.prepare(M, force, force_dofs, n_dof, ground_acceleration,
-                                                influence, dt=dt,
-                                                ground_velocity=ground_velocity,
-                                                ground_displacement=ground_displacement)
+    checked, the initial conditions checked (rest when None), f_0 scattered to every DOF.
+    A model whose DOFs have ``names`` (a beam, a shaft) takes them in ``force_dofs``, and
+    ``rigid(n_dir)``, its rigid-body pattern, is the default influence of a ground record."""
+    if names is None:
+        force, force_dofs, ground = support.prepare(
+            M, force, force_dofs, n_dof, ground_acceleration, influence, dt=dt,
+            ground_velocity=ground_velocity, ground_displacement=ground_displacement)
+    else:
+        force, force_dofs, ground = support.prepare_model(
+            M, force, force_dofs, names, rigid, dt=dt, ground_acceleration=ground_acceleration,
+            ground_velocity=ground_velocity, ground_displacement=ground_displacement,
+            influence=influence)
     force, dt, loaded = validate.time_history(force, dt, force_dofs, n_dof)
     x0, v0 = validate.initial_conditions(x0, v0, n_dof)
     f0 = np.zeros(n_dof)
@@ -70,7 +76,9 @@ def load_case(M, n_dof: int, dt: float, force, force_dofs=None, x0=None, v0=None
 def schemes_of_run(scheme: SchemeInfo) -> list:
     """The schemes a run steps with: the start-up scheme of a multistep scheme (as
     `stepping.integrate` resolves it), then the scheme itself."""
-    first = [get_scheme(TABLE[scheme.name]["startup_scheme"])] if scheme.startup_steps else []
+    if scheme.stages:  # a composite scheme: its sub-steps (stepping.integrate)
+        return list(scheme.stages)
+    first = [scheme.startup()] if scheme.startup_steps else []
     return first + [scheme]
 
 
@@ -80,7 +88,8 @@ def scheme_key(scheme: SchemeInfo) -> tuple:
 
 class Model:
     """The protocol of dtdyn's linear models: ``n_dof`` and ``solver(dt, ...)``, which returns
-    a `Solver` of the model at the sample step ``dt``. `Matrices` and `Chain` follow it."""
+    a `Solver` of the model at the sample step ``dt``. `Matrices`, `Chain`, `Beam` and `Shaft`
+    follow it (a model with ``dof_names`` takes them in ``outputs`` and ``force_dofs``)."""
 
     @property
     def n_dof(self) -> int:
@@ -93,10 +102,12 @@ class Model:
 class Solver:
     """A model prepared for one sample step and scheme; `run` runs one load case.
 
-    Made by a model's ``solver`` method (`Matrices.solver`, `Chain.solver`), which checks the
-    options, the stability limit, factorizes and loads the compiled kernel once; each `run`
-    then costs the time loop and the checks of its own inputs. ``mck_response(M, C, K, force,
-    dt, **kw)`` is ``Matrices(M, C, K).solver(dt, ...).run(force, ...)``, bitwise.
+    Made by a model's ``solver`` method (`Matrices.solver`, `Chain.solver`, `Beam.solver`,
+    `Shaft.solver`), which checks the options, the stability limit, factorizes and loads the
+    compiled kernel once; each `run` then costs the time loop and the checks of its own
+    inputs. ``mck_response(M, C, K, force, dt, **kw)`` is ``Matrices(M, C, K).solver(dt,
+    ...).run(force, ...)``, bitwise (and so are `chain_response`, `beam_response` and
+    `shaft_response` with their models).
 
     Thread safety: `run` may be called from several threads at once on one solver. A run reads
     the solver's factors and kernels and allocates its own history, outputs and scratch; the
@@ -106,7 +117,8 @@ class Solver:
     Parameters
     ----------
     model : Model
-        The model; its ``n_dof`` sizes the checks.
+        The model; its ``n_dof`` sizes the checks (its ``dof_names``, where it has them, name
+        the DOFs of ``outputs`` and of each run's ``force_dofs``).
     dt : float
         Sample step, s, > 0.
     scheme : str
@@ -130,7 +142,7 @@ class Solver:
     Attributes
     ----------
     model : Model
-        The model (`Matrices` or `Chain`).
+        The model (`Matrices`, `Chain`, `Beam` or `Shaft`).
     dt : float
         The sample step, s.
     scheme : str
@@ -162,7 +174,8 @@ class Solver:
         self.model = model
         self.backend = check_backend(backend)
         self.dt = validate.positive_scalar("dt", dt)
-        self.outputs = validate.dof_indices("outputs", outputs, n)
+        self._names = getattr(model, "dof_names", None)
+        self.outputs = validate.dof_indices("outputs", outputs, n, names=self._names)
         self.quantities = stepping.check_quantities(quantities)
         self._info = get_scheme(scheme, **scheme_params)
         if form not in ("acceleration", "displacement"):
@@ -170,6 +183,8 @@ class Solver:
         self.form = form
         check_dt(self._info, self.dt, omega_max, unstable)
         self._ground_mass = None  # M of the support motion's load, set by the subclass
+        self._rigid = None  # a named model's rigid-body pattern rigid(n_dir), set by the subclass
+        self._stored = self.outputs  # the stepped state's rows stored (a beam's differ)
 
     @property
     def scheme(self) -> str:
@@ -228,14 +243,23 @@ class Solver:
         >>> solver.run(np.ones(501), force_dofs=[1]).x.shape
         (501, 2)
         """
-        case = load_case(self._ground_mass, self.model.n_dof, self.dt, force, force_dofs, x0, v0,
-                         ground_acceleration, ground_velocity, ground_displacement, influence)
-        a0 = self._initial_acceleration(case)
+        case = self._load_case(force, force_dofs, x0, v0, ground_acceleration, ground_velocity,
+                               ground_displacement, influence)
         res = stepping.integrate(self._info, self.form, self.dt, case.force,
-                                 (case.x0, case.v0, a0), self._stepper(case.loaded),
-                                 self.outputs, self.quantities, progress)
+                                 self._initial_state(case), self._stepper(case.loaded),
+                                 self._stored, self.quantities, progress)
         self._annotate(res)
         return support.finish(res, case.ground)
+
+    def _load_case(self, force, force_dofs, x0, v0, *ground) -> LoadCase:
+        """The checked `LoadCase` of one run (`load_case`; ``ground``: the acceleration,
+        velocity and displacement records and the influence)."""
+        return load_case(self._ground_mass, self.model.n_dof, self.dt, force, force_dofs, x0, v0,
+                         *ground, names=self._names, rigid=self._rigid)
+
+    def _initial_state(self, case: LoadCase) -> tuple:
+        """(x_0, v_0, a_0) of the stepped state (a_0 the consistent one)."""
+        return case.x0, case.v0, self._initial_acceleration(case)
 
     # what a model's solver supplies
     def _initial_acceleration(self, case: LoadCase) -> np.ndarray:

@@ -13,8 +13,6 @@ from functools import lru_cache
 
 import numpy as np
 
-from dtdyn.generated import stability as _amp
-
 from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.errors import DtdynStabilityWarning, DtdynUnstableError
 from dtdyn._engine.public import public, warn
@@ -100,7 +98,7 @@ def stability(scheme, omega_dt, damping_ratio=0.0, **scheme_params) -> Stability
     if not 0.0 <= zeta < 1.0:
         raise ValueError(f"damping_ratio must be in [0, 1), got {damping_ratio!r}")
     params = [info.params[p] for p in info.module.PARAMS]
-    lam = np.linalg.eigvals(_amp.amplification(info.name, W, zeta, params))
+    lam = np.linalg.eigvals(info.amplification(W, zeta, params))
     rho = np.abs(lam).max(axis=1)
     exact = np.exp((-zeta + 1j * np.sqrt(1.0 - zeta**2)) * W)[:, None]
     cand = np.where(lam.imag > 1e-14, lam, np.inf)
@@ -172,7 +170,7 @@ def warn_if_unstable(scheme, omegas, dt, zeta=0.0, **scheme_params) -> bool:
 
 
 @lru_cache(maxsize=128)
-def _critical(scheme: str, params: tuple) -> float:
+def _critical(scheme, params: tuple) -> float:
     return critical_omega_dt(scheme, **dict(params))
 
 
@@ -187,7 +185,7 @@ def check_dt(info, dt: float, omega_max, unstable: str = "raise") -> None:
     """
     if unstable not in ("raise", "warn"):
         raise ValueError(f"unstable must be 'raise' or 'warn', got {unstable!r}")
-    crit = _critical(info.name, tuple(sorted(info.params.items())))
+    crit = _critical(info.ref, tuple(sorted(info.params.items())))
     if not np.isfinite(crit):
         return
     omega = omega_max(crit / dt) if callable(omega_max) else omega_max

@@ -338,13 +338,16 @@ def run_modes(states: ModalStates, x, backend="c", at_rest_under=None, timing=No
         im_out = int(np.any(W.imag))
         xp = np.concatenate([np.zeros((1, n_in)), x])  # row 0: x_{-1} = 0 (at rest)
         e = np.concatenate([padded(eta0).real, padded(eta0).imag])
-        work = np.empty(work_size(mp, n_out))
+        work = np.empty(work_size(mp, n_out))  # 2 mp (c_api.MODAL_BLOCK + n_out) doubles
         args = (n, mp, n_in, n_out, im_out, coefs.ctypes.data, wt.ctypes.data, xp.ctypes.data,
-                e.ctypes.data, y.ctypes.data, work.ctypes.data)
+                e.ctypes.data, y.ctypes.data, work.ctypes.data, work.size)
         rc = cbuild.interruptible(lib, lambda: fn(*args), work=n * mp * (n_in + n_out),
                                   timing=timing)
         if rc != 0:
-            raise RuntimeError(f"dtdyn_modal_filters returned {rc}")
+            from dtdyn._engine.kernels import DtdynKernelError
+
+            raise DtdynKernelError("dtdyn_modal_filters", rc, f"m = {mp}, n_out = {n_out}, "
+                                   f"n_work = {work.size}")
     if np.any(states.direct):
         y += x @ states.direct.T
     return y

@@ -158,7 +158,7 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
 
     def c_loop(run):  # the whole loop in generated/nl_chain.c, when it compiles
         driver = _c_driver(elements, sz) if backend == "c" else None
-        sweep_fn = kernels.c_chain_function(info.name) if driver else None
+        sweep_fn = kernels.c_chain_function(info) if driver else None
         if sweep_fn is None:
             return None
         idx = [run.loaded, run.pf, run.pi, run.pj, ei, ej, outputs]
@@ -351,15 +351,14 @@ def _c_driver(elements, sz):
     if lib is None:
         return None
     run = cbuild.bind(lib, "dtdyn_nl_chain")
+    cbuild.bind(lib, "dtdyn_nl_chain_work")  # the doubles of its work, from the loop's layout
     return run, int(fn.sz_w()), int(fn.sz_iw()), lib
 
 
 def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
     """The time loop in generated/nl_chain.c; (max iterations, total, largest residual)."""
     run, n_w, n_iw, lib = driver
-    max_iter = dims[10]
-    N, nl, ne, nw, nz = dims[0], dims[2], dims[4], dims[5], dims[6]
-    nu = nw + nz
+    max_iter, N = dims[10], dims[0]
     arrays = lambda xs, dtype: [np.ascontiguousarray(a, dtype=dtype) for a in xs]  # noqa: E731
     idx = arrays(idx, np.int64)
     mats = [None if a is None else np.ascontiguousarray(a, dtype=float) for a in mats]
@@ -369,16 +368,19 @@ def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
         *[0 if a is None else a.ctypes.data for a in xs])
     stats = np.zeros(4)
     fail = np.zeros(1, dtype=np.int64)
-    work = np.zeros(c_api.CHAIN_ROWS_STABLE * N + 2 * nl + nw + 2 * nz + nu * (nu + 1) + ne + nz
-                    + n_w + 1)
+    # the chain kernel's rows (c_api.CHAIN_ROWS_STABLE N), the Newton solve's, then CasADi's
+    work = np.zeros(max(lib.dtdyn_nl_chain_work(dims.ctypes.data), 1))
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
     args = (dims.ctypes.data, ctypes.cast(chain, ctypes.c_void_p), pointers(idx),
             pointers(mats), *(a.ctypes.data for a in state),
             (ctypes.c_void_p * 5)(*[0 if store[q] is None else store[q].ctypes.data
                                     for q in "xvagz"]), h, tol, stats.ctypes.data,
             fail.ctypes.data,
-            work.ctypes.data, iwork.ctypes.data)
+            work.ctypes.data, work.size, iwork.ctypes.data, iwork.size)
     rc = cbuild.interruptible(lib, lambda: run(*args), work=dims[8] * dims[9] * N)
+    if rc == c_api.ERR_WORK:
+        raise kernels.DtdynKernelError("dtdyn_nl_chain", rc, f"dims {dims.tolist()}, "
+                                       f"n_work = {work.size}, n_iwork = {iwork.size}")
     if rc == 1:
         _newton_error(int(fail[0]), S, h, float(stats[3]), max_iter)
     if rc:

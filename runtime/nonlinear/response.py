@@ -40,6 +40,8 @@ from dtdyn._engine import ground as support
 from dtdyn._engine import cbuild
 from dtdyn._engine import linalg
 from dtdyn._engine import validate
+from dtdyn._engine.kernels import DtdynKernelError
+from dtdyn.generated import c_api
 from dtdyn.nonlinear.elements import casadi_ops, check_elements, element_matrix
 from dtdyn._engine.stepping import check_quantities
 from dtdyn._engine.result import Response
@@ -148,6 +150,7 @@ def _c_runner(elements, dims, explicit=False, reuse=False):
     if lib is None:
         return None, t1 - t0, t2 - t1
     run = cbuild.bind(lib, "dtdyn_nl_run")
+    cbuild.bind(lib, "dtdyn_nl_work")  # the doubles of its work, from the loop's own layout
     return (run, int(fn.sz_w()), int(fn.sz_iw()), lib), t1 - t0, t2 - t1
 
 
@@ -190,14 +193,6 @@ def _modal_mats(step: LinearStep, md, past) -> list:
 ESTIMATE_BLOCK = 128
 
 
-def _estimate_work(sz, nst, nm) -> int:
-    """Doubles of the estimate's block in the loop's work array (nl_loop.c, modal_run): J,
-    dg/du, g (after nst - 1 earlier ones), the gains K, the differences and [e; dg] of each
-    step (e padded to a multiple of 4 modal rows)."""
-    eb, nu, ne, nmp = ESTIMATE_BLOCK, sz.nw + sz.nz, sz.ne, -(-nm // 4) * 4
-    return eb * (nu * nu + ne * nu + ne * sz.nw + ne + nmp + ne) + (eb + nst - 1) * ne
-
-
 def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate, theta_limit,
            nzo, past):
     run, n_w, n_iw, lib = runner
@@ -221,10 +216,12 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     out = np.empty((n_samples, no + nzo))
     stats = np.zeros(6 + no)  # then the estimate's largest |error| per output row, the LUs
     fail = np.zeros(1, dtype=np.int64)
-    work = np.zeros(n_w + 1 + (_estimate_work(sz, nst, md["nm"]) if nst else 0))
+    # CasADi's work, then the estimate's block from dims[13] (nl_loop.c sizes it: dtdyn_nl_work)
+    work = np.zeros(max(lib.dtdyn_nl_work(_p(dims)), 1))
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
     args = (_p(dims), ctypes.cast(ptrs, ctypes.c_void_p), _p(force), _p(x), _p(u), _p(g),
-            _p(rate), _p(out), tol, theta_limit, _p(stats), _p(fail), _p(work), _p(iwork))
+            _p(rate), _p(out), tol, theta_limit, _p(stats), _p(fail), _p(work), work.size,
+            _p(iwork), iwork.size)
     kernel = []  # the C loop's own run time
     if md is None:  # the dense step's products
         work = n_samples * S * (ns + sz.nw) ** 2
@@ -732,6 +729,8 @@ def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, sch
         t_around = time.perf_counter() - t2 - t_run  # the Python around the loop: setup
         if rc == 2:
             raise RuntimeError(f"dtdyn_nl_run was compiled for other sizes than {dims}")
+        if rc == c_api.ERR_WORK:
+            raise DtdynKernelError("dtdyn_nl_run", rc, f"dims {dims}")
         if rc == 3:
             _stability_error(method, fail, S, fs, stats[3])
         if rc:

@@ -30,7 +30,7 @@ def test_check_detects_drift(tmp_path, capsys):
 def test_show_prints_coefficients(capsys):
     assert main(["show", "houbolt"]) == 0
     out = capsys.readouterr().out
-    assert "A  = 2/dt**2" in out and "station matrix" in out
+    assert "  A = 2 / dt^2\n" in out and "station matrix" in out
     assert main(["show", "nope"]) == 2
 
 
@@ -72,7 +72,7 @@ def test_help_lists_every_command_and_version(capsys):
 
 def test_show_latex_and_scheme_list(capsys):
     assert main(["show", "average_acceleration", "--latex"]) == 0
-    assert "\\left[\\begin{matrix}" in capsys.readouterr().out
+    assert "\\begin{bmatrix}" in capsys.readouterr().out
     assert main(["show", "--help"]) == 0
     assert "generalized_alpha" in capsys.readouterr().out
 

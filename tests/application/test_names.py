@@ -16,7 +16,8 @@ CALLABLES = [n for n in PUBLIC if callable(getattr(dd, n))
 
 #: damping = dashpot coefficients (N s/m, N m s/rad) of the models that have them; a damping
 #: ratio is always `damping_ratio`
-DASHPOTS = {"chain_response", "chain_random_response", "chain_matrices", "chain_frequency_response", "chain_poles",
+DASHPOTS = {"chain_response", "chain_random_response", "chain_matrices",
+            "chain_frequency_response", "chain_poles",
             "nonlinear_chain_response", "Chain", "Shaft", "Branch", "ContinuousShaft", "Scene"}
 #: one (input, output) pair by nature: a filter's second-order sections
 SINGLE_PAIR = {"to_sos"}

@@ -165,13 +165,15 @@ def alpha_lag(scheme, params):
     """alpha_m - alpha_f of the Chung-Hulbert form (0 for schemes without alpha parameters).
 
     HHT: alpha_m = 0, alpha_f = -alpha. Generalized-alpha: alpha_m = (2 rho - 1)/(rho + 1),
-    alpha_f = rho/(rho + 1) (reference.md sec. 4).
+    alpha_f = rho/(rho + 1) (reference.md sec. 4). Bossak: alpha_f = 0, alpha_m its parameter.
     """
     if scheme == "hht":
         return 0.0 - (-params.get("alpha", -0.05))
     if scheme == "generalized_alpha":
         rho = params.get("rho_inf", 0.8)
         return (2.0 * rho - 1.0) / (rho + 1.0) - rho / (rho + 1.0)
+    if scheme == "bossak":  # alpha_f = 0
+        return params.get("alpha_m", -0.1)
     return 0.0
 
 

@@ -1,5 +1,6 @@
 """Run by test_sanitizers.py in a subprocess with libasan and libubsan preloaded: the chain, shaft,
-beam (block chain), mck and nonlinear (mck and chain) loops, compiled with
+beam (block chain), mck, nonlinear (mck, its modal path, and chain) loops and the modal filters
+(per mode and as sections), compiled with
 -fsanitize=address,undefined, on tiny problems. With the argument ``overflow``: the chain kernel
 told its work is longer than it is (the check at entry passes), which ASan must report."""
 import sys
@@ -44,4 +45,13 @@ cubic = [dtdyn.Cubic(0, k3=1e8)]
 dtdyn.nonlinear_mck_response(M, C, K, 50 * f, 1e-3, force_dofs=[0, 8], elements=cubic,
                              scheme="newmark")
 dtdyn.nonlinear_chain_response(m, k, c, 50 * f, 1e-3, force_dofs=[0, 8], elements=cubic)
+for scheme in ("modal_quintic", "modal_explicit"):  # nl_loop's modal path and its estimate
+    dtdyn.nonlinear_mck_response(M, C, K, 50 * f, 1e-3, force_dofs=[0, 8], elements=cubic,
+                                 scheme=scheme)
+for n in (3, 6, 13):  # the modal filters: chunks of 4, 8 and 16 states; 13 outputs: axpy
+    Md, Cd, Kd = dtdyn.chain_matrices(1 + rng.random(n), 1e4 * (1 + rng.random(n)),
+                                      0.5 + rng.random(n), sparse=False)
+    for algorithm in ("modes", "sections"):
+        dtdyn.modal_filter_response(Md, Cd, Kd, f, 1e-3, force_dofs=[0, n - 1],
+                                    outputs=list(range(n)), algorithm=algorithm)
 print("ok")

@@ -167,6 +167,9 @@ def hand_maps(name, form, dt, params):
         rho = params["rho_inf"]
         am, af = (2 * rho - 1) / (rho + 1), rho / (rho + 1)
         return alpha_family(form, dt, (1 - am + af) ** 2 / 4, 0.5 - am + af, af, am)
+    if name == "bossak":  # Wood, Bossak & Zienkiewicz: alpha_f = 0, beta, gamma from alpha_m
+        am = params["alpha_m"]
+        return alpha_family(form, dt, (1 - am) ** 2 / 4, 0.5 - am, 0.0, am)
     if name == "wilson":
         return wilson(form, dt, params["theta"])
     if name == "houbolt":
@@ -224,6 +227,8 @@ def random_params(name, rng):
         return {"alpha": rng.uniform(-1 / 3, 0.0)}
     if name == "generalized_alpha":
         return {"rho_inf": rng.uniform(0.0, 1.0)}
+    if name == "bossak":
+        return {"alpha_m": rng.uniform(-0.5, 0.0)}
     return {}
 
 
@@ -319,6 +324,8 @@ def stable_params(name, rng):
         return {"alpha": rng.uniform(-1 / 3, 0.0)}
     if name == "generalized_alpha":
         return {"rho_inf": rng.uniform(0.0, 1.0)}
+    if name == "bossak":
+        return {"alpha_m": rng.uniform(-0.5, 0.0)}
     return {}
 
 

@@ -53,9 +53,10 @@
  *   loaded, out_idx: DOF indices 2 i + c, loaded ascending.
  * mats = {K, C, M (NULL: b = 0, the acceleration form), fac, B_0 .. B_{n_hist-1}}: with K,
  *   the right side from the history terms; with K NULL, from the B_h (NULL: row h does not
- *   enter). work: 2 P + 16 doubles (z).
+ *   enter). work: n_work >= DTDYN_BLOCK_CHAIN_ROWS (P + DTDYN_BLOCK_CHAIN_GAP) doubles (z, its
+ *   two components, each row after a gap whose last double is z[-1] = 0; generated/c_api.h).
  * Outputs (NULL: not stored) get row k + 1 of the stored DOFs. Returns 0, DTDYN_STOPPED when
- * stopped.
+ * stopped, DTDYN_ERR_WORK (nothing written) when n_work is too short.
  */
 #include <math.h>
 #include <stddef.h>
@@ -312,7 +313,7 @@ DTDYN_LOOP int block_chain_loop_run(long N, long n_hist, long n_steps, long n_lo
                                     const long *restrict shift, const long *restrict rows,
                                     double *restrict H, long n_out, const long *restrict out_idx,
                                     double *restrict xo, double *restrict vo, double *restrict ao,
-                                    double *restrict work)
+                                    double *restrict work, long n_work)
 {
     const long P = BC_STRIDE(N);
     const double *K = mats[0], *C = mats[1], *M = mats[2], *fac = mats[3];
@@ -323,9 +324,13 @@ DTDYN_LOOP int block_chain_loop_run(long N, long n_hist, long n_steps, long n_lo
     /* the update in place (x1, v1, a1 into rows 0, 1, 2 and no lags): one pass */
     const int in_place = n_hist == 3 && n_shift == 0 && rows[0] == 0 && rows[1] == 1
                          && rows[2] == 2;
-    double *z0 = work + 8, *z1 = work + P + 16; /* z[-1] = 0 */
+    /* z[-1] = 0: the gap's last double before each row */
+    double *z0 = work + DTDYN_BLOCK_CHAIN_GAP;
+    double *z1 = work + (P + DTDYN_BLOCK_CHAIN_GAP) + DTDYN_BLOCK_CHAIN_GAP;
     double T[12][BC_ROW] __attribute__((aligned(64)));
     long k, i, j, o, lo;
+    if (N < 0 || n_work < DTDYN_BLOCK_CHAIN_ROWS * (P + DTDYN_BLOCK_CHAIN_GAP))
+        return DTDYN_ERR_WORK;
     z0[-1] = 0.0;
     z1[-1] = 0.0;
     for (k = 0; k < n_steps; ++k) {

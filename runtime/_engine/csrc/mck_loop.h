@@ -33,8 +33,9 @@
  *      last node (the matrix Riccati sweep of a beam, block_solve): val[3] P_i^-1, val[4] G_i,
  *      val[5] F_i, each 2 x 2 row-major.
  * Indices are long (64-bit).
- * Outputs (NULL: not stored) get row k + 1 of the stored DOFs; work holds 8 n doubles; nothing
- * is allocated. Returns 0, DTDYN_STOPPED when stopped.
+ * Outputs (NULL: not stored) get row k + 1 of the stored DOFs. work: n_work >= DTDYN_MCK_ROWS n
+ * doubles, rows of n (DTDYN_MCK_ROW_*, generated/c_api.h); nothing is allocated. Returns 0,
+ * DTDYN_STOPPED when stopped, DTDYN_ERR_WORK (nothing written) when n_work is too short.
  */
 #include <stddef.h>
 
@@ -152,11 +153,14 @@ DTDYN_LOOP int mck_loop_run(int solver, long n, long n_hist, long n_steps, long 
                             double w1, long n_shift, const long *restrict shift,
                             const long *restrict rows, double *restrict H, long n_out,
                             const long *restrict out_idx, double *restrict xo, double *restrict vo,
-                            double *restrict ao, double *restrict work)
+                            double *restrict ao, double *restrict work, long n_work)
 {
-    double *q = work, *s = work + n, *rhs = work + 2 * n, *upd = work + 3 * n;
-    double *z = work + 6 * n, *bm = work + 7 * n;
+    double *q = work + DTDYN_MCK_ROW_Q * n, *s = work + DTDYN_MCK_ROW_S * n;
+    double *rhs = work + DTDYN_MCK_ROW_RHS * n, *upd = work + DTDYN_MCK_ROW_UPDATE * n;
+    double *z = work + DTDYN_MCK_ROW_Z * n, *bm = work + DTDYN_MCK_ROW_B * n;
     long k, i, j, h, o;
+    if (n < 0 || n_work < DTDYN_MCK_ROWS * n)
+        return DTDYN_ERR_WORK;
     for (k = 0; k < n_steps; ++k) {
         const double *f0 = force + k * n_loaded, *f1 = f0 + n_loaded;
         if ((k & 1023) == 0 && dtdyn_stop_flag)

@@ -18,7 +18,8 @@
  * source). Newton accepts u by the rule of every backend (newton_solve in newton.h).
  * Returns 0; DTDYN_STOPPED (stop.h) when stopped; 1 when Newton failed (not converged in
  * max_iter iterations, singular Jacobian or non-finite) at step fail[0] with residual
- * stats[3]; 4 when the chain kernel failed.
+ * stats[3]; 4 when the chain kernel failed; DTDYN_ERR_WORK (nothing written) when work or
+ * iwork is shorter than it needs (dtdyn_nl_chain_work, nl_residual_work).
  */
 #ifndef DTDYN_NL_CHAIN_H
 #define DTDYN_NL_CHAIN_H
@@ -42,14 +43,31 @@
  * out:  x, v, a (n_samples x no each), then g (n_samples x ne) and z (n_samples x nz), NULL
  *       when not stored.
  * stats: [max iterations, total iterations, max final residual, failing residual].
- * work: DTDYN_CHAIN_ROWS_STABLE N (chain kernel) + 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz, then
- *       the CasADi work.
+ * work: n_work >= dtdyn_nl_chain_work(dims) doubles: DTDYN_CHAIN_ROWS_STABLE N (chain kernel)
+ *       + 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz (nl_chain_scratch), then
+ *       the CasADi work; iwork: n_iwork >= CasADi's (nl_residual_work).
  */
+/* the doubles of nl_chain_run's work before CasADi's: the chain kernel's rows, the loads of
+   the step's two ends (frc), then Q, z_old, z'_old, r, J, g, z' */
+static long nl_chain_scratch(const long *dims)
+{
+    const long N = dims[0], nl = dims[2], ne = dims[4], nw = dims[5], nz = dims[6];
+    const long nu = nw + nz;
+    return DTDYN_CHAIN_ROWS_STABLE * N + 2 * nl + nw + nz + nz + nu + nu * nu + ne + nz;
+}
+
+long dtdyn_nl_chain_work(const long *dims)
+{
+    nl_int sz_arg, sz_res, sz_iw, sz_w;
+    nl_residual_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
+    return nl_chain_scratch(dims) + (long)sz_w;
+}
+
 DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const *idx,
                             const double *const *mats, double *restrict H, double *restrict u,
                             double *restrict g, double *restrict rate, double *const *out, double h,
                             double tol, double *stats, long *fail, double *restrict work,
-                            nl_int *restrict iwork)
+                            long n_work, nl_int *restrict iwork, long n_iwork)
 {
     const long N = dims[0], nh = dims[1], nl = dims[2], nf = dims[3], ne = dims[4];
     const long nw = dims[5], nz = dims[6], no = dims[7], n_samples = dims[8], S = dims[9];
@@ -66,10 +84,15 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
     const double *arg[5];
     double *res[4];
     double scale = 0.0, scale_u = 0.0;
+    nl_int sz_arg, sz_res, sz_iw, sz_w;
     long n, j, i, e, o, t, it;
     arg[0] = u; arg[1] = Q; arg[2] = zold; arg[3] = rold; arg[4] = par;
     res[0] = r; res[1] = J; res[2] = gn; res[3] = rn_;
     (void)lu_apply_t; /* newton.c's transposed solve: nl_loop.c's estimate */
+    nl_residual_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
+    if (N < 0 || cw - work != nl_chain_scratch(dims) || n_work < dtdyn_nl_chain_work(dims)
+        || n_iwork < (long)sz_iw)
+        return DTDYN_ERR_WORK;
     stats[0] = stats[1] = stats[2] = stats[3] = 0.0;
     for (n = 0; n < n_samples; ++n) {
         const double *f0 = force + n * nf, *f1 = f0 + nf;

@@ -20,7 +20,8 @@
  * s_u = the largest |u|_inf accepted so far (s_r raised by Q before a step). Matrices are
  * column-major; par holds Dwg, then h. Returns 0, or 1 when Newton failed at step fail[0] (sub-step
  * index) with residual stats[3] (non-finite, singular Jacobian or max_iter iterations), 3 (see
- * below) when the step is beyond its stability limit, DTDYN_STOPPED (stop.h) when stopped.
+ * below) when the step is beyond its stability limit, DTDYN_STOPPED (stop.h) when stopped,
+ * DTDYN_ERR_WORK (nothing written) when work or iwork is shorter than it needs (dtdyn_nl_work).
  */
 #ifndef DTDYN_NL_LOOP_H
 #define DTDYN_NL_LOOP_H
@@ -871,6 +872,30 @@ static int modal_run(const long *dims, const double *const *mats, const double *
 #endif
 
 /*
+ * The doubles of nl_loop_run's work for these dims: CasADi's work (nl_residual_work), then, with
+ * the embedded estimate (NL_NST > 0), its block of dims[14] steps from dims[13] (modal_run's
+ * layout: J, dg/du, g after NST - 1 earlier ones, K, the differences, [e; dg]). -1 when the
+ * block would overlap CasADi's work.
+ */
+long dtdyn_nl_work(const long *dims)
+{
+    nl_int sz_arg, sz_res, sz_iw, sz_w;
+    nl_residual_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
+#ifdef NL_NM
+    if (NL_NST > 0) {
+        enum { ne = NL_NE, nw = NL_NW, nu = NL_NW + NL_NZ, nst = NL_NST };
+        const long eb = dims[14];
+        if (dims[13] < (long)sz_w || eb < 0)
+            return -1;
+        return dims[13] + eb * (nu * nu + ne * nu + ne * nw + ne + NMP + ne)
+               + (eb + nst - 1) * ne;
+    }
+#endif
+    (void)dims;
+    return (long)sz_w;
+}
+
+/*
  * dims: ns, nf, ne, nw, nz, no (checked against the compile-time sizes NL_NS .. NL_NO, which
  * let the compiler unroll the small products), n_samples, substeps, max_iter, nzo; with the
  * modal path (NL_NM) also NM, NH, NST and the estimate's block (its offset in work, EB steps).
@@ -881,7 +906,8 @@ static int modal_run(const long *dims, const double *const *mats, const double *
  * state: x (ns), u (nw + nz: last solution), g (ne), rate (nz); all updated in place.
  * stats: [max iterations, total iterations, max final residual, failing residual or theta,
  * max theta] (then the modal estimate's, no values), then the LU factorizations formed
- * (newton_fixed). Returns 3 when theta = |B0 dg/dy|_inf (displacement rows and columns) exceeds
+ * (newton_fixed). work: n_work >= dtdyn_nl_work(dims) doubles; iwork: n_iwork >= CasADi's
+ * (nl_residual_work); DTDYN_ERR_WORK otherwise, checked after the sizes. Returns 3 when theta = |B0 dg/dy|_inf (displacement rows and columns) exceeds
  * theta_limit (the method's stability limit for the elements' tangent
  * stiffness) at step fail[0].
  */
@@ -889,7 +915,8 @@ DTDYN_LOOP int nl_loop_run(const long *dims, const double *const *mats,
                            const double *restrict force, double *restrict x, double *restrict u,
                            double *restrict g, double *restrict rate, double *restrict out,
                            double tol, double theta_limit, double *stats, long *fail,
-                           double *restrict work, nl_int *restrict iwork)
+                           double *restrict work, long n_work, nl_int *restrict iwork,
+                           long n_iwork)
 {
     enum { ns = NL_NS, nf = NL_NF, ne = NL_NE, nw = NL_NW, nz = NL_NZ, no = NL_NO };
     const long n_samples = dims[6], S = dims[7], max_iter = dims[8], nzo = dims[9];
@@ -904,7 +931,8 @@ DTDYN_LOOP int nl_loop_run(const long *dims, const double *const *mats,
     double *res[5];
     lu_keep lu;
     double scale = 0.0, scale_u = 0.0;
-    long n, j, i;
+    nl_int sz_arg, sz_res, sz_iw, sz_w;
+    long n, j, i, need;
     int rc;
     arg[0] = u; arg[1] = Q; arg[2] = zold; arg[3] = rold; arg[4] = par;
     res[0] = r; res[1] = J; res[2] = g; res[3] = rate; res[4] = 0;
@@ -920,6 +948,12 @@ DTDYN_LOOP int nl_loop_run(const long *dims, const double *const *mats,
     if (dims[10] != NL_NM || dims[11] != NL_NH || dims[12] != NL_NST || NL_NM + NL_NH != ns ||
         (NL_NST > 0 && dims[14] < 1))
         return 2;
+#endif
+    nl_residual_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
+    need = dtdyn_nl_work(dims);
+    if (need < 0 || n_work < need || n_iwork < (long)sz_iw)
+        return DTDYN_ERR_WORK;
+#ifdef NL_NM
     return modal_run(dims, mats, force, x, u, g, rate, out, tol, theta_limit, stats, fail, work,
                      iwork);
 #endif

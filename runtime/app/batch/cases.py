@@ -21,10 +21,10 @@ scenes' files once for the whole batch, a file named by an override with its cas
 need no shared file system to read them.
 
 Per-case seeds: with a root seed, case ``i`` draws its random loads (``kind = "white_noise"``
-in ``[[load]]`` or ``[ground]``, in that order) from ``numpy.random.SeedSequence(root).spawn(n)
-[i]``: its first ``k`` 63-bit states seed those ``k`` loads (a seed the case's own overrides set
-is kept). The seeds depend only on the root and the case's index, never on how the cases are
-split over tasks or workers.
+or ``"psd"`` in ``[[load]]`` or ``[ground]``, in that order) from
+``numpy.random.SeedSequence(root).spawn(n)[i]``: its first ``k`` 63-bit states seed those
+``k`` loads (a seed the case's own overrides set is kept). The seeds depend only on the root
+and the case's index, never on how the cases are split over tasks or workers.
 """
 from __future__ import annotations
 
@@ -282,15 +282,19 @@ def _load_base(item, k: int):
                      "(dict) or a Scene")
 
 
+#: the load kinds drawn from a seed (each batch case gets its own)
+RANDOM_KINDS = ("white_noise", "psd")
+
+
 def _noise_slots(data: dict) -> list[str]:
     """The seed keys of the random loads of scene tables, in order: [[load]] then [ground]."""
     slots = []
     loads = data.get("load")
     if isinstance(loads, list):
         slots += [f"load[{i}].seed" for i, spec in enumerate(loads)
-                  if isinstance(spec, dict) and spec.get("kind") == "white_noise"]
+                  if isinstance(spec, dict) and spec.get("kind") in RANDOM_KINDS]
     ground = data.get("ground")
-    if isinstance(ground, dict) and ground.get("kind") == "white_noise":
+    if isinstance(ground, dict) and ground.get("kind") in RANDOM_KINDS:
         slots.append("ground.seed")
     return slots
 

@@ -3,7 +3,10 @@ one task, their reductions and the write of the task's block of the Zarr store.
 
 Nothing here holds a ctypes object across tasks or ships one: every worker process compiles
 (or loads from its on-disk cache) the kernels it needs on its first case, through
-`dtdyn._engine.cbuild`, and keeps them in its own memory.
+`dtdyn._engine.cbuild`, and keeps them in its own memory. Likewise the linear solvers: the
+scenes are shipped, and each worker process keeps the solver of each model and settings it
+has run (`SOLVERS`, a `dtdyn.app.scene.run.SolverCache`), so that the load cases of a batch on
+one model validate, factorize and load their kernel once per worker.
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ from dtdyn._engine.errors import (DtdynFallbackWarning, DtdynStepStabilityError,
 from dtdyn.app.batch.cases import CaseSpec, Shared, apply_overrides
 
 __all__ = ["CBackendError", "RUN_ERRORS", "META", "NameClash", "probe", "run_chunk",
-           "run_case", "cleanup"]
+           "run_case", "cleanup", "solvers", "SOLVER_CACHE_SIZE"]
 
 #: the errors expected to fail one case (NewtonError, ...); any other Exception of a case (a
 #: library bug's TypeError, a user reducer's KeyError) fails it too, with its type and
@@ -37,6 +40,22 @@ META = ("index", "status", "message", "backend", "worker", "run_time", "max_rel_
         "output_name", "period", "case_record", "case_hash")
 
 _FOLDERS: dict[str, Path] = {}
+#: the linear solvers a worker process keeps (models x settings; each holds its model's
+#: factors, a dense 2,000-DOF model about 100 MB)
+SOLVER_CACHE_SIZE = 4
+_SOLVERS = None
+_SOLVERS_LOCK = threading.Lock()
+
+
+def solvers():
+    """This worker process's `SolverCache` (made at its first linear case)."""
+    global _SOLVERS
+    with _SOLVERS_LOCK:
+        if _SOLVERS is None:
+            from dtdyn.app.scene.run import SolverCache
+
+            _SOLVERS = SolverCache(SOLVER_CACHE_SIZE)
+        return _SOLVERS
 
 
 class CBackendError(RuntimeError):
@@ -81,10 +100,13 @@ def folder(shared: Shared) -> Path:
 
 
 def cleanup(token: str) -> None:
-    """Remove this worker's folder of the batch ``token`` (run on every worker at the end)."""
+    """Remove this worker's folder of the batch ``token`` and drop its solvers (run on every
+    worker at the end)."""
     got = _FOLDERS.pop(token, None)
     if got is not None:
         shutil.rmtree(got, ignore_errors=True)
+    if _SOLVERS is not None:
+        _SOLVERS.clear()
 
 
 def _require_compiler() -> None:
@@ -188,7 +210,7 @@ def _run_case(shared, spec, reducers, check, layout, coords, strict, caught):  #
         scene = scene_of(shared, spec, where)
         if _wants_c(scene):
             _require_compiler()
-        response, report = run_scene(scene, check=check)
+        response, report = run_scene(scene, check=check, solvers=solvers())
     except CBackendError:
         raise
     except Exception as exc:  # RUN_ERRORS and anything else: this case fails

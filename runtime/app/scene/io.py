@@ -44,7 +44,10 @@ def run_summary(response: Response) -> dict:
 def scene_summary(scene: Scene) -> dict:
     """The scene in a few JSON-safe fields: what a saved result says about its origin."""
     return {"title": scene.title, "source": scene.source, "kind": scene.kind,
-            "n_dof": scene.n_dof, "scheme": scene.scheme, "params": dict(scene.scheme_params),
+            "n_dof": scene.n_dof, "scheme": getattr(scene.scheme, "name", scene.scheme),
+            **({"scheme_file": scene.scheme.path, "scheme_sha256": scene.scheme.sha256}
+               if hasattr(scene.scheme, "sha256") else {}),
+            "params": dict(scene.scheme_params),
             "dt": scene.dt, "n_steps": scene.n_steps, "force_dofs": scene.loaded.tolist(),
             "loads": scene.loads, "elements": [el.describe() for el in scene.elements],
             "quantities": list(scene.quantities),

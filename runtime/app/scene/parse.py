@@ -37,7 +37,7 @@ def _parse_time(tbl) -> tuple[float, int]:
     return dt, validate.step_count("time.duration / time.dt", n_steps)
 
 
-def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None, str, str]:
+def _parse_scheme(tbl, kind: str = "chain", base_dir=None) -> tuple:
     """(name, params, form, sweep, backend, unstable) of a linear scene's [scheme] table; every
     key is optional (``tbl`` None: no table), the defaults those of the entry points."""
     if tbl is None:
@@ -50,7 +50,7 @@ def _parse_scheme(tbl, kind: str = "chain") -> tuple[str, dict, str, str | None,
                 raise ValueError(f"scheme.{key} = {tbl[key]!r}: only for chain models; a model "
                                  "with kind = 'matrices' runs mck_response (acceleration form, "
                                  "dense or sparse as the matrices are): remove the key")
-    name, params = _scheme_name_params(tbl, DEFAULT_SCHEME)
+    name, params = _scheme_name_params(tbl, DEFAULT_SCHEME, base_dir)
     unstable = _choice("scheme.unstable", tbl.get("unstable", "raise"), UNSTABLE)
     if kind == "matrices":
         return name, params, "acceleration", None, "", unstable  # backend: from the matrices
@@ -333,7 +333,8 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".",  # noqa: C901 (a che
     else:
         if "element" in data:  # an empty array: still a linear scene
             _parse_elements(data["element"], n_dof, names)
-        scheme, params, form, sweep, backend, unstable = _parse_scheme(data.get("scheme"), kind)
+        scheme, params, form, sweep, backend, unstable = _parse_scheme(data.get("scheme"), kind,
+                                                                       base_dir)
         if kind in MODEL_MODULES and sweep != "stable":
             raise ValueError(f"scheme.sweep = {sweep!r}: a {kind} runs the stable sweep only")
         if kind == "matrices":

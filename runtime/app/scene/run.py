@@ -1,12 +1,22 @@
-"""Running a scene: the stability check, the linear or nonlinear run, the exact-error check."""
+"""Running a scene: the stability check, the linear or nonlinear run, the exact-error check.
+
+A linear scene runs on its model's solver (`dtdyn.linear.solver.Solver`: the checks, the
+factorization and the kernel once); a `SolverCache` keeps the solvers, so that many scenes on
+one model with the same settings (a batch's load cases on each worker) make it once.
+"""
 from __future__ import annotations
 
+import collections
 import dataclasses
+import hashlib
+import threading
 import time
+import warnings
 
 import numpy as np
 import scipy.sparse as sps
 
+from dtdyn._engine.public import warn
 from dtdyn._engine.result import Response
 from dtdyn.app.scene.schema import (EXACT_MAX_DOF, SCHEMES, UNSTABLE, Scene, _choice,
                                     model_module)
@@ -46,6 +56,11 @@ def check_stability(scene: Scene) -> bool:
     method is a scheme (the modal methods are exact for the linear part; nonlinear_mck_response
     checks the elements' tangent stiffness as it runs).
     """
+    return _check_stability(scene, natural_frequencies)
+
+
+def _check_stability(scene: Scene, frequencies) -> bool:
+    """`check_stability` with the model's frequencies from ``frequencies(scene)``."""
     from dtdyn.linear.stability import warn_if_unstable
 
     scene.require_run("check_stability", load=False)
@@ -54,11 +69,196 @@ def check_stability(scene: Scene) -> bool:
         if scene.scheme not in SCHEMES:
             return False
         dt = scene.dt / scene.nonlinear.get("substeps", 1)
-    omegas = natural_frequencies(scene)
+    omegas = frequencies(scene)
     omegas = omegas[omegas > 0.0]
     if omegas.size == 0:
         return False
     return warn_if_unstable(scene.scheme, omegas, dt, **scene.scheme_params)
+
+
+def scene_solver(scene: Scene):
+    """The solver of a linear scene's model with the scene's dt, scheme, outputs and
+    quantities (`dtdyn.linear.solver.Solver`), the one `mck_response`, `chain_response`,
+    `shaft_response` or `beam_response` would make; None for a model kind without one."""
+    common = dict(scheme=scene.scheme, backend=scene.backend, outputs=scene.outputs,
+                  quantities=scene.quantities, unstable=scene.unstable, **scene.scheme_params)
+    if scene.kind == "matrices":
+        from dtdyn.linear.mck import Matrices
+
+        return Matrices(scene.M, scene.C, scene.K).solver(scene.dt, **common)
+    if scene.model is not None:  # a kind in MODEL_MODULES (a shaft, a beam)
+        if not hasattr(scene.model, "solver"):
+            return None
+        return scene.model.solver(scene.dt, form=scene.form, **common)
+    from dtdyn.linear.chain import Chain  # imported here: chain may compile kernels on first use
+
+    chain = scene.chain
+    model = Chain(chain["mass"], chain["stiffness"], chain["damping"],
+                  ground_stiffness=chain["ground_stiffness"],
+                  ground_damping=chain["ground_damping"])
+    return model.solver(scene.dt, form=scene.form, sweep=scene.sweep, **common)
+
+
+def model_digest(scene: Scene) -> str | None:
+    """A hash of everything a scene's model (not its loads, scheme or outputs) gives its
+    solver and natural frequencies: the chain's stations, the matrices (dense or sparse, their
+    stored arrays) or a beam's or shaft's lumped data; None for a model kind it does not know
+    (that model's solvers are then not cached)."""
+    h = hashlib.blake2b(digest_size=20)
+
+    def feed(x):
+        if x is None:
+            h.update(b"N")
+        elif sps.issparse(x):
+            h.update(f"S{x.format}".encode())
+            x = x.tocsr()
+            feed((x.shape, x.indptr, x.indices, x.data))
+        elif isinstance(x, np.ndarray):
+            if x.dtype == object:
+                feed(tuple(x.ravel()))
+                return
+            a = np.ascontiguousarray(x)
+            h.update(f"A{a.shape}{a.dtype.str}".encode())
+            h.update(a.view(np.uint8).ravel())
+        elif isinstance(x, (tuple, list)):
+            h.update(f"T{len(x)}".encode())
+            for y in x:
+                feed(y)
+        elif isinstance(x, dict):
+            feed(sorted(x.items()))
+        else:  # numbers (repr is exact), strings, frozen dataclasses (PointMass, ...)
+            h.update(f"R{type(x).__name__}:{x!r}".encode())
+
+    if scene.kind == "matrices":
+        feed(("matrices", scene.M, scene.C, scene.K))
+    elif scene.model is None:
+        feed(("chain", scene.chain))
+    elif scene.kind == "beam":
+        b = scene.model
+        feed(("beam", b.E, b.I, b.rho_A, b.length, b.elements, b.mass_matrix, b.rayleigh,
+              b.point_masses, b.supports, b.ends, b.free))
+    elif scene.kind == "shaft":
+        feed(("shaft", tuple(scene.model.tree)))  # the lumped tree the runs sweep
+    else:
+        return None
+    return h.hexdigest()
+
+
+class SolverCache:
+    """Linear solvers of scenes, kept for the scenes that come next on the same model.
+
+    `run_scene` with ``solvers=`` a cache looks the scene's solver up by its model's content
+    (`model_digest`) and its settings (dt, scheme and parameters, form, sweep, backend,
+    outputs, quantities, unstable): found, it runs the load case on it; else it makes the
+    solver and keeps it. The results are those of a fresh solver, bitwise (a solver's runs do
+    not depend on the runs before). It also keeps each model's natural frequencies for the
+    stability check. A batch's worker holds one (`run_batch`: one solver per model and
+    settings per worker process). Safe to use from several threads; the least recently used
+    entries beyond ``size`` are dropped.
+
+    A warning the solver gave when it was made (a dt past the stability limit with
+    ``unstable = "warn"``) is given again for each scene that reuses it, as making it again
+    would.
+
+    Parameters
+    ----------
+    size : int
+        Solvers kept (each holds its model's factors: a dense 2,000-DOF model about 100 MB).
+
+    Attributes
+    ----------
+    built, reused : int
+        Solvers made, and runs that found theirs (since the cache was made).
+
+    Examples
+    --------
+    >>> import dtdyn as dd
+    >>> from dtdyn.app.scene.run import SolverCache
+    >>> cache, scene = SolverCache(), dd.load_scene()
+    >>> runs = [dd.run_scene(scene, check=False, solvers=cache) for _ in range(3)]
+    >>> cache.built, cache.reused
+    (1, 2)
+    """
+
+    def __init__(self, size: int = 4):
+        if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+            raise ValueError(f"size = {size!r}: must be an integer >= 1")
+        self.size = size
+        self.built = self.reused = 0
+        self._solvers = collections.OrderedDict()
+        self._omegas = collections.OrderedDict()
+        self._lock = threading.Lock()
+
+    def __len__(self) -> int:
+        return len(self._solvers)
+
+    def clear(self) -> None:
+        """Drop every solver and frequency set (the counts stay)."""
+        with self._lock:
+            self._solvers.clear()
+            self._omegas.clear()
+
+    def _get(self, table, key):
+        with self._lock:
+            got = table.get(key)
+            if got is not None:
+                table.move_to_end(key)
+            return got
+
+    def _put(self, table, key, value):
+        with self._lock:
+            table[key] = value
+            table.move_to_end(key)
+            while len(table) > self.size:
+                table.popitem(last=False)
+
+    def solver(self, scene: Scene):
+        """The scene's solver (`scene_solver`), reused or made and kept."""
+        digest = model_digest(scene)
+        if digest is None:
+            return scene_solver(scene)
+        key = (scene.kind, digest, repr(float(scene.dt)), scene.scheme,
+               tuple(sorted((k, repr(v)) for k, v in scene.scheme_params.items())), scene.form,
+               scene.sweep, scene.backend, np.asarray(scene.outputs).tobytes(),
+               tuple(scene.quantities), scene.unstable)
+        got = self._get(self._solvers, key)
+        if got is not None:
+            solver, again = got
+            with self._lock:
+                self.reused += 1
+            for w in again:  # what making it gave (through `warn`: once per public call)
+                warn(str(w.message), w.category)
+            return solver
+        again = ()
+        if scene.unstable == "warn":  # keep its stability warning for the scenes that reuse it
+            from dtdyn._engine.errors import DtdynStabilityWarning
+
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                solver = scene_solver(scene)
+            for w in caught:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno,
+                                       source=w.source)
+            again = tuple(w for w in caught if issubclass(w.category, DtdynStabilityWarning))
+        else:
+            solver = scene_solver(scene)
+        if solver is not None:
+            with self._lock:
+                self.built += 1
+            self._put(self._solvers, key, (solver, again))
+        return solver
+
+    def frequencies(self, scene: Scene) -> np.ndarray:
+        """`natural_frequencies` of the scene's model, reused or computed and kept."""
+        digest = model_digest(scene)
+        if digest is None:
+            return natural_frequencies(scene)
+        key = (scene.kind, digest)
+        got = self._get(self._omegas, key)
+        if got is None:
+            got = natural_frequencies(scene)
+            self._put(self._omegas, key, got)
+        return got
 
 
 def scene_matrices(scene: Scene):
@@ -122,7 +322,8 @@ def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
 
 
 def run_scene(scene: Scene, progress: bool = False, check: bool = True,
-              unstable: str | None = None) -> tuple[Response, dict]:
+              unstable: str | None = None,
+              solvers: SolverCache | None = None) -> tuple[Response, dict]:
     """Simulate a scene with ``chain_response`` (chains), ``mck_response`` (general matrices) or
     ``nonlinear_mck_response`` (scenes with elements) and report run time and error.
 
@@ -177,6 +378,10 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True,
         A linear scene's dt past the scheme's stability limit: raise DtdynUnstableError, or
         warn (DtdynStabilityWarning) and run it anyway, for study (the entry points'
         ``unstable=``). None: the scene's ``scheme.unstable`` (default "raise").
+    solvers : SolverCache, optional
+        Linear scenes: reuse the solver (and the natural frequencies of the stability check)
+        kept there for the same model and settings, or make it and keep it; the results are
+        the same, bitwise. None: a solver made for this run alone.
 
     Examples
     --------
@@ -191,29 +396,20 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True,
             raise ValueError(f"unstable = {unstable!r}: only for linear scenes; a scene with "
                              "[[element]] checks each step's stability as it runs")
         scene = dataclasses.replace(scene, unstable=_choice("unstable", unstable, UNSTABLE))
-    if not scene.linear or scene.unstable == "raise":
-        check_stability(scene)  # "warn": the entry point warns, once
+    if not scene.linear or scene.unstable == "raise":  # "warn": the solver warns, once
+        cached = solvers is not None and scene.linear
+        _check_stability(scene, solvers.frequencies if cached else natural_frequencies)
     if not scene.linear:
         return _run_nonlinear(scene)
     start = time.perf_counter()
-    if scene.kind == "matrices":
-        from dtdyn.linear import mck
-
-        response = mck.mck_response(
-            scene.M, scene.C, scene.K, scene.force, scene.dt, force_dofs=scene.loaded,
-            **_support(scene), scheme=scene.scheme, outputs=scene.outputs,
-            quantities=scene.quantities, backend=scene.backend, progress=progress,
-            unstable=scene.unstable, **scene.scheme_params)
-    elif scene.model is not None:  # a kind in MODEL_MODULES (a shaft, a beam)
+    # the solver of mck_response, chain_response, shaft_response or beam_response: the same
+    # results, bitwise
+    solver = scene_solver(scene) if solvers is None else solvers.solver(scene)
+    if solver is None:  # a model kind without a solver: its module's run
         response = model_module(scene.kind).simulate(scene, progress, _support(scene))
     else:
-        from dtdyn.linear import chain  # imported here: chain may compile kernels on first use
-
-        response = chain.chain_response(
-            **scene.chain, force=scene.force, dt=scene.dt, force_dofs=scene.loaded,
-            **_support(scene), scheme=scene.scheme, form=scene.form, sweep=scene.sweep,
-            backend=scene.backend, outputs=scene.outputs, quantities=scene.quantities,
-            progress=progress, unstable=scene.unstable, **scene.scheme_params)
+        response = solver.run(scene.force, force_dofs=scene.loaded, progress=progress,
+                              **_support(scene))
     run_time = time.perf_counter() - start
 
     report = {

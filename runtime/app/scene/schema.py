@@ -530,15 +530,28 @@ def _dof_index(name: str, value, n_dof: int, names: tuple[str, ...] | None) -> i
     return value
 
 
-def _scheme_name_params(tbl: dict, default: str | None = None) -> tuple[str, dict]:
-    """``scheme.name`` (``default`` when the table has none) and its parameters, each checked
-    against its bounds in SCHEMES."""
-    name = tbl.get("name", default)
-    if name is None:
-        raise ValueError(f"scheme.name is required, allowed: {', '.join(SCHEMES)}")
-    _choice("scheme.name", name, tuple(SCHEMES))
-    bounds = SCHEMES[name]
-    _table("scheme", tbl, _SCHEME_COMMON + tuple(bounds))
+def _scheme_name_params(tbl: dict, default: str | None = None, base_dir=None) -> tuple:
+    """``scheme.name`` (``default`` when the table has none), or the scheme a scheme file
+    ``scheme.file`` defines (a path relative to ``base_dir``; `dtdyn.load_scheme`), and its
+    parameters, each checked against its bounds."""
+    if "file" in tbl:
+        if "name" in tbl:
+            raise ValueError(f"scheme.name = {tbl['name']!r} and scheme.file = {tbl['file']!r}: "
+                             "give one of them")
+        if not isinstance(tbl["file"], str):
+            raise ValueError(f"scheme.file = {tbl['file']!r}: must be the path of a scheme file")
+        from dtdyn._engine.scheme_files import load_scheme
+        path = Path(base_dir or ".") / tbl["file"]
+        name = load_scheme(path)
+        bounds = name.params
+        _table("scheme", tbl, _SCHEME_COMMON + ("file",) + tuple(bounds))
+    else:
+        name = tbl.get("name", default)
+        if name is None:
+            raise ValueError(f"scheme.name is required, allowed: {', '.join(SCHEMES)}")
+        _choice("scheme.name", name, tuple(SCHEMES))
+        bounds = SCHEMES[name]
+        _table("scheme", tbl, _SCHEME_COMMON + tuple(bounds))
     params = {key: check_parameter(name, key, finite_number(f"scheme.{key}", tbl[key]),
                                    f"scheme.{key}") for key in bounds if key in tbl}
     return name, params
