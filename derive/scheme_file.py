@@ -124,7 +124,7 @@ def parse_text(text: str, source: str = "<scheme>") -> I.Scheme:  # noqa: C901 (
             raise ValueError(f"{where} must be a table with default = <number> and optionally "
                              "range = [lo, hi]")
         default = _number(f"{where}.default", spec["default"])
-        lo, hi = spec.get("range", [None, None]) if "range" in spec else (None, None)
+        lo = hi = None                     # no range: any real value
         if "range" in spec:
             rng = spec["range"]
             if not isinstance(rng, list) or len(rng) != 2:

@@ -20,7 +20,7 @@ from dtdyn._engine.ground import ground_acceleration_from
 from dtdyn._engine.result import Response
 from dtdyn._engine.result_io import load_result
 from dtdyn._engine.scheme_files import FileScheme, load_scheme
-from dtdyn.app.batch import run_batch
+from dtdyn.app.batch import monte_carlo_summary, run_batch
 from dtdyn.app.problems import problem
 from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
 from dtdyn.linear.chain import Chain, chain_matrices, rayleigh_chain_damping, chain_response
@@ -101,7 +101,7 @@ __all__ = [
     # scenes, results, reference problems
     "ground_acceleration_from", "Scene", "load_scene", "scene_from_dict", "run_scene", "Response",
     "load_result",
-    "run_batch",
+    "run_batch", "monte_carlo_summary",
     "problem",
     # errors and warnings
     "NewtonError", "DtdynStepStabilityError", "DtdynUnstableError", "SingularMassError",

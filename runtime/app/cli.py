@@ -664,6 +664,151 @@ def _fds_arguments(sub) -> None:
                                   "its parameters to <name>.csv.json")
 
 
+def _random_model(sc, table, freqs, quantities):
+    """The RandomResponse of a scene's linear model under ``table``: at its [ground] as the
+    support's acceleration PSD, else at each loaded DOF (independent loads, each the table's
+    PSD); and what the input was, for the printout."""
+    from dtdyn.random_vibration import chain_random_response, random_response
+
+    if sc.ground is not None:
+        load = {"ground_acceleration_psd": table, "influence": sc.influence}
+        how = "support acceleration ([ground])"
+    elif sc.loaded is not None and len(sc.loaded):
+        load = {"psd": [table] * len(sc.loaded), "force_dofs": list(sc.loaded)}
+        how = ("independent loads at DOF(s) "
+               + ", ".join(sc.dof_label(d) for d in sc.loaded) + " ([[load]])")
+    else:
+        raise ValueError(f"{sc.source}: dtdyn random applies the PSD at the scene's loaded DOFs "
+                         "([[load]] dof) or at its support ([ground]); the scene has neither")
+    psd = load.pop("psd", None)
+    common = {"outputs": list(sc.outputs), "quantities": quantities, **load}
+    if sc.kind == "chain":
+        return chain_random_response(sc.mass, sc.stiffness, sc.damping, psd, freqs,
+                                     ground_stiffness=sc.ground_stiffness,
+                                     ground_damping=sc.ground_damping, **common), how
+    M, C, K = sc.matrices()
+    if C is None:
+        raise ValueError(f"{sc.source}: the model has no damping: the response PSDs of an "
+                         "undamped model have infinite peaks")
+    return random_response(M, C, K, psd, freqs, **common), how
+
+
+def _random(args) -> int:
+    """`dtdyn random SCENE --psd table.csv`: the response PSDs and rms of a scene's linear
+    model under a PSD table (random_response), printed, saved as CSV + JSON sidecar and
+    plotted."""
+    import json
+
+    import numpy as np
+
+    from dtdyn._engine.atomic import write_atomic, write_atomic_files
+    from dtdyn._engine.result_io import _versions, sidecar_path
+    from dtdyn.app import scene as scenes
+
+    for flag, path in (("--out", args.out), ("--plot", args.plot)):
+        if path and (Path(path).is_dir() or not Path(path).resolve().parent.is_dir()):
+            raise ValueError(f"{flag} {path!r}: not a file in an existing folder")
+    table = _read_psd_table(args.psd)
+    sc = scenes.load_scene(args.scene)
+    if args.freqs is None:
+        fmin, fmax, n = float(table.freqs_hz[0]), float(table.freqs_hz[-1]), 200
+    else:
+        fmin, fmax, n = args.freqs
+        if float(n) != int(n) or int(n) < 2 or not 0.0 < fmin < fmax:
+            raise ValueError(f"--freqs: need 0 < FMIN < FMAX and an integer N >= 2, got "
+                             f"{fmin!r} {fmax!r} {n!r}")
+    freqs = np.geomspace(fmin, fmax, int(n))
+    quantities = tuple(q for q in sc.quantities if q in ("x", "v", "a")) or ("x",)
+    r, how = _random_model(sc, table, freqs, quantities)
+    labels = [sc.dof_label(d) for d in r.outputs]
+    print(f"{sc.title}: {sc.n_dof} DOF ({sc.kind}), linear model"
+          + (f" (its {len(sc.elements)} nonlinear element(s) left out)" if sc.elements else "")
+          + f"; input {args.psd}: {table.grms:.4g} grms over {table.freqs_hz[0]:g} .. "
+          f"{table.freqs_hz[-1]:g} Hz, as {how}")
+    print(f"band {freqs[0]:g} .. {freqs[-1]:g} Hz; rms error estimate "
+          f"{r.info['rms_error_estimate']:.1e} ({r.info['n_integration_freqs']} frequencies "
+          "integrated)")
+    print(f"{'output':>10s} " + " ".join(f"{'rms ' + q:>13s}" for q in r.quantities)
+          + f" {'zero-up/s ' + r.quantities[0]:>12s}")
+    for j, label in enumerate(labels):
+        print(f"{label:>10s} " + " ".join(f"{r.rms[q][j]:13.6g}" for q in r.quantities)
+              + f" {r.zero_crossing_rate[r.quantities[0]][j]:12.5g}")
+    if args.out:
+        names = ["freq_hz", "input_psd"] + [f"{q}_psd {label}" for q in r.quantities
+                                            for label in labels]
+        cols = [freqs, table(freqs)] + [np.real(getattr(r, f"{q}_psd")[:, j, j])
+                                        for q in r.quantities for j in range(len(labels))]
+        lines = [",".join(names)] + [",".join(f"{v:.17g}" for v in row)
+                                     for row in np.column_stack(cols)]
+        data = ("\n".join(lines) + "\n").encode()
+        meta = {"format": "dtdyn random response", "version": 1, "table": Path(args.out).name,
+                "columns": names, "scene": sc.source, "title": sc.title,
+                "input": r.info["input"], "psd_file": str(args.psd),
+                "psd_breakpoints": [[float(f), float(g)] for f, g in
+                                    zip(table.freqs_hz, table.values)],
+                "psd_grms": table.grms, "outputs": labels,
+                "rms": {q: r.rms[q].tolist() for q in r.quantities},
+                **{f"m{k}": {q: getattr(r, f"m{k}")[q].tolist() for q in r.quantities}
+                   for k in (0, 1, 2, 4)},
+                "rms_error_estimate": r.info["rms_error_estimate"],
+                "n_integration_freqs": r.info["n_integration_freqs"],
+                "modes_hz": np.asarray(r.info["modes_hz"]).tolist(),
+                "damping_ratio": np.asarray(r.info["damping_ratio"]).tolist(),
+                "versions": _versions()}
+        side = (json.dumps(meta, indent=1) + "\n").encode()
+        write_atomic_files([(sidecar_path(args.out), lambda fh: fh.write(side)),
+                            (args.out, lambda fh: fh.write(data))])
+        print(f"results: {args.out} (metadata: {sidecar_path(args.out).name})")
+    if args.plot:
+        from dtdyn._engine.extras import require
+        require("matplotlib", "plot", "dtdyn random --plot")
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        path = Path(args.plot)
+        fig = Figure(figsize=(7.0, 2.8 * (len(r.quantities) + 1)), layout="constrained")
+        canvas = FigureCanvasAgg(fig)
+        fmt = path.suffix[1:].lower() or "png"
+        if fmt not in canvas.get_supported_filetypes():
+            raise ValueError(f"--plot {args.plot!r}: unsupported format {fmt!r}, allowed: "
+                             f"{', '.join(sorted(canvas.get_supported_filetypes()))}")
+        axes = fig.subplots(len(r.quantities) + 1, 1, squeeze=False)[:, 0]
+        axes[0].loglog(freqs, table(freqs), "k",
+                       label=f"{Path(args.psd).name}: {table.grms:.3g} grms")
+        axes[0].set(xlabel="f [Hz]", ylabel="input PSD [(unit)^2/Hz]")
+        for ax, q in zip(axes[1:], r.quantities):
+            G = getattr(r, f"{q}_psd")
+            for j, label in enumerate(labels):
+                ax.loglog(freqs, np.real(G[:, j, j]),
+                          label=f"{q} {label}: {r.rms[q][j]:.3g} rms")
+            ax.set(xlabel="f [Hz]", ylabel=f"{q} PSD [(unit)^2/Hz]")
+        for ax in axes:
+            ax.grid(True, which="both", alpha=0.3)
+            ax.legend(fontsize=7)
+        fig.suptitle(f"{sc.title}: response PSDs", fontsize=10)
+        write_atomic(path, lambda fh: fig.savefig(fh, format=fmt, dpi=110))
+        print(f"plot: {args.plot}")
+    return 0
+
+
+def _random_arguments(sub) -> None:
+    """The parser of `dtdyn random`."""
+    ra = sub.add_parser("random", help="response PSDs and rms of a scene's linear model under a "
+                                       "PSD table (at its loaded DOFs, or its [ground])")
+    ra.add_argument("scene", metavar="SCENE", help="scene TOML file")
+    ra.add_argument("--psd", required=True,
+                    help="CSV of the PSD table: two columns, f [Hz] and PSD [(unit)^2/Hz], "
+                         "log-log between rows; applied at each [[load]] DOF (independent "
+                         "loads), or as the support's acceleration when the scene has [ground]")
+    ra.add_argument("--freqs", type=float, nargs=3, metavar=("FMIN", "FMAX", "N"),
+                    help="N log-spaced frequencies where the PSDs are returned, Hz (default: "
+                         "the table's band, 200); the rms integrates FMIN .. FMAX")
+    ra.add_argument("--plot", help="draw the input and response PSDs on log-log axes (grms and "
+                                   "rms in the legends) to this image file")
+    ra.add_argument("--out", help="write freq_hz, the input PSD and each output's PSD per "
+                                  "quantity to this CSV, the rms and moments to <name>.csv.json")
+
+
 def _show_arguments(p) -> None:
     """The arguments of `dtdyn scheme show` and of its alias `dtdyn show`."""
     p.add_argument("scheme", metavar="SCHEME",
@@ -739,6 +884,7 @@ def _parser() -> argparse.ArgumentParser:
     sr.add_argument("--plot", help="draw maximax/positive/negative to this image file")
     sr.add_argument("--out", help="write freq_hz, maximax, positive, negative to this CSV")
     _fds_arguments(sub)
+    _random_arguments(sub)
     st = sub.add_parser("stability", help="spectral radius, period elongation and algorithmic "
                                           "damping of each scheme")
     st.add_argument("schemes", nargs="*", metavar="SCHEME",
@@ -762,7 +908,7 @@ def _parser() -> argparse.ArgumentParser:
                        help="a running Dask scheduler, e.g. tcp://10.0.0.5:8786")
     ba.add_argument("--reduce", default=None,
                     help="keep reductions instead of time histories: a comma-separated list of "
-                         "peak, rms, drift, srs, history")
+                         "peak, rms, drift, srs, welch, history")
     ba.add_argument("--out", required=True, help="the Zarr store to write (results.zarr)")
     ba.add_argument("--chunk", type=int, default=None, help="cases per task (default: auto)")
     ba.add_argument("--overwrite", action="store_true", help="replace an existing --out")
@@ -840,7 +986,8 @@ def main(argv=None) -> int:
     except SystemExit as exc:  # --help, --version (0) or a usage error (2), already printed
         return int(exc.code or 0)
     handler = {"generate": _generate, "show": _show, "scheme": _scheme, "simulate": _simulate,
-               "stability": _stability, "srs": _srs, "fds": _fds, "bench": _bench,
+               "stability": _stability, "srs": _srs, "fds": _fds, "random": _random,
+               "bench": _bench,
                "modes": _modes, "spectrum": _spectrum, "batch": _batch}[args.command]
     try:
         with warning_scope(), warnings.catch_warnings():

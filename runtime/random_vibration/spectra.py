@@ -128,6 +128,14 @@ class VibrationSpectrum:
         ``source`` (``"psd"`` or ``"record"``), ``duration``, for an FDS ``slope``,
         ``coefficient``, ``stress_factor``, ``method``; from a PSD the moments ``m0``, ``m1``,
         ``m2``, ``m4`` (arrays) and ``rms_error_estimate``; ``band_hz``.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd          # Miles: sqrt(pi/2 f_n Q W) = 3.96 at 100 Hz
+    >>> s = dd.vibration_response_spectrum(dd.psd_table([(20, 0.01), (2000, 0.01)]),
+    ...                                    np.array([100.0, 200.0]), damping_ratio=0.05)
+    >>> s.kind, s.values.round(3).tolist()
+    ('vrs', [3.957, 5.615])
     """
 
     kind: str

@@ -390,3 +390,45 @@ def test_composite_refused_where_not_supported(bathe):
     M, K = np.eye(2), np.array([[2.0, -1.0], [-1.0, 1.0]])
     with pytest.raises(ValueError, match="composite of 2 sub-steps"):
         dd.discrete_state_space(M, 0.01 * K, K, 0.01, scheme=bathe)
+
+
+def test_state_space_and_nonlinear_take_the_file_scheme(scheme):
+    """The file and the built-in bossak derive to the same coefficients: the discrete models
+    and the nonlinear one-step runs are equal, bitwise."""
+    pytest.importorskip("casadi")
+    M, K = np.diag([1.0, 2.0]), np.array([[2e3, -1e3], [-1e3, 1e3]])
+    C = 0.001 * K
+    a = dd.discrete_state_space(M, C, K, 0.01, scheme=scheme, alpha_m=-0.2)
+    b = dd.discrete_state_space(M, C, K, 0.01, scheme="bossak", alpha_m=-0.2)
+    assert np.array_equal(np.asarray(a.A), np.asarray(b.A))
+    f = np.zeros((101, 2))
+    f[:, 1] = 1.0
+    runs = [dd.nonlinear_mck_response(M, C, K, f, 0.01, elements=[dd.Cubic(0, k3=1e6)],
+                                      force_dofs=[0, 1], scheme=s) for s in (scheme, "bossak")]
+    assert np.array_equal(runs[0].x, runs[1].x)
+
+
+def test_run_batch_with_a_scene_scheme_file(tmp_path):
+    pytest.importorskip("dask")
+    (tmp_path / "mine.toml").write_text(BOSSAK)
+    scene = tmp_path / "scene.toml"
+    scene.write_text(textwrap.dedent("""
+        [model]
+        mass = [1.0, 2.0]
+        stiffness = [1e3, 1e3]
+        [[load]]
+        dof = 1
+        kind = "step"
+        amplitude = 1.0
+        [scheme]
+        file = "mine.toml"
+        alpha_m = -0.2
+        [time]
+        dt = 0.01
+        duration = 0.2
+        """))
+    ds = dd.run_batch([str(scene), str(scene)], workers=1)
+    direct = dd.chain_response([1.0, 2.0], [1e3, 1e3], [0.0, 0.0], np.ones(21), 0.01,
+                               force_dofs=[1], scheme=dd.load_scheme(tmp_path / "mine.toml"),
+                               alpha_m=-0.2)
+    assert np.allclose(np.asarray(ds["x"]).reshape(2, 21, -1)[0], direct.x, rtol=0, atol=0)

@@ -8,6 +8,7 @@ Layout (Zarr format 2, consolidated metadata; ``xarray.open_zarr`` reads it)::
     x, v, a, a_abs, x_abs     (case, time, output)   time histories (reduce=None or "history")
     peak_x, rms_x, ...        (case, output)          reductions (dtdyn.app.batch.reducers)
     psa                       (case, period, output)
+    welch_x, ...              (case, freq_hz, output)  the welch reducer's PSDs (welch_dof: case)
     status                    (case,)  "pending", "done" or "failed"
     case_record               (case,)  JSON: the finished case's metadata and warnings
     case_hash                 (case,)  the case's content hash (scene after its variations,

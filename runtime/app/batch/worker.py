@@ -37,7 +37,7 @@ RUN_ERRORS = (NewtonError, DtdynStepStabilityError, DtdynUnstableError, Singular
 #: the per-case metadata variables and the coordinates of a batch: no reducer may make them
 META = ("index", "status", "message", "backend", "worker", "run_time", "max_rel_error",
         "max_residual", "error_estimate", "seed", "params", "case", "time", "output",
-        "output_name", "period", "case_record", "case_hash")
+        "output_name", "period", "freq_hz", "case_record", "case_hash")
 
 _FOLDERS: dict[str, Path] = {}
 #: the linear solvers a worker process keeps (models x settings; each holds its model's
