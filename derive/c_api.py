@@ -142,9 +142,11 @@ CONSTANTS = {
     "MCK_ROW_B": (7, "row of b, the accelerations' history terms"),
     "MCK_ROWS": (8, "rows of the mck loop"),
     # dtdyn_block_chain_loop's work (block_chain.h): rows of P doubles (P: the node stride,
-    # N + 1 rounded up to 8), each after a gap whose last double is z[-1] = 0
+    # N + 1 rounded up to BLOCK_CHAIN_ALIGN), each after a gap whose last double is z[-1] = 0
     "BLOCK_CHAIN_ROWS": (2, "rows of the block chain loop: z, components 0 and 1"),
     "BLOCK_CHAIN_GAP": (8, "doubles before each row (64 bytes: the rows stay aligned)"),
+    "BLOCK_CHAIN_ALIGN": (8, "the node stride P of every per-node row: N + 1 rounded up to a "
+                             "multiple of this many doubles (64 bytes: the rows stay aligned)"),
     # dtdyn_modal_filters' work (modal_filters.h): 2 m (MODAL_BLOCK + n_out) doubles
     "MODAL_BLOCK": (256, "samples per block of the modal filters (the states' rows of a block "
                          "are kept in work: 2 m MODAL_BLOCK doubles, then 2 m n_out weights)"),
@@ -176,6 +178,9 @@ def check_layout(plain_rows: int = 0) -> None:
         raise ValueError("c_api.CONSTANTS: BLOCK_CHAIN_ROWS must be at least 2 and "
                          "BLOCK_CHAIN_GAP a positive multiple of 8 doubles, not "
                          f"{c('BLOCK_CHAIN_ROWS')} and {c('BLOCK_CHAIN_GAP')}")
+    if c("BLOCK_CHAIN_ALIGN") < 1 or c("BLOCK_CHAIN_ALIGN") % 8:
+        raise ValueError("c_api.CONSTANTS: BLOCK_CHAIN_ALIGN must be a positive multiple of 8 "
+                         f"doubles (64 bytes), not {c('BLOCK_CHAIN_ALIGN')}")
     for name, value in need.items():
         if c(name) != value:
             raise ValueError(f"c_api.CONSTANTS[{name!r}] = {c(name)}, expected {value}")

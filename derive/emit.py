@@ -12,6 +12,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+from importlib import resources
 from pathlib import Path
 
 import jinja2
@@ -23,7 +24,7 @@ from . import (beam, c_api, dttmm, integrators as I, kernels, modal_filters, non
 TEMPLATES = Path(__file__).parent / "templates"
 #: the hand-written C (.h files compiled as they are: the runtime inlines them into the generated
 #: sources that include them, dtdyn._engine.cbuild); the templates only #include them
-CSOURCES = Path(__file__).resolve().parent.parent / "runtime" / "_engine" / "csrc"
+CSOURCES = Path(str(resources.files("dtdyn._engine") / "csrc"))  # checkout or installed
 GENERATED = Path(__file__).resolve().parent.parent / "generated"
 
 
@@ -397,7 +398,8 @@ def render_all() -> dict[str, str]:
     render("numpy/init.py.jinja", "__init__.py", "dtdyn.derive.integrators.scheme_table")
     out.update(_contract(env))
     render("numpy/scheme_table.py.jinja", "scheme_table.py",
-           "dtdyn.derive.integrators.scheme_table", table=I.scheme_table())
+           "dtdyn.derive.integrators.scheme_table and dtdyn.derive.nonlinear.method_table",
+           table=I.scheme_table(), methods=nonlinear.method_table(), auto=nonlinear.AUTO)
     out = format_sources(out)
     manifest = {n: {"sha256": hashlib.sha256(t.encode()).hexdigest()}
                 for n, t in sorted(out.items())}

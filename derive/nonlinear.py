@@ -22,6 +22,7 @@ z_k = z_{k-1} + h/2 (z'(w_k, z_k) + z'(w_{k-1}, z_{k-1})), solved together with 
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import cache
 
 import sympy as sp
@@ -119,9 +120,77 @@ QUINTIC_DEGREE = 5
 #: stability limit mu = 0.228, `polynomial_stability`: explicit degrees 4 and 5 grow slowly from
 #: small mu on, as the parabola does, and 7 halves the limit)
 EXPLICIT_DEGREE = 6
+
+
+@dataclass(frozen=True)
+class ModalMethod:
+    """A nonlinear modal method: the ramp-invariant modal filters (one complex first-order
+    recursion per kept mode, exact for a force linear between samples) with the element forces
+    g taken over each step as the polynomial of ``degree`` through their samples, g_{k+1-m} ..
+    g_{k+1} (implicit: each step solves for its own forces) or g_{k-m} .. g_k (``explicit``:
+    extrapolated, Dwg = 0, one evaluation of the element laws a step, no Newton solve).
+
+    Its order in h is ``degree`` + 1. ``polynomial``: its weights W_j are generated tables
+    (generated/nl_modal.py POLYNOMIALS) and its runs carry the embedded estimate (the next
+    Newton term). ``theta_held``: the theta = |B0 dg/dy| its loops hold it to instead of the
+    derived stability limit (`polynomial_stability`), for a method that grows from theta = 0 on.
+    """
+
+    name: str
+    title: str
+    degree: int
+    explicit: bool = False
+    polynomial: bool = False
+    theta_held: float | None = None
+    reference: str = ""
+    notes: str = ""
+
+    @property
+    def order(self) -> int:
+        """The order in h: the force polynomial's degree + 1 (the linear part is exact)."""
+        return self.degree + 1
+
+
+MODAL_REF = ("Ahlin, Magnevall & Josefsson (2006), Simulation of forced response in "
+             "linear and nonlinear mechanical systems using digital filters, ISMA")
+
+#: The nonlinear modal methods, the second family of `nonlinear_mck_response`'s schemes beside
+#: the time integrators of `dtdyn.derive.integrators.SCHEMES` (which run there as their
+#: effective nonlinear system). generated/scheme_table.py carries them as METHODS.
+MODAL_METHODS: dict[str, ModalMethod] = {m.name: m for m in (
+    ModalMethod("modal_ramp", "Modal filters, ramp invariant", 1, reference=MODAL_REF,
+                notes="The element force treated as linear over the step, like the linear-"
+                      "acceleration method: stable up to B0 k_t = 2 (Omega_t = sqrt 12)."),
+    ModalMethod("modal_parabolic", "Modal filters, parabolic element forces", 2,
+                theta_held=0.01, reference=MODAL_REF + "; the parabola: dtdyn's addition",
+                notes="The parabola through g_{k-1}, g_k, g_{k+1}; grows like Adams-Moulton 3 on "
+                      "the imaginary axis (rho - 1 ~ 1e-3 a step at theta = 0.03 without "
+                      "damping), so it is held to theta <= 0.01."),
+    ModalMethod("modal_quintic", "Modal filters, quintic element forces", QUINTIC_DEGREE,
+                polynomial=True, reference=MODAL_REF + "; the polynomial: dtdyn's addition",
+                notes="The polynomial through g_{k-4} .. g_{k+1}, with an embedded error "
+                      "estimate; every root of the free mass stays in the unit disk up to the "
+                      "derived theta limit (Omega_t = 1.61)."),
+    ModalMethod("modal_explicit", "Modal filters, explicit element forces", EXPLICIT_DEGREE,
+                explicit=True, polynomial=True,
+                reference=MODAL_REF + "; the polynomial: dtdyn's addition",
+                notes="The polynomial through g_{k-6} .. g_k extrapolated over the step: no "
+                      "Newton solve; theta = |(Cw Bg) dg/dy|, the weight of g_k on the next "
+                      "step's y (Omega_t = 0.48); the embedded estimate of modal_quintic."),
+)}
+
 #: the polynomial methods: degree and explicit
-POLYNOMIAL_METHODS = {"modal_quintic": (QUINTIC_DEGREE, False),
-                      "modal_explicit": (EXPLICIT_DEGREE, True)}
+POLYNOMIAL_METHODS = {m.name: (m.degree, m.explicit) for m in MODAL_METHODS.values()
+                      if m.polynomial}
+
+#: scheme="auto" of `nonlinear_mck_response` with an accuracy target: the modal methods whose
+#: runs estimate themselves, the explicit seventh-order one first (no Newton solve, the
+#: cheapest step) and then the implicit sixth-order one (stable for ten times the elements'
+#: stiffness); then, when an estimate is not confirmed or a run fails, the ramp invariant's
+#: Richardson sequence (robust on kinks and hysteresis); a one-step time integrator when the
+#: mass matrix is singular (no modal model); on a backend without embedded estimates, "then".
+AUTO = {"first": "modal_explicit", "next": "modal_quintic", "then": "modal_ramp",
+        "singular_mass": "average_acceleration"}
 vv = sp.Symbol("v")  # u / h
 mu = sp.Symbol("mu", positive=True)  # k_t h^2 / m: the element's stiffness seen by one step
 lam_ = sp.Symbol("lambda")
@@ -205,7 +274,7 @@ def polynomial_stability(degree: int, explicit: bool = False) -> dict:
     mu = 12, theta = 2; implicit degrees 4 and 5 keep every root inside up to mu = 1.40 and 2.59,
     explicit degree 6 up to 0.228; the parabola (m = 2) grows from the start, by ~ 0.02 mu^2
     per step, so its "limit" is where that reaches 1e-9 (its loops hold it to a chosen theta
-    instead, `THETA_LIMIT`)."""
+    instead, `ModalMethod.theta_held`)."""
     import numpy as np
     from scipy.optimize import brentq
 
@@ -252,3 +321,24 @@ def polynomial_context() -> dict:
             "estimate_latex": [sp.latex(c) for c in pw["estimate"]["phi"]],
             "charpoly_latex": sp.latex(cp), "a1_latex": sp.latex(pw["a1"])})
     return {"polynomials": out}
+
+
+def method_table() -> dict:
+    """Every nonlinear modal method as plain data (no SymPy): title, degree of the force
+    polynomial, order, explicit, polynomial (generated tables and an embedded estimate), the
+    theta limit its loops hold it to (derived by `polynomial_stability` unless held lower),
+    reference and notes; checks `AUTO` against the methods and the time integrators."""
+    from .integrators import SCHEMES
+    for key, name in AUTO.items():
+        known = SCHEMES if key == "singular_mass" else MODAL_METHODS
+        if name not in known:
+            raise ValueError(f"nonlinear.AUTO[{key!r}] = {name!r} is not one of {list(known)}")
+    out = {}
+    for m in MODAL_METHODS.values():
+        limit = m.theta_held
+        if limit is None:
+            limit = polynomial_stability(m.degree, m.explicit)["theta_limit"]
+        out[m.name] = {"title": m.title, "degree": m.degree, "order": m.order,
+                       "explicit": m.explicit, "polynomial": m.polynomial,
+                       "theta_limit": float(limit), "reference": m.reference, "notes": m.notes}
+    return out

@@ -67,6 +67,9 @@ typedef int (*chain_fn)(int form, int sweep, long N, long n_steps, const double 
 #define DTDYN_BLOCK_CHAIN_ROWS (2)
 /* doubles before each row (64 bytes: the rows stay aligned) */
 #define DTDYN_BLOCK_CHAIN_GAP (8)
+/* the node stride P of every per-node row: N + 1 rounded up to a multiple of this many doubles (64
+ * bytes: the rows stay aligned) */
+#define DTDYN_BLOCK_CHAIN_ALIGN (8)
 /* samples per block of the modal filters (the states' rows of a block are kept in work: 2 m
  * MODAL_BLOCK doubles, then 2 m n_out weights) */
 #define DTDYN_MODAL_BLOCK (256)

@@ -294,6 +294,8 @@ MCK_ROWS = 8
 BLOCK_CHAIN_ROWS = 2
 #: doubles before each row (64 bytes: the rows stay aligned)
 BLOCK_CHAIN_GAP = 8
+#: the node stride P of every per-node row: N + 1 rounded up to a multiple of this many doubles (64 bytes: the rows stay aligned)
+BLOCK_CHAIN_ALIGN = 8
 #: samples per block of the modal filters (the states' rows of a block are kept in work: 2 m MODAL_BLOCK doubles, then 2 m n_out weights)
 MODAL_BLOCK = 256
 
@@ -323,5 +325,6 @@ CONSTANTS = {
     "MCK_ROWS": MCK_ROWS,
     "BLOCK_CHAIN_ROWS": BLOCK_CHAIN_ROWS,
     "BLOCK_CHAIN_GAP": BLOCK_CHAIN_GAP,
+    "BLOCK_CHAIN_ALIGN": BLOCK_CHAIN_ALIGN,
     "MODAL_BLOCK": MODAL_BLOCK,
 }

@@ -3,7 +3,7 @@
 
 __all__ = ["NewtonError", "DtdynStepStabilityError", "DtdynUnstableError", "DtdynStabilityWarning",
            "DtdynAccuracyWarning", "SingularMassError", "SRSSamplingWarning",
-           "DtdynFallbackWarning", "DtdynCacheError"]
+           "DtdynFallbackWarning", "DtdynCacheError", "DtdynKernelError"]
 
 
 class NewtonError(RuntimeError):
@@ -42,3 +42,17 @@ class DtdynFallbackWarning(RuntimeWarning):
 class DtdynCacheError(RuntimeError):
     """A compiled library in the cache failed its checks (incomplete ELF file, missing entry
     points or the stamp of another cache key) again after it was removed and rebuilt once."""
+
+
+class DtdynKernelError(RuntimeError):
+    """A C kernel refused or failed a call (a broken contract between the runtime and the C
+    code, never a user error): ``kernel``, its return code ``code`` and what it means."""
+
+    def __init__(self, kernel: str, code: int, detail: str = ""):
+        from dtdyn.generated import c_api  # the codes, from the one spec (dtdyn.derive.c_api)
+        self.kernel, self.code = kernel, code
+        meaning = {c_api.ERR_WORK: "its work array is too short (n_work below its rows times N); "
+                                   "nothing was written",
+                   c_api.ERR_FORM: "the scheme has no such form"}.get(code, "unknown code")
+        super().__init__(f"C kernel {kernel} returned {code}: {meaning}"
+                         + (f" ({detail})" if detail else ""))

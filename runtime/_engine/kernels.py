@@ -7,6 +7,7 @@ import numpy as np
 from dtdyn.generated import c_api, dttmm_sweep
 
 from dtdyn._engine import cbuild
+from dtdyn._engine.errors import DtdynKernelError  # noqa: F401 (re-exported: its old home)
 from dtdyn._engine.schemes import SchemeInfo, get_scheme
 from dtdyn._engine.stepping import history_from_states
 
@@ -14,19 +15,6 @@ from dtdyn._engine.stepping import history_from_states
 FORM_CODE = {"displacement": c_api.FORM_DISPLACEMENT, "acceleration": c_api.FORM_ACCELERATION}
 SWEEP_CODE = {"stable": c_api.SWEEP_STABLE, "plain": c_api.SWEEP_PLAIN}
 WORK_ROWS = {"stable": c_api.CHAIN_ROWS_STABLE, "plain": c_api.CHAIN_ROWS_PLAIN}
-
-
-class DtdynKernelError(RuntimeError):
-    """A C kernel refused or failed a call (a broken contract between the runtime and the C
-    code, never a user error): ``kernel``, its return code ``code`` and what it means."""
-
-    def __init__(self, kernel: str, code: int, detail: str = ""):
-        self.kernel, self.code = kernel, code
-        meaning = {c_api.ERR_WORK: "its work array is too short (n_work below its rows times N); "
-                                   "nothing was written",
-                   c_api.ERR_FORM: "the scheme has no such form"}.get(code, "unknown code")
-        super().__init__(f"C kernel {kernel} returned {code}: {meaning}"
-                         + (f" ({detail})" if detail else ""))
 
 
 class PlainSweepError:

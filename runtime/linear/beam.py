@@ -745,16 +745,21 @@ def beam_response(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     force : array_like, shape (n_steps + 1, len(force_dofs))
         Force (N) or moment (N m) samples at t_k = k dt on the DOFs ``force_dofs``.
     dt : float
-    force_dofs, outputs : sequence of int or DOF names, optional
+    force_dofs : sequence of int or DOF names, optional
         Indices into ``beam.dof_names`` or the names themselves ("w200"); default every DOF.
-    scheme, form, quantities, x0, v0, unstable, progress
-        As `chain_response` (x0, v0 over ``beam.dof_names``; explicit schemes have only the
-        acceleration form).
+    scheme, form
+        As `chain_response` (explicit schemes have only the acceleration form).
+    outputs : sequence of int or DOF names, optional
+        The DOFs stored, as ``force_dofs``; default every DOF.
+    quantities, x0, v0, unstable
+        As `chain_response` (x0, v0 over ``beam.dof_names``).
     backend : {"c", "numpy"}
         The C kernel of 2 x 2 node-block chains (generated/block_chain.c: the node blocks of
         M, C, K, the scheme's history terms, the sweep and the update fused block by block of
         nodes; NumPy with one warning where no compiler exists), or NumPy with a sparse LU of
         the same effective matrix.
+    progress
+        As `chain_response`.
     ground_acceleration, ground_velocity, ground_displacement, influence : optional
         Support motion as in `mck_response` (one record; ``force`` may then be None): the DOFs
         are relative to the supports, which move together; the default influence r is the
@@ -878,8 +883,10 @@ def _block_library():
 
 
 def _stride(nodes: int) -> int:
-    """The stride of block_chain.c's per-node arrays: nodes + 1 rounded up to 8 doubles."""
-    return (nodes + 8) // 8 * 8
+    """The stride of block_chain.c's per-node arrays: nodes + 1 rounded up to
+    BLOCK_CHAIN_ALIGN doubles (generated/c_api.py, the same constant as the C side's)."""
+    from dtdyn.generated.c_api import BLOCK_CHAIN_ALIGN as align
+    return (nodes + align) // align * align
 
 
 def _aligned(shape) -> np.ndarray:

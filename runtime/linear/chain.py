@@ -236,10 +236,10 @@ def chain_matrices(mass, stiffness, damping, sparse: bool | None = None, *,
     mass, stiffness, damping : (N,) array_like
         m_n > 0, k_n >= 0, c_n >= 0 of station n (0-based); station n joins mass n to mass n - 1
         (to the ground for n = 0).
-    ground_stiffness, ground_damping : (N,) array_like, optional
-        kg_n >= 0, cg_n >= 0: a spring and a damper from mass n to the ground (zeros).
     sparse : bool, optional
         scipy.sparse CSR matrices when True, dense arrays when False (default: N > 200).
+    ground_stiffness, ground_damping : (N,) array_like, optional
+        kg_n >= 0, cg_n >= 0: a spring and a damper from mass n to the ground (zeros).
 
     Returns
     -------

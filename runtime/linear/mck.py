@@ -255,11 +255,6 @@ def mck_response(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
         (when that can be computed: M nonsingular) is refused before the run, or warned about.
     progress : bool
         Show a progress bar on long runs.
-    backend : {"c", "numpy"}
-        The generated C loop (the effective matrix factorized once: dense LU, or for sparse
-        matrices SuperLU's sparse LU of the least-fill ordering, applied by sparse substitution
-        with sparse products for the load; the whole block of steps in one call; NumPy with one
-        warning where no compiler exists) or the NumPy loop (scipy.sparse for sparse matrices).
     ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
@@ -271,6 +266,11 @@ def mck_response(M, C, K, force, dt, *, force_dofs=None, scheme="newmark", outpu
         (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
     influence : (N,) or (N, n_dir) array_like, optional
         r, each DOF's motion per unit support motion (default: ones).
+    backend : {"c", "numpy"}
+        The generated C loop (the effective matrix factorized once: dense LU, or for sparse
+        matrices SuperLU's sparse LU of the least-fill ordering, applied by sparse substitution
+        with sparse products for the load; the whole block of steps in one call; NumPy with one
+        warning where no compiler exists) or the NumPy loop (scipy.sparse for sparse matrices).
     **scheme_params
         The scheme's parameters by name (``beta``, ``gamma`` of "newmark", ``theta`` of
         "wilson", ``alpha`` of "hht", ``rho_inf`` of "generalized_alpha"; `dtdyn show` lists

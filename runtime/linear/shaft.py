@@ -652,16 +652,22 @@ def shaft_response(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark"
         Torque samples (N m) at t_k = k dt on the DOFs in ``force_dofs``; 1-D is one column.
     dt : float
         Time step, s.
-    force_dofs, outputs : sequence of int or DOF names, optional
+    force_dofs : sequence of int or DOF names, optional
         0-based DOF indices or names (`Shaft.dof_names`); all DOFs when None.
-    scheme, form, backend, quantities, x0, v0, unstable, progress, **scheme_params
-        As `chain_response`: the integrator and its parameters, "displacement" or
-        "acceleration" form, "c" (generated C loop) or "numpy", what to store, the initial
-        rotations and rates (a_0 consistent), the stability check.
+    scheme, form, backend
+        As `chain_response`: the integrator, "displacement" or "acceleration" form, "c"
+        (generated C loop) or "numpy".
+    outputs : sequence of int or DOF names, optional
+        The DOFs stored, as ``force_dofs``; all DOFs when None.
+    quantities, x0, v0, unstable, progress
+        As `chain_response`: what to store, the initial rotations and rates (a_0 consistent),
+        the stability check.
     ground_acceleration, ground_velocity, ground_displacement, influence : optional
         Support motion (angular, rad/s^2, rad/s, rad) as in `mck_response`: the rotations are
         then relative to the supports, which turn together; the default influence is
         `rigid_rotation` (1 on the main line, -1/n through each gear). ``force`` may be None.
+    **scheme_params
+        As `chain_response`: the integrator's parameters.
 
     Returns
     -------

@@ -52,12 +52,12 @@ def chain_frequency_response(mass, stiffness, damping, omega, force_dofs, output
     ----------
     mass, stiffness, damping : (N,) array_like
         The chain (as `chain_response`).
-    ground_stiffness, ground_damping : (N,) array_like, optional
-        Springs and dampers from the masses to the ground (as `chain_response`).
     omega : array_like
         Circular frequencies, rad/s.
     force_dofs, outputs : int or sequence of int
         The loaded masses and the masses whose displacements are returned (0-based).
+    ground_stiffness, ground_damping : (N,) array_like, optional
+        Springs and dampers from the masses to the ground (as `chain_response`).
 
     Returns
     -------

@@ -415,44 +415,55 @@ def modal_filter_response(M, C, K, force, dt, *, force_dofs=None, outputs=None,
     ----------
     M, C, K : (N, N) array_like
         Mass (nonsingular), damping (general), stiffness.
+
     force : array_like, shape (n_steps + 1, len(force_dofs))
         Force samples at t_k = k dt on the 0-based DOFs ``force_dofs`` (all DOFs when None); the
         system is at rest at t_0 (also when force[0] != 0).
+
     dt : float
         Sample step, s (the filters' sampling rate is 1 / dt).
+
     force_dofs, outputs : sequence of int, optional
         Loaded DOFs and stored DOFs (all DOFs when None).
+
     quantities : subset of ("x", "v", "a")
         What is stored; each quantity is one run of the filters (its own residues).
+
     modes : sequence of int, optional
         Indices of the modes to keep, sorted by frequency (all by default).
+
     invariant : {"ramp", "step", "impulse"}
         How the force is rebuilt between samples: linear (exact for a piecewise-linear force;
         spectrum bias (sin(pi f dt)/(pi f dt))^2, no phase error), held (half-sample lag),
         impulses (aliasing).
+
     algorithm : {"auto", "modes", "sections"}
         One recursion per mode, outputs combined by a matrix product ("modes"), or one
         second-order section per mode, output and input ("sections", the filters of `to_sos`);
         "auto": the one `choose_method` estimates to be the faster. Same results to round-off
         over short records; "modes" drifts less over long ones (module docstring).
+
     backend : {"c", "numpy"}
         The generated C kernels, or scipy.signal.lfilter (also used when no compiler is found).
 
-    x0, v0 : (N,) array_like, optional
-        Initial displacement and velocity (rest when None): their free response, the residue
-        sum of the module docstring of `dtdyn.modal.model` applied to M v0 + C x0 + s_r M x0,
-        is added (with ``modes``, of the kept modes only).
     ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
         Support acceleration at the force's times, linear between samples: the DOFs are then
         relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
         (``force`` may be None).
+
     ground_velocity, ground_displacement : array_like, optional
         Instead of ``ground_acceleration`` (one ground record at most): the support velocity
         (m/s) or displacement (m), shaped like it, turned direction by direction into the
         acceleration record linear between samples whose motion passes through it
         (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
+
     influence : (N,) or (N, n_dir) array_like, optional
         r, each DOF's motion per unit support motion (default: ones).
+
+    x0, v0 : (N,) array_like, optional
+        Initial displacement and velocity (rest when None): their free response, the residue
+        sum of the module docstring of `dtdyn.modal.model` applied to M v0 + C x0 + s_r M x0,
+        is added (with ``modes``, of the kept modes only).
 
     Returns
     -------

@@ -127,12 +127,14 @@ def mck_modes(M, C, K, *, count=None, influence=None) -> Modes:
 
     Parameters
     ----------
-    M, K : (n, n) array_like or scipy.sparse matrix
-        Mass (symmetric positive definite) and stiffness (symmetric) matrices.
+    M : (n, n) array_like or scipy.sparse matrix
+        Mass matrix (symmetric positive definite).
     C : (n, n) array_like or None
         Damping, or None for the undamped modes only. Given, it adds ``damping_ratio``,
         ``omega_d``, ``poles`` and ``complex_shapes`` (dense; the first-order eigenproblem of
         size 2n).
+    K : (n, n) array_like or scipy.sparse matrix
+        Stiffness matrix (symmetric).
     count : int, optional
         The lowest ``count`` modes (all by default). Sparse M and K: shift-invert about 0 (count
         is then required and < n).

@@ -31,11 +31,11 @@ relative to the largest |value| of that quantity; the estimate is the largest ov
 quantities (the measure of `dtdyn bench` and the tests: max over time and outputs relative to
 max |x|).
 
-The order p: modal_ramp 2, modal_parabolic 3 (`dtdyn.nonlinear.linear_step`), a one-step scheme
-its ``order`` in the scheme table (Newmark with gamma != 1/2: 1). The runs themselves check it:
-from three levels the observed order p_obs = log2(|d_{k-1}| / |d_k|); the estimate uses
-min(p, p_obs) (never an order the runs do not show), and the extrapolation is used only when
-|p_obs - p| <= P_SLACK = 0.25 (the leading term dominates). Non-smooth elements (a gap's
+The order p: modal_ramp 2, modal_parabolic 3, ... (``order`` in generated/scheme_table.py METHODS),
+a one-step scheme its ``order`` in the scheme table (Newmark with gamma != 1/2: 1). The runs
+themselves check it: from three levels the observed order p_obs = log2(|d_{k-1}| / |d_k|); the
+estimate uses min(p, p_obs) (never an order the runs do not show), and the extrapolation is used
+only when |p_obs - p| <= P_SLACK = 0.25 (the leading term dominates). Non-smooth elements (a gap's
 contact, Bouc-Wen's sign(y')) break the expansion, and the estimate is then only as good as p_obs
 says.
 
@@ -54,7 +54,8 @@ import numpy as np
 
 from dtdyn._engine.errors import DtdynAccuracyWarning, DtdynStepStabilityError, NewtonError
 from dtdyn._engine.public import warn
-from dtdyn.generated.scheme_table import TABLE
+from dtdyn.generated.scheme_table import AUTO as _AUTO
+from dtdyn.generated.scheme_table import METHODS, TABLE
 
 #: the stored quantities the estimate measures, and the ones an extrapolation combines
 MEASURED = ("x", "v", "a", "g", "z")
@@ -77,20 +78,15 @@ def check_accuracy(accuracy):
 
 
 def scheme_order(method, params) -> int:
-    """The order p in h of ``method`` with these parameters (modal_ramp 2, modal_parabolic 3,
-    modal_quintic 6, modal_explicit 7, a one-step scheme its table order; Newmark with
-    gamma != 1/2 is first order)."""
-    if method == "modal_ramp":
-        return 2
-    if method == "modal_parabolic":
-        return 3
-    if method == "modal_quintic":
-        return 6
-    if method == "modal_explicit":
-        return 7
+    """The order p in h of ``method`` with these parameters (a modal method its order in METHODS:
+    modal_ramp 2, modal_parabolic 3, modal_quintic 6, modal_explicit 7; a one-step scheme its
+    order in TABLE; Newmark with gamma != 1/2 is first order)."""
+    if method in METHODS:
+        return int(METHODS[method]["order"])
     if method not in TABLE:
         raise ValueError(f"scheme {method!r} has no known order; accuracy and estimate "
-                         f"need modal_ramp, modal_parabolic or a scheme of {', '.join(TABLE)}")
+                         f"need a method of {', '.join(METHODS)} or a scheme of "
+                         f"{', '.join(TABLE)}")
     if method == "newmark" and float(params.get("gamma", 0.5)) != 0.5:
         return 1
     return int(TABLE[method]["order"])
@@ -295,13 +291,14 @@ def _finish(best, accuracy, met, all_runs, p, log, estimate_time, method):
     return sol
 
 
-#: scheme="auto": the modal methods whose runs estimate themselves, the explicit seventh-order
-#: one (no Newton solve, the cheapest step) and then the implicit sixth-order one (stable for
-#: ten times the elements' stiffness), then (an estimate not confirmed, or a run that fails) the
-#: ramp invariant's Richardson sequence, robust on kinks and hysteresis; a one-step scheme when
-#: the mass matrix is singular (no modal model)
-AUTO, AUTO_NEXT = "modal_explicit", "modal_quintic"
-AUTO_THEN, AUTO_SINGULAR_M = "modal_ramp", "average_acceleration"
+#: scheme="auto" (generated/scheme_table.py AUTO, from dtdyn.derive.nonlinear.AUTO): the modal
+#: methods whose runs estimate themselves, the explicit seventh-order one (no Newton solve, the
+#: cheapest step) and then the implicit sixth-order one (stable for ten times the elements'
+#: stiffness), then (an estimate not confirmed, or a run that fails) the ramp invariant's
+#: Richardson sequence, robust on kinks and hysteresis; a one-step scheme when the mass matrix
+#: is singular (no modal model)
+AUTO, AUTO_NEXT = _AUTO["first"], _AUTO["next"]
+AUTO_THEN, AUTO_SINGULAR_M = _AUTO["then"], _AUTO["singular_mass"]
 
 
 def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=None,

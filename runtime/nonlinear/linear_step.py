@@ -40,30 +40,24 @@ from dataclasses import dataclass
 import numpy as np
 
 from dtdyn._engine import validate
-from dtdyn.generated.nl_modal import EXPLICIT_THETA_LIMIT, QUINTIC_THETA_LIMIT
-from dtdyn.generated.scheme_table import TABLE
+from dtdyn.generated.scheme_table import METHODS, TABLE
 
 MULTISTEP = tuple(name for name, row in TABLE.items() if row["startup_steps"])
-MODAL = ("modal_ramp", "modal_parabolic", "modal_quintic", "modal_explicit")
+#: the nonlinear modal methods (generated/scheme_table.py METHODS, from dtdyn.derive.nonlinear)
+MODAL = tuple(METHODS)
 #: the modal methods whose force polynomial has its own tables (generated/nl_modal.py)
-POLYNOMIAL = ("modal_quintic", "modal_explicit")
+POLYNOMIAL = tuple(name for name, row in METHODS.items() if row["polynomial"])
 #: the modal methods whose step does not depend on its own element forces (Dwg = 0)
-EXPLICIT = ("modal_explicit",)
+EXPLICIT = tuple(name for name, row in METHODS.items() if row["explicit"])
 
 #: largest theta = |B0 dg/dy|_inf (the elements' tangent stiffness k_t as seen by the step; y
-#: rows and columns only: velocity terms and internal states are not counted) a
-#: method stays stable at: the ramp invariant treats the element force like the linear-
-#: acceleration method (unstable beyond B0 k_t = 2, i.e. Omega_t = h sqrt(k_t/m) = sqrt 12);
-#: the parabolic one grows like Adams-Moulton 3 on the imaginary axis, rho - 1 ~ 1e-3 per step at
-#: theta = 0.03 without damping (docs/nonlinear.md), so it is held to theta <= 0.01.
-#: The quintic keeps every root of the free mass stepped with it in the unit disk up to
-#: theta = QUINTIC_THETA_LIMIT = 0.222 (Omega_t = 1.61; derived: generated/nl_modal.py).
-#: The explicit modal_explicit has no B0: its theta is |(Cw Bg) dg/dy|, the weight of g_k on the
-#: next step's y, stable up to EXPLICIT_THETA_LIMIT (Omega_t = 0.48).
+#: rows and columns only: velocity terms and internal states are not counted) a method stays
+#: stable at (METHODS' theta_limit: derived by dtdyn.derive.nonlinear.polynomial_stability, the
+#: ramp 2 (Omega_t = sqrt 12), the quintic 0.222 (Omega_t = 1.61); the parabola, which grows
+#: from theta = 0 on, held to 0.01). The explicit modal_explicit has no B0: its theta is
+#: |(Cw Bg) dg/dy|, the weight of g_k on the next step's y (0.264, Omega_t = 0.48).
 #: The implicit schemes (average acceleration, HHT, generalized-alpha) have no such limit.
-THETA_LIMIT = {"modal_ramp": 2.0, "modal_parabolic": 0.01, "modal_quintic": QUINTIC_THETA_LIMIT,
-               "modal_explicit": EXPLICIT_THETA_LIMIT}
-
+THETA_LIMIT = {name: row["theta_limit"] for name, row in METHODS.items()}
 
 @dataclass
 class LinearStep:
@@ -269,7 +263,9 @@ def linear_step(method, M, C, K, h, force_dofs, L, outputs, modes=None, need_v=F
         if scheme_params:
             raise ValueError(f"scheme {method!r} takes no scheme parameters, got "
                              f"{', '.join(sorted(scheme_params))}")
-        forces = {"modal_ramp": False, "modal_parabolic": "parabolic"}.get(method, method)
+        # the force polynomial: degree 1 the ramp itself, 2 the parabola (its N2), else tables
+        row = METHODS[method]
+        forces = method if row["polynomial"] else {1: False, 2: "parabolic"}[row["degree"]]
         return _modal_step(M, C, K, h, U, L, outputs, modes, need_v, len(force_dofs),
                            forces=forces, estimate=estimate)
     if modes is not None:

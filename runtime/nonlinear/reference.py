@@ -295,10 +295,10 @@ def reference_response(M, C, K, force, dt, *, elements=(), force_dofs=None, outp
         Force samples at :math:`t_0 \dots t_n`, finite; 1-D when one DOF is loaded.
     dt : float
         Sample step, s (> 0).
-    force_dofs : sequence of int, optional
-        0-based DOFs the force columns act on (all DOFs when None).
     elements : sequence of Element
         Nonlinear elements (`dtdyn.nonlinear.elements`); empty for a linear structure.
+    force_dofs : sequence of int, optional
+        0-based DOFs the force columns act on (all DOFs when None).
     outputs : sequence of int, optional
         DOFs whose x, v, a are returned (all by default).
     ode_solver : {"DOP853", "Radau"}
@@ -414,10 +414,12 @@ def check_reference(M, C, K, force, dt, *, elements=(), force_dofs=None, outputs
 
     Parameters
     ----------
-    M, C, K, force, dt, elements, force_dofs, outputs, rtol, atol, cache
+    M, C, K, force, dt, elements, force_dofs, outputs
         As `reference_response`.
     n_samples : int
         The samples compared (the start of the record).
+    rtol, atol, cache
+        As `reference_response`.
 
     Examples
     --------

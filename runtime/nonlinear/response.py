@@ -446,14 +446,19 @@ def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, sch
     ----------
     M, C, K : (n, n) array_like
         The linear part (M nonsingular for the modal methods).
+
     force : array_like, shape (n_steps + 1, len(force_dofs))
         Force samples at t_k = k dt, linear between samples; the system starts at rest.
+
     dt : float
         Sample step, s.
+
     elements : sequence of elements
         `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen` (dtdyn.nonlinear.elements).
+
     force_dofs : sequence of int, optional
         0-based loaded DOFs (all DOFs when None).
+
     scheme : str, optional
         "modal_ramp", "modal_parabolic", "modal_quintic" (the element forces as the polynomial
         of degree 5 through the last six steps: sixth order, stable up to theta = 0.222, and an
@@ -473,28 +478,58 @@ def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, sch
         modal_ramp from ``substeps``; "average_acceleration" when M is singular, and
         modal_ramp's sequence on the casadi backend (no embedded estimate there).
         ``info["scheme"]`` names the method that ran (docs/accuracy.md).
+
     substeps : int
         Steps per sample (h = dt / substeps); the force is interpolated linearly.
+
     outputs : sequence of int, optional
         Response DOFs (all by default).
+
     quantities : subset of ("x", "v", "a", "g", "z")
         What is stored; the others are None in the result. "g": the element forces, one
         column per element, at the samples (for the alpha methods, those of the step's
         equilibrium point); "z": the elements' internal states (Bouc-Wen z), one column each.
+
     modes : sequence of int, optional
         Modal schemes only: the modes kept (indices into the modes sorted by |s|).
+
     backend : {"c", "casadi"}
         "c": the generated loop (falls back to "casadi", with one warning, without a compiler).
+
     tol : float
         Newton accepts u = [w; z] when |r|_inf <= tol * (the largest |u|_inf or |Q|_inf of
         the record so far) or the next Newton step |J^-1 r|_inf <= tol * (the largest
         |u|_inf so far), in every backend.
+
     max_iter : int
         Newton iterations per step before NewtonError.
+
     solver : {"newton", "fast_newton"}
         CasADi rootfinder plugin (backend "casadi").
+
     compiled : bool
         Backend "casadi": generate C for the whole record function and compile it (cached).
+
+    ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
+        Support acceleration at the force's times, linear between samples: the DOFs are then
+        relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
+        (``force`` may be None).
+
+    ground_velocity, ground_displacement : array_like, optional
+        Instead of ``ground_acceleration`` (one ground record at most): the support velocity
+        (m/s) or displacement (m), shaped like it, turned direction by direction into the
+        acceleration record linear between samples whose motion passes through it
+        (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
+
+    influence : (N,) or (N, n_dir) array_like, optional
+        r, each DOF's motion per unit support motion (default: ones).
+
+    x0, v0 : (N,) array_like, optional
+        Displacement and velocity at t_0 (rest when None); the elements start from the
+        deformations they give, their internal states z from 0. The force polynomials of
+        modal_parabolic, modal_quintic and modal_explicit then take the element forces before
+        t_0 from the motion's smooth continuation (`dtdyn.nonlinear.startup`), so that they
+        keep their order from the first step.
 
     accuracy : float, optional
         A target for the relative error instead of a sub-step count (distinct from ``tol``,
@@ -525,6 +560,7 @@ def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, sch
         fails (NewtonError, a modal step beyond its stability limit) restarts at twice its
         sub-steps; when every run fails, the last failure's type is raised naming the target
         and the sub-steps tried.
+
     estimate : bool, optional
         True without a target: also run ``substeps`` / 2 (``substeps`` even) or 2 ``substeps``
         (odd) and report the estimate of this run's error in ``info["error_estimate"]`` (a
@@ -533,28 +569,13 @@ def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, sch
         the C backend estimate within their own run (embedded) unless ``estimate=False``,
         which skips that work (30 % to 40 % of their run on P4). With ``accuracy`` the
         estimate is always reported (``estimate=True`` adds nothing; False is an error).
+
     max_substeps : int, optional
         ``accuracy`` only: the most sub-steps tried (default: as many as keep DOFs x
         sub-steps x samples within 10^8, at least 256); beyond them a DtdynAccuracyWarning
         names the target, the estimate reached and the sub-steps, and the best solution is
         returned.
-    x0, v0 : (N,) array_like, optional
-        Displacement and velocity at t_0 (rest when None); the elements start from the
-        deformations they give, their internal states z from 0. The force polynomials of
-        modal_parabolic, modal_quintic and modal_explicit then take the element forces before
-        t_0 from the motion's smooth continuation (`dtdyn.nonlinear.startup`), so that they
-        keep their order from the first step.
-    ground_acceleration : (n_steps + 1,) or (n_steps + 1, n_dir) array_like, optional
-        Support acceleration at the force's times, linear between samples: the DOFs are then
-        relative to the support, loaded by f - M r a_g, and the result adds ``a_abs``
-        (``force`` may be None).
-    ground_velocity, ground_displacement : array_like, optional
-        Instead of ``ground_acceleration`` (one ground record at most): the support velocity
-        (m/s) or displacement (m), shaped like it, turned direction by direction into the
-        acceleration record linear between samples whose motion passes through it
-        (`ground_acceleration_from`); a displacement record also gives ``x_abs = x + r u_g``.
-    influence : (N,) or (N, n_dir) array_like, optional
-        r, each DOF's motion per unit support motion (default: ones).
+
     **scheme_params
         The scheme's parameters by name (``beta``, ``gamma`` of "newmark", ``theta`` of
         "wilson", ``alpha`` of "hht", ``rho_inf`` of "generalized_alpha"; `dtdyn show` lists

@@ -101,16 +101,24 @@ def nonlinear_shaft_response(shaft, force, dt, *, elements, force_dofs=None, sch
         `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen` with i, j indices into
         ``shaft.dof_names`` (``shaft.dof("main.3")``); j None: to the ground. A torsional
         element's y is a rotation (rad) and g a torque (N m).
-    force_dofs, outputs : sequence of int or DOF names, optional
+    force_dofs : sequence of int or DOF names, optional
         As `shaft_response`; all DOFs when None.
-    scheme, form, substeps, quantities, backend, tol, max_iter, x0, v0, **scheme_params
-        As `nonlinear_chain_response`: a one-step scheme and its parameters, "displacement" or
-        "acceleration" form, steps per sample, what to store (also "g", "z"), "c" (the
-        generated C sweep and compiled residual inside the Python Newton loop) or "numpy",
-        Newton's tolerance and iteration limit, initial rotations and rates.
+    scheme, form, substeps
+        As `nonlinear_chain_response`: a one-step scheme, "displacement" or "acceleration"
+        form, steps per sample.
+    outputs : sequence of int or DOF names, optional
+        The DOFs stored, as ``force_dofs``; all DOFs when None.
+    quantities, backend, tol, max_iter
+        As `nonlinear_chain_response`: what to store (also "g", "z"), "c" (the generated C
+        sweep and compiled residual inside the Python Newton loop) or "numpy", Newton's
+        tolerance and iteration limit.
     ground_acceleration, ground_velocity, ground_displacement, influence : optional
         Support motion as in `shaft_response` (default influence `rigid_rotation`): the
         rotations, and so the elements' y, are relative to the supports.
+    x0, v0
+        As `nonlinear_chain_response`: initial rotations and rates.
+    **scheme_params
+        As `nonlinear_chain_response`: the scheme's parameters.
 
     Returns
     -------
@@ -194,14 +202,22 @@ def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, schem
         `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen` with i, j indices into
         ``beam.dof_names`` (``beam.dof("w200")``); j None: to the ground. On a w DOF y is a
         deflection (m) and g a force; on a psi DOF a rotation and a moment.
-    force_dofs, outputs : sequence of int or DOF names, optional
+    force_dofs : sequence of int or DOF names, optional
         As `beam_response`; all DOFs when None.
-    scheme, form, substeps, quantities, backend, tol, max_iter, x0, v0, **scheme_params
-        As `nonlinear_chain_response` (x0, v0 over ``beam.dof_names``); backend "c": the
-        generated C loop with the block Riccati sweep and the compiled residual inside the
-        Python Newton loop; "numpy": a sparse LU of the same effective matrix.
+    scheme, form, substeps
+        As `nonlinear_chain_response`.
+    outputs : sequence of int or DOF names, optional
+        The DOFs stored, as ``force_dofs``; all DOFs when None.
+    quantities, backend, tol, max_iter
+        As `nonlinear_chain_response`; backend "c": the generated C loop with the block
+        Riccati sweep and the compiled residual inside the Python Newton loop; "numpy": a
+        sparse LU of the same effective matrix.
     ground_acceleration, ground_velocity, ground_displacement, influence : optional
         Support motion as in `beam_response` (default influence: a rigid translation).
+    x0, v0
+        As `nonlinear_chain_response`, over ``beam.dof_names``.
+    **scheme_params
+        As `nonlinear_chain_response`: the scheme's parameters.
 
     Returns
     -------

@@ -642,9 +642,12 @@ def _run(model, psd, freqs_hz, force_dofs, outputs, quantities, ground_accelerat
     return result
 
 
-def _doc(model: str, example: str) -> str:
-    """The docstring of an entry point: its model's lines, the shared ones, its example."""
-    return model + _SHARED + example
+def _doc(model: str, example: str, keywords: str = "") -> str:
+    """The docstring of an entry point: its model's lines, the shared ones (with ``keywords``,
+    the model's own keyword parameters, after ``freqs_hz``: the signature's order), its
+    example."""
+    head, tail = _SHARED.split("    force_dofs : ", 1)
+    return model + head + keywords + "    force_dofs : " + tail + example
 
 
 _SHARED = """
@@ -738,8 +741,6 @@ chain_random_response.__wrapped__.__doc__ = chain_random_response.__doc__ = _doc
     ----------
     mass, stiffness, damping : (N,) array_like
         The chain (as `chain_response`; damping: dashpots, N s/m).
-    ground_stiffness, ground_damping : (N,) array_like, optional
-        Springs and dampers from the masses to the ground.
 """, """
     Examples
     --------
@@ -750,6 +751,8 @@ chain_random_response.__wrapped__.__doc__ = chain_random_response.__doc__ = _doc
     ...                           np.geomspace(20, 2000, 30), ground_acceleration_psd=table)
     >>> r.a_abs_psd.shape, bool(r.info["rms_error_estimate"] < 1e-8)
     ((30, 2, 2), True)
+""", keywords="""    ground_stiffness, ground_damping : (N,) array_like, optional
+        Springs and dampers from the masses to the ground.
 """)
 
 

@@ -38,9 +38,10 @@ def test_examples_run(name, tmp_path, monkeypatch):
 
 
 #: numpydoc's checks of the parameters: GL08 no docstring, PR01 a parameter of the signature not
-#: documented, PR02 a documented parameter not in the signature, PR10 "name: type" (the space
-#: before the colon missing: numpydoc then reads the whole line as a name)
-CHECKS = ("GL08", "PR01", "PR02", "PR10")
+#: documented, PR02 a documented parameter not in the signature, PR03 the parameters documented
+#: in another order than the signature's, PR10 "name: type" (the space before the colon
+#: missing: numpydoc then reads the whole line as a name)
+CHECKS = ("GL08", "PR01", "PR02", "PR03", "PR10")
 
 
 def _names(section):
@@ -88,3 +89,20 @@ def test_parameter_check_sees_wrapped_signatures():
         """
     codes = {code for code, _ in Validator(get_doc_object(undocumented)).parameter_mismatches}
     assert codes == {"PR01", "PR02"}
+
+
+def test_parameter_check_sees_the_order():
+    """PR03: parameters documented in another order than the signature's are found (the
+    order a reader compares with the call)."""
+    def swapped(a, b):
+        """Do nothing.
+
+        Parameters
+        ----------
+        b : int
+            Second.
+        a : int
+            First.
+        """
+    codes = {code for code, _ in Validator(get_doc_object(swapped)).parameter_mismatches}
+    assert codes == {"PR03"} and "PR03" in CHECKS

@@ -39,8 +39,8 @@
  * and the update of the history. Only the recurrences are scalar.
  *
  * Storage, nodes 0 .. N - 1: every per-node quantity is a row of P = BC_STRIDE(N) doubles
- * (N + 1 rounded up to 8), rows starting on 64-byte boundaries (DOF 2 i + c of the node system
- * is component c of node i):
+ * (N + 1 rounded up to DTDYN_BLOCK_CHAIN_ALIGN = 8), rows starting on 64-byte boundaries
+ * (DOF 2 i + c of the node system is component c of node i):
  *   a matrix (K, C, M; and A for the factorization): 7 rows, D_i as d00, d01, d11
  *     (symmetric), then E as e00, e01, e10, e11 with E[i + 1] = A[node i, node i + 1] and
  *     E[0] = E[N] = 0;
@@ -65,8 +65,10 @@
    in L1) */
 #define BC_BLOCK 256
 #define BC_ROW (BC_BLOCK + 8)
-/* the stride of every per-node array: N + 1 rounded up to 8 doubles (64 bytes) */
-#define BC_STRIDE(N) (((N) + 8) / 8 * 8)
+/* the stride of every per-node array: N + 1 rounded up to DTDYN_BLOCK_CHAIN_ALIGN doubles
+   (generated/c_api.h; 8: 64 bytes) */
+#define BC_ALIGN DTDYN_BLOCK_CHAIN_ALIGN
+#define BC_STRIDE(N) (((N) + BC_ALIGN) / BC_ALIGN * BC_ALIGN)
 
 /* the factors of A (layout above) into fac; returns -1, or the node whose condensed pivot is
    singular (|det P_i| <= 1e-14 max|P_i|^2 or not finite) */

@@ -400,6 +400,10 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
     overwrite : bool
         Replace an existing ``out``: it is removed when the new store is created (after the
         warm-up; a batch refused before keeps it).
+    unstable : {"raise", "warn"} or None
+        Linear cases whose dt is past the scheme's stability limit: fail (DtdynUnstableError)
+        or run anyway with a warning; sets ``scheme.unstable`` of every linear scene (a
+        ``vary`` column ``scheme.unstable`` still wins). None: each scene's own.
     resume : bool
         Continue an existing ``out``: run only its cases not done (status "pending"); its
         cases must be this batch's (matched by each case's content hash: the scene after
@@ -413,10 +417,6 @@ def run_batch(cases, *, vary=None, seed=None, client=None, workers=None, reduce=
         Seconds: a case running longer is failed (``"TimeoutError: case exceeded 60 s"``),
         its worker process restarted (the stuck computation cannot be stopped otherwise) and
         the rest of its task runs again; None: no limit.
-    unstable : {"raise", "warn"} or None
-        Linear cases whose dt is past the scheme's stability limit: fail (DtdynUnstableError)
-        or run anyway with a warning; sets ``scheme.unstable`` of every linear scene (a
-        ``vary`` column ``scheme.unstable`` still wins). None: each scene's own.
 
     Returns
     -------
