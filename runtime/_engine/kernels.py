@@ -127,6 +127,10 @@ def chain_advance(backend, scheme, coeffs, form, sweep, chain, dt, loaded, out_i
     loaded64 = np.ascontiguousarray(loaded, dtype=np.int64)
     out64 = np.ascontiguousarray(out_idx, dtype=np.int64)
     work = np.empty(WORK_ROWS[sweep] * N)
+    # the stable sweep on one thread keeps its Riccati factors in work between calls (same
+    # chain, dt, scheme and form): later calls skip them (SWEEP_REUSE; the same numbers)
+    code = [SWEEP_CODE[sweep]]
+    reusable = sweep == "stable" and threads == 1
 
     def advance(force, H, xo, vo, ao):
         force = np.ascontiguousarray(force)
@@ -134,7 +138,7 @@ def chain_advance(backend, scheme, coeffs, form, sweep, chain, dt, loaded, out_i
         for arr in (xo, vo, ao):
             assert arr is None or arr.flags.c_contiguous
         E = tracker.history(scheme.history) if plain else None
-        rc = fn(FORM_CODE[form], SWEEP_CODE[sweep], N, force.shape[0] - 1, m.ctypes.data,
+        rc = fn(FORM_CODE[form], code[0], N, force.shape[0] - 1, m.ctypes.data,
                 k.ctypes.data, c.ctypes.data, _p(kg), _p(cg), dt, params.ctypes.data, loaded64.size,
                 loaded64.ctypes.data, force.ctypes.data, H.ctypes.data, out64.size,
                 out64.ctypes.data, _p(xo), _p(vo), _p(ao), work.ctypes.data, work.size, _p(E),
@@ -142,6 +146,8 @@ def chain_advance(backend, scheme, coeffs, form, sweep, chain, dt, loaded, out_i
         if rc != c_api.OK:
             raise DtdynKernelError(f"dtdyn_chain_{scheme.name}", rc, f"form {form!r}, sweep "
                                    f"{sweep!r}, N = {N}, n_work = {work.size}")
+        if reusable:
+            code[0] = c_api.SWEEP_REUSE
         if plain:
             tracker.record(force.shape[0] - 1)
         return tracker.estimate if plain else 0.0

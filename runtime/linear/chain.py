@@ -404,8 +404,9 @@ class ChainSolver(Solver):
                              "acceleration-form spring row divides by k Dx + c Dv = 0; give "
                              "every station a damper or use an implicit scheme")
         self.sweep = sweep
-        self.threads = (sweep_threads(workers, m.size) if sweep == "stable" and backend == "c"
-                        else 1)
+        # a composite scheme calls the kernel once per sub-step: one thread (no hand-over)
+        self.threads = (sweep_threads(workers, m.size)
+                        if sweep == "stable" and backend == "c" and not info.stages else 1)
         self._ground_mass = sps.diags(m)
         _, self._C, self._K = chain.matrices(sparse=True)
         if backend == "c":  # compile or load the kernels now, not in the first run
