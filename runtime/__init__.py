@@ -50,7 +50,8 @@ from dtdyn.nonlinear.chain import nonlinear_chain_response
 from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
 from dtdyn.nonlinear.reference import check_reference, reference_response
 from dtdyn.nonlinear.response import nonlinear_mck_response
-from dtdyn.nonlinear.harmonic_balance import HarmonicBalanceResult, harmonic_balance
+from dtdyn.nonlinear.harmonic_balance import (HarmonicBalanceResult, harmonic_balance,
+                                              harmonic_balance_amplitude)
 from dtdyn.nonlinear.stations import nonlinear_beam_response, nonlinear_shaft_response
 from dtdyn.random_vibration import (CycleHistogram, Cycles, RandomResponse, SNCurve,
                                     beam_random_response, chain_random_response, miner_damage,
@@ -88,7 +89,7 @@ __all__ = [
     # nonlinear
     "nonlinear_mck_response", "nonlinear_chain_response", "nonlinear_shaft_response",
     "nonlinear_beam_response", "reference_response", "check_reference",
-    "harmonic_balance", "HarmonicBalanceResult",
+    "harmonic_balance", "harmonic_balance_amplitude", "HarmonicBalanceResult",
     "Cubic", "Polynomial", "Gap", "Law", "BoucWen",
     # random vibration
     "psd_table", "random_response", "chain_random_response", "beam_random_response",

@@ -12,10 +12,11 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
+import dtdyn as dd
 from dtdyn import nonlinear_mck_response
 from dtdyn._engine.errors import NewtonError
-from dtdyn.nonlinear.elements import BoucWen, Cubic, Law
-from dtdyn.nonlinear.harmonic_balance import harmonic_balance
+from dtdyn.nonlinear.elements import BoucWen, Cubic, Law, element_matrix
+from dtdyn.nonlinear.harmonic_balance import harmonic_balance, harmonic_balance_amplitude
 
 # the Duffing oscillator of issue 31: m = 1, c = 0.02, k = 1, k3 = 0.5
 C_D, K3, F_D = 0.02, 0.5, 0.1
@@ -24,7 +25,7 @@ RANGE = (0.05, 0.4)
 
 def _duffing(harmonics, **kw):
     return harmonic_balance(np.eye(1), [[C_D]], np.eye(1), elements=[Cubic(0, k3=K3)],
-                            force_dofs=[0], force=[F_D], frequencies=RANGE,
+                            force_dofs=[0], force=[F_D], freqs_hz=RANGE,
                             harmonics=harmonics, **kw)
 
 
@@ -102,7 +103,7 @@ def test_linear_elements_equal_the_linear_frequency_response(element, receptance
     C = 0.002 * K + 0.1 * M
     F = np.array([1.0, 0.3 - 0.2j])
     r = harmonic_balance(M, C, K, elements=[element], force_dofs=[3, 1], force=F,
-                         frequencies=(0.5, 4.0), harmonics=3, receptance=receptance)
+                         freqs_hz=(0.5, 4.0), harmonics=3, receptance=receptance)
     Kl, Cl = K.copy(), C.copy()
     if isinstance(element, Law):
         Kl[0, 0] += 40.0
@@ -226,10 +227,10 @@ def test_two_dofs_cubic_between_dofs_against_shooting():
     C = 0.02 * M + 0.01 * K
     cubic = [(0, 1, 2.0)]
     r = harmonic_balance(M, C, K, elements=[Cubic(0, 1, k3=2.0), Cubic(1, k3=0.5)],
-                         force_dofs=[0], force=[0.15], frequencies=(0.05, 0.35), harmonics=15)
+                         force_dofs=[0], force=[0.15], freqs_hz=(0.05, 0.35), harmonics=15)
     cubic.append((1, None, 0.5))
     direct = harmonic_balance(M, C, K, elements=[Cubic(0, 1, k3=2.0), Cubic(1, k3=0.5)],
-                              force_dofs=[0], force=[0.15], frequencies=(0.05, 0.35),
+                              force_dofs=[0], force=[0.15], freqs_hz=(0.05, 0.35),
                               harmonics=15, receptance="direct")
     n = min(r.omega.size, direct.omega.size)
     assert r.omega.size == direct.omega.size
@@ -254,7 +255,7 @@ def test_two_dofs_cubic_between_dofs_against_shooting():
 def test_sweep_down_gives_the_same_curve_backwards():
     up = _duffing(1)
     down = harmonic_balance(np.eye(1), [[C_D]], np.eye(1), elements=[Cubic(0, k3=K3)],
-                            force_dofs=[0], force=[F_D], frequencies=RANGE[::-1], harmonics=1)
+                            force_dofs=[0], force=[F_D], freqs_hz=RANGE[::-1], harmonics=1)
     assert down.frequency_hz[0] == RANGE[1] and down.frequency_hz[-1] == RANGE[0]
     assert down.folds.size == 2 and down.omega.size > 10
     assert np.allclose(np.sort(down.fold_frequency_hz), np.sort(up.fold_frequency_hz),
@@ -271,15 +272,15 @@ def test_sweep_down_gives_the_same_curve_backwards():
 
 def _call(**kw):
     args = dict(elements=[Cubic(0, k3=1.0)], force_dofs=[0], force=[1.0],
-                frequencies=(0.1, 0.2))
+                freqs_hz=(0.1, 0.2))
     args.update(kw)
     return harmonic_balance(np.eye(1), [[0.1]], np.eye(1), **args)
 
 
 @pytest.mark.parametrize("kw, match", [
-    (dict(frequencies=(0.1,)), "frequencies"),
-    (dict(frequencies=(0.1, 0.1)), "frequencies"),
-    (dict(frequencies=(-1.0, 0.2)), "frequencies"),
+    (dict(freqs_hz=(0.1,)), "freqs_hz"),
+    (dict(freqs_hz=(0.1, 0.1)), "freqs_hz"),
+    (dict(freqs_hz=(-1.0, 0.2)), "freqs_hz"),
     (dict(harmonics=0), "harmonics"),
     (dict(harmonics=2.5), "harmonics"),
     (dict(n_time=4, harmonics=3), "n_time"),
@@ -311,4 +312,323 @@ def test_misspelled_keyword_is_named():
 def test_undamped_resonance_of_the_linear_part_is_a_newton_error():
     with pytest.raises((NewtonError, ValueError)):
         harmonic_balance(np.eye(1), [[0.0]], np.eye(1), elements=[Cubic(0, k3=0.0)],
-                         force_dofs=[0], force=[1.0], frequencies=(0.1, 0.3))
+                         force_dofs=[0], force=[1.0], freqs_hz=(0.1, 0.3))
+
+
+# ----------------------------------------------------------------------------------------------
+# (e) models: chains, beams and shafts given as objects (the banded receptance)
+
+
+def _chain8():
+    n = 8
+    return dd.Chain(np.full(n, 1.0), np.full(n, 400.0), np.full(n, 0.8),
+                    ground_stiffness=np.full(n, 5.0))
+
+
+def _beam():
+    return dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=12, rayleigh=(2.0, 1e-5))
+
+
+def _shaft():
+    return dd.Shaft([1.0, 2.0, 1.5, 0.5], [1e4, 2e4, 2e4, 1e4], [1.0, 2.0, 2.0, 1.0])
+
+
+@pytest.mark.parametrize("make, matrices", [
+    (_chain8, lambda m: m.matrices(sparse=True)),
+    (_beam, dd.beam_matrices),
+    (_shaft, dd.shaft_matrices)])
+def test_banded_receptance_equals_the_models_frequency_response(make, matrices):
+    """The banded LU's receptances and their frequency derivative against the model's own
+    frequency response (the chain's transfer matrices, the beam's node-block LU, the shaft's
+    tree sweep) and a dense solve of dH/dw = -H (i C - 2 w M) H (a derivative of the inverse;
+    a finite difference drowns in the stiff beam's rounding)."""
+    from dtdyn.nonlinear.harmonic_balance import _bandwidth, _BandedReceptance
+    model = make()
+    M, C, K = matrices(model)
+    n = M.shape[0]
+    dofs = [n - 1, n // 2]
+    L = element_matrix([Cubic(dofs[0], dofs[1], k3=1.0)], n)
+    B = np.zeros((n, 1))
+    B[dofs[0]] = 1.0
+    rec = _BandedReceptance(M, C, K, L, np.array(dofs), B, _bandwidth(M, C, K))
+    if isinstance(model, dd.Chain):
+        w = np.array([3.0, 17.0, 40.0])
+        Hf = dd.chain_frequency_response(model.m, model.k, model.c, w, dofs, dofs,
+                                         ground_stiffness=model.kg)
+    elif isinstance(model, dd.Beam):
+        w = np.array([30.0, 170.0, 900.0])
+        Hf = dd.beam_frequency_response(model, w, dofs, dofs)
+    else:
+        w = np.array([20.0, 110.0, 230.0])
+        Hf = dd.shaft_frequency_response(model, w, dofs, dofs, exact=False)
+    H, dH = rec(w)
+    # rows: the element (dofs[0] - dofs[1]), then the outputs; columns: L^T, then the force
+    expect_out = Hf[:, :, 0]                        # outputs per unit force at dofs[0]
+    assert np.allclose(H[:, 1:, 1], expect_out, rtol=1e-10, atol=0)
+    expect_el = Hf[:, 0, 0] - Hf[:, 1, 0]
+    assert np.allclose(H[:, 0, 1], expect_el, rtol=1e-10, atol=0)
+    Md, Cd, Kd = (A.toarray() for A in (M, C, K))
+    cols = np.hstack([L.T, B])
+    fd = np.array([-L @ np.linalg.solve(Kd - x * x * Md + 1j * x * Cd, 1j * Cd - 2 * x * Md)
+                   @ np.linalg.solve(Kd - x * x * Md + 1j * x * Cd, cols) for x in w])
+    assert np.allclose(dH, fd, rtol=1e-8, atol=1e-9 * np.abs(dH).max())
+
+
+def test_chain_model_equals_its_matrices():
+    """dd.Chain through the banded receptance against its dense matrices through the modal
+    one (two independent receptances): harmonics, stability and folds."""
+    chain = _chain8()
+    kw = dict(elements=[Cubic(7, k3=300.0)], force_dofs=[7], force=[0.4],
+              freqs_hz=(0.3, 1.2), harmonics=3, outputs=[0, 7])
+    a = harmonic_balance(chain, **kw)
+    M, C, K = (A.toarray() for A in chain.matrices(sparse=True))
+    b = harmonic_balance(M, C, K, **kw)
+    assert a.info["receptance"] == "banded" and b.info["receptance"] == "modal"
+    assert a.omega.size == b.omega.size and a.folds.size == b.folds.size >= 2
+    scale = np.abs(b.harmonics).max()
+    assert np.abs(a.harmonics - b.harmonics).max() < 1e-9 * scale
+    assert np.abs(a.omega - b.omega).max() < 1e-9 * b.omega.max()
+    assert np.array_equal(a.stable, b.stable) and not a.stable.all()
+    assert np.allclose(a.fold_frequency_hz, b.fold_frequency_hz, rtol=1e-9)
+
+
+@pytest.mark.parametrize("make, matrices, dof, force, k3, band", [
+    (_beam, dd.beam_matrices, "w12", 5.0, 2e11, (12.0, 30.0)),        # first mode 18.0 Hz
+    (_shaft, dd.shaft_matrices, "main.3", 1.0, 2e6, (3.0, 9.0))])     # first mode 5.9 Hz
+def test_beam_and_shaft_models_equal_their_matrices(make, matrices, dof, force, k3, band):
+    """Through the model (banded LU, DOF names) and through its dense matrices (modal): the
+    same curve, with its two folds, to 1e-9."""
+    model = make()
+    i = model.dof(dof)
+    M, C, K = (A.toarray() for A in matrices(model))
+    kw = dict(elements=[Cubic(i, k3=k3)], force=[force], freqs_hz=band, harmonics=3,
+              stability=False)
+    a = harmonic_balance(model, force_dofs=[dof], outputs=[dof], **kw)
+    b = harmonic_balance(M, C, K, force_dofs=[i], outputs=[i], **kw)
+    assert a.info["receptance"] == "banded" and b.info["receptance"] == "modal"
+    assert a.omega.size == b.omega.size and a.folds.size == b.folds.size == 2
+    assert np.abs(a.harmonics - b.harmonics).max() < 1e-9 * np.abs(b.harmonics).max()
+    assert np.abs(a.omega - b.omega).max() < 1e-9 * b.omega.max()
+
+
+def test_model_with_C_or_K_is_refused():
+    with pytest.raises(ValueError, match="C and K"):
+        harmonic_balance(_chain8(), np.eye(8), None, elements=[Cubic(7, k3=1.0)],
+                         force_dofs=[7], force=[1.0], freqs_hz=(0.1, 0.2))
+    with pytest.raises(ValueError, match="C and K are required"):
+        harmonic_balance(np.eye(1), elements=[Cubic(0, k3=1.0)], force_dofs=[0], force=[1.0],
+                         freqs_hz=(0.1, 0.2))
+
+
+# ----------------------------------------------------------------------------------------------
+# (f) base excitation
+
+
+def test_base_excitation_linear_equals_the_transmissibility():
+    """Zero nonlinearity: the relative motion X = -m A / (k - m w^2 + i c w) and the absolute
+    acceleration's transmissibility |a_abs| / |A| = sqrt((k^2 + (c w)^2) / ((k - m w^2)^2 +
+    (c w)^2)) (Chopra, sec. 3.6), at every point."""
+    m, c, k, A = 2.0, 0.3, 50.0, 0.7
+    r = harmonic_balance([[m]], [[c]], [[k]], elements=[Cubic(0, k3=0.0)],
+                         ground_acceleration=A, freqs_hz=(0.2, 2.0), harmonics=3)
+    w = r.omega
+    X = -m * A / (k - m * w**2 + 1j * c * w)
+    assert np.allclose(r.harmonics[:, 0, 1], X, rtol=1e-10, atol=0)
+    T = np.sqrt((k**2 + (c * w) ** 2) / ((k - m * w**2) ** 2 + (c * w) ** 2))
+    assert np.allclose(r.a_abs_max[:, 0] / A, T, rtol=1e-10, atol=0)
+    assert np.allclose(np.abs(r.a_abs_harmonics[:, 0, 1]) / A, T, rtol=1e-10, atol=0)
+    assert r.stable.all() and r.folds.size == 0
+
+
+def test_base_excitation_chain_model_default_influence():
+    """A chain's default influence is ones: the same curve as the explicit influence and as
+    the equivalent force -M r a_g."""
+    chain = _chain8()
+    kw = dict(elements=[Cubic(7, 6, k3=300.0)], freqs_hz=(0.3, 1.2), harmonics=3,
+              outputs=[0, 7], stability=False)
+    a = harmonic_balance(chain, ground_acceleration=[0.5], **kw)
+    M = chain.matrices(sparse=True)[0].toarray()
+    b = harmonic_balance(chain, ground_acceleration=[0.5], influence=np.ones(8), **kw)
+    c = harmonic_balance(chain, force_dofs=list(range(8)), force=-0.5 * M @ np.ones(8), **kw)
+    assert np.abs(a.harmonics - b.harmonics).max() == 0
+    assert np.abs(a.harmonics - c.harmonics).max() < 1e-12 * np.abs(c.harmonics).max()
+    assert c.a_abs_harmonics is None and a.a_abs_harmonics.shape == a.harmonics.shape
+
+
+def test_base_excitation_cubic_against_long_time_integration():
+    """m = 2, c = 0.04, k = 2, k3 = 1, ground acceleration 0.05 cos(w t): at stable points
+    (both branches at 0.2 Hz, and 0.35 Hz beyond the folds) nonlinear_mck_response under the
+    same ground record, started 1 % off the orbit, settles on it: relative displacement and
+    absolute acceleration within 1e-3 (the error budget of
+    test_duffing_against_long_time_integration)."""
+    M, C, K = np.array([[2.0]]), np.array([[0.04]]), np.array([[2.0]])
+    r = harmonic_balance(M, C, K, elements=[Cubic(0, k3=1.0)], ground_acceleration=0.05,
+                         freqs_hz=(0.05, 0.4), harmonics=7)
+    assert r.folds.size == 2
+    f = r.frequency_hz
+    up, down = r.folds
+    cases = [int(np.argmin(np.abs(f[:up] - 0.2))), down + int(np.argmin(np.abs(f[down:] - 0.2))),
+             int(np.argmin(np.abs(f - 0.35)))]
+    for i in cases:
+        assert r.stable[i]
+        w, X = r.omega[i], r.harmonics[i, 0]
+        T = 2 * np.pi / w
+        dt, periods = T / 400, 250
+        t = np.arange(400 * periods + 1) * dt
+        k = np.arange(X.size)
+        x0 = 1.01 * np.sum(X).real
+        v0 = np.sum(1j * k * w * X).real
+        out = nonlinear_mck_response(M, C, K, None, dt, elements=[Cubic(0, k3=1.0)],
+                                     ground_acceleration=0.05 * np.cos(w * t),
+                                     scheme="modal_parabolic", x0=[x0], v0=[v0])
+        amp = np.abs(out.x[-401:, 0]).max()
+        assert abs(amp - r.x_max[i, 0]) < 1e-3 * r.x_max[i, 0], (f[i], amp, r.x_max[i, 0])
+        acc = np.abs(out.a_abs[-401:, 0]).max()
+        assert abs(acc - r.a_abs_max[i, 0]) < 1e-3 * r.a_abs_max[i, 0], (f[i], acc)
+
+
+# ----------------------------------------------------------------------------------------------
+# (g) continuation in the load's amplitude at a fixed frequency
+
+
+def test_amplitude_continuation_linear_is_proportional():
+    rng = np.random.default_rng(5)
+    n = 3
+    A = rng.standard_normal((n, n))
+    M = np.eye(n) + 0.1 * A @ A.T
+    K = np.diag([200.0, 300.0, 250.0]) - 40.0 * (np.eye(n, k=1) + np.eye(n, k=-1))
+    C = 0.002 * K + 0.1 * M
+    F = np.array([1.0, 0.3 - 0.2j])
+    r = harmonic_balance_amplitude(M, C, K, elements=[Cubic(0, 2, k3=0.0)], force_dofs=[2, 0],
+                                   force=F, frequency_hz=2.2, amplitudes=(0.0, 3.0),
+                                   harmonics=3)
+    w = 2 * np.pi * 2.2
+    P = np.zeros((n, 2))
+    P[[2, 0], [0, 1]] = 1.0
+    x1 = np.linalg.solve(K - w * w * M + 1j * w * C, P @ F)
+    assert r.amplitude[0] == 0.0 and r.amplitude[-1] == 3.0 and np.all(np.diff(r.amplitude) > 0)
+    assert np.allclose(r.harmonics[:, :, 1], np.outer(r.amplitude, x1), rtol=0,
+                       atol=1e-12 * 3.0 * np.abs(x1).max())
+    assert np.all(r.frequency_hz == 2.2) and r.folds.size == 0 and r.stable.all()
+
+
+def test_amplitude_continuation_duffing_hand_relation_and_folds():
+    """One harmonic at 0.25 Hz (above the linear resonance): every point satisfies
+    [(k - m w^2) a + 3/4 k3 a^3]^2 + (c w a)^2 = (s F)^2 (s the load factor), and the two
+    folds in s are the local extrema of s(a) from that relation."""
+    f = 0.25
+    w = 2 * np.pi * f
+    r = harmonic_balance_amplitude(np.eye(1), [[C_D]], np.eye(1), elements=[Cubic(0, k3=K3)],
+                                   force_dofs=[0], force=[F_D], frequency_hz=f,
+                                   amplitudes=(0.05, 15.0), harmonics=1)
+    a, s = np.abs(r.harmonics[:, 0, 1]), r.amplitude
+    res = ((1 - w**2) * a + 0.75 * K3 * a**3) ** 2 + (C_D * w * a) ** 2 - (s * F_D) ** 2
+    assert np.abs(res / (s * F_D) ** 2).max() < 1e-9
+    assert r.folds.size == 2 and np.all(r.frequency_hz == f)
+
+    def load(x):
+        return np.sqrt(((1 - w**2) * x + 0.75 * K3 * x**3) ** 2 + (C_D * w * x) ** 2) / F_D
+    x = np.linspace(1e-3, a.max(), 100001)
+    d = np.diff(load(x))
+    ext = np.flatnonzero(d[1:] * d[:-1] < 0) + 1
+    assert ext.size == 2                         # a local max of s(a), then a local min
+    hand = [sign * minimize_scalar(lambda y, sign=sign: sign * load(y),
+                                   bounds=(x[j - 1], x[j + 1]), method="bounded",
+                                   options=dict(xatol=1e-13)).fun
+            for j, sign in zip(ext, (-1, 1))]
+    assert np.allclose(np.sort(r.fold_amplitude), np.sort(hand), rtol=1e-8, atol=0)
+    assert not r.stable[r.folds[0] + 1:r.folds[1]].any()
+
+
+# ----------------------------------------------------------------------------------------------
+# (h) convergence in the number of harmonics
+
+
+def test_harmonic_error_bounds_the_change_from_H_to_2H():
+    """info["harmonic_error"] (the last two kept harmonics against x_max) bounds the change of
+    the orbit from H to 2 H harmonics at the same point (the end of an amplitude continuation
+    on the lower Duffing branch, 0.2 Hz, load factor 1) and falls as H grows."""
+    def end(H):
+        r = harmonic_balance_amplitude(np.eye(1), [[C_D]], np.eye(1),
+                                       elements=[Cubic(0, k3=K3)], force_dofs=[0], force=[F_D],
+                                       frequency_hz=0.2, amplitudes=(2.0, 1.0), harmonics=H,
+                                       stability=False)
+        return r, r.harmonics[-1, 0]
+    t = np.linspace(0, 2 * np.pi / (2 * np.pi * 0.2), 513)
+    w = 2 * np.pi * 0.2
+    errors = []
+    for H in (3, 5, 7):
+        r, X = end(H)
+        _, X2 = end(2 * H)
+        change = np.abs(_series(X, w, t) - _series(X2, w, t)).max() / r.x_max[-1, 0]
+        est = r.info["harmonic_error_points"][-1]
+        assert change < est, (H, change, est)
+        errors.append(est)
+        assert r.info["harmonic_error"] == r.info["harmonic_error_points"].max()
+    assert errors[0] > errors[1] > errors[2]
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(force=None, force_dofs=None), "no load"),
+    (dict(force=None), "force_dofs"),
+    (dict(influence=[1.0]), "influence"),
+    (dict(ground_acceleration=[1.0, 2.0]), "influence"),
+    (dict(ground_acceleration=[1.0], influence=[[1.0, 1.0]]), "influence"),
+    (dict(ground_acceleration=[0.0], force=None, force_dofs=None), "ground_acceleration"),
+    (dict(receptance="banded"), "banded"),
+])
+def test_bad_load_inputs_name_the_field(kw, match):
+    with pytest.raises(ValueError, match=match):
+        _call(**kw)
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(amplitudes=(1.0,)), "amplitudes"),
+    (dict(amplitudes=(-1.0, 1.0)), "amplitudes"),
+    (dict(amplitudes=(1.0, 1.0)), "amplitudes"),
+    (dict(frequency_hz=0.0), "frequency_hz"),
+])
+def test_bad_amplitude_inputs_name_the_field(kw, match):
+    args = dict(elements=[Cubic(0, k3=1.0)], force_dofs=[0], force=[1.0], frequency_hz=0.2,
+                amplitudes=(0.1, 1.0))
+    args.update(kw)
+    with pytest.raises(ValueError, match=match):
+        harmonic_balance_amplitude(np.eye(1), [[0.1]], np.eye(1), **args)
+
+
+def test_hill_on_a_large_model_is_refused_with_advice():
+    n = 400
+    chain = dd.Chain(np.ones(n), np.full(n, 100.0), np.ones(n))
+    with pytest.raises(ValueError, match="stability=False"):
+        harmonic_balance(chain, elements=[Cubic(n - 1, k3=1.0)], force_dofs=[n - 1],
+                         force=[1.0], freqs_hz=(0.1, 0.2))
+
+
+def test_matrices_model_and_the_sparse_fallbacks():
+    """dd.Matrices gives the curve of its matrices; sparse matrices go banded when symmetric,
+    to the sparse LU when not (a gyroscopic C): each equal to the dense modal curve."""
+    import scipy.sparse as sps
+    M, C, K = (A.toarray() for A in _chain8().matrices(sparse=True))
+    G = np.zeros((8, 8))
+    G[2, 5], G[5, 2] = 0.3, -0.3                  # skew: a gyroscopic coupling
+    kw = dict(elements=[Cubic(7, k3=300.0)], force_dofs=[7], force=[0.4],
+              freqs_hz=(0.3, 1.2), harmonics=3, outputs=[7], stability=False)
+    ref = harmonic_balance(M, C, K, **kw)
+    for model, C2, kind in ((dd.Matrices(M, C, K), None, "modal"),
+                            (sps.csr_matrix(M), sps.csr_matrix(C), "banded")):
+        r = (harmonic_balance(model, **kw) if C2 is None else
+             harmonic_balance(model, C2, sps.csr_matrix(K), **kw))
+        assert r.info["receptance"] == kind
+        assert np.abs(r.harmonics - ref.harmonics).max() < 1e-9 * np.abs(ref.harmonics).max()
+    gyro = harmonic_balance(M, C + G, K, **kw)
+    sparse = harmonic_balance(sps.csr_matrix(M), sps.csr_matrix(C + G), sps.csr_matrix(K), **kw)
+    assert sparse.info["receptance"] == "direct" and gyro.info["receptance"] == "modal"
+    assert np.abs(sparse.harmonics - gyro.harmonics).max() < 1e-9 * np.abs(gyro.harmonics).max()
+
+
+def test_the_issue_keyword_frequencies_still_works():
+    """Issue 31 names the range `frequencies`; the vocabulary's name is `freqs_hz`."""
+    with pytest.warns(DeprecationWarning, match="'frequencies' is now 'freqs_hz'"):
+        r = harmonic_balance(np.eye(1), [[C_D]], np.eye(1), elements=[Cubic(0, k3=K3)],
+                             force_dofs=[0], force=[F_D], frequencies=RANGE, harmonics=1)
+    assert np.array_equal(r.frequency_hz, _duffing(1).frequency_hz)
