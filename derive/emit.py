@@ -107,8 +107,8 @@ def _scheme_context(scheme: str | I.Scheme) -> dict:
         rows = kernels.constant_table(spec, form)
         temps, reduced = printing.cse_assignments(rows, prefix="k")
         forms_py.append({"form": form,
-                         "temps": [(str(t), printing.py(e)) for t, e in temps],
-                         "rows": [(n, printing.py(e)) for n, e in reduced]})
+                         "temps": [(str(t), printing.py_array(e)) for t, e in temps],
+                         "rows": [(n, printing.py_array(e)) for n, e in reduced]})
         # C: the sweep expressions exactly as the NumPy sweep evaluates them (alpha_u = 1 and
         # b = 0 of the acceleration form are not folded into mu and beta), so both backends
         # round alike
@@ -136,6 +136,7 @@ def _scheme_context(scheme: str | I.Scheme) -> dict:
         "params": list(sch.params), "defaults": sch.defaults, "history": list(spec.history),
         "startup_steps": sch.startup_steps, "order": sch.order, "explicit": spec.derived.explicit,
         "forms_py": forms_py, "forms_c": forms_c, "shift": _shift_lines(spec.history),
+        "uses_numpy": any("np." in e for f in forms_py for _, e in f["temps"] + f["rows"]),
         "random_spread": repr(float(dttmm.RANDOM_SPREAD)),
         "derived": spec.derived, "spec": spec,
     }
@@ -274,8 +275,8 @@ def _stability_context(schemes=None) -> dict:
         rows = [((i, j), A[i, j]) for i in range(n) for j in range(n)]
         temps, reduced = printing.cse_assignments([(f"{i},{j}", e) for (i, j), e in rows], "t")
         out.append({"name": name, "params": list(sch.params), "history": list(sch.history),
-                    "n": n, "temps": [(str(t), printing.py(e)) for t, e in temps],
-                    "entries": [(tuple(map(int, k.split(","))), printing.py(e))
+                    "n": n, "temps": [(str(t), printing.py_array(e)) for t, e in temps],
+                    "entries": [(tuple(map(int, k.split(","))), printing.py_array(e))
                                 for k, e in reduced]})
     return {"schemes": out}
 
@@ -482,8 +483,13 @@ def write_vendor(dest: Path, schemes=()) -> list[str]:
     files = {n: t for n, t in render_all().items()
              if n.endswith((".c", ".h")) and n != "nl_loop.c"}
     for sch in schemes:
-        rendered = render_scheme(sch, f"scheme file {sch.name!r}")
-        files.update({n: t for n, t in rendered.items() if n.endswith(".c")})
+        rendered = {n: t for n, t in render_scheme(sch, f"scheme file {sch.name!r}").items()
+                    if n.endswith(".c")}
+        twice = sorted(set(rendered) & set(files))
+        if twice:
+            raise ValueError(f"scheme file {sch.name!r}: {twice[0]} is written already (two "
+                             "scheme files, or a scheme and a stage, of one name)")
+        files.update(rendered)
     env = environment()
     files["example.c"] = env.get_template("c/example.c.jinja").render(scheme="hht", params="-0.05")
     files = format_sources(files)

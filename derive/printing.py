@@ -38,7 +38,36 @@ class NumPyPrinter(PythonCodePrinter):
         return f"{float(expr)!r}"
 
 
-_C, _PY = CPrinter(), NumPyPrinter()
+class ArrayPrinter(NumPyPrinter):
+    """`NumPyPrinter` whose functions are NumPy's (``np.sqrt``, ``np.minimum``, ...): for the
+    generated code that evaluates on arrays (amplification matrices over Omega) or that a scheme
+    file's expressions reach. The built-in schemes use none, so their code is the same."""
+
+    _RENAMED = {"atan": "arctan", "asin": "arcsin", "acos": "arccos"}
+
+    def _module_format(self, fqn, register=True):
+        if fqn.startswith("math."):
+            name = fqn[5:]
+            return "np." + self._RENAMED.get(name, name)
+        return super()._module_format(fqn, register)
+
+    def _print_Min(self, expr):
+        return self._nested("np.minimum", expr.args)
+
+    def _print_Max(self, expr):
+        return self._nested("np.maximum", expr.args)
+
+    def _print_sign(self, expr):
+        return f"np.sign({self._print(expr.args[0])})"
+
+    def _nested(self, fn, args):
+        out = self._print(args[0])
+        for a in args[1:]:
+            out = f"{fn}({out}, {self._print(a)})"
+        return out
+
+
+_C, _PY, _ARRAY = CPrinter(), NumPyPrinter(), ArrayPrinter()
 
 
 def c(expr) -> str:
@@ -47,6 +76,11 @@ def c(expr) -> str:
 
 def py(expr) -> str:
     return _PY.doprint(sp.sympify(expr))
+
+
+def py_array(expr) -> str:
+    """`py` with NumPy's functions (`ArrayPrinter`)."""
+    return _ARRAY.doprint(sp.sympify(expr))
 
 
 def cse_assignments(rows, prefix="t"):

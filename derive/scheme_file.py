@@ -53,6 +53,9 @@ LAGS = (I.xm1, I.xm2, I.vm1, I.vm2, I.am1)
 KEYS = ("name", "title", "reference", "notes", "order", "relations", "force_weights",
         "parameters", "substitutions", "stage")
 NAME = re.compile(r"^[a-z][a-z0-9_]{0,39}$")
+#: the names the generator gives the per-run constants of a step (dtdyn.derive.kernels
+#: constant_table: w0, p, r, alpha_u, q_x0, x1_u, ...; cse temporaries k0, t1, ...)
+GENERATED = re.compile(r"[a-z]\d+|p|r|alpha_u|(q|s|b|x1|v1|a1)_\w+")
 
 C_KEYWORDS = frozenset("""auto break case char const continue default do double else enum extern
 float for goto if inline int long register restrict return short signed sizeof static struct
@@ -61,14 +64,16 @@ switch typedef union unsigned void volatile while _Bool _Complex""".split())
 
 def reserved_names() -> frozenset:
     """Every identifier of the C the kernels are built from (templates and hand-written
-    headers), the scheme symbols, and Python's keywords and builtins: a parameter may take
-    none of them."""
+    headers, comments left out), the scheme symbols, and Python's keywords and builtins: a
+    parameter may take none of them, nor a name of the form the generator gives its own
+    constants (`GENERATED`)."""
     from . import emit
 
     words = set()
     for folder in (emit.TEMPLATES / "c", emit.CSOURCES):
         for path in sorted(folder.iterdir()):
-            words |= set(re.findall(r"[A-Za-z_]\w*", path.read_text()))
+            code = re.sub(r"/\*.*?\*/|//[^\n]*|\{#.*?#\}", " ", path.read_text(), flags=re.S)
+            words |= set(re.findall(r"[A-Za-z_]\w*", code))
     import builtins
     words |= set(dir(builtins)) | set(keyword.kwlist) | C_KEYWORDS | set(STATE)
     words |= {"np", "math", "form", "pi", "Omega", "zeta", "one", "A"}
@@ -186,9 +191,12 @@ def parse_text(text: str, source: str = "<scheme>") -> I.Scheme:  # noqa: C901 (
                          "force weight or substitution uses it")
     lags = tuple(s for s in LAGS if s in used or (s == I.xm1 and I.xm2 in used)
                  or (s == I.vm1 and I.vm2 in used))
-    if len(stages) > 1 and set(LAGS) & stages[0][2]:
-        raise ValueError(f"{source}: stage[0] uses a lag (xm1, xm2, vm1, vm2); in a composite "
-                         "scheme the lags of a later stage are the earlier stages' states")
+    for k, (_, _, part_used) in enumerate(stages if len(stages) > 1 else ()):
+        deep = sorted(str(lag) for lag in set(LAGS) & part_used if int(str(lag)[2:]) > k)
+        if deep:   # stage k's lag j is the state j sub-steps back: within the step for j <= k
+            raise ValueError(f"{source}: stage[{k}] uses {', '.join(deep)}; in a composite "
+                             f"scheme stage[{k}]'s lags reach back {k} sub-step(s), to the "
+                             "start of the step (xm1 vm1 am1 the state before the stage)")
     common = dict(params=tuple(params), defaults=defaults, substitutions=resolved, lags=lags,
                   reference=text_fields["reference"], notes=text_fields["notes"], ranges=ranges)
     if len(stages) == 1:
@@ -227,7 +235,7 @@ def _relations(source: str, tbl: dict, known: dict, resolved: dict) -> tuple:
     w = tuple(_expression(f"{source}: force_weights[{i}]", str(t) if isinstance(t, (int, float))
                           else t, known) for i, t in enumerate(weights))
     eqs = tuple(eq.subs(resolved) for _, _, eq in relations)
-    _check_determined(relations, eqs)
+    _check_determined(source, relations, eqs)
     used = set().union(*(eq.free_symbols for eq in eqs)) | set().union(
         *(sp.sympify(x).subs(resolved).free_symbols for x in w))
     if I.vm2 in used and I.vm1 not in used or I.xm2 in used and I.xm1 not in used:
@@ -239,7 +247,7 @@ def _identifier(where: str, name: str, reserved, reaches_code: bool = True) -> N
     if not (isinstance(name, str) and re.fullmatch(r"[a-z][a-z0-9_]{0,31}", name)):
         raise ValueError(f"{where}: the name {name!r} must be lower-case letters, digits and _, "
                          "starting with a letter, at most 32 characters")
-    if name in reserved or reaches_code and re.fullmatch(r"[a-z]\d+", name):
+    if name in reserved or reaches_code and GENERATED.fullmatch(name):
         raise ValueError(f"{where}: the name {name!r} is reserved (a symbol of the relations or a "
                          "name of the generated kernels); choose another name")
 
@@ -254,10 +262,34 @@ def _number(where: str, value) -> float:
 def _expression(where: str, text, symbols: dict):
     names = tuple(symbols)
     parsed = parse_expression(text, variables=(), constants=names, name=where)
-    return parsed.to_sympy(symbols)
+    expr = parsed.to_sympy(symbols)
+    if _degree(expr) > MAX_DEGREE:   # expanding it would take forever (((a + b)**64)**8)
+        raise ValueError(f"{where} = {text!r}: a power of degree above {MAX_DEGREE}; a scheme's "
+                         "relations are polynomials of low degree")
+    return expr
 
 
-def _check_determined(relations, eqs) -> None:
+#: the highest polynomial degree an expression may reach when expanded
+MAX_DEGREE = 64
+
+
+def _degree(e) -> float:
+    """An upper bound of the degree of ``e`` expanded as a polynomial (cheap: no expansion)."""
+    if e.is_Number or not e.free_symbols:
+        return 0
+    if e.is_Symbol:
+        return 1
+    if e.is_Add:
+        return max(_degree(a) for a in e.args)
+    if e.is_Mul:
+        return sum(_degree(a) for a in e.args)
+    if e.is_Pow:
+        base, exp = e.args
+        return _degree(base) * (abs(int(exp)) if exp.is_Integer else 1) + _degree(exp)
+    return max(_degree(a) for a in e.args)
+
+
+def _check_determined(source: str, relations, eqs) -> None:
     """The relations determine the new state from the history and the equilibrium point's
     acceleration ae (the unknown the equilibrium equation fixes): linear in the new state,
     independent and consistent. ValueError naming the relation or the unknown otherwise."""
@@ -274,19 +306,21 @@ def _check_determined(relations, eqs) -> None:
     rank = Mx.rank(simplify=True)
     if rank < len(unknowns):
         free = [str(s) for s in _undetermined(Mx, unknowns)]
-        raise ValueError(f"{relations[0][0].split(':')[0]}: the relations do not determine "
+        raise ValueError(f"{source}: the relations do not determine "
                          f"{', '.join(free)} (given ae, the equilibrium point's acceleration): "
                          f"{len(relations)} relations of rank {rank}, {len(unknowns)} needed")
-    if len(eqs) > len(unknowns):
-        for i in range(len(eqs)):
+    if len(eqs) > len(unknowns):   # one too many: name the one the others contradict or repeat
+        for i in reversed(range(len(eqs))):
             rest = [e for j, e in enumerate(eqs) if j != i]
+            if Mx.extract([j for j in range(len(eqs)) if j != i],
+                          list(range(len(unknowns)))).rank(simplify=True) < len(unknowns):
+                continue                  # the others alone do not determine the step
             sol = sp.solve(rest, unknowns, dict=True)
+            where, text, _ = relations[i]
             if sol and sp.simplify((eqs[i].lhs - eqs[i].rhs).subs(sol[0])) != 0:
-                where, text, _ = relations[i]
                 raise ValueError(f"{where} = {text!r} contradicts the other relations")
-        where, text, _ = relations[-1]
-        raise ValueError(f"{where} = {text!r} is redundant: {len(unknowns)} independent "
-                         "relations determine the step")
+            raise ValueError(f"{where} = {text!r} is redundant: the other relations determine "
+                             "the step")
 
 
 def _undetermined(Mx: sp.Matrix, unknowns) -> list:

@@ -10,6 +10,7 @@ it, then renamed), so two processes may load the same file at once.
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import json
@@ -140,8 +141,25 @@ class FileScheme:
 def _folder(text: str) -> Path:
     from dtdyn import __version__
 
-    key = hashlib.sha256(f"{CACHE_FORMAT}\0{__version__}\0{text}".encode()).hexdigest()[:32]
+    key = hashlib.sha256(f"{CACHE_FORMAT}\0{__version__}\0{_derivation_digest()}\0{text}"
+                         .encode()).hexdigest()[:32]
     return cbuild.cache_dir() / "schemes" / key
+
+
+@functools.cache
+def _derivation_digest() -> str:
+    """The hash of what turns a scheme file into its cached files: the derivations
+    (dtdyn.derive), their templates and the hand-written C they include. A change to any of
+    them is a new cache folder, so an upgrade never reads files derived by older code."""
+    from importlib import resources
+
+    h = hashlib.sha256()
+    roots = [resources.files("dtdyn.derive"), resources.files("dtdyn._engine") / "csrc"]
+    for root in roots:
+        for path in sorted(Path(str(root)).rglob("*"), key=str):
+            if path.suffix in (".py", ".jinja", ".h") and path.is_file():
+                h.update(path.name.encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
 
 
 def _complete(folder: Path) -> dict | None:
@@ -160,11 +178,14 @@ def _from_text(text: str, path: str = "<scheme>", rebuild: bool = False) -> File
     folder = _folder(text)
     table = None if rebuild else _complete(folder)
     if table is None:
-        table = _derive(text, path, folder)
+        table = _derive(text, path, folder, rebuild)
     return FileScheme(text, path, folder, table)
 
 
-def _derive(text: str, path: str, folder: Path) -> dict:
+def _derive(text: str, path: str, folder: Path, rebuild: bool) -> dict:
+    """Derive ``text`` and rename its files into ``folder`` as one directory. A complete
+    folder another process renamed in meanwhile is kept (its files are the same) unless
+    ``rebuild``, which replaces it (readers of the old one may then miss files)."""
     from dtdyn._engine.extras import require
 
     require("sympy", "derive", "load_scheme (the first load of a scheme file derives it)")
@@ -177,7 +198,7 @@ def _derive(text: str, path: str, folder: Path) -> dict:
     try:
         for name, body in files.items():
             (tmp / name).write_text(body, encoding="utf-8")
-        if folder.exists():  # a rebuild, or another process won the race: replace it whole
+        if folder.exists() and (rebuild or _complete(folder) is None):  # replace it whole
             old = folder.parent / f".{folder.name}.old.{os.getpid()}"
             try:
                 os.replace(folder, old)
@@ -186,7 +207,7 @@ def _derive(text: str, path: str, folder: Path) -> dict:
                 pass
         try:
             os.replace(tmp, folder)
-        except OSError:  # another process renamed its complete copy in first
+        except OSError:  # a complete copy is there (another process renamed it in first)
             shutil.rmtree(tmp, ignore_errors=True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -285,10 +306,14 @@ def read_scheme_text(path) -> str:
     """The text of a scheme file (at most `MAX_BYTES`); ValueError naming the file otherwise."""
     path = Path(path)
     try:
-        size = path.stat().st_size
-        if size > MAX_BYTES:
-            raise ValueError(f"{path}: the scheme file is {size:,} bytes; the limit is "
-                             f"{MAX_BYTES:,}")
-        return path.read_text(encoding="utf-8")
+        if not path.exists():
+            raise ValueError(f"{path}: no such scheme file")
+        if not path.is_file():   # a folder, a device (/dev/zero), a FIFO: refused unread
+            raise ValueError(f"{path}: not a regular file; a scheme file is a TOML text file")
+        with path.open("rb") as fh:
+            data = fh.read(MAX_BYTES + 1)
+        if len(data) > MAX_BYTES:
+            raise ValueError(f"{path}: the scheme file is over {MAX_BYTES:,} bytes, the limit")
+        return data.decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"{path}: cannot read the scheme file: {exc}") from None

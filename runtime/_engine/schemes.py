@@ -114,9 +114,14 @@ class SchemeInfo:
             coef = None
         if coef is None or not all(math.isfinite(v) for v in coef.values()
                                    if isinstance(v, (int, float))):
-            raise ValueError(f"dt = {dt!r}: the coefficients of scheme {self.name!r} (1/dt, "
-                             "1/dt^2) overflow a float; dt must be above about 1e-150 s (in "
-                             "the model's units)")
+            if self.file is None or abs(dt) < 1e-150:
+                raise ValueError(f"dt = {dt!r}: the coefficients of scheme {self.name!r} (1/dt, "
+                                 "1/dt^2) overflow a float; dt must be above about 1e-150 s (in "
+                                 "the model's units)")
+            raise ValueError(f"scheme {self.name!r} with {self.params}: the coefficients of its "
+                             f"{form} form are not finite at dt = {dt!r} (a parameter value that "
+                             "makes the form singular, e.g. explicit: then only "
+                             "form='acceleration')")
         return coef
 
 

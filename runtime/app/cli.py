@@ -73,8 +73,9 @@ def _show(args) -> int:
 
 def _scheme_ref(text: str):
     """A built-in scheme's name as it is, or the scheme of a scheme file (*.toml) loaded."""
-    if text.endswith(".toml"):
-        from dtdyn._engine.scheme_files import load_scheme
+    from dtdyn._engine.scheme_files import SHIPPED, load_scheme
+
+    if text.endswith(".toml") or (SHIPPED / f"{text}.toml").is_file():
         return load_scheme(text)
     if text not in SCHEMES:
         raise ValueError(f"unknown scheme {text!r}; available: {', '.join(SCHEMES)}, or a scheme "
@@ -100,7 +101,11 @@ def _check(args) -> int:
         print(f"file: {ref.path} (sha256 {ref.sha256[:16]}; derived into {ref.folder})")
     print(f"order of accuracy: {row['order']} ({how}"
           + (f"; the file claims {claimed}, as derived" if claimed else "") + ")")
-    params = ", ".join(f"{p} = {v['default']:g} in [{v['range'][0]}, {v['range'][1]}]"
+    def bound(v, inf):
+        return inf if v is None else f"{v:g}"
+
+    params = ", ".join(f"{p} = {v['default']:g} in [{bound(v['range'][0], '-inf')}, "
+                       f"{bound(v['range'][1], 'inf')}]"
                        for p, v in row["params"].items()) or "none"
     print(f"parameters: {params}")
     print("explicit: acceleration form only" if row["explicit"] else
@@ -216,7 +221,11 @@ def _simulate(args) -> int:
         from dtdyn._engine import kernels
 
         t0 = time.perf_counter()
-        kernels.c_chain_function(sc.scheme)
+        from dtdyn._engine.schemes import get_scheme
+        from dtdyn.linear.solver import schemes_of_run
+
+        for part in schemes_of_run(get_scheme(sc.scheme)):   # a composite's stages
+            kernels.c_chain_function(part)
         print(f"C kernel compile or cache load: {time.perf_counter() - t0:.3f} s")
     long_run = sc.n_steps * sc.n_dof > 5e7
     if not args.no_check:
@@ -948,7 +957,8 @@ def _parser() -> argparse.ArgumentParser:
                                           "explicitness, rho_inf, stability limit, spectral "
                                           "radius and period elongation over Omega")
     ck.add_argument("scheme", metavar="SCHEME",
-                    help=f"a built-in scheme ({', '.join(SCHEMES)}) or a scheme file (*.toml)")
+                    help=f"a built-in scheme ({', '.join(SCHEMES)}), a shipped scheme file "
+                         "(bathe, rho_inf_bathe) or a scheme file (*.toml)")
     ck.add_argument("--plot", help="draw spectral radius, period elongation and algorithmic "
                                    "damping over Omega to this image file")
     g = sub.add_parser("generate", help="rewrite generated/ from the SymPy derivations (from a "

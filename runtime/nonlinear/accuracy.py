@@ -80,9 +80,12 @@ def check_accuracy(accuracy):
 def scheme_order(method, params) -> int:
     """The order p in h of ``method`` with these parameters (a modal method its order in METHODS:
     modal_ramp 2, modal_parabolic 3, modal_quintic 6, modal_explicit 7; a one-step scheme its
-    order in TABLE; Newmark with gamma != 1/2 is first order)."""
+    order in TABLE, a scheme file's the derived one; Newmark with gamma != 1/2 is first
+    order)."""
     if method in METHODS:
         return int(METHODS[method]["order"])
+    if hasattr(method, "table"):   # a scheme file's scheme: the order its derivation found
+        return int(method.table["order"])
     if method not in TABLE:
         raise ValueError(f"scheme {method!r} has no known order; accuracy and estimate "
                          f"need a method of {', '.join(METHODS)} or a scheme of "

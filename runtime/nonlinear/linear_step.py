@@ -238,7 +238,8 @@ def _scheme_step(M, C, K, h, U, L, out, scheme, params, need_v, nf) -> LinearSte
     """The scheme's one-step model (`scheme_blocks`), history [x0; v0; a0] per DOF, with
     a_0 = M^+ U u_0 at rest (M^+: pseudo-inverse, = M^-1 when M is nonsingular)."""
     from dtdyn.linear.state_space import scheme_blocks
-    if scheme in MULTISTEP:
+    from dtdyn._engine.schemes import get_scheme
+    if get_scheme(scheme, **params).startup_steps:
         raise ValueError(f"scheme {scheme!r} is a multistep scheme whose start-up is not a single "
                          "linear step; use 'newmark', 'hht', 'generalized_alpha' or 'modal_ramp'")
     Phi, G0, G1, S = scheme_blocks(M, C, K, h, scheme, acceleration=True, **params)

@@ -432,3 +432,73 @@ def test_run_batch_with_a_scene_scheme_file(tmp_path):
                                force_dofs=[1], scheme=dd.load_scheme(tmp_path / "mine.toml"),
                                alpha_m=-0.2)
     assert np.allclose(np.asarray(ds["x"]).reshape(2, 21, -1)[0], direct.x, rtol=0, atol=0)
+
+
+def test_functions_of_the_allow_list_reach_the_generated_code(tmp_path):
+    """sqrt in a substitution: the coefficient module and the amplification matrix evaluate
+    it (NumPy's), and at sigma = 1/4 the scheme is average acceleration."""
+    s = _load(tmp_path, _relations("x1 = x0 + dt*v0 + dt**2*((1/2 - beta)*a0 + beta*a1)",
+                                   "v1 = v0 + dt*(a0 + a1)/2", "xe = x1", "ve = v1", "ae = a1",
+                                   extra='[parameters.sigma]\ndefault = 0.25\nrange = [0.01, 1]\n'
+                                         '[substitutions]\nbeta = "sqrt(sigma)/2"\n'), "fn.toml")
+    m, k, c = [1.0, 1.0], [100.0, 100.0], [0.5, 0.5]
+    a = dd.chain_response(m, k, c, np.ones(51), 0.01, force_dofs=[1], scheme=s)
+    b = dd.chain_response(m, k, c, np.ones(51), 0.01, force_dofs=[1],
+                          scheme="average_acceleration")
+    assert rel(a.x, b.x) < 1e-14
+    assert dd.stability(s, [1.0, 100.0]).spectral_radius == pytest.approx(1.0, abs=1e-12)
+
+
+def test_review_findings_each_named(tmp_path):
+    """A repeated relation is named redundant (not a contradiction); a power whose expansion
+    would not end is refused at once; devices and folders are not read."""
+    with pytest.raises(ValueError, match=r"relations\[5\] = 'xe = x1' is redundant"):
+        _load(tmp_path, _relations(*NEWMARK, "xe = x1"))
+    with pytest.raises(ValueError, match="degree above 64"):
+        _load(tmp_path, _relations("x1 = x0 + dt*v0 + ((x0 + v0 + a0)**64)**8", *NEWMARK[1:]))
+    for path in ("/dev/zero", str(tmp_path)):
+        with pytest.raises(ValueError, match="not a regular file"):
+            dd.load_scheme(path)
+
+
+def test_multistep_file_in_the_nonlinear_solver_is_named(tmp_path):
+    pytest.importorskip("casadi")
+    s = _load(tmp_path, _relations("v1 = (11*x1 - 18*x0 + 9*xm1 - 2*xm2)/(6*dt)",
+                                   "a1 = (2*x1 - 5*x0 + 4*xm1 - xm2)/dt**2",
+                                   "xe = x1", "ve = v1", "ae = a1"), "h.toml")
+    M, K = np.eye(2), np.array([[2e3, -1e3], [-1e3, 1e3]])
+    with pytest.raises(ValueError, match="multistep"):
+        dd.nonlinear_mck_response(M, 0.01 * K, K, np.ones((11, 2)), 0.01, force_dofs=[0, 1],
+                                  elements=[dd.Cubic(0, k3=1.0)], scheme=s)
+
+
+def test_accuracy_target_takes_the_derived_order(scheme):
+    pytest.importorskip("casadi")
+    M, K = np.eye(2), np.array([[2e3, -1e3], [-1e3, 1e3]])
+    r = dd.nonlinear_mck_response(M, 0.01 * K, K, np.ones((201, 2)), 0.01, force_dofs=[0, 1],
+                                  elements=[dd.Cubic(0, k3=1e3)], scheme=scheme, estimate=True)
+    assert np.isfinite(r.info["error_estimate"])
+
+
+def test_cli_runs_a_composite_scene_and_checks_a_shipped_scheme(tmp_path, capsys):
+    from dtdyn.app.cli import main
+
+    scene = tmp_path / "scene.toml"
+    scene.write_text(textwrap.dedent("""
+        [model]
+        mass = [1.0, 2.0]
+        stiffness = [1e3, 1e3]
+        [[load]]
+        dof = 1
+        kind = "step"
+        amplitude = 1.0
+        [scheme]
+        file = "BATHE"
+        [time]
+        dt = 0.01
+        duration = 0.2
+        """).replace("BATHE", str(dd.load_scheme("bathe").path)))
+    assert main(["simulate", str(scene), "--no-check"]) == 0
+    assert main(["scheme", "check", "bathe"]) == 0
+    out = capsys.readouterr().out
+    assert "order of accuracy: 2" in out and "gamma = 0.5 in [0.1, 0.9]" in out
