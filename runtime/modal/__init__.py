@@ -1,2 +1,14 @@
 """Modal models (model: poles and residues), modal digital filters (filters), their frequency-
 domain errors (filter_errors) and shock response spectra (srs)."""
+
+from dtdyn._engine.lazy import attach
+
+__all__, __getattr__, __dir__ = attach(__name__, {
+    "filter_errors": ["continuous_frequency_response", "discrete_frequency_response", "ramp_bias",
+                      "truncation_error"],
+    "filters": ["modal_filter_response", "to_sos"],
+    "model": ["ModalModel", "from_poles_residues", "modal_model"],
+    "modes": ["Modes", "mck_modes"],
+    "spectrum": ["ResponseSpectrum", "response_spectrum"],
+    "srs": ["SRS", "load_record", "sdof_response", "shock_response_spectrum"],
+})

@@ -38,8 +38,8 @@ import scipy.linalg as sla
 
 from dtdyn._engine import linalg
 from dtdyn._engine import validate
+from dtdyn._engine.errors import DtdynAccuracyWarning
 from dtdyn._engine.public import warn
-from dtdyn.linear.chain import DtdynAccuracyWarning
 
 #: a pole with |s| below this times max |s| is a rigid-body (zero) pole
 ZERO_POLE_TOLERANCE = 1e-8

@@ -1,3 +1,16 @@
 """Localized nonlinear elements (elements, expressions), the linear step of every scheme with the
 element forces as inputs (linear_step), the nonlinear time histories (response; chain on the DT-
 TMM) and their ODE reference (reference)."""
+
+from dtdyn._engine.lazy import attach
+
+# `harmonic_balance` is also a module of this package (the attribute is the module): use
+# dtdyn.harmonic_balance until the module is private
+__all__, __getattr__, __dir__ = attach(__name__, {
+    "chain": ["nonlinear_chain_response"],
+    "elements": ["BoucWen", "Cubic", "Gap", "Law", "Polynomial"],
+    "reference": ["check_reference", "reference_response"],
+    "response": ["nonlinear_mck_response"],
+    "harmonic_balance": ["HarmonicBalanceResult", "harmonic_balance_amplitude"],
+    "stations": ["nonlinear_beam_response", "nonlinear_shaft_response"],
+})

@@ -418,7 +418,8 @@ class HarmonicBalanceResult:
         newton_iterations, steps, rejected_steps, law_evaluations, receptance_evaluations,
         run_time, receptance, n_time, harmonics, stop; harmonic_error (the largest, over the
         points, of the last two kept harmonics' largest |X_k| relative to the largest x_max:
-        an estimate of the truncation error) and harmonic_error_points (per point).
+        an estimate of the truncation error; NaN with harmonics < 3, where the last two kept
+        would include the fundamental) and harmonic_error_points (per point).
 
     Examples
     --------
@@ -864,9 +865,13 @@ def _curve(system, cont, U, p0, p1, opts, model, t_start) -> HarmonicBalanceResu
     Yel = np.array([_complex(q[0]) for q in points])                 # (points, H+1, ne)
     x_max = np.array([_peak(Xp) for Xp in X])
     rms = np.sqrt(np.abs(X[:, 0].real) ** 2 + 0.5 * np.sum(np.abs(X[:, 1:]) ** 2, axis=1))
-    # the truncation estimate: the last two kept harmonics against the amplitude
-    last = np.abs(X[:, max(H - 1, 1):]).max(axis=1).max(axis=1)
-    harmonic_error = last / np.maximum(x_max.max(axis=1), 1e-300)
+    # the truncation estimate: the last two kept harmonics (never the fundamental) against the
+    # amplitude; none with a single harmonic above the fundamental or fewer (NaN)
+    if H >= 3:
+        last = np.abs(X[:, H - 1:]).max(axis=1).max(axis=1)
+        harmonic_error = last / np.maximum(x_max.max(axis=1), 1e-300)
+    else:
+        harmonic_error = np.full(len(points), np.nan)
     a_abs = a_abs_max = None
     if model["A_g"] is not None:
         k = np.arange(H + 1)

@@ -220,8 +220,11 @@ def spectral_moments(psd, freqs_hz) -> dict:
     >>> {k: round(v, 2) for k, v in dd.spectral_moments(np.ones_like(f), f).items()}
     {'m0': 10.0, 'm1': 50.0, 'm2': 333.33, 'm4': 20000.03}
     """
-    g = real_array("psd", psd).ravel()
-    f = real_array("freqs_hz", freqs_hz).ravel()
+    g = real_array("psd", psd)
+    f = real_array("freqs_hz", freqs_hz)
+    if g.ndim != 1 or f.ndim != 1:
+        raise ValueError(f"psd and freqs_hz must be 1-D (one stress); got shapes {g.shape} and "
+                         f"{f.shape}")
     if f.size < 2 or g.shape != f.shape:
         raise ValueError(f"psd and freqs_hz must be two arrays of the same length >= 2; got "
                          f"{g.size} and {f.size} values")
@@ -330,6 +333,14 @@ def spectral_damage_from_moments(moments, sn_curve, duration, *, method="dirlik"
         raise ValueError(f"moments must hold m0, m1, m2 and m4; got {moments!r}") from exc
     for name, v in (("m0", m0), ("m1", m1), ("m2", m2), ("m4", m4)):
         _positive(f"moments[{name!r}]", v)
+    # a PSD's moments satisfy m1^2 <= m0 m2 and m2^2 <= m0 m4 (Cauchy-Schwarz): alpha1, alpha2
+    # in (0, 1]; other sets are no spectrum's
+    a1, a2 = m1 / np.sqrt(m0 * m2), m2 / np.sqrt(m0 * m4)
+    if a1 > 1.0 + 1e-9 or a2 > 1.0 + 1e-9:
+        raise ValueError(f"moments {moments!r} are no PSD's: alpha1 = m1/sqrt(m0 m2) = {a1:.6g}"
+                         f" and alpha2 = m2/sqrt(m0 m4) = {a2:.6g} must be at most 1")
+    if 1.0 - a2 < 1e-10 and method in ("dirlik", "tovo_benasciutti"):
+        method = "narrow_band"     # both tend to it as alpha2 -> 1 (their formulas are 0/0 there)
     T = _positive("duration", duration)
     gain = 1.0
     if ultimate_strength is not None:
@@ -342,6 +353,9 @@ def spectral_damage_from_moments(moments, sn_curve, duration, *, method="dirlik"
     for rate, kind, scale in parts:
         moment = _rayleigh_moment if kind == "rayleigh" else _exponential_moment
         scale = scale * gain
+        if not (np.isfinite(rate) and np.isfinite(scale)) or rate < 0 or scale < 0:
+            raise ValueError(f"method {method!r} gives no valid amplitude distribution for the "
+                             f"moments {moments!r} (a term of rate {rate!r}, scale {scale!r})")
         for lo, hi, c, k in sn.pieces():
             if scale > 0:
                 total += rate * moment(k, scale, lo, hi) / c

@@ -58,6 +58,15 @@ class PsdTable:
     def __init__(self, freqs_hz, values):
         self.freqs_hz = np.array(freqs_hz, dtype=float)
         self.values = np.array(values, dtype=float)
+        f, g = self.freqs_hz, self.values
+        if f.ndim != 1 or f.shape != g.shape or f.size < 2:
+            raise ValueError(f"PsdTable: freqs_hz and values must be two 1-D arrays of the same "
+                             f"length >= 2; got shapes {f.shape} and {g.shape}")
+        if not (np.isfinite(f).all() and np.isfinite(g).all() and (f > 0).all()
+                and (np.diff(f) > 0).all() and (g > 0).all()):
+            raise ValueError("PsdTable: the breakpoints must be finite, the frequencies > 0 and "
+                             "increasing, the values > 0 (log-log interpolation); psd_table "
+                             "builds a table from breakpoints as specifications write them")
         for a in (self.freqs_hz, self.values):
             a.flags.writeable = False
         f, g = self.freqs_hz, self.values
@@ -86,6 +95,8 @@ class PsdTable:
 
     def __call__(self, f) -> np.ndarray:
         f = np.asarray(f, dtype=float)
+        if np.isnan(f).any():
+            raise ValueError("the frequencies at which a PSD table is read must not be NaN")
         fb, g = self.freqs_hz, self.values
         i = np.clip(np.searchsorted(fb, f, side="right") - 1, 0, fb.size - 2)
         inside = (f >= fb[0]) & (f <= fb[-1])

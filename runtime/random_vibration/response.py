@@ -609,6 +609,12 @@ def _run(model, psd, freqs_hz, force_dofs, outputs, quantities, ground_accelerat
             parts.append((G[:, :, None, :] * powers[:, None, :, None]).reshape(fb.size, -1))
         return np.concatenate(parts)
 
+    # the output cross-spectral matrices returned: (n_freq, n_out, n_out) complex per quantity
+    validate.memory(f"the response spectra of {outs.size:,} outputs at {f_user.size:,} "
+                    f"frequencies ({', '.join(kinds)})",
+                    16 * f_user.size * outs.size**2 * len(kinds),
+                    "ask for the outputs you need (outputs=[...]): each spectrum holds every "
+                    "pair of outputs")
     band = (float(f_user[0]), float(f_user[-1]))
     fn, zeta = model.modes(2.0 * np.pi * 2.0 * max(band[1], 1e-300))
     inside = (fn > 0) & (zeta > 0)

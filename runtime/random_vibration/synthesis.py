@@ -146,8 +146,8 @@ def random_time_history(psd, dt, n_samples, *, freqs_hz=None, seed=None) -> np.n
     The covariance of the record equals the target's, sum_m R((k + m N) dt) with N >= 2
     n_samples (Poisson summation; module docstring), so its variance is the PSD's integral
     (a table's ``grms**2``) up to the frequency step 1 / (N dt), and the Welch PSD of the record
-    scatters about the target as chi-square with 2 x (segments) degrees of freedom. Memory: the
-    spectrum of N / 2 complex values per input.
+    scatters about the target as chi-square with 2 x (segments) degrees of freedom. Memory: about
+    48 N bytes per input (the spectrum, the transform and its output), checked before it starts.
 
     Examples
     --------
@@ -182,6 +182,10 @@ def random_time_history(psd, dt, n_samples, *, freqs_hz=None, seed=None) -> np.n
     n_in = spectrum.n_in
     j_lo = max(1, int(np.ceil(lo / df)))
     j_hi = min(n_fft // 2 - 1, int(np.floor(hi / df)))
+    # the spectrum (N/2 complex), the transform's output (N real) and its working copy, per
+    # input: about 6 n_fft bytes x 8 (n_fft >= 2 n_samples)
+    validate.memory(f"random_time_history of {n:,} samples x {n_in} inputs", 48 * n_fft * n_in,
+                    "synthesize shorter records (several seeds) and join their statistics")
     Z = np.zeros((n_fft // 2 + 1, n_in), dtype=complex)
     for start in range(j_lo, j_hi + 1, BLOCK):
         j = np.arange(start, min(start + BLOCK, j_hi + 1))
@@ -193,7 +197,8 @@ def random_time_history(psd, dt, n_samples, *, freqs_hz=None, seed=None) -> np.n
             lam, V = np.linalg.eigh(S)
             Z[j] = np.einsum("fij,fj,fj->fi", V, np.sqrt(np.maximum(lam, 0.0)), xi)
     # irfft: x_n = (1/N) (Z_0 + 2 sum_j Re(Z_j e^{2 pi i j n / N}) + ...), so Z_j N sqrt(df) / 2
-    x = scipy.fft.irfft(Z * (0.5 * n_fft * np.sqrt(df)), n=n_fft, axis=0)[:n]
+    Z *= 0.5 * n_fft * np.sqrt(df)
+    x = scipy.fft.irfft(Z, n=n_fft, axis=0)[:n]
     return x[:, 0].copy() if n_in == 1 else x
 
 

@@ -144,9 +144,11 @@ def test_cubic_spring_runs_and_reports_its_interval(client, linear):
         ds, s = monte_carlo(client, scene)
         assert np.isfinite(ds["max_residual"].values).all()
         for name in ("rms_x", "rms_a", "damage_x", "welch_x"):
+            # the Welch interval is left out (NaN) at 0 Hz and at the Nyquist frequency
+            inner = slice(1, -1) if name.startswith("welch") else slice(None)
             for part in ("", "_low", "_high"):
-                assert np.isfinite(s[name + part].values).all()
-            assert np.all(s[name + "_low"].values < s[name + "_high"].values)
+                assert np.isfinite(s[name + part].values[inner]).all()
+            assert np.all(s[name + "_low"].values[inner] < s[name + "_high"].values[inner])
         results[k3] = s
     tiny, hard = results[1e3], results[8e10]
     # the same seeds, a spring that does not act: the linear Monte Carlo's answer (the cubic

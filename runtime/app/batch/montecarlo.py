@@ -130,8 +130,14 @@ def monte_carlo_summary(result, *, confidence=0.95):
             nu = float(np.asarray(ds["welch_dof"].values)[done].sum())
             mean = y.mean("case")
             out[name] = mean
-            out[f"{name}_low"] = nu * mean / stats.chi2.ppf(0.5 + confidence / 2.0, nu)
-            out[f"{name}_high"] = nu * mean / stats.chi2.ppf(0.5 - confidence / 2.0, nu)
+            # nu holds away from 0 Hz and the Nyquist frequency (there a detrended, windowed
+            # estimate has about half the degrees of freedom, or none): no interval at those bins
+            f = mean["freq_hz"] if "freq_hz" in mean.coords else None
+            inner = True if f is None else (f > f.min()) & (f < f.max())
+            out[f"{name}_low"] = (nu * mean / stats.chi2.ppf(0.5 + confidence / 2.0, nu)
+                                  ).where(inner)
+            out[f"{name}_high"] = (nu * mean / stats.chi2.ppf(0.5 - confidence / 2.0, nu)
+                                   ).where(inner)
             continue
         if name.startswith("rms_"):
             y = y**2
