@@ -13,6 +13,11 @@ Kinds and their fields (defaults in brackets)::
                                                   (log-log between them, a value may be a slope
                                                   "+3 dB/oct"; dtdyn.random_vibration.psd_table),
                                                   by random_time_history(table, dt, len(t), seed)
+    shock        srs, seed (int), damping_ratio [0.05], t0 [0.0]
+                                                  a shock whose SRS matches the target given as
+                                                  breakpoints [[Hz, value], ...] (log-log between
+                                                  them, on a 1/12-octave grid) within 1.5 dB, by
+                                                  shock_time_history, starting at t0
 
 A ``file`` path is taken relative to the scene file's folder. The file must hold exactly
 ``len(t)`` samples (one per time step ``t_0 .. t_n``, at the scene's ``dt``); a CSV is read with
@@ -38,6 +43,7 @@ LOAD_KINDS: dict[str, tuple[tuple[str, ...], dict]] = {
     "white_noise": (("std", "seed"), {}),
     "file": (("path",), {"column": 0}),
     "psd": (("psd", "seed"), {}),
+    "shock": (("srs", "seed"), {"damping_ratio": 0.05, "t0": 0.0}),
 }
 
 
@@ -193,9 +199,41 @@ def sample_load(spec: dict, t: np.ndarray, base_dir: Path, *, name: str = "load"
         seed = _integer(f"{name}.seed", spec["seed"], minimum=0)
         return std * np.random.default_rng(seed).standard_normal(t.size)
 
-    # kind == "psd" or "file"
-    return (_psd_record(name, spec, t, dt) if kind == "psd"
-            else _read_file(name, spec, t.size, Path(base_dir)))
+    records = {"shock": lambda: _shock_record(name, spec, t, dt, num("damping_ratio"), num("t0")),
+               "psd": lambda: _psd_record(name, spec, t, dt),
+               "file": lambda: _read_file(name, spec, t.size, Path(base_dir))}
+    return records[kind]()
+
+
+def _shock_record(name: str, spec: dict, t: np.ndarray, dt: float | None, zeta: float,
+                  t0: float) -> np.ndarray:
+    """The samples of a "shock" load: `shock_time_history` of the target SRS (breakpoints,
+    log-log on a 1/12-octave grid) at the step of t, from t0 on, zero before."""
+    from dtdyn.random_vibration.psd import PsdTable
+    from dtdyn.random_vibration.synthesis import shock_time_history
+
+    seed = _integer(f"{name}.seed", spec["seed"], minimum=0)
+    if dt is None:
+        raise ValueError(f"{name}: a shock load needs at least two time steps")
+    raw = spec["srs"]
+    try:
+        f, value = np.array(raw, dtype=float).T
+        target = PsdTable(f, value)          # the same log-log interpolation as a PSD table
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}.srs = {raw!r}: give breakpoints [[Hz, value], ...], "
+                         f"increasing frequencies, values > 0 ({exc})") from None
+    if not 0.0 < zeta < 1.0:
+        raise ValueError(f"{name}.damping_ratio = {zeta!r}: must be in (0, 1)")
+    n = int(np.ceil(12 * np.log2(f[-1] / f[0]))) + 1
+    grid = np.geomspace(f[0], f[-1], n)
+    shock = shock_time_history(target(grid), grid, dt, damping_ratio=zeta, seed=seed)
+    start = int(round(t0 / dt))
+    if t0 < 0 or start + shock.a.size > t.size:
+        raise ValueError(f"{name}: the shock lasts {shock.t[-1]:g} s from t0 = {t0:g} s, "
+                         f"beyond the scene's {t[-1]:g} s: lengthen time.duration or move t0")
+    out = np.zeros(t.size)
+    out[start:start + shock.a.size] = shock.a
+    return out
 
 
 def _psd_record(name: str, spec: dict, t: np.ndarray, dt: float | None) -> np.ndarray:

@@ -93,3 +93,25 @@ def test_errors_name_the_field(tmp_path, load, message):
                     '[time]\ndt = 1e-3\nduration = 1.0\n')
     with pytest.raises(ValueError, match=message):
         dd.load_scene(path)
+
+
+def test_ground_shock_load_meets_its_srs(tmp_path):
+    """`[ground] kind = "shock"`: the record starts at t0 and its SRS (an independent run of
+    shock_response_spectrum on the 1/12-octave grid) is within 1.5 dB of the target."""
+    scene = dd.scene_from_dict({
+        "model": {"mass": [1.0, 1.0], "stiffness": [4e4, 4e4], "damping": [10.0, 10.0]},
+        "ground": {"kind": "shock", "srs": [[20.0, 10.0], [100.0, 50.0], [500.0, 50.0]],
+                   "seed": 0, "t0": 0.05},
+        "time": {"dt": 1e-4, "duration": 1.5}}, base_dir=tmp_path)
+    a = scene.ground
+    a = np.asarray(a if not isinstance(a, tuple) else a[0]).ravel()
+    assert not a[:int(0.05 / 1e-4)].any() and np.abs(a).max() > 0
+    f = np.geomspace(20.0, 500.0, int(np.ceil(12 * np.log2(25.0))) + 1)
+    target = np.interp(np.log(f), np.log([20.0, 100.0, 500.0]), np.log([10.0, 50.0, 50.0]))
+    srs = dd.shock_response_spectrum(a, 1e-4, freqs_hz=f, damping_ratio=0.05).maximax
+    assert np.abs(20 * np.log10(srs / np.exp(target))).max() < 1.5
+    with pytest.raises(ValueError, match="ground: the shock lasts"):
+        dd.scene_from_dict({
+            "model": {"mass": [1.0], "stiffness": [4e4]},
+            "ground": {"kind": "shock", "srs": [[20.0, 10.0], [500.0, 50.0]], "seed": 0},
+            "time": {"dt": 1e-4, "duration": 0.2}}, base_dir=tmp_path)

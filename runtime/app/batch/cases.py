@@ -20,8 +20,8 @@ are read here, on the machine that starts the batch, and sent to the workers as 
 scenes' files once for the whole batch, a file named by an override with its case. The workers
 need no shared file system to read them.
 
-Per-case seeds: with a root seed, case ``i`` draws its random loads (``kind = "white_noise"``
-or ``"psd"`` in ``[[load]]`` or ``[ground]``, in that order) from
+Per-case seeds: with a root seed, case ``i`` draws its random loads (``kind = "white_noise"``,
+``"psd"`` or ``"shock"`` in ``[[load]]`` or ``[ground]``, in that order) from
 ``numpy.random.SeedSequence(root).spawn(n)[i]``: its first ``k`` 63-bit states seed those
 ``k`` loads (a seed the case's own overrides set is kept). The seeds depend only on the root
 and the case's index, never on how the cases are split over tasks or workers.
@@ -283,7 +283,7 @@ def _load_base(item, k: int):
 
 
 #: the load kinds drawn from a seed (each batch case gets its own)
-RANDOM_KINDS = ("white_noise", "psd")
+RANDOM_KINDS = ("white_noise", "psd", "shock")
 
 
 def _noise_slots(data: dict) -> list[str]:
