@@ -26,7 +26,10 @@ from pathlib import Path
 import numpy as np
 
 import dtdyn as dd
-from dtdyn.app.timing import SPREAD, Timing, pin_blas
+from dtdyn.app.timing import SPREAD, interleaved, pin_blas
+
+#: the loop's own time of a run (its info), not the call's
+RUN_TIME = lambda r: r.info["run_time"]  # noqa: E731
 
 FILE = '''
 name = "file_bossak"
@@ -43,17 +46,6 @@ range = [-0.5, 0.0]
 beta = "(1 - alpha_m)**2/4"
 gamma = "1/2 - alpha_m"
 '''
-
-
-def alternate(run_file, run_builtin, repeats):
-    """Timings of both (each run's info["run_time"]), alternating within each repeat."""
-    run_file(), run_builtin()                          # warm-up: compile, caches
-    tf, tb = [], []
-    for i in range(repeats):
-        pair = (run_file, tf), (run_builtin, tb)
-        for fn, out in (pair if i % 2 == 0 else pair[::-1]):
-            out.append(fn().info["run_time"])
-    return Timing(tf), Timing(tb)
 
 
 def main(quick: bool = False) -> None:
@@ -84,8 +76,9 @@ def main(quick: bool = False) -> None:
         for name, run in cases.items():
             a, b = run(scheme), run("bossak")
             assert np.array_equal(a.x, b.x), name       # same derivation, same bits
-            tf, tb = alternate(lambda run=run: run(scheme), lambda run=run: run("bossak"),
-                               repeats)
+            t = interleaved({"file": lambda run=run: run(scheme),
+                             "built-in": lambda run=run: run("bossak")}, repeats, key=RUN_TIME)
+            tf, tb = t["file"], t["built-in"]
             per = 1.0 / steps
             print(f"{name:28s} {tf.scaled(per).format('us'):>24s} "
                   f"{tb.scaled(per).format('us'):>24s} {tf / tb:7.3f}")
@@ -107,7 +100,8 @@ def main(quick: bool = False) -> None:
             def run_a(mm=mm, kk=kk, cc=cc, last=last):
                 return dd.chain_response(mm, kk, cc, f2, dt / 2, force_dofs=last, outputs=last,
                                          scheme="average_acceleration")
-            tf, tb = alternate(run_b, run_a, repeats)
+            t = interleaved({"bathe": run_b, "avg": run_a}, repeats, key=RUN_TIME)
+            tf, tb = t["bathe"], t["avg"]
             per = 1.0 / steps
             print(f"{name:28s} {tf.scaled(per).format('us'):>24s} "
                   f"{tb.scaled(per).format('us'):>24s} {tf / tb:7.3f}")

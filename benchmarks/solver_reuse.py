@@ -34,29 +34,15 @@ without --quick the output is written to docs/solver_reuse.md)
 from __future__ import annotations
 
 import sys
-import time
 
 import numpy as np
 
 import dtdyn as dd
 from dtdyn._engine.stepping import history_from_states
-from dtdyn.app.timing import SPREAD, Timing, pin_blas
+from dtdyn.app.timing import SPREAD, interleaved, pin_blas
 from dtdyn.linear.solver import scheme_key
 
 N_DOF, N_STEPS, DT = 2000, 100, 1e-3
-
-
-def interleaved(fns: dict, repeats: int) -> dict:
-    """Timing of each function, called in turn within each of ``repeats`` rounds after one
-    warm-up round (a drift of the machine's speed then reaches every function alike)."""
-    first, times = {}, {name: [] for name in fns}
-    for r in range(repeats + 1):
-        for name, fn in fns.items():
-            t0 = time.perf_counter()
-            fn()
-            wall = time.perf_counter() - t0
-            (times[name].append(wall) if r else first.__setitem__(name, wall))
-    return {name: Timing(times[name], first[name]) for name in fns}
 
 
 def loop_only(solver, forces, loaded):

@@ -20,7 +20,7 @@ import statistics
 import time
 from dataclasses import dataclass, field
 
-__all__ = ["BlasPin", "Timing", "measure", "pin_blas"]
+__all__ = ["BlasPin", "Timing", "interleaved", "measure", "pin_blas"]
 
 
 class Timing(float):
@@ -194,6 +194,30 @@ def measure(fn, repeats: int = 5, *, warmup: bool = True, key=None, before=None,
         spent += wall
         times.append(wall if key is None else key(out))
     return out, Timing(tuple(times), first)
+
+
+def interleaved(fns: dict, repeats: int, *, key=None) -> dict:
+    """`Timing` of each of ``fns`` (name -> callable), called in turn within each of ``repeats``
+    rounds after one warm-up round: a drift of the machine's speed reaches every function
+    alike. ``key(result)``: the time a call reports itself (as in `measure`), else wall time.
+
+    Examples
+    --------
+    >>> t = interleaved({"a": lambda: sum(range(100)), "b": lambda: sum(range(10))}, 3)
+    >>> sorted(t), t["a"].repeats
+    (['a', 'b'], 3)
+    """
+    first, times = {}, {name: [] for name in fns}
+    for r in range(repeats + 1):
+        for name, fn in fns.items():
+            t0 = time.perf_counter()
+            out = fn()
+            wall = time.perf_counter() - t0
+            if r:
+                times[name].append(wall if key is None else key(out))
+            else:
+                first[name] = wall
+    return {name: Timing(times[name], first[name]) for name in fns}
 
 
 @dataclass
