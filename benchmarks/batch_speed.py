@@ -10,7 +10,7 @@ per DOF and written to a Zarr store. In the same run:
   malloc settings), the same reductions computed here: the work a user's own loop does per
   case (parse, run, reduce);
 - run_batch on a LocalCluster of 1, then 2 worker processes, started by
-  dtdyn.app.batch.run.local_cluster as run_batch(client=None) starts them (one thread each,
+  dtdyn.app._batch.run.local_cluster as run_batch(client=None) starts them (one thread each,
   glibc's malloc thresholds of WORKER_ENVIRON, the profiler off; the cluster is started before
   the clock runs; the clock covers scatter, the warm-up, the tasks, the Zarr writes and the
   metadata);
@@ -26,7 +26,7 @@ per DOF and written to a Zarr store. In the same run:
 Each batch is one timed run (its 200 cases are the repeats: the run time of each case on the
 workers is shown as median [min, max]); BLAS pinned to one thread in this process and, by
 OPENBLAS_NUM_THREADS / OMP_NUM_THREADS / MKL_NUM_THREADS = 1 set before the workers start, in
-theirs (dtdyn.app.timing.pin_blas for this process).
+theirs (dtdyn.app.pin_blas for this process).
 
     python benchmarks/batch_speed.py [N_CASES]        (default 200)
 """
@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 import dtdyn as dd
-from dtdyn.app.timing import Timing, pin_blas
+from dtdyn.app import Timing, pin_blas
 
 SCENE = Path(dd.__file__).parent / "app" / "scenes" / "p4.toml"
 ROOT_SEED = 0
@@ -69,7 +69,7 @@ def plain_loop(n):
 def batch(n, workers, folder, dask_defaults=False):
     from distributed import Client, LocalCluster
 
-    from dtdyn.app.batch.run import local_cluster
+    from dtdyn.app._batch.run import local_cluster
 
     t0 = time.perf_counter()
     if dask_defaults:

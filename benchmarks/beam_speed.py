@@ -14,7 +14,7 @@ Wittrick-Williams frequencies.
    displacement from the scipy.sparse run, relative to its largest value.
 
 Times: median [min, max] of 3 runs after a warm-up, BLAS pinned to one thread
-(dtdyn.app.timing.pin_blas, threadpoolctl).
+(dtdyn.app.pin_blas, threadpoolctl).
 Usage: python benchmarks/beam_speed.py
 """
 from __future__ import annotations
@@ -24,7 +24,7 @@ import functools
 import numpy as np
 
 import dtdyn as dd
-from dtdyn.app.timing import Timing, measure, pin_blas
+from dtdyn.app import Timing, measure, pin_blas
 
 E, I, RHO_A = 2.1e11, 8e-6, 20.0  # noqa: E741
 BETA_L = np.array([1.87510406871196, 4.69409113297418, 7.85475743823761, 10.9955407348755,

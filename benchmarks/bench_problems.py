@@ -1,6 +1,6 @@
 """The benchmark problems of `dtdyn bench`: what runs on each reference problem (the methods and
 their settings, the references, the tables of schemes and targets), timed and reported by
-`dtdyn.app.bench` (its timing, ranking and report writer).
+`dtdyn.app._bench` (its timing, ranking and report writer).
 
 P3 (`bench_p3`): every scheme of the scheme table at its defaults on the 15-DOF chain, with the
 state-space models, the modal filters and scipy's lsim and solve_ivp as peers, against the
@@ -15,7 +15,7 @@ same record, same run): the price of the nonlinearity; and nonlinear_mck_respons
 targets (``accuracy=1e-3, 1e-6``), timed over all the runs each needs.
 
 `dtdyn bench` loads this file from the source checkout it runs in
-(`dtdyn.app.bench.bench_problems`; outside a checkout it says so), e.g.
+(`dtdyn.app._bench.bench_problems`; outside a checkout it says so), e.g.
 ``dtdyn bench P3 --quick --out bench``.
 """
 from __future__ import annotations
@@ -26,9 +26,9 @@ import time
 
 import numpy as np
 
-from dtdyn.app import problems
-from dtdyn.app.bench import _blas_pinned, _errors, _recorder, _timed
-from dtdyn.app.timing import Timing
+from dtdyn.app import _problems as problems
+from dtdyn.app._bench import _blas_pinned, _errors, _recorder, _timed
+from dtdyn.app import Timing
 from dtdyn.generated.scheme_table import TABLE
 
 
@@ -44,11 +44,11 @@ def bench_p3(quick=False, log=print):
     from scipy import signal
     from scipy.integrate import solve_ivp
 
-    from dtdyn.linear.chain import chain_response
-    from dtdyn.linear.discretize import discretize, first_order_form
-    from dtdyn.linear.exact import exact_response
-    from dtdyn.modal.filters import modal_filter_response
-    from dtdyn.linear.state_space import discrete_state_space, state_space_response
+    from dtdyn.linear._chain import chain_response
+    from dtdyn.linear._discretize import discretize, first_order_form
+    from dtdyn.linear._exact import exact_response
+    from dtdyn.modal._filters import modal_filter_response
+    from dtdyn.linear._state_space import discrete_state_space, state_space_response
     P = problems.p3()
     M, C, K, T, out = P["M"], P["C"], P["K"], P["T"], P["output"]
     dts = (2e-3, 1e-3, 5e-4) if quick else (4e-3, 2e-3, 1e-3, 5e-4, 2.5e-4)
@@ -201,10 +201,10 @@ def _steady_allocator():
 def bench_p4(quick=False, log=print):
     from scipy.integrate import solve_ivp
 
-    from dtdyn.linear.exact import exact_response
-    from dtdyn.modal.filters import modal_filter_response
-    from dtdyn.nonlinear.reference import check_reference, reference_response
-    from dtdyn.nonlinear.response import nonlinear_mck_response
+    from dtdyn.linear._exact import exact_response
+    from dtdyn.modal._filters import modal_filter_response
+    from dtdyn.nonlinear._reference import check_reference, reference_response
+    from dtdyn.nonlinear._response import nonlinear_mck_response
     n = 10_000 if quick else 100_000
     _steady_allocator()
     P = problems.p4(n)

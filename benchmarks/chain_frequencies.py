@@ -7,7 +7,7 @@ scipy.linalg.eigh_tridiagonal (LAPACK stebz bisection) on the symmetrized pencil
 relative error of each on a uniform chain of the same length, whose frequencies are known in
 closed form. Then the lowest 20 damped poles of a 1,000-mass chain (`chain_poles`) against
 numpy.linalg.eigvals of the 2,000-state first-order form. Times: median [min, max] of 3 runs
-after a warm-up, BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
+after a warm-up, BLAS pinned to one thread (dtdyn.app.pin_blas, threadpoolctl).
 
     python benchmarks/chain_frequencies.py
 """
@@ -15,7 +15,7 @@ import numpy as np
 import scipy.linalg as sla
 
 import dtdyn as dd
-from dtdyn.app.timing import measure, pin_blas
+from dtdyn.app import measure, pin_blas
 
 
 def _tridiagonal(m, k):

@@ -18,7 +18,7 @@
    time per mass-step of one thread from below.
 
 Times: median [min, max] of repeats after one warm-up run (compilation excluded and reported
-apart), BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
+apart), BLAS pinned to one thread (dtdyn.app.pin_blas, threadpoolctl).
 Usage: python benchmarks/chain_speed.py [--quick]
 """
 from __future__ import annotations
@@ -32,9 +32,9 @@ import numpy as np
 from dtdyn._engine import cbuild
 from dtdyn._engine import kernels
 from dtdyn import DtdynUnstableError
-from dtdyn.linear.chain import SPLIT_MASSES, chain_matrices, chain_response
-from dtdyn.linear.mck import mck_response
-from dtdyn.app.timing import measure, pin_blas
+from dtdyn.linear._chain import SPLIT_MASSES, chain_matrices, chain_response
+from dtdyn.linear._mck import mck_response
+from dtdyn.app import measure, pin_blas
 
 
 def timed(fn, repeats):

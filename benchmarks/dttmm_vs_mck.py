@@ -13,10 +13,10 @@ import pathlib
 
 import numpy as np
 
-from dtdyn.app import problems
+from dtdyn.app import _problems as problems
 from dtdyn.generated import SCHEMES
-from dtdyn.linear.chain import chain_matrices, chain_response
-from dtdyn.linear.mck import mck_response
+from dtdyn.linear._chain import chain_matrices, chain_response
+from dtdyn.linear._mck import mck_response
 
 PROBLEMS = {name: (p["mass"], p["stiffness"], p["damping"], p["T"])
             for name, p in (("P1", problems.p1()), ("P2", problems.p2()), ("P3", problems.p3()))}

@@ -11,9 +11,9 @@ from FatigueDS import Spectrum
 from pyyeti import fdepsd, srs
 
 from dtdyn.random_vibration import psd_table
-from dtdyn.random_vibration.spectra import (extreme_response_spectrum, fatigue_damage_spectrum,
+from dtdyn.random_vibration._spectra import (extreme_response_spectrum, fatigue_damage_spectrum,
                                             vibration_response_spectrum)
-from dtdyn.random_vibration.synthesis import random_time_history
+from dtdyn.random_vibration._synthesis import random_time_history
 
 TABLE = psd_table([(20, 0.01), (80, 0.04), (350, 0.04), (2000, 0.007)])
 F_N = np.geomspace(30, 1500, 12)

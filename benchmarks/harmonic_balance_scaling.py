@@ -24,7 +24,7 @@ import time
 import numpy as np
 
 import dtdyn as dd
-from dtdyn.app.timing import pin_blas
+from dtdyn.app import pin_blas
 
 SIZES = (4, 100, 1_000, 10_000, 100_000)
 H = 5
@@ -45,8 +45,8 @@ def run(n):
 def receptance_time(n, repeats=5):
     """One evaluation of the receptance as a run makes it: harmonics 1 .. 5 of 1.5 Hz (harmonic 0
     is solved once per curve), the median of ``repeats``."""
-    from dtdyn.nonlinear.harmonic_balance import _BandedReceptance
-    from dtdyn.nonlinear.elements import element_matrix
+    from dtdyn.nonlinear._harmonic_balance import _BandedReceptance
+    from dtdyn.nonlinear._elements import element_matrix
     M, C, K = chain(n).matrices(sparse=True)
     L = element_matrix([dd.Cubic(n - 1, k3=1.0)], n)
     B = np.zeros((n, 1))

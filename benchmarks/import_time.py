@@ -10,7 +10,7 @@ what dtdyn adds to it on this machine, whatever the machine's speed.
 Each import runs in a fresh interpreter (``python -c``), timed inside it with
 ``time.perf_counter`` around the import statement alone (interpreter start-up excluded), the two
 statements alternating so that both see the same load on a shared machine; 7 runs of each after
-one warm-up run, reported as median [min, max] (dtdyn.app.timing.Timing). Two settings:
+one warm-up run, reported as median [min, max] (dtdyn.app.Timing). Two settings:
 
 - bytecode cached, as after ``pip install``: every module's compiled bytecode read from a cache
   (``PYTHONPYCACHEPREFIX``, a temporary folder filled by the warm-up run);
@@ -35,7 +35,7 @@ import subprocess
 import sys
 import tempfile
 
-from dtdyn.app.timing import Timing
+from dtdyn.app import Timing
 
 #: packages `import dtdyn` leaves to the functions that use them
 DEFERRED = ("scipy.signal", "scipy.integrate", "scipy.stats", "matplotlib", "casadi", "dask",

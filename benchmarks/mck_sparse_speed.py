@@ -12,7 +12,7 @@ once by SuperLU, least-fill ordering; products and substitutions in C, whole blo
 per call), backend="numpy" (the same factors, stepped with scipy.sparse products and
 SuperLU's solve), and a lean textbook Newmark loop in NumPy/scipy.sparse with its own
 prefactored splu (the peer). Times: median [min, max] of 3 runs (the C kernel compiled or
-loaded first), BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
+loaded first), BLAS pinned to one thread (dtdyn.app.pin_blas, threadpoolctl).
 
     python benchmarks/mck_sparse_speed.py [n_steps]
 """
@@ -23,7 +23,7 @@ import scipy.sparse as sps
 import scipy.sparse.linalg as spla
 
 import dtdyn as dd
-from dtdyn.app.timing import measure, pin_blas
+from dtdyn.app import measure, pin_blas
 
 
 def peer(M, C, K, f, dt, loaded, outputs):

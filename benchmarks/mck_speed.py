@@ -5,7 +5,7 @@ force on two DOFs, 200,000 steps of dt = 1e-3 s, average acceleration (Newmark b
 gamma = 1/2), all DOFs' x, v, a stored. The peer is the textbook incremental-free Newmark step
 written as tightly as NumPy allows: a_{n+1} = LU^-1 (f_{n+1} - C v* - K x*), the effective
 matrix M + gamma dt C + beta dt^2 K factorized once (scipy.linalg.lu_factor). Times: median
-[min, max] of 3 runs after a warm-up, BLAS pinned to one thread (dtdyn.app.timing.pin_blas).
+[min, max] of 3 runs after a warm-up, BLAS pinned to one thread (dtdyn.app.pin_blas).
 
     python benchmarks/mck_speed.py [n_steps]
 """
@@ -15,7 +15,7 @@ import numpy as np
 import scipy.linalg as sla
 
 import dtdyn as dd
-from dtdyn.app.timing import measure, pin_blas
+from dtdyn.app import measure, pin_blas
 
 
 def peer(M, C, K, f, dt, loaded):

@@ -5,11 +5,11 @@ Writes docs/modal_filter_speed.md. Run from the repository root:
     python benchmarks/modal_filter_speed.py
 
 Problem: P3 (`dtdyn.problem("P3")`), the 15-DOF chain, as given: undamped (C = 0). The
-modal model keeps its undamped poles (Re s = 0, allowed by dtdyn.modal.model); damping would
+modal model keeps its undamped poles (Re s = 0, allowed by dtdyn.modal._model); damping would
 not change the work per sample. Force on DOF 14 (0-based), random piecewise-linear (standard
 normal samples, first one 0), fs = 2000 Hz, ramp invariant, 1,000,000 samples.
 
-The two forms of dtdyn.modal.filters (its module docstring):
+The two forms of dtdyn.modal._filters (its module docstring):
 - sections: one real second-order section per mode and output (15 for one output, 225 for all
   15), generated C kernel filter_bank.c;
 - modes: one complex state per mode (15), updated in increment form, outputs formed from the
@@ -23,7 +23,7 @@ The two forms of dtdyn.modal.filters (its module docstring):
     on 200,000 samples and extrapolated).
 (b) The whole response, modal_filter_response (modal model + coefficients + filters) with
     method "modes", "sections" and "auto", against scipy.signal.lsim (first-order form from
-    dtdyn.linear.discretize.first_order_form, linear interpolation, i.e. the same piecewise-
+    dtdyn.linear._discretize.first_order_form, linear interpolation, i.e. the same piecewise-
     linear force), whose Python loop is timed on 100,000 samples and extrapolated linearly (its
     cost per step is constant). The maximum relative difference is measured on the common
     first 100,000 samples.
@@ -35,7 +35,7 @@ The two forms of dtdyn.modal.filters (its module docstring):
     tests) is compared too: its difference from the truth also contains the eigensolver's error
     in the poles.
 Times: median [min, max] of repeats after one warm-up call (which also compiles the C kernels),
-BLAS pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl).
+BLAS pinned to one thread (dtdyn.app.pin_blas, threadpoolctl).
 """
 from __future__ import annotations
 
@@ -53,12 +53,12 @@ import numpy as np
 import scipy
 import scipy.signal as sig
 
-from dtdyn.app.timing import Timing, measure, pin_blas
-from dtdyn.linear.chain import chain_matrices
-from dtdyn.linear.discretize import first_order_form
-from dtdyn.linear.exact import exact_response
-from dtdyn.modal.model import modal_model
-from dtdyn.modal.filters import (modal_filter_response, modal_states, run_bank, run_modes,
+from dtdyn.app import Timing, measure, pin_blas
+from dtdyn.linear._chain import chain_matrices
+from dtdyn.linear._discretize import first_order_form
+from dtdyn.linear._exact import exact_response
+from dtdyn.modal._model import modal_model
+from dtdyn.modal._filters import (modal_filter_response, modal_states, run_bank, run_modes,
                                          sections)
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

@@ -6,7 +6,7 @@ alpha = 0.1, beta = gamma = 50) on the first 1 .. 12 stations (3 unknowns each: 
 noise of 30 N on the top mass, 20,000 steps of 1 ms, Newmark average acceleration, tol = 1e-12.
 Both runs use the same generated loop (nl_loop.c, newton_fixed), compiled with and without
 NL_LU_REUSE; time: the C loop's own (info["run_time"]), median [min, max] of 5 each,
-alternating, BLAS pinned to one thread (dtdyn.app.timing.pin_blas). The
+alternating, BLAS pinned to one thread (dtdyn.app.pin_blas). The
 last column is the largest difference of the two responses over their peak: both accept each
 step within the same tolerance, so they differ by what the hysteresis carries of it.
 
@@ -20,8 +20,8 @@ import sys
 import numpy as np
 
 import dtdyn as dd
-from dtdyn.app.timing import Timing, pin_blas
-from dtdyn.nonlinear import response
+from dtdyn.app import Timing, pin_blas
+from dtdyn.nonlinear import _response as response
 
 
 def main(n_steps=20_000):

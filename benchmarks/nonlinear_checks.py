@@ -12,7 +12,7 @@ tangent stiffness, and the Bouc-Wen hysteresis loop against the solve_ivp refere
 3. DT-TMM chains with nonlinear elements: run time per step of nonlinear_chain_response (two
    cubic springs) against the linear chain_response on the same chain, N = 1e3 .. 1e5 masses,
    measured in the same run: median [min, max] of 3 runs after a warm-up, BLAS pinned to one
-   thread (dtdyn.app.timing.pin_blas, threadpoolctl).
+   thread (dtdyn.app.pin_blas, threadpoolctl).
 
 Writes docs/nonlinear_checks.md and docs/img/bouc_wen_loop.png.
 Usage: python benchmarks/nonlinear_checks.py
@@ -24,9 +24,9 @@ import pathlib
 
 import numpy as np
 
-from dtdyn.nonlinear import response as NL
-from dtdyn.nonlinear.elements import BoucWen
-from dtdyn.nonlinear.reference import reference_response
+from dtdyn.nonlinear import _response as NL
+from dtdyn.nonlinear._elements import BoucWen
+from dtdyn.nonlinear._reference import reference_response
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 OMEGAS = (0.01, 0.1, 0.3, 0.5, 1.0, 2.0, 3.4, 3.6, 10.0)
@@ -73,9 +73,9 @@ def bouc_wen():
 
 def chain_scaling():
     from dtdyn import chain_response
-    from dtdyn.app.timing import measure
-    from dtdyn.nonlinear.elements import Cubic
-    from dtdyn.nonlinear.chain import nonlinear_chain_response
+    from dtdyn.app import measure
+    from dtdyn.nonlinear._elements import Cubic
+    from dtdyn.nonlinear._chain import nonlinear_chain_response
     rows = []
     n_steps = 100
     f = (np.random.default_rng(1).standard_normal(n_steps + 1) * 100.0)[:, None]
@@ -94,7 +94,7 @@ def chain_scaling():
 
 
 def main():
-    from dtdyn.app.timing import pin_blas
+    from dtdyn.app import pin_blas
     with pin_blas(1) as pin:
         _main(pin)
 

@@ -30,7 +30,7 @@ ground_acceleration=ag)``.
    the displacement of every floor at every step (the fastest of the systems tried below,
    ``Linear -factorOnce``, a binary recorder file), against ``mck_response`` (generated C loop)
    storing x of every DOF; after a warm-up, the median [min, max] of repeats, BLAS pinned to
-   one thread in this process (dtdyn.app.timing.pin_blas, threadpoolctl). Only the analysis is timed
+   one thread in this process (dtdyn.app.pin_blas, threadpoolctl). Only the analysis is timed
    in OpenSees (not the model building nor reading the file back); dtdyn's time is the whole
    call (checks, factorization, loop, result).
 
@@ -45,7 +45,7 @@ import time
 import numpy as np
 
 import dtdyn as dd
-from dtdyn.app.timing import Timing, measure, pin_blas
+from dtdyn.app import Timing, measure, pin_blas
 
 MASS, STIFF = [2e5] * 5, [3e8] * 4 + [2e8]
 #: OpenSees equation solvers tried for speed (all exact for this symmetric positive definite

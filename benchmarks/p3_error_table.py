@@ -10,12 +10,12 @@ default parameters through the DT-TMM chain solver (`chain_response`, stable Ric
 backend, displacement form). Central difference is explicit, so it only has the acceleration form,
 and there the DT-TMM spring row divides by c Dv = 0 on an undamped chain (the runtime raises a
 ValueError naming the damping): it is run instead on the assembled matrices with
-`dtdyn.linear.mck.mck_response`, the same generated integrator, and marked as such.
+`dtdyn.linear._mck.mck_response`, the same generated integrator, and marked as such.
 
 Error: max over time (and over the 15 masses) of |x - x_exact|, divided by max |x_exact| over
 the same set; x_exact from `exact_response` with the same force samples (exact for them).
 Run time: the whole solver call, median [min, max] of REPEATS after one warm-up run (which also
-compiles the C kernel on first use), BLAS pinned to one thread (dtdyn.app.timing.pin_blas,
+compiles the C kernel on first use), BLAS pinned to one thread (dtdyn.app.pin_blas,
 threadpoolctl).
 """
 from __future__ import annotations
@@ -28,12 +28,12 @@ import sys
 
 import numpy as np
 
-from dtdyn.app import problems
-from dtdyn.app.timing import measure, pin_blas
+from dtdyn.app import _problems as problems
+from dtdyn.app import measure, pin_blas
 from dtdyn.generated import SCHEMES
-from dtdyn.linear.chain import chain_matrices, chain_response
-from dtdyn.linear.exact import exact_response
-from dtdyn.linear.mck import mck_response
+from dtdyn.linear._chain import chain_matrices, chain_response
+from dtdyn.linear._exact import exact_response
+from dtdyn.linear._mck import mck_response
 
 MASS, STIFFNESS, DAMPING, LOADED = (problems.p3()[key]
                                     for key in ("mass", "stiffness", "damping", "force_dofs"))
@@ -145,7 +145,7 @@ def _main(pin):
         "parameters through `chain_response` (DT-TMM, stable Riccati sweep, C backend, "
         "displacement form). Central difference is explicit and P3 is undamped: its DT-TMM "
         "acceleration form divides by c Dv = 0 and raises, so it is run on the assembled "
-        "matrices with `dtdyn.linear.mck.mck_response` (same generated integrator). "
+        "matrices with `dtdyn.linear._mck.mck_response` (same generated integrator). "
         "Run time: the whole solver call, median [min, max] of "
         f"{REPEATS} after a warm-up (includes the per-run setup; the exact reference takes "
         f"{t_exact.format()}); {pin.describe()}.",

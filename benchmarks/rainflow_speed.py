@@ -19,8 +19,8 @@ import sys
 import numpy as np
 import rainflow
 
-from dtdyn.app.timing import measure, pin_blas
-from dtdyn.random_vibration.rainflow import rainflow_cycles
+from dtdyn.app import measure, pin_blas
+from dtdyn.random_vibration._rainflow import rainflow_cycles
 
 
 def main(n=10_000_000):

@@ -10,7 +10,7 @@ output cross-spectral matrix S = H S_f H^H, H by `beam_frequency_response` (the 
 blocks), in blocks of 50 frequencies.
 
 Times: each block of 50 frequencies timed once after a warm-up block, BLAS pinned to one
-thread (dtdyn.app.timing.pin_blas); per frequency: the median over the 40 blocks [min, max].
+thread (dtdyn.app.pin_blas); per frequency: the median over the 40 blocks [min, max].
 The slope of log(time per frequency) against log(N) is fitted over the five sizes.
 
 Accuracy: for N = 20,000, at five frequencies, H against the solution of
@@ -32,7 +32,7 @@ import scipy.sparse as sps
 import scipy.sparse.linalg as spla
 
 import dtdyn as dd
-from dtdyn.app.timing import Timing, pin_blas
+from dtdyn.app import Timing, pin_blas
 from dtdyn.random_vibration import psd_table
 
 SIZES = (1250, 2500, 5000, 10000, 20000)

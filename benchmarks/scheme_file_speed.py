@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 import dtdyn as dd
-from dtdyn.app.timing import SPREAD, interleaved, pin_blas
+from dtdyn.app import SPREAD, interleaved, pin_blas
 
 #: the loop's own time of a run (its info), not the call's
 RUN_TIME = lambda r: r.info["run_time"]  # noqa: E731

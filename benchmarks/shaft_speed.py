@@ -10,7 +10,7 @@
    over log(N) is 1 for O(N) per step.
 
 Times: median [min, max] of repeats after one warm-up run, BLAS pinned to one thread
-(dtdyn.app.timing.pin_blas, threadpoolctl).
+(dtdyn.app.pin_blas, threadpoolctl).
 Usage: python benchmarks/shaft_speed.py
 """
 from __future__ import annotations
@@ -20,7 +20,7 @@ import functools
 import numpy as np
 
 import dtdyn as dd
-from dtdyn.app.timing import measure, pin_blas
+from dtdyn.app import measure, pin_blas
 
 
 def timed(fn, repeats=3):

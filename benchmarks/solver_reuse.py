@@ -14,7 +14,7 @@ in turn within each repeat (same run, same machine state):
 
 - ``solver.run``: one solver, one run per case;
 - ``mck_response``: one call per case (the results are bitwise those of the runs);
-- the loop: the C loop of each case alone (`dtdyn.linear.mck.step_operator`, the object the
+- the loop: the C loop of each case alone (`dtdyn.linear._mck.step_operator`, the object the
   solver keeps), called on preallocated history and output arrays: the floor of a case.
 
 Each is run twice: storing x, v, a of 3 DOFs, and of every DOF (4.8 MB per case, which each run
@@ -25,7 +25,7 @@ tree sweep), ``beam_response`` / ``shaft_response`` against their models' ``solv
 average acceleration, 100 steps of dt = 1e-4 s, a random force at the free end, x, v, a of 3
 DOFs stored; "the loop" is the solver's own advance of each case, made once and called on
 preallocated arrays. Times: per case, the median [min, max] of the repeats after a warm-up,
-BLAS pinned to one thread (dtdyn.app.timing).
+BLAS pinned to one thread (dtdyn.app._timing).
 
 Usage: python benchmarks/solver_reuse.py [--quick] [--cases N]
 (--quick: 100 cases, 2 repeats, docs untouched; --cases: N cases of each model, default 1000;
@@ -39,8 +39,8 @@ import numpy as np
 
 import dtdyn as dd
 from dtdyn._engine.stepping import history_from_states
-from dtdyn.app.timing import SPREAD, interleaved, pin_blas
-from dtdyn.linear.solver import scheme_key
+from dtdyn.app import SPREAD, interleaved, pin_blas
+from dtdyn.linear._solver import scheme_key
 
 N_DOF, N_STEPS, DT = 2000, 100, 1e-3
 

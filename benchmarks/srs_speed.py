@@ -1,11 +1,11 @@
-"""Shock response spectrum speed: dtdyn.modal.srs against pyyeti.srs.srs, measured in one run.
+"""Shock response spectrum speed: dtdyn.modal._srs against pyyeti.srs.srs, measured in one run.
 
 1,000,000 samples (10 s at 100 kHz: a train of half-sine and decaying-sine shocks in noise) at
 200 log-spaced frequencies, 10 Hz .. 10 kHz (>= 10 points per cycle, so neither code upsamples),
 5 % damping, absolute acceleration, total window (primary + residual), peaks at the samples.
 
 Compared, each timed 3 times (median [min, max]; the C kernel compiled or loaded first), BLAS
-pinned to one thread (dtdyn.app.timing.pin_blas, threadpoolctl; the SRS threads are dtdyn's own):
+pinned to one thread (dtdyn.app.pin_blas, threadpoolctl; the SRS threads are dtdyn's own):
 - ours, 1 thread and the default (threads = CPU count for a run this size; the C kernel releases
   the GIL), and ours with exact peaks;
 - pyyeti.srs.srs(rolloff="none", time="total") with parallel="no" and its default "auto" (if
@@ -28,9 +28,9 @@ import numpy as np
 import scipy
 import scipy.signal as sig
 
-from dtdyn.app.timing import measure, pin_blas
+from dtdyn.app import measure, pin_blas
 from dtdyn.generated import modal_filters as coef
-from dtdyn.modal.srs import _poles_residues, shock_response_spectrum
+from dtdyn.modal._srs import _poles_residues, shock_response_spectrum
 
 
 def record(fs=100e3, n=1_000_000, seed=0):

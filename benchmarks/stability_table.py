@@ -10,7 +10,7 @@ import contextlib
 import io
 import pathlib
 
-from dtdyn.app.cli import main
+from dtdyn.app._cli import main
 
 DOCS = pathlib.Path(__file__).resolve().parents[1] / "docs"
 NOTES = (

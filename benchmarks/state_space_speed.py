@@ -2,7 +2,7 @@
 
 A 50-state model (25-DOF chain, Newmark discrete state space) driven by white noise on every
 DOF over 100,000 steps. Times: median [min, max] of repeats after a warm-up, BLAS pinned to one
-thread (dtdyn.app.timing.pin_blas, threadpoolctl).
+thread (dtdyn.app.pin_blas, threadpoolctl).
 Writes docs/state_space_speed.md.
 Usage: python benchmarks/state_space_speed.py
 """
@@ -15,9 +15,9 @@ import pathlib
 import numpy as np
 import scipy.signal as sig
 
-from dtdyn.linear.chain import chain_matrices
-from dtdyn.app.timing import measure, pin_blas
-from dtdyn.linear.state_space import newmark_ss, state_space_response
+from dtdyn.linear._chain import chain_matrices
+from dtdyn.app import measure, pin_blas
+from dtdyn.linear._state_space import newmark_ss, state_space_response
 
 
 def timed(fn, repeats):

@@ -11,7 +11,7 @@ ratio near 1 means the decay costs nothing extra. Run on the code before the flu
 aae8357), the four ratios were 6.69, 10.45, 1.42 and 2.00 on this 2-core machine.
 
 Times: median [min, max] of repeats after one warm-up run, BLAS pinned to one thread
-(dtdyn.app.timing.pin_blas, threadpoolctl); ratios of the medians.
+(dtdyn.app.pin_blas, threadpoolctl); ratios of the medians.
 Usage: python benchmarks/subnormals.py [--quick]
 """
 from __future__ import annotations
@@ -23,7 +23,7 @@ import warnings
 import numpy as np
 
 import dtdyn as dd
-from dtdyn.app.timing import measure, pin_blas
+from dtdyn.app import measure, pin_blas
 
 
 def timed(fn, repeats):

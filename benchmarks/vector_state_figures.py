@@ -133,7 +133,7 @@ def solver_part():
     """The residuals of beam_modes' shapes, and the unpivoted sweep against the pivoted banded
     LU inside the spectrum of an undamped beam (both against a dense solve)."""
     from dtdyn._engine import linalg
-    from dtdyn.linear import beam_frequency as bf
+    from dtdyn.linear import _beam_frequency as bf
 
     eps = np.finfo(float).eps
     print("\n3) residuals and pivoting (200 elements: shapes; 40 elements: receptances)")

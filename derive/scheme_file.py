@@ -2,7 +2,7 @@
 
 A scheme file states a scheme's defining relations as text; nothing in it is executed. Each
 relation ``"lhs = rhs"`` is split at its one ``=`` and each side is parsed by the restricted
-expression parser of the force laws (`dtdyn.nonlinear.expressions`: Python's ``ast`` tree checked
+expression parser of the force laws (`dtdyn.nonlinear._expressions`: Python's ``ast`` tree checked
 against an allow-list of numbers, names, + - * / **, and a few functions), then built in SymPy.
 The result is an `integrators.Scheme`, the same value the built-ins are, and it goes through the
 same derivation (`integrators.derive_scheme`), kernel specs and templates.
@@ -37,7 +37,7 @@ from pathlib import Path
 
 import sympy as sp
 
-from dtdyn.nonlinear.expressions import parse_expression
+from dtdyn.nonlinear._expressions import parse_expression
 
 from . import integrators as I
 

@@ -19,40 +19,41 @@ from dtdyn._engine.errors import (DtdynAccuracyWarning, DtdynCacheError, DtdynFa
 from dtdyn._engine.ground import ground_acceleration_from
 from dtdyn._engine.result import Response
 from dtdyn._engine.result_io import load_result
+from dtdyn._engine.version import VERSION
 from dtdyn._engine.scheme_files import FileScheme, load_scheme
-from dtdyn.app.batch import monte_carlo_summary, run_batch
-from dtdyn.app.problems import problem
-from dtdyn.app.scene import Scene, load_scene, run_scene, scene_from_dict
-from dtdyn.linear.chain import Chain, chain_matrices, rayleigh_chain_damping, chain_response
-from dtdyn.linear.beam import (Beam, PointMass, Support, beam_frequencies, beam_matrices,
+from dtdyn.app._batch import monte_carlo_summary, run_batch
+from dtdyn.app._problems import problem
+from dtdyn.app._scene import Scene, load_scene, run_scene, scene_from_dict
+from dtdyn.linear._chain import Chain, chain_matrices, rayleigh_chain_damping, chain_response
+from dtdyn.linear._beam import (Beam, PointMass, Support, beam_frequencies, beam_matrices,
                                beam_response)
-from dtdyn.linear.beam_frequency import beam_frequency_response, beam_modes
-from dtdyn.linear.discrete_model import DiscreteModel
-from dtdyn.linear.discretize import discretize, first_order_form
-from dtdyn.linear.exact import exact_response
-from dtdyn.linear.frequencies import chain_frequencies, chain_poles
-from dtdyn.linear.mck import Matrices, mck_response
-from dtdyn.linear.shaft import (Branch, ContinuousShaft, Shaft, shaft_frequencies, shaft_matrices,
+from dtdyn.linear._beam_frequency import beam_frequency_response, beam_modes
+from dtdyn.linear._discrete_model import DiscreteModel
+from dtdyn.linear._discretize import discretize, first_order_form
+from dtdyn.linear._exact import exact_response
+from dtdyn.linear._frequencies import chain_frequencies, chain_poles
+from dtdyn.linear._mck import Matrices, mck_response
+from dtdyn.linear._shaft import (Branch, ContinuousShaft, Shaft, shaft_frequencies, shaft_matrices,
                                 shaft_response)
-from dtdyn.linear.shaft_frequency import shaft_frequency_response, shaft_modes
-from dtdyn.linear.solver import Solver
-from dtdyn.linear.stability import Stability, critical_omega_dt, stability
-from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
-from dtdyn.linear.tmm import chain_frequency_response
-from dtdyn.modal.filter_errors import (continuous_frequency_response, discrete_frequency_response,
+from dtdyn.linear._shaft_frequency import shaft_frequency_response, shaft_modes
+from dtdyn.linear._solver import Solver
+from dtdyn.linear._stability import Stability, critical_omega_dt, stability
+from dtdyn.linear._state_space import discrete_state_space, newmark_ss, state_space_response
+from dtdyn.linear._tmm import chain_frequency_response
+from dtdyn.modal._filter_errors import (continuous_frequency_response, discrete_frequency_response,
                                        ramp_bias, truncation_error)
-from dtdyn.modal.filters import modal_filter_response, to_sos
-from dtdyn.modal.model import ModalModel, from_poles_residues, modal_model
-from dtdyn.modal.modes import Modes, mck_modes
-from dtdyn.modal.spectrum import ResponseSpectrum, response_spectrum
-from dtdyn.modal.srs import SRS, load_record, sdof_response, shock_response_spectrum
-from dtdyn.nonlinear.chain import nonlinear_chain_response
-from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
-from dtdyn.nonlinear.reference import check_reference, reference_response
-from dtdyn.nonlinear.response import nonlinear_mck_response
-from dtdyn.nonlinear.harmonic_balance import (HarmonicBalanceResult, harmonic_balance,
+from dtdyn.modal._filters import modal_filter_response, to_sos
+from dtdyn.modal._model import ModalModel, from_poles_residues, modal_model
+from dtdyn.modal._modes import Modes, mck_modes
+from dtdyn.modal._spectrum import ResponseSpectrum, response_spectrum
+from dtdyn.modal._srs import SRS, load_record, sdof_response, shock_response_spectrum
+from dtdyn.nonlinear._chain import nonlinear_chain_response
+from dtdyn.nonlinear._elements import BoucWen, Cubic, Gap, Law, Polynomial
+from dtdyn.nonlinear._reference import check_reference, reference_response
+from dtdyn.nonlinear._response import nonlinear_mck_response
+from dtdyn.nonlinear._harmonic_balance import (HarmonicBalanceResult, harmonic_balance,
                                               harmonic_balance_amplitude)
-from dtdyn.nonlinear.stations import nonlinear_beam_response, nonlinear_shaft_response
+from dtdyn.nonlinear._stations import nonlinear_beam_response, nonlinear_shaft_response
 from dtdyn.random_vibration import (CycleHistogram, Cycles, RandomResponse, SNCurve,
                                     beam_random_response, chain_random_response, miner_damage,
                                     psd_table, rainflow_cycles, random_response,
@@ -62,9 +63,9 @@ from dtdyn.random_vibration import (CycleHistogram, Cycles, RandomResponse, SNCu
                                     VibrationSpectrum, extreme_response_spectrum,
                                     fatigue_damage_spectrum, fds_equivalent_psd, sdof_moments,
                                     vibration_response_spectrum)
-from dtdyn.app.derivation import derivation
+from dtdyn.app._derivation import derivation
 
-__version__ = "0.1.0"
+__version__ = VERSION
 
 __all__ = [
     # linear time histories and discrete models

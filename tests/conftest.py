@@ -7,7 +7,7 @@
     application/     the public face, scenes, results, the command, the README and docstrings
 
 Helpers shared by several files (reference problems as dicts, `rel_error`, `uniform_chain`) are
-in tests/problems.py; the reference problems themselves are defined once, in dtdyn.app.problems.
+in tests/problems.py; the reference problems themselves are defined once, in dtdyn.app._problems.
 `-m "not slow"` leaves out the few tests that take several seconds.
 """
 import pytest

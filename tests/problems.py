@@ -1,8 +1,8 @@
-"""The reference problems for the tests: P1-P4 live in dtdyn.app.problems (one home); this adds the
+"""The reference problems for the tests: P1-P4 live in dtdyn.app._problems (one home); this adds the
 tests' own helpers."""
 import numpy as np
 
-from dtdyn.app.problems import p1, p2, p3, p4  # noqa: F401  (re-exported for the tests)
+from dtdyn.app._problems import p1, p2, p3, p4  # noqa: F401  (re-exported for the tests)
 
 _KEYS = ("mass", "stiffness", "damping", "dt", "T", "force_dofs")
 P1, P2, P3 = ({k: p[k] for k in _KEYS if k in p} for p in (p1(), p2(), p3()))

@@ -37,6 +37,7 @@ from dtdyn._engine.atomic import write_atomic, write_atomic_files
 from dtdyn._engine.extras import require
 from dtdyn._engine.result import DOF_QUANTITIES as QUANTITIES
 from dtdyn._engine.result import ELEMENT_QUANTITIES
+from dtdyn._engine.version import VERSION
 
 FORMATS = (".npz", ".nc", ".csv")
 _META_KEY = "dtdyn_metadata"
@@ -76,8 +77,7 @@ def check_result_path(path) -> Path:
 def _versions() -> dict:
     import scipy
 
-    from dtdyn import __version__
-    return {"dtdyn": __version__, "numpy": np.__version__, "scipy": scipy.__version__}
+    return {"dtdyn": VERSION, "numpy": np.__version__, "scipy": scipy.__version__}
 
 
 def _json_safe(value):

@@ -20,6 +20,7 @@ import tempfile
 from pathlib import Path
 
 from dtdyn._engine import cbuild
+from dtdyn._engine.version import VERSION
 
 #: bump when the cached files' layout changes (old folders are then ignored)
 CACHE_FORMAT = "1"
@@ -123,25 +124,24 @@ class FileScheme:
         to Omega = 1e4)."""
         import numpy as np
 
-        from dtdyn.linear.stability import critical_omega_dt, stability
+        from dtdyn._engine.schemes import get_scheme
 
+        info = get_scheme(self)
         W = np.logspace(-2, 4, 61) if omega_dt is None else np.asarray(omega_dt, float)
-        st = stability(self, W)
-        rho_inf = float(stability(self, [1e8]).spectral_radius[0])
+        rho, elongation, damping = info.spectral(W)
         return {"name": self.name, "title": self.table["title"], "source": self.path,
                 "order": self.table["order"], "claimed_order": self.table.get("claimed_order"),
                 "explicit": self.table["explicit"],
                 "params": {p: v["default"] for p, v in self.table["params"].items()},
-                "rho_inf": rho_inf, "critical_omega_dt": float(critical_omega_dt(self)),
-                "omega_dt": W.tolist(), "spectral_radius": st.spectral_radius.tolist(),
-                "period_elongation": st.period_elongation.tolist(),
-                "algorithmic_damping": st.algorithmic_damping.tolist()}
+                "rho_inf": float(info.spectral([1e8])[0][0]),
+                "critical_omega_dt": float(info.critical_omega_dt()),
+                "omega_dt": W.tolist(), "spectral_radius": rho.tolist(),
+                "period_elongation": elongation.tolist(), "algorithmic_damping": damping.tolist()}
 
 
 def _folder(text: str) -> Path:
-    from dtdyn import __version__
 
-    key = hashlib.sha256(f"{CACHE_FORMAT}\0{__version__}\0{_derivation_digest()}\0{text}"
+    key = hashlib.sha256(f"{CACHE_FORMAT}\0{VERSION}\0{_derivation_digest()}\0{text}"
                          .encode()).hexdigest()[:32]
     return cbuild.cache_dir() / "schemes" / key
 

@@ -2,6 +2,8 @@
 modules, checked parameters, C kernel sources."""
 from __future__ import annotations
 
+import numpy as np
+
 import importlib
 import math
 from dataclasses import dataclass
@@ -74,6 +76,39 @@ class SchemeInfo:
             return self.file.module("stability").amplification(self.name, omega_dt, zeta, params)
         from dtdyn.generated import stability
         return stability.amplification(self.name, omega_dt, zeta, params)
+
+    def spectral(self, omega_dt, zeta=0.0):
+        """(rho, period elongation, algorithmic damping) per Omega = omega dt: rho = max |eig A|
+        and, from the principal eigenvalue pair lambda = e^{(-xi + i) w dt}, T_num / T - 1 =
+        Omega sqrt(1 - zeta^2) / (w dt) - 1 and xi (NaN where that pair is real)."""
+        W = np.atleast_1d(np.asarray(omega_dt, dtype=float))
+        params = [self.params[p] for p in self.module.PARAMS]
+        lam = np.linalg.eigvals(self.amplification(W, zeta, params))
+        rho = np.abs(lam).max(axis=1)
+        exact = np.exp((-zeta + 1j * np.sqrt(1.0 - zeta**2)) * W)[:, None]
+        cand = np.where(lam.imag > 1e-14, lam, np.inf)
+        k = np.argmin(np.abs(cand - exact), axis=1)
+        principal = lam[np.arange(W.size), k]
+        osc = np.isfinite(cand[np.arange(W.size), k])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w_bar = np.where(osc, np.angle(principal), np.nan)
+            xi_bar = np.where(osc, -np.log(np.abs(principal)) / w_bar, np.nan)
+            elong = W * np.sqrt(1.0 - zeta**2) / w_bar - 1.0
+        return rho, elong, xi_bar
+
+    def critical_omega_dt(self, zeta=0.0, upper=1e4) -> float:
+        """The largest Omega below which rho <= 1 + 1e-10 (inf when stable up to ``upper``): a
+        grid of 4,000 points from 1e-3, then bisection."""
+        grid = np.geomspace(1e-3, upper, 4000)
+        unstable = self.spectral(grid, zeta)[0] > 1.0 + 1e-10
+        if not unstable.any():
+            return float("inf")
+        i = int(np.argmax(unstable))
+        lo, hi = (grid[i - 1] if i else 0.0), grid[i]
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if self.spectral([mid], zeta)[0][0] > 1.0 + 1e-10 else (mid, hi)
+        return lo
 
     def startup(self):
         """The `SchemeInfo` of the scheme that starts a multistep one (None: one-step)."""

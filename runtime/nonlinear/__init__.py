@@ -7,10 +7,10 @@ from dtdyn._engine.lazy import attach
 # `harmonic_balance` is also a module of this package (the attribute is the module): use
 # dtdyn.harmonic_balance until the module is private
 __all__, __getattr__, __dir__ = attach(__name__, {
-    "chain": ["nonlinear_chain_response"],
-    "elements": ["BoucWen", "Cubic", "Gap", "Law", "Polynomial"],
-    "reference": ["check_reference", "reference_response"],
-    "response": ["nonlinear_mck_response"],
-    "harmonic_balance": ["HarmonicBalanceResult", "harmonic_balance_amplitude"],
-    "stations": ["nonlinear_beam_response", "nonlinear_shaft_response"],
+    "_chain": ["nonlinear_chain_response"],
+    "_elements": ["BoucWen", "Cubic", "Gap", "Law", "Polynomial"],
+    "_reference": ["check_reference", "reference_response"],
+    "_response": ["nonlinear_mck_response"],
+    "_harmonic_balance": ["HarmonicBalanceResult", "harmonic_balance_amplitude"],
+    "_stations": ["nonlinear_beam_response", "nonlinear_shaft_response"],
 })

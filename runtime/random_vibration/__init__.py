@@ -7,9 +7,9 @@
     r = random_response(M, C, K, None, freqs_hz, ground_acceleration_psd=table)
     r.rms["a_abs"], r.info["rms_error_estimate"]
 
-`psd_table` (`dtdyn.random_vibration.psd`) reads breakpoints as test specifications write them
+`psd_table` (`dtdyn.random_vibration._psd`) reads breakpoints as test specifications write them
 (log-log between them, slopes in dB/octave); `random_response` and its `chain_`, `beam_` and
-`shaft_` variants (`dtdyn.random_vibration.response`) give each output's cross-spectral matrix
+`shaft_` variants (`dtdyn.random_vibration._response`) give each output's cross-spectral matrix
 S = H S_f H^H and its rms and spectral moments, integrated on a grid refined around every mode
 with an error estimate. Fatigue: `rainflow_cycles` (ASTM E1049-85, in C) and its bin
 matrices, `SNCurve` and Palmgren-Miner `miner_damage`, and the spectral damage of a stress PSD
@@ -20,17 +20,17 @@ response, extreme response and fatigue damage spectra (`vibration_response_spect
 `extreme_response_spectrum`, `fatigue_damage_spectrum`) from a PSD or a record, and the PSD
 whose FDS equals a given one (`fds_equivalent_psd`).
 """
-from dtdyn.random_vibration.fatigue import (SNCurve, miner_damage, spectral_damage,
+from dtdyn.random_vibration._fatigue import (SNCurve, miner_damage, spectral_damage,
                                             spectral_damage_from_moments, spectral_moments)
-from dtdyn.random_vibration.psd import PsdTable, psd_table
-from dtdyn.random_vibration.rainflow import (CycleHistogram, Cycles, rainflow_cycles,
+from dtdyn.random_vibration._psd import PsdTable, psd_table
+from dtdyn.random_vibration._rainflow import (CycleHistogram, Cycles, rainflow_cycles,
                                              turning_points)
-from dtdyn.random_vibration.spectra import (VibrationSpectrum, extreme_response_spectrum,
+from dtdyn.random_vibration._spectra import (VibrationSpectrum, extreme_response_spectrum,
                                             fatigue_damage_spectrum, fds_equivalent_psd,
                                             sdof_moments, vibration_response_spectrum)
-from dtdyn.random_vibration.synthesis import (ShockTimeHistory, random_time_history,
+from dtdyn.random_vibration._synthesis import (ShockTimeHistory, random_time_history,
                                               shock_time_history)
-from dtdyn.random_vibration.response import (RandomResponse, beam_random_response,
+from dtdyn.random_vibration._response import (RandomResponse, beam_random_response,
                                              chain_random_response, random_response,
                                              shaft_random_response)
 

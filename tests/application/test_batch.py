@@ -18,9 +18,9 @@ distributed = pytest.importorskip("distributed")
 xr = pytest.importorskip("xarray")
 pytest.importorskip("zarr")
 
-from dtdyn.app.batch import CBackendError, Spectrum  # noqa: E402
-from dtdyn.app.batch.cases import apply_overrides, parse_key, read_table  # noqa: E402
-from dtdyn.app.cli import main  # noqa: E402
+from dtdyn.app._batch import CBackendError, Spectrum  # noqa: E402
+from dtdyn.app._batch.cases import apply_overrides, parse_key, read_table  # noqa: E402
+from dtdyn.app._cli import main  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 P4 = (ROOT / "runtime/app/scenes/p4.toml").read_text()
@@ -130,7 +130,7 @@ def test_own_cluster_keeps_glibc_malloc_fast_and_the_profiler_off(tmp_path, monk
     MALLOC_TRIM_THRESHOLD_=65536 alone made every case's large arrays fresh mmaps: 28 % slower
     on P4) even when an earlier Dask cluster of this process left 65536 in os.environ, which it
     puts back; the profiler is off; the cases still equal run_scene bitwise."""
-    from dtdyn.app.batch.run import WORKER_ENVIRON, local_cluster
+    from dtdyn.app._batch.run import WORKER_ENVIRON, local_cluster
 
     monkeypatch.setenv("MALLOC_TRIM_THRESHOLD_", "65536")   # as a plain Dask cluster leaves it
     monkeypatch.delenv("MALLOC_MMAP_THRESHOLD_", raising=False)
@@ -284,7 +284,7 @@ def test_cluster_of_dask_scheduler_and_dask_worker(tmp_path):
             address = c.scheduler.address
         scene = p4_file(tmp_path, "p4.toml")
         out = tmp_path / "r.zarr"
-        proc = subprocess.run([sys.executable, "-m", "dtdyn.app.cli", "batch", str(scene),
+        proc = subprocess.run([sys.executable, "-m", "dtdyn.app._cli", "batch", str(scene),
                                "--seed", "3", "--scheduler", address, "--reduce", "peak",
                                "--out", str(out), "--quiet"], capture_output=True, text=True,
                               timeout=300)
@@ -400,7 +400,7 @@ def test_a_stopped_batch_waits_for_running_tasks_and_keeps_the_finished_cases(cl
     assert sorted(p.name for p in tmp_path.iterdir() if "zarr" in p.name) == ["r.zarr"]
 
     def folders():
-        from dtdyn.app.batch import worker
+        from dtdyn.app._batch import worker
         return dict(worker._FOLDERS)
 
     dd.run_batch(base, client=client, reduce="peak", progress=False)
@@ -441,7 +441,7 @@ def test_time_axis_and_name_clashes(client, tmp_path):
 
 
 def test_files_checked_when_the_batch_is_built(tmp_path):
-    from dtdyn.app.batch.cases import build_cases
+    from dtdyn.app._batch.cases import build_cases
 
     (tmp_path / "017").write_text("0.0\n1.0\n")
     base = chain_file(tmp_path, extra='[ground]\nkind = "file"\npath = "017"\n')

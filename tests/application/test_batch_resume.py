@@ -20,8 +20,8 @@ distributed = pytest.importorskip("distributed")
 xr = pytest.importorskip("xarray")
 zarr = pytest.importorskip("zarr")
 
-from dtdyn.app.batch import ResumeMismatchError  # noqa: E402
-from dtdyn.app.cli import main  # noqa: E402
+from dtdyn.app._batch import ResumeMismatchError  # noqa: E402
+from dtdyn.app._cli import main  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
 P4 = (ROOT / "runtime/app/scenes/p4.toml").read_text()
@@ -194,7 +194,7 @@ def test_resume_refuses_other_cases_reducers_or_code_and_reruns_failed_on_reques
     with pytest.raises(ResumeMismatchError, match="check=True, this batch with check=False"):
         dd.run_batch(base, vary=rows, client=client, out=out, reduce="peak", resume=True,
                      check=False)
-    from dtdyn.app.batch import store
+    from dtdyn.app._batch import store
     real = store.code_version()
     monkeypatch.setattr(store, "code_version", lambda: {**real, "generated": "0123abcd"})
     with pytest.raises(ResumeMismatchError, match=f"written by dtdyn {dd.__version__} with "

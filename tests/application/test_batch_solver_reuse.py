@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
-from dtdyn.app.scene.run import SolverCache, model_digest
+from dtdyn.app._scene.run import SolverCache, model_digest
 
 TIME = {"dt": 1e-4, "duration": 0.02}
 SCENES = {
@@ -119,7 +119,7 @@ def test_run_batch_makes_one_solver_per_model_and_worker():
     """Two models (a chain and the same chain stiffer) x five load cases on two worker
     processes: each worker makes at most one solver per model (counted there), every case runs
     through the cache, and the stored time histories equal the scenes run alone, bitwise."""
-    from dtdyn.app.batch import worker
+    from dtdyn.app._batch import worker
 
     def counts():
         cache = worker.solvers()

@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from dtdyn.app import bench
+from dtdyn.app import _bench as bench
 
 
 @pytest.fixture(scope="module")
@@ -65,7 +65,7 @@ def test_linear_baseline_column(p3_runs, tmp_path):
             assert line.count("|") == width, line
 
 def test_p4l_is_p4_without_its_springs():
-    from dtdyn.app.problems import p4, p4l
+    from dtdyn.app._problems import p4, p4l
     P, L = p4(500), p4l(500)
     assert L["elements"] == [] and len(P["elements"]) == 2
     for key in ("M", "C", "K", "force"):
@@ -137,7 +137,7 @@ def test_rank_changes_input_errors(tmp_path):
 def test_timing_spread():
     """measure: a warm-up, then the repeats (more for fast calls); Timing's median, range,
     quartiles and overlap against hand-computed values."""
-    from dtdyn.app.timing import Timing, measure
+    from dtdyn.app import Timing, measure
     calls = []
     out, t = measure(lambda: calls.append(1) or len(calls), repeats=3)
     assert out == 4 and len(calls) == 4 and t.repeats == 3 and t.first is not None
@@ -156,7 +156,7 @@ def test_timing_spread():
 
 def test_pin_blas_limits_and_restores():
     threadpoolctl = pytest.importorskip("threadpoolctl")
-    from dtdyn.app.timing import pin_blas
+    from dtdyn.app import pin_blas
     before = [lib["num_threads"] for lib in threadpoolctl.threadpool_info()
               if lib["user_api"] == "blas"]
     with pin_blas(1) as pin:
@@ -182,7 +182,7 @@ def test_three_bench_runs_rank_only_within_spreads(tmp_path):
     paths = []
     for k in range(3):
         out = tmp_path / f"run{k}"
-        proc = subprocess.run([sys.executable, "-m", "dtdyn.app.cli", "bench", "P3", "--out",
+        proc = subprocess.run([sys.executable, "-m", "dtdyn.app._cli", "bench", "P3", "--out",
                                str(out)], capture_output=True, text=True, timeout=600)
         assert proc.returncode == 0, proc.stderr
         assert "BLAS pinned to 1 thread" in proc.stdout

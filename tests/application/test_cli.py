@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dtdyn.app.cli import main
+from dtdyn.app._cli import main
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -56,7 +56,7 @@ def test_simulate_malformed_scene_writes_nothing(tmp_path, capsys):
 
 
 def test_console_script_runs():
-    proc = subprocess.run([sys.executable, "-m", "dtdyn.app.cli", "show", "fox_euler"],
+    proc = subprocess.run([sys.executable, "-m", "dtdyn.app._cli", "show", "fox_euler"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "Fox-Euler" in proc.stdout
 
@@ -108,7 +108,7 @@ def test_generate_outside_a_checkout_refuses(tmp_path, monkeypatch, capsys):
 
 
 def test_piped_output_closed_early_is_quiet():
-    proc = subprocess.run(f"{sys.executable} -m dtdyn.app.cli stability | head -n 1",
+    proc = subprocess.run(f"{sys.executable} -m dtdyn.app._cli stability | head -n 1",
                           shell=True, capture_output=True, text=True, timeout=300)
     assert proc.stdout.startswith("scheme") and "Traceback" not in proc.stderr
 
@@ -123,7 +123,7 @@ def test_cli_imports_without_derive_or_sympy():
         "        if name.split('.')[0] in ('sympy', 'jinja2') or name.startswith('dtdyn.derive'):\n"
         "            raise ImportError(f'blocked: {name}')\n"
         "sys.meta_path.insert(0, Block())\n"
-        "from dtdyn.app.cli import main\n"
+        "from dtdyn.app._cli import main\n"
         "assert main(['--help']) == 0\n"
         "assert main(['show', 'newmark']) == 2\n"
         "assert not [m for m in sys.modules\n"

@@ -3,7 +3,7 @@ import contextlib
 import io
 import pathlib
 
-from dtdyn.app.cli import main
+from dtdyn.app._cli import main
 
 DOCS = pathlib.Path(__file__).resolve().parents[2] / "docs"
 

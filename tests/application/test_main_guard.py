@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("distributed")
 
-from dtdyn.app.batch.main_guard import _guarded_lines  # noqa: E402
+from dtdyn.app._batch.main_guard import _guarded_lines  # noqa: E402
 
 SCENE = """\
 import dtdyn as dd

@@ -35,8 +35,8 @@ def test_same_objects_whatever_the_import_order():
     discretize` return the module) must not shadow the face's functions."""
     code = (
         "import importlib, inspect\n"
-        "mods = ['dtdyn.linear.discretize', 'dtdyn.linear.stability', 'dtdyn.modal.srs',\n"
-        "        'dtdyn.nonlinear.response', 'dtdyn.linear.state_space', 'dtdyn.app.scene']\n"
+        "mods = ['dtdyn.linear._discretize', 'dtdyn.linear._stability', 'dtdyn.modal._srs',\n"
+        "        'dtdyn.nonlinear._response', 'dtdyn.linear._state_space', 'dtdyn.app._scene']\n"
         "for m in mods: importlib.import_module(m)\n"
         "import dtdyn\n"
         "from dtdyn import *\n"

@@ -94,7 +94,7 @@ def test_cli_out_csv_reads_with_pandas_defaults(tmp_path, capsys):
     default arguments gives ``t [s]`` and one column per stored quantity and DOF named as the
     scene names it, with the values of the same scene run through the API."""
     pd = pytest.importorskip("pandas")
-    from dtdyn.app.cli import main
+    from dtdyn.app._cli import main
 
     out = tmp_path / "ts.csv"
     assert main(["simulate", str(TWO_STORY), "--no-check", "--out", str(out)]) == 0

@@ -120,7 +120,7 @@ def test_missing_pandas_names_the_extra(monkeypatch):
 def test_scene_plots_label_rotations_and_zero_based_dofs(tmp_path, monkeypatch):
     """`dtdyn simulate --plot`: a shaft scene's panels in rad and rad/s with the DOF names; the
     default (P3) chain's heat map counts DOFs 0..14 and nothing says "mass"."""
-    from dtdyn.app.scene import io
+    from dtdyn.app._scene import io
 
     drawn = []
     real = dd.Response.plot

@@ -9,11 +9,11 @@ sys.modules["sympy"] = None  # any import of SymPy or jinja2 now raises ImportEr
 sys.modules["jinja2"] = None
 import warnings
 import numpy as np
-from dtdyn.linear.chain import chain_response
-from dtdyn.linear.mck import mck_response
-from dtdyn.linear.exact import exact_response
-from dtdyn.app import scene
-from dtdyn.linear import tmm
+from dtdyn.linear._chain import chain_response
+from dtdyn.linear._mck import mck_response
+from dtdyn.linear._exact import exact_response
+from dtdyn.app import _scene as scene
+from dtdyn.linear import _tmm as tmm
 F = np.ones((101, 1))
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")

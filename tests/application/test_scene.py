@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from dtdyn.app.loads import sample_load
+from dtdyn.app._loads import sample_load
 from dtdyn._engine.result import Response
 from dtdyn import load_result
-from dtdyn.app.scene import load_scene, plot_response, run_scene, save_results
+from dtdyn.app._scene import load_scene, plot_response, run_scene, save_results
 
-from dtdyn.app.problems import P3_MASS, P3_STIFFNESS  # the scene file must hold P3
+from dtdyn.app._problems import P3_MASS, P3_STIFFNESS  # the scene file must hold P3
 
 MODEL = """
 [model]
@@ -333,7 +333,7 @@ def test_plot_response_writes_png(tmp_path):
 
 
 # ---------------------------------------------------------------------------------------------
-# end to end (runs once dtdyn.linear.chain.chain_response and exact.exact_response exist)
+# end to end (runs once dtdyn.linear._chain.chain_response and exact.exact_response exist)
 
 def test_run_default_scene_against_exact(tmp_path):
     s = load_scene(None)
@@ -365,7 +365,7 @@ def test_ground_scene_runs_relative_to_the_support(tmp_path):
     """[ground] in units of g with no [[load]]: the run equals exact_response under the same
     record (the scene's exact check says so), and the saved result carries a_abs."""
     import dtdyn as dd
-    from dtdyn.app.cli import main
+    from dtdyn.app._cli import main
 
     np.savetxt(tmp_path / "rec.csv", 0.3 * np.sin(2 * np.pi * 2.0 * np.arange(501) * 0.01))
     (tmp_path / "quake.toml").write_text(
@@ -446,7 +446,7 @@ def test_ground_scene_displacement_and_velocity_records(tmp_path):
     the same record, and a displacement scene saves x_abs = x + u_g. Units other than the SI
     unit of the quantity, and "g" for anything but an acceleration, are errors naming the key."""
     import dtdyn as dd
-    from dtdyn.app.cli import main
+    from dtdyn.app._cli import main
 
     t = np.arange(301) * 0.01
     u = 0.01 * (1 - np.cos(2 * np.pi * 1.5 * t))

@@ -12,9 +12,9 @@ import scipy.linalg as sla
 from scipy.optimize import brentq
 
 import dtdyn as dd
-from dtdyn.app.cli import main
-from dtdyn.app.scene import load_scene, run_scene
-from dtdyn.app.scene.schema import DEFAULT_SCHEME
+from dtdyn.app._cli import main
+from dtdyn.app._scene import load_scene, run_scene
+from dtdyn.app._scene.schema import DEFAULT_SCHEME
 
 CHAIN = "[model]\nmass = [1.0, 2.0, 1.5]\nstiffness = [100.0, 200.0, 150.0]\n"
 MATRICES = ('[model]\nkind = "matrices"\nM = [[2.0, 0.0], [0.0, 1.0]]\n'

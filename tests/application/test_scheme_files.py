@@ -481,7 +481,7 @@ def test_accuracy_target_takes_the_derived_order(scheme):
 
 
 def test_cli_runs_a_composite_scene_and_checks_a_shipped_scheme(tmp_path, capsys):
-    from dtdyn.app.cli import main
+    from dtdyn.app._cli import main
 
     scene = tmp_path / "scene.toml"
     scene.write_text(textwrap.dedent("""

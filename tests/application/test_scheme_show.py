@@ -7,8 +7,8 @@ import pytest
 
 sp = pytest.importorskip("sympy")
 
-from dtdyn.app.cli import main  # noqa: E402
-from dtdyn.app.derivation import derivation  # noqa: E402
+from dtdyn.app._cli import main  # noqa: E402
+from dtdyn.app._derivation import derivation  # noqa: E402
 from dtdyn.derive import integrators as I, readable as R  # noqa: E402
 
 SCHEMES = list(I.SCHEMES)

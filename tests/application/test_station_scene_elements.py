@@ -47,7 +47,7 @@ def _check(spec, direct):
     for q in scene.quantities:
         a = getattr(response, q)
         np.testing.assert_array_equal(a, getattr(same, q))
-        # the two runs solve the same steps (module docstring of dtdyn.nonlinear.stations:
+        # the two runs solve the same steps (module docstring of dtdyn.nonlinear._stations:
         # equal to nonlinear_mck_response to rounding; 1e-9 as the linear station tests)
         assert np.abs(a - getattr(ref, q)).max() <= 1e-9 * np.abs(getattr(ref, q)).max(), q
     return response

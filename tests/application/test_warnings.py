@@ -16,8 +16,8 @@ import pytest
 import dtdyn as dd
 from dtdyn._engine.errors import DtdynStabilityWarning, SRSSamplingWarning
 from dtdyn._engine.public import public, warn
-from dtdyn.app.cli import main
-from dtdyn.modal.spectrum import default_periods
+from dtdyn.app._cli import main
+from dtdyn.modal._spectrum import default_periods
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = Path(dd.__file__).resolve().parent
@@ -73,7 +73,7 @@ def test_warnings_point_at_the_script_line(tmp_path):
     script.write_text(textwrap.dedent("""\
         import numpy as np
         import dtdyn as dd
-        from dtdyn.app.scene import check_stability, run_scene
+        from dtdyn.app._scene import check_stability, run_scene
 
         m, k, c = np.ones(3), np.full(3, 1e4), np.zeros(3)
         F = np.zeros((50, 3)); F[:, 0] = 1.0
@@ -177,7 +177,7 @@ def test_default_periods_bias_bound_and_accuracy():
     10 dt, and by more than 5 % at 4 dt (where the old default periods went below)."""
     from scipy.signal import resample
 
-    from dtdyn.modal.spectrum import WARN_SAMPLES_PER_PERIOD
+    from dtdyn.modal._spectrum import WARN_SAMPLES_PER_PERIOD
 
     dt = 0.01
     T = default_periods(dt)
@@ -253,7 +253,7 @@ def test_renamed_srs_keywords_and_fields_warn_and_agree():
 
 
 def test_batch_spectrum_damping_ratio():
-    from dtdyn.app.batch import Spectrum
+    from dtdyn.app._batch import Spectrum
 
     with pytest.warns(DeprecationWarning, match="'damping' is now 'damping_ratio'"):
         old = Spectrum(periods=(0.1, 1.0), damping=0.02)
@@ -270,8 +270,8 @@ BATCH_SCRIPT = """\
 import numpy as np
 from distributed import Client, LocalCluster
 
-from dtdyn.app.batch import Spectrum, run_batch
-from dtdyn.app.cli import main
+from dtdyn.app._batch import Spectrum, run_batch
+from dtdyn.app._cli import main
 
 if __name__ == "__main__":
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True,

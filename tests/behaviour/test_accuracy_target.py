@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from dtdyn._engine.errors import DtdynAccuracyWarning, DtdynStepStabilityError, NewtonError
-from dtdyn.nonlinear import accuracy as acc
-from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap
-from dtdyn.nonlinear.reference import reference_response
-from dtdyn.nonlinear.response import nonlinear_mck_response
+from dtdyn.nonlinear import _accuracy as acc
+from dtdyn.nonlinear._elements import BoucWen, Cubic, Gap
+from dtdyn.nonlinear._reference import reference_response
+from dtdyn.nonlinear._response import nonlinear_mck_response
 from problems import p4
 
 #: P4 shortened to 20,000 samples (20 s at 1 kHz) to keep the CasADi backend's runs short
@@ -141,7 +141,7 @@ def test_duffing(duffing, scheme, backend, accuracy):
 
 def test_duffing_modal_parabolic_1e6(duffing):
     """modal_parabolic released from x0 != 0, its force parabola's g_{-1} from the motion's
-    continuation (dtdyn.nonlinear.startup): third order from the start (3.00 observed between 4
+    continuation (dtdyn.nonlinear._startup): third order from the start (3.00 observed between 4
     and 64 sub-steps); its extrapolation shows order ~6 at two successive levels (5.97, 5.91),
     which the estimate then takes: 1e-6 at 32 sub-steps, extrapolated, 9.8e-8 true, estimate
     2.1x."""
@@ -624,7 +624,7 @@ def test_quintic_estimate_false_skips_the_embedded_estimate(P4):
 def test_default_cap_is_a_step_budget(monkeypatch):
     """max_substeps=None: 256 per sample, or as many as keep DOFs x sub-steps x samples within
     STEP_BUDGET (10^8; here shrunk to 300 per step of the 199-step record of one DOF)."""
-    from dtdyn.nonlinear import response as R
+    from dtdyn.nonlinear import _response as R
     assert (R.MAX_SUBSTEPS, R.STEP_BUDGET) == (256, 10**8)
     monkeypatch.setattr(R, "STEP_BUDGET", 199 * 300)
     run, _ = _gap(0.0)

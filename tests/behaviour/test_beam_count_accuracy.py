@@ -12,8 +12,8 @@ import pytest
 import scipy.linalg as sla
 
 import dtdyn as dd
-from dtdyn.linear import beam as beam_module
-from dtdyn.linear import beam_frequency
+from dtdyn.linear import _beam as beam_module
+from dtdyn.linear import _beam_frequency as beam_frequency
 from test_frequency_accuracy import extended_eigenvalues
 
 E, I, RHO_A, L = 2.1e11, 8e-6, 20.0, 3.0

@@ -16,8 +16,8 @@ import pytest
 import dtdyn as dd
 from dtdyn._engine import cbuild, linalg, stepping
 from dtdyn._engine.schemes import NAMES, get_scheme
-from dtdyn.linear import beam as beam_mod
-from dtdyn.linear import mck
+from dtdyn.linear import _beam as beam_mod
+from dtdyn.linear import _mck as mck
 
 pytestmark = pytest.mark.skipif(not cbuild.c_available(), reason="no C compiler")
 

@@ -6,7 +6,7 @@ import pytest
 import scipy.linalg as sla
 
 import dtdyn as dd
-from dtdyn.linear.frequencies import sturm_counts
+from dtdyn.linear._frequencies import sturm_counts
 
 
 def _uniform_exact(N, m, k, count):

@@ -1,4 +1,4 @@
-"""Tests of dtdyn.linear.discretize against scipy.signal.cont2discrete and exact_response."""
+"""Tests of dtdyn.linear._discretize against scipy.signal.cont2discrete and exact_response."""
 from __future__ import annotations
 
 import sys
@@ -9,9 +9,9 @@ import pytest
 import scipy.signal
 import scipy.sparse
 
-from dtdyn.linear.discrete_model import DiscreteModel
-from dtdyn.linear.discretize import discretize, first_order_form
-from dtdyn.linear.exact import exact_response
+from dtdyn.linear._discrete_model import DiscreteModel
+from dtdyn.linear._discretize import discretize, first_order_form
+from dtdyn.linear._exact import exact_response
 
 SIZES = (1, 3, 10)
 HOLDS = ("zoh", "foh", "impulse", "tustin", "bilinear")
@@ -303,6 +303,6 @@ def test_to_control():
 def test_runtime_module_avoids_sympy_and_jinja2():
     import subprocess
     code = ("import sys; sys.modules['sympy'] = None; sys.modules['jinja2'] = None; "
-            "import dtdyn.linear.discretize")
+            "import dtdyn.linear._discretize")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr

@@ -14,8 +14,8 @@ import warnings
 import numpy as np
 import pytest
 
-from dtdyn.linear.chain import DtdynAccuracyWarning, chain_matrices, chain_response
-from dtdyn.linear.mck import mck_response
+from dtdyn.linear._chain import DtdynAccuracyWarning, chain_matrices, chain_response
+from dtdyn.linear._mck import mck_response
 from dtdyn._engine.schemes import NAMES
 
 from problems import P1, P2, P3, PROBLEMS, rel_error, uniform_chain
@@ -269,7 +269,7 @@ def test_two_threads_equal_one(scheme):
 
 
 def test_workers_default_and_checks(monkeypatch):
-    from dtdyn.linear.chain import SPLIT_MASSES, sweep_threads
+    from dtdyn.linear._chain import SPLIT_MASSES, sweep_threads
 
     monkeypatch.delenv("DTDYN_THREADS", raising=False)
     monkeypatch.setattr("os.sched_getaffinity", lambda pid: {0, 1, 2, 3}, raising=False)

@@ -1,4 +1,4 @@
-"""Tests of dtdyn.linear.exact against independent truths (closed form, quadrature, DOP853)."""
+"""Tests of dtdyn.linear._exact against independent truths (closed form, quadrature, DOP853)."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,7 +7,7 @@ import scipy.sparse
 from scipy.integrate import quad_vec, solve_ivp
 from scipy.linalg import expm
 
-from dtdyn.linear.exact import exact_response, foh_matrices
+from dtdyn.linear._exact import exact_response, foh_matrices
 from dtdyn._engine.result import Response
 
 

@@ -18,8 +18,8 @@ import pytest
 import sympy as sp
 from numpy.testing import assert_allclose
 
-from dtdyn.nonlinear.elements import NUMPY_OPS, Law, casadi_ops
-from dtdyn.nonlinear.expressions import MAX_LENGTH, ParsedExpression, parse_expression
+from dtdyn.nonlinear._elements import NUMPY_OPS, Law, casadi_ops
+from dtdyn.nonlinear._expressions import MAX_LENGTH, ParsedExpression, parse_expression
 
 FIELD = "elements[2].expression"
 
@@ -226,8 +226,8 @@ def test_law_force_and_uses_velocity():
 
 def test_imports_without_sympy():
     code = ("import sys; sys.modules['sympy'] = None; sys.modules['jinja2'] = None\n"
-            "from dtdyn.nonlinear.expressions import parse_expression\n"
-            "from dtdyn.nonlinear.elements import NUMPY_OPS\n"
+            "from dtdyn.nonlinear._expressions import parse_expression\n"
+            "from dtdyn.nonlinear._elements import NUMPY_OPS\n"
             "print(parse_expression('k*x', constants=('k',)).evaluate(NUMPY_OPS, x=2.0, k=3.0))")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           env=dict(os.environ), timeout=120)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
-from dtdyn.app.cli import main
+from dtdyn.app._cli import main
 
 M2, C2, K2 = dd.chain_matrices([1.0, 1.0], [1e4, 1e4], [1.0, 1.0])
 F = np.ones(101)

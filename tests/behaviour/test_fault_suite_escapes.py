@@ -19,8 +19,8 @@ import pytest
 
 import dtdyn as dd
 from dtdyn._engine import validate
-from dtdyn.app.cli import main
-from dtdyn.app.scene.parse import stored_columns
+from dtdyn.app._cli import main
+from dtdyn.app._scene.parse import stored_columns
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "faults.md"
 START, END = "<!-- faults:start -->", "<!-- faults:end -->"
@@ -190,7 +190,7 @@ def _chain_scene(n, steps, dt=1e-4):
 
 SCENE_RUN = """
 import resource, sys
-from dtdyn.app.cli import main
+from dtdyn.app._cli import main
 with open("/proc/self/statm") as fh:
     mapped = int(fh.read().split()[0]) * resource.getpagesize()
 resource.setrlimit(resource.RLIMIT_AS, (mapped + {limit_mb} * 2**20, resource.RLIM_INFINITY))
@@ -292,7 +292,7 @@ def test_cli_names_a_deep_scene_in_one_line(tmp_path, capsys):
 
 
 def test_an_oversized_scene_file_is_refused_before_reading(tmp_path, monkeypatch):
-    from dtdyn.app.scene import parse
+    from dtdyn.app._scene import parse
 
     monkeypatch.setattr(parse, "MAX_SCENE_BYTES", 100)
     path = _write(tmp_path, "big.toml", _chain_scene(20, 10))

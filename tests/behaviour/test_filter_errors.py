@@ -1,4 +1,4 @@
-"""Frequency-domain errors of the modal digital filters (dtdyn.modal.filter_errors).
+"""Frequency-domain errors of the modal digital filters (dtdyn.modal._filter_errors).
 
 The invariants' discrete frequency responses are checked against the Poisson alias sums of the
 module docstring; the truncated sums come with a rigorous bound on the omitted aliases
@@ -9,10 +9,10 @@ a chain's cross receptance cancel at high frequency).
 import numpy as np
 import pytest
 
-from dtdyn.modal import filter_errors as fe
-from dtdyn.linear.chain import chain_matrices
-from dtdyn.modal.model import modal_model
-from dtdyn.modal.filters import run_bank, sections
+from dtdyn.modal import _filter_errors as fe
+from dtdyn.linear._chain import chain_matrices
+from dtdyn.modal._model import modal_model
+from dtdyn.modal._filters import run_bank, sections
 
 from problems import P2, P3
 

@@ -23,14 +23,14 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from dtdyn.linear.chain import DtdynAccuracyWarning, chain_matrices, chain_response
-from dtdyn.linear.exact import exact_response
-from dtdyn.linear.mck import mck_response
-from dtdyn.modal.model import modal_model
-from dtdyn.modal.filters import modal_filter_response
+from dtdyn.linear._chain import DtdynAccuracyWarning, chain_matrices, chain_response
+from dtdyn.linear._exact import exact_response
+from dtdyn.linear._mck import mck_response
+from dtdyn.modal._model import modal_model
+from dtdyn.modal._filters import modal_filter_response
 from dtdyn._engine.schemes import NAMES, get_scheme
-from dtdyn.linear.stability import stability
-from dtdyn.linear.state_space import discrete_state_space, state_space_response
+from dtdyn.linear._stability import stability
+from dtdyn.linear._state_space import discrete_state_space, state_space_response
 
 from problems import rel_error
 
@@ -512,9 +512,9 @@ def _duffing(n=1000):
 
 @pytest.mark.parametrize("method", ["average_acceleration", "modal_ramp", "generalized_alpha"])
 def test_strong_hardening_converges_at_second_order(method):
-    from dtdyn.nonlinear.elements import Cubic
-    from dtdyn.nonlinear.reference import reference_response
-    from dtdyn.nonlinear.response import nonlinear_mck_response
+    from dtdyn.nonlinear._elements import Cubic
+    from dtdyn.nonlinear._reference import reference_response
+    from dtdyn.nonlinear._response import nonlinear_mck_response
     M, C, K, f, fs = _duffing()
     els = [Cubic(0, k3=1e8)]
     ref = reference_response(M, C, K, f, 1 / fs, force_dofs=[0], elements=els, cache=False)
@@ -536,9 +536,9 @@ def test_stiff_contact_at_large_step():
     stability limit) and runs with the sub-steps it asks for."""
     import re
 
-    from dtdyn.nonlinear.elements import Gap
-    from dtdyn.nonlinear.reference import reference_response
-    from dtdyn.nonlinear.response import DtdynStepStabilityError, nonlinear_mck_response
+    from dtdyn.nonlinear._elements import Gap
+    from dtdyn.nonlinear._reference import reference_response
+    from dtdyn.nonlinear._response import DtdynStepStabilityError, nonlinear_mck_response
     M, K, C = np.array([[1.0]]), np.array([[1e4]]), np.array([[2.0]])
     fs, n = 1000.0, 1000
     f = (1e3 * np.sin(2 * np.pi * 5 * np.arange(n) / fs))[:, None]

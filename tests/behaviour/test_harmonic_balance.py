@@ -15,8 +15,8 @@ from scipy.optimize import minimize_scalar
 import dtdyn as dd
 from dtdyn import nonlinear_mck_response
 from dtdyn._engine.errors import NewtonError
-from dtdyn.nonlinear.elements import BoucWen, Cubic, Law, element_matrix
-from dtdyn.nonlinear.harmonic_balance import harmonic_balance, harmonic_balance_amplitude
+from dtdyn.nonlinear._elements import BoucWen, Cubic, Law, element_matrix
+from dtdyn.nonlinear._harmonic_balance import harmonic_balance, harmonic_balance_amplitude
 
 # the Duffing oscillator of issue 31: m = 1, c = 0.02, k = 1, k3 = 0.5
 C_D, K3, F_D = 0.02, 0.5, 0.1
@@ -342,7 +342,7 @@ def test_banded_receptance_equals_the_models_frequency_response(make, matrices):
     frequency response (the chain's transfer matrices, the beam's node-block LU, the shaft's
     tree sweep) and a dense solve of dH/dw = -H (i C - 2 w M) H (a derivative of the inverse;
     a finite difference drowns in the stiff beam's rounding)."""
-    from dtdyn.nonlinear.harmonic_balance import _bandwidth, _BandedReceptance
+    from dtdyn.nonlinear._harmonic_balance import _bandwidth, _BandedReceptance
     model = make()
     M, C, K = matrices(model)
     n = M.shape[0]

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from dtdyn.linear.chain import DtdynAccuracyWarning, chain_matrices
-from dtdyn.modal.model import ModalModel, from_poles_residues, modal_model
+from dtdyn.linear._chain import DtdynAccuracyWarning, chain_matrices
+from dtdyn.modal._model import ModalModel, from_poles_residues, modal_model
 
 from problems import P3
 

@@ -12,11 +12,11 @@ import sympy as sp
 from dtdyn._engine.cbuild import include_dirs
 from dtdyn.derive import modal_filters as D
 from dtdyn.generated import modal_filters as G
-from dtdyn.linear.chain import chain_matrices
-from dtdyn.linear.discretize import first_order_form
-from dtdyn.linear.exact import exact_response
-from dtdyn.modal.model import from_poles_residues, modal_model
-from dtdyn.modal.filters import (_c_modes, modal_filter_response, modal_states, run_bank,
+from dtdyn.linear._chain import chain_matrices
+from dtdyn.linear._discretize import first_order_form
+from dtdyn.linear._exact import exact_response
+from dtdyn.modal._model import from_poles_residues, modal_model
+from dtdyn.modal._filters import (_c_modes, modal_filter_response, modal_states, run_bank,
                                  run_modes, sections, to_sos)
 
 from problems import P2, P3
@@ -386,7 +386,7 @@ def test_bad_input(kw, words):
 def test_ramp_starts_at_rest_under_a_nonzero_first_sample(method, quantity, key):
     """P3 under a unit step plus a slow sine (f_0 = 1): at rest at t_0, like exact_response
     (without the correction the filters would start from a ramp at t_{-1}: 5e-3 here)."""
-    from dtdyn.app.problems import p3
+    from dtdyn.app._problems import p3
     P = p3()
     dt, n = 1e-3, 800
     f = (1.0 + np.sin(0.01 * np.arange(n + 1)))[:, None]

@@ -8,10 +8,10 @@ balance of its hysteresis loop.
 import numpy as np
 import pytest
 
-from dtdyn.nonlinear import reference as nl_reference
-from dtdyn.nonlinear.elements import BoucWen, Cubic
-from dtdyn.linear.exact import exact_response
-from dtdyn.nonlinear.reference import check_reference, reference_response
+from dtdyn.nonlinear import _reference as nl_reference
+from dtdyn.nonlinear._elements import BoucWen, Cubic
+from dtdyn.linear._exact import exact_response
+from dtdyn.nonlinear._reference import check_reference, reference_response
 from problems import p4, rel_error
 
 
@@ -67,7 +67,7 @@ def test_p4_same_force_sampled_twice_as_finely():
 
 def test_p4_cubic_forces_matter():
     """Peak cubic over peak linear force of the two springs: 0.72 and 0.51 over these 5000
-    samples, 1.33 and 0.85 over all 100,000 (dtdyn.app.problems.p4)."""
+    samples, 1.33 and 0.85 over all 100,000 (dtdyn.app._problems.p4)."""
     P = p4(5000)
     x = reference_response(**_args(P), cache=False).x
     y = np.stack([x[:, 0], x[:, 1] - x[:, 2]], axis=1)       # the two cubic springs

@@ -11,9 +11,9 @@ import sympy as sp
 from dtdyn.derive import nonlinear as DN
 from dtdyn import chain_matrices, exact_response
 from dtdyn import load_result, mck_response
-from dtdyn.nonlinear import response as NL
-from dtdyn.nonlinear.elements import BoucWen, Cubic, Gap, Law, Polynomial
-from dtdyn.nonlinear.reference import reference_response
+from dtdyn.nonlinear import _response as NL
+from dtdyn.nonlinear._elements import BoucWen, Cubic, Gap, Law, Polynomial
+from dtdyn.nonlinear._reference import reference_response
 from problems import p4
 
 N_SHORT = 3000
@@ -74,8 +74,8 @@ def test_parabola_coefficient_series_and_closed_form():
 
 def test_step_matrices_match_hand_B0(P4):
     """The runtime's -Dwg equals the hand B0 of both families (numbers, not the code itself)."""
-    from dtdyn.nonlinear.elements import element_matrix
-    from dtdyn.modal.model import modal_factors
+    from dtdyn.nonlinear._elements import element_matrix
+    from dtdyn.modal._model import modal_factors
     M, C, K = P4["M"], P4["C"], P4["K"]
     L = element_matrix(P4["elements"], 4)
     h = 1e-3
@@ -355,8 +355,8 @@ def test_chain_equals_mck_path(form, scheme, params, elements):
     """The O(N) DT-TMM path and the M, C, K path solve the same per-step problem: equal to
     round-off in both forms (measured <= 1.1e-13; the displacement form solves for the increment,
     tests/test_dttmm.py)."""
-    from dtdyn.linear.chain import chain_matrices
-    from dtdyn.nonlinear.chain import nonlinear_chain_response
+    from dtdyn.linear._chain import chain_matrices
+    from dtdyn.nonlinear._chain import nonlinear_chain_response
     m, k, c, f = _chain_case()
     M, C, K = chain_matrices(m, k, c, sparse=False)
     a = nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3], elements=elements,
@@ -377,7 +377,7 @@ def test_chain_c_loop_equals_python_loop(monkeypatch, elements):
     Held to 1e-14 of the largest value, or to 4x what the Python loop itself moves when the
     force changes by one rounding (relative 2^-52): measured 0.97x (x) to 0.90x (a) of that
     with Bouc-Wen. A Newton failure names the same step."""
-    import dtdyn.nonlinear.chain as NC
+    import dtdyn.nonlinear._chain as NC
     m, k, c, f = _chain_case()
     a = NC.nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3], elements=elements,
                                     substeps=2)
@@ -406,7 +406,7 @@ def test_chain_c_loop_equals_python_loop(monkeypatch, elements):
 def test_long_chain_linear_limit_equals_simulate_chain():
     """20,000 masses: with zero nonlinear stiffness the chain path is chain_response's sweep."""
     from dtdyn import chain_response
-    from dtdyn.nonlinear.chain import nonlinear_chain_response
+    from dtdyn.nonlinear._chain import nonlinear_chain_response
     n = 20_000
     m, k, c = np.ones(n), np.full(n, 1e4), np.full(n, 1.0)
     f = (np.random.default_rng(1).standard_normal(30) * 100.0)[:, None]
@@ -419,7 +419,7 @@ def test_long_chain_linear_limit_equals_simulate_chain():
 
 
 def test_chain_refuses_multistep_and_bad_elements():
-    from dtdyn.nonlinear.chain import nonlinear_chain_response
+    from dtdyn.nonlinear._chain import nonlinear_chain_response
     m, k, c, f = _chain_case(10)
     with pytest.raises(ValueError, match="multistep"):
         nonlinear_chain_response(m, k, c, f, 0.001, force_dofs=[3],
@@ -568,7 +568,7 @@ def test_polynomial_stability_limit_is_the_runtime_step_s(method, degree, explic
     A + Bg k_t (1 - Dwg k_t)^-1 Cw: every eigenvalue in the unit disk at 0.95 of the limit,
     one outside at 1.05; theta = |B0 k_t| with B0 = Dwg (implicit) or Cw Bg (explicit: Dwg = 0),
     as the loops measure it. The ramp's derived limit is its theta = 2 (Omega_t = sqrt 12)."""
-    from dtdyn.nonlinear.linear_step import THETA_LIMIT, linear_step
+    from dtdyn.nonlinear._linear_step import THETA_LIMIT, linear_step
     assert DN.polynomial_stability(1)["theta_limit"] == pytest.approx(2.0, rel=1e-9)
     limit = THETA_LIMIT[method]
     assert limit == pytest.approx(DN.polynomial_stability(degree, explicit)["theta_limit"])
@@ -836,7 +836,7 @@ def test_p4_quintic_convergence_order(P4, P4_ref):
 
 
 def test_forces_before_start_continue_the_motion():
-    """The force polynomials' past for a start away from rest (dtdyn.nonlinear.startup): the
+    """The force polynomials' past for a start away from rest (dtdyn.nonlinear._startup): the
     Duffing m x'' + c x' + k x + k3 x^3 = f0 + f1 t integrated forwards by hand (solve_ivp,
     DOP853 at rtol 1e-13) from a state at t = -4 h to t = 0 gives x0, v0 and the truth
     k3 x(-j h)^3. The returned values extrapolate the continuation's forces at t_0 .. t_0 + 4 h by
@@ -845,8 +845,8 @@ def test_forces_before_start_continue_the_motion():
     asks for 6 values, so its polynomial has degree 6 and an error O(h^7)."""
     from scipy.integrate import solve_ivp
 
-    from dtdyn.nonlinear.elements import element_matrix
-    from dtdyn.nonlinear.startup import forces_before_start
+    from dtdyn.nonlinear._elements import element_matrix
+    from dtdyn.nonlinear._startup import forces_before_start
     m, c, k, k3, f0, f1, dt = 2.0, 3.0, 1e4, 1e9, 5.0, 2e3, 1e-3
     els = [Cubic(0, k3=k3)]
     errs = []

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
-from dtdyn.linear.shaft import rigid_rotation
-from dtdyn.nonlinear import response as NL
+from dtdyn.linear._shaft import rigid_rotation
+from dtdyn.nonlinear import _response as NL
 
 SCHEMES = [("newmark", {}), ("hht", {"alpha": -0.1}), ("generalized_alpha", {"rho_inf": 0.7})]
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
-from dtdyn.app.cli import main
+from dtdyn.app._cli import main
 
 DT, N, UP = 0.01, 2001, 50
 

@@ -15,9 +15,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
-from dtdyn.modal import srs as S
-from dtdyn.app.cli import main
-from dtdyn.modal.srs import SRSSamplingWarning, sdof_response, shock_response_spectrum
+from dtdyn.modal import _srs as S
+from dtdyn.app._cli import main
+from dtdyn.modal._srs import SRSSamplingWarning, sdof_response, shock_response_spectrum
 
 G = 9.80665
 
@@ -398,7 +398,7 @@ def test_cli_srs_csv_record_and_errors(tmp_path, capsys):
 
 
 def test_cli_response_choices_match_runtime(capsys):
-    from dtdyn.app.cli import main
+    from dtdyn.app._cli import main
 
     assert main(["srs", "--help"]) == 0
     text = capsys.readouterr().out
@@ -412,7 +412,7 @@ def test_runtime_srs_without_sympy_and_jinja2():
 
     code = ("import sys; sys.modules['sympy'] = None; sys.modules['jinja2'] = None\n"
             "import numpy as np\n"
-            "from dtdyn.modal.srs import shock_response_spectrum\n"
+            "from dtdyn.modal._srs import shock_response_spectrum\n"
             "r = shock_response_spectrum(np.sin(np.arange(100) / 4.0), 1000.0, [20.0, 60.0],"
             " exact_peaks=True)\n"
             "print(r.info['backend'], r.maximax.size)\n")

@@ -4,11 +4,11 @@ import pytest
 import scipy.linalg as sla
 import scipy.signal as sig
 
-from dtdyn.linear.discretize import first_order_form
-from dtdyn.linear.exact import exact_response
-from dtdyn.linear.mck import mck_response
-from dtdyn.linear.discrete_model import DiscreteModel
-from dtdyn.linear.state_space import discrete_state_space, newmark_ss, state_space_response
+from dtdyn.linear._discretize import first_order_form
+from dtdyn.linear._exact import exact_response
+from dtdyn.linear._mck import mck_response
+from dtdyn.linear._discrete_model import DiscreteModel
+from dtdyn.linear._state_space import discrete_state_space, newmark_ss, state_space_response
 
 
 def random_system(n, rng):
@@ -216,7 +216,7 @@ def _dlsim_case(seed, ns, ni, no, n_steps, radius):
 def test_state_space_response_across_blocks(monkeypatch, backend):
     """The record runs in blocks of SS_BLOCK steps; the state carried from block to block gives
     the same response as one block (here SS_BLOCK = 7 against 40 steps: 5 full blocks and 5)."""
-    import dtdyn.linear.state_space as ss
+    import dtdyn.linear._state_space as ss
     model, x0, y_ref = _dlsim_case(8, 6, 2, 3, 40, 0.9)
     monkeypatch.setattr(ss, "SS_BLOCK", 7)
     y = ss.run_recursion(*model, state0=x0, backend=backend)
@@ -300,7 +300,7 @@ def test_response_from_initial_conditions():
     dt, n = 0.01, 300
     f = np.sin(np.arange(n + 1) * dt * 3.0)
     x0, v0 = np.array([0.1, -0.2]), np.array([0.0, 0.5])
-    from dtdyn.linear.discretize import discretize
+    from dtdyn.linear._discretize import discretize
     ex = exact_response(M, C, K, f, dt, force_dofs=[1], x0=x0, v0=v0)
     for hold in ("foh", "tustin", "zoh"):
         r = state_space_response(discretize(M, C, K, dt, hold=hold), f, force_dofs=[1], x0=x0,

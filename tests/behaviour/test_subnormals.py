@@ -11,7 +11,7 @@ import pytest
 from scipy.signal import lfilter
 
 import dtdyn as dd
-from dtdyn.modal.filters import run_bank
+from dtdyn.modal._filters import run_bank
 
 TINY = np.finfo(float).tiny  # 2.2e-308, the smallest normal double
 SUBNORMAL = np.float64(5e-324)

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 import scipy.linalg as sla
 
-from dtdyn.linear.chain import chain_matrices
+from dtdyn.linear._chain import chain_matrices
 import dtdyn as dd
-from dtdyn.linear.frequencies import chain_frequencies
-from dtdyn.linear.tmm import chain_frequency_response
+from dtdyn.linear._frequencies import chain_frequencies
+from dtdyn.linear._tmm import chain_frequency_response
 
 from problems import P2, P3
 

@@ -408,7 +408,7 @@ def _law(data):
     if law is None or not grammar:
         return
     # a law that was accepted evaluates like SymPy's reading of the same text
-    from dtdyn.nonlinear.elements import NUMPY_OPS
+    from dtdyn.nonlinear._elements import NUMPY_OPS
 
     x, v = data.draw(st.floats(-2, 2), label="x"), data.draw(st.floats(-2, 2), label="v")
     with np.errstate(all="ignore"), warnings.catch_warnings():

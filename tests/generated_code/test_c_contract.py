@@ -111,7 +111,7 @@ def test_python_side_names_the_refusal(monkeypatch):
 
 @pytest.mark.skipif(not cbuild.c_available(), reason="no C compiler on this machine")
 def test_shaft_kernel_refuses_a_short_work_array_at_entry():
-    from dtdyn.linear.shaft import _c_function
+    from dtdyn.linear._shaft import _c_function
 
     fn = _c_function("newmark")
     N = 4

@@ -135,7 +135,7 @@ def _modal_args(m, n_out, n=300):
 @needs_c
 @pytest.mark.parametrize("m, n_out", [(4, 1), (8, 3), (16, 15)])  # each chunk size, both outputs
 def test_modal_filters_kernel_refuses_a_short_work_array_at_entry(m, n_out):
-    from dtdyn.modal.filters import _c_modes
+    from dtdyn.modal._filters import _c_modes
 
     fn, _, work_size, _ = _c_modes()
     assert work_size(m, n_out) == 2 * m * (gen.MODAL_BLOCK + n_out)  # the spec's block
@@ -154,7 +154,7 @@ def test_modal_filters_kernel_refuses_a_short_work_array_at_entry(m, n_out):
 
 @needs_c
 def test_modal_filter_response_names_the_refusal(monkeypatch):
-    from dtdyn.modal import filters
+    from dtdyn.modal import _filters as filters
 
     fn, lanes, work_size, lib = filters._c_modes()
     monkeypatch.setattr(filters, "_c_modes",
@@ -188,7 +188,7 @@ def shrunk(monkeypatch):
     pytest.importorskip("casadi")
     if not cbuild.c_available():
         pytest.skip("no C compiler on this machine")
-    from dtdyn.nonlinear import chain, response
+    from dtdyn.nonlinear import _chain as chain, _response as response
 
     def install(name):
         load = cbuild.load_library

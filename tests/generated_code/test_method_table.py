@@ -4,7 +4,7 @@ runtime reads them from there."""
 from dtdyn._engine.schemes import NAMES
 from dtdyn.generated import nl_modal
 from dtdyn.generated.scheme_table import AUTO, METHODS, TABLE
-from dtdyn.nonlinear import accuracy, linear_step
+from dtdyn.nonlinear import _accuracy as accuracy, _linear_step as linear_step
 
 
 def test_methods_sit_beside_the_time_integrators():

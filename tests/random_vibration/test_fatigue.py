@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from dtdyn.random_vibration.fatigue import (METHODS, SNCurve, miner_damage, spectral_damage,
+from dtdyn.random_vibration._fatigue import (METHODS, SNCurve, miner_damage, spectral_damage,
                                             spectral_damage_from_moments, spectral_moments)
-from dtdyn.random_vibration.rainflow import rainflow_cycles
+from dtdyn.random_vibration._rainflow import rainflow_cycles
 
 
 def flat_band_moments(level, f1, f2):

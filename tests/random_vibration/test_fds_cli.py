@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from dtdyn.app.cli import main
+from dtdyn.app._cli import main
 from dtdyn.random_vibration import psd_table
-from dtdyn.random_vibration.spectra import (extreme_response_spectrum, fatigue_damage_spectrum,
+from dtdyn.random_vibration._spectra import (extreme_response_spectrum, fatigue_damage_spectrum,
                                             fds_equivalent_psd, vibration_response_spectrum)
 
 ROWS = [(20, 0.01), (80, 0.04), (350, 0.04), (2000, 0.007)]

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import rainflow  # the reference (test extra)
 
-from dtdyn.random_vibration.fatigue import SNCurve, miner_damage
-from dtdyn.random_vibration.rainflow import rainflow_cycles, turning_points
+from dtdyn.random_vibration._fatigue import SNCurve, miner_damage
+from dtdyn.random_vibration._rainflow import rainflow_cycles, turning_points
 
 
 def as_tuples(c):
@@ -105,7 +105,7 @@ def test_reversals_of_tiny_differences_are_kept():
 
 def test_fallback_without_compiler_warns_once():
     code = ("import warnings, numpy as np\n"
-            "from dtdyn.random_vibration.rainflow import rainflow_cycles\n"
+            "from dtdyn.random_vibration._rainflow import rainflow_cycles\n"
             "with warnings.catch_warnings(record=True) as w:\n"
             "    warnings.simplefilter('always')\n"
             "    c = [rainflow_cycles(np.sin(np.arange(100.0))) for _ in range(2)]\n"

@@ -10,11 +10,11 @@ import pytest
 from scipy import integrate
 
 from dtdyn.random_vibration import psd_table
-from dtdyn.random_vibration.rainflow import rainflow_cycles
-from dtdyn.random_vibration.spectra import (EULER_GAMMA, extreme_response_spectrum,
+from dtdyn.random_vibration._rainflow import rainflow_cycles
+from dtdyn.random_vibration._spectra import (EULER_GAMMA, extreme_response_spectrum,
                                             fatigue_damage_spectrum, fds_equivalent_psd,
                                             sdof_moments, vibration_response_spectrum)
-from dtdyn.random_vibration.synthesis import random_time_history
+from dtdyn.random_vibration._synthesis import random_time_history
 
 TABLE = psd_table([(20, 0.01), (80, 0.04), (350, 0.04), (2000, 0.007)])   # g^2/Hz
 WIDE = np.r_[0.0, np.geomspace(1e-3, 1e9, 40)]     # a band wide enough for white-noise forms

@@ -9,7 +9,7 @@ from scipy import integrate, signal, stats
 
 import dtdyn as dd
 from dtdyn.random_vibration import psd_table
-from dtdyn.random_vibration.synthesis import random_time_history, shock_time_history
+from dtdyn.random_vibration._synthesis import random_time_history, shock_time_history
 
 TABLE = psd_table([(20, 0.01), (80, 0.04), (350, 0.04), (2000, 0.007)])
 DT = 1e-4

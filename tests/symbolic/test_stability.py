@@ -8,9 +8,9 @@ import pytest
 from dtdyn import DtdynUnstableError, chain_response
 import sympy as sp
 
-from dtdyn.app.cli import main
-from dtdyn.app.scene import run_scene, scene_from_dict
-from dtdyn.linear.stability import (DtdynStabilityWarning, critical_omega_dt, stability,
+from dtdyn.app._cli import main
+from dtdyn.app._scene import run_scene, scene_from_dict
+from dtdyn.linear._stability import (DtdynStabilityWarning, critical_omega_dt, stability,
                                      warn_if_unstable)
 
 BIG = np.geomspace(1e-2, 1e6, 300)
