@@ -53,6 +53,7 @@ from dtdyn.nonlinear._reference import check_reference, reference_response
 from dtdyn.nonlinear._response import nonlinear_mck_response
 from dtdyn.nonlinear._harmonic_balance import (HarmonicBalanceResult, harmonic_balance,
                                               harmonic_balance_amplitude)
+from dtdyn.nonlinear._backbone import BackboneResult, backbone
 from dtdyn.nonlinear._stations import nonlinear_beam_response, nonlinear_shaft_response
 from dtdyn.random_vibration import (CycleHistogram, Cycles, RandomResponse, SNCurve,
                                     beam_random_response, chain_random_response, miner_damage,
@@ -90,7 +91,8 @@ __all__ = [
     # nonlinear
     "nonlinear_mck_response", "nonlinear_chain_response", "nonlinear_shaft_response",
     "nonlinear_beam_response", "reference_response", "check_reference",
-    "harmonic_balance", "harmonic_balance_amplitude", "HarmonicBalanceResult",
+    "harmonic_balance", "harmonic_balance_amplitude", "HarmonicBalanceResult", "backbone",
+    "BackboneResult",
     "Cubic", "Polynomial", "Gap", "Law", "BoucWen",
     # random vibration
     "psd_table", "random_response", "chain_random_response", "beam_random_response",

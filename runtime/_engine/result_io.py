@@ -246,7 +246,9 @@ def to_dataframe(response):
 
 
 def load_result(path):
-    """Read a result written by `Response.save` (.npz, .nc or .csv) back into a `Response`.
+    """Read a result written by `Response.save` (.npz, .nc or .csv) back into a `Response`, or
+    by `HarmonicBalanceResult.save` (.npz or .csv; `dtdyn._engine.curve_io`) into a
+    `HarmonicBalanceResult`.
 
     A ``.csv`` is read with its JSON sidecar ``<name>.csv.json`` (the metadata, DOF names and
     kinds, the column layout): a missing sidecar or a header that differs from it is a
@@ -266,15 +268,21 @@ def load_result(path):
     >>> back = dd.load_result(r.save(path.with_suffix(".csv")))   # r.csv and r.csv.json
     >>> bool(np.array_equal(back.x, r.x)), back.info["scheme"]
     (True, 'newmark')
+    >>> c = dd.harmonic_balance(np.eye(1), [[0.05]], np.eye(1), elements=[dd.Cubic(0, k3=0.1)],
+    ...                         force_dofs=[0], force=[0.05], freqs_hz=(0.1, 0.3), harmonics=3)
+    >>> back = dd.load_result(c.save(path.with_name("frc.csv")))   # frc.csv and frc.csv.json
+    >>> type(back).__name__, bool(np.array_equal(back.harmonics, c.harmonics))
+    ('HarmonicBalanceResult', True)
 
     Parameters
     ----------
     path : str or Path
-        A file written by `Response.save` (for a ``.csv``, with its sidecar next to it).
+        A file written by `Response.save` or `HarmonicBalanceResult.save` (for a ``.csv``,
+        with its sidecar next to it).
 
     Returns
     -------
-    Response
+    Response or HarmonicBalanceResult
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -284,6 +292,12 @@ def load_result(path):
     if not path.is_file():
         raise FileNotFoundError(f"{str(path)!r}: no such result file")
     reader = {".npz": _read_npz, ".nc": _read_nc, ".csv": _read_csv}[suffix]
+    from dtdyn._engine import curve_io
+    if suffix != ".nc" and curve_io.is_curve(path):   # a HarmonicBalanceResult's file
+        read_curve = {".npz": curve_io.read_npz, ".csv": curve_io.read_csv}[suffix]
+
+        def reader(path):
+            return read_curve(path, curve_type)
     try:
         return reader(path)
     except (KeyError, ValueError, OSError, json.JSONDecodeError, zipfile.BadZipFile, EOFError,
@@ -291,6 +305,21 @@ def load_result(path):
         raise ValueError(f"{str(path)!r} is not a dtdyn result file ({suffix}; "
                          f"{path.stat().st_size:,} bytes): {type(exc).__name__}: "
                          f"{exc}") from None
+
+
+#: the result classes a curve file (`dtdyn._engine.curve_io`) may name: public names of dtdyn
+CURVE_TYPES = ("HarmonicBalanceResult",)
+
+
+def curve_type(name: str):
+    """The class of a saved curve by its public name, ``dtdyn.<name>``: looked up in the loaded
+    package, not imported (the engine imports no layer above it; `load_result` is reached through
+    ``dtdyn``, so the package is loaded by then)."""
+    if name not in CURVE_TYPES:
+        raise ValueError(f"the file holds a {name!r}; dtdyn reads curves of "
+                         f"{', '.join(CURVE_TYPES)}")
+    import sys
+    return getattr(sys.modules["dtdyn"], name)
 
 
 def _build(t, outputs, quantities: dict, metadata, dof_names=None, arrays=None):

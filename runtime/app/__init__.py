@@ -13,6 +13,7 @@ __all__, __getattr__, __dir__ = attach(__name__, {
     "_scene.schema": ["Scene"],
     "_scene.parse": ["load_scene", "scene_from_dict"],
     "_scene.run": ["run_scene"],
+    "_scene.steady": ["run_steady"],
     "_batch.run": ["run_batch"],
     "_batch.montecarlo": ["monte_carlo_summary"],
     # the `dtdyn` command's entry point, main(argv) -> exit code

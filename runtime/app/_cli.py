@@ -818,6 +818,106 @@ def _random_arguments(sub) -> None:
                                   "quantity to this CSV, the rms and moments to <name>.csv.json")
 
 
+def _amplitudes(F) -> str:
+    """A load's amplitudes for the printout: numbers, complex ones as re+imj."""
+    import numpy as np
+
+    def one(z):
+        return f"{z.real:g}" if z.imag == 0 else f"{z.real:g}{z.imag:+g}j"
+    F = np.atleast_1d(F)
+    return ", ".join(one(z) for z in F) if F.ndim == 1 else \
+        "; ".join("harmonics [" + ", ".join(one(z) for z in row) + "]" for row in F)
+
+
+def _steady(args) -> int:
+    """`dtdyn steady SCENE`: the periodic steady state of a scene's [harmonic] table
+    (harmonic_balance), a summary, --out (.npz or .csv) and --plot (unstable parts dashed)."""
+    from dtdyn._engine.curve_io import check_curve_path
+    from dtdyn.app._scene import load_scene, steady
+    from dtdyn.app._scene.io import plot_checked_path
+
+    if args.out:
+        check_curve_path(args.out)
+    if args.plot:
+        plot_checked_path(args.plot)
+    sc = load_scene(args.scene)
+    steady.require_harmonic(sc, "dtdyn steady")
+    kw = sc.harmonic
+    span = (f"{kw['freqs_hz'][0]:g} .. {kw['freqs_hz'][1]:g} Hz" if "freqs_hz" in kw else
+            f"load factor {kw['amplitudes'][0]:g} .. {kw['amplitudes'][1]:g} at "
+            f"{kw['frequency_hz']:g} Hz")
+    print(f"{sc.title}: {sc.kind}, {sc.n_dof} DOF, {len(sc.elements)} nonlinear element(s); "
+          f"harmonic balance with H = {kw['harmonics']} harmonics over {span}")
+    for k, el in enumerate(sc.elements):
+        print(f"  element[{k}]: {el.describe()}")
+    if "force" in kw:
+        for d, F in zip(kw["force_dofs"], kw["force"]):
+            print(f"  force on DOF {sc.dof_label(d)}: {_amplitudes(F)}")
+    if "ground_acceleration" in kw:
+        print(f"  ground acceleration: {_amplitudes(kw['ground_acceleration'][0])}")
+    r, report = steady.run_steady(sc, "dtdyn steady")
+    if args.out:
+        steady.save_steady(args.out, r, sc)
+    if args.plot:
+        steady.plot_steady(args.plot, r, sc)
+    _steady_summary(r, report, sc)
+    _print_written(args)
+    return 0
+
+
+def _steady_summary(r, report, sc) -> None:
+    """What `dtdyn steady` prints after the run."""
+    import numpy as np
+
+    amplitude = report["sweep"] == "amplitude"
+    folds = report["fold_amplitude"] if amplitude else report["fold_frequency_hz"]
+    where = (", ".join(f"{f:.6g}" for f in folds) + (" (load factor)" if amplitude else " Hz")
+             if folds else "none")
+    print(f"points: {report['n_points']} ({report['stop']}); folds: {where}")
+    kinds = getattr(r, "bifurcation_kind", None)   # folds, Neimark-Sacker, branch points
+    if kinds is not None:
+        at = r.bifurcation_amplitude if amplitude else r.bifurcation_frequency_hz
+        unit = " (load factor)" if amplitude else " Hz"
+        other = [f"{k} at {a:.6g}{unit}" for k, a in zip(kinds, at) if k != "fold"]
+        print("other bifurcations: " + (", ".join(other) or "none"))
+    if r.stable is not None:
+        n_stable = int(np.count_nonzero(r.stable))
+        print(f"stable: {n_stable} of {r.stable.size} points ({100 * n_stable / r.stable.size:.1f} "
+              "%, Hill's method)")
+    else:
+        print("stability: not computed (harmonic.stability = false)")
+    err = report["harmonic_error"]
+    if err is not None and np.isfinite(err):
+        print(f"harmonic truncation estimate: {err:.2e} (the last two kept harmonics, relative "
+              "to the largest max |x|)")
+    conv = r.info.get("harmonic_convergence")   # the check from H to 2 H, where it was run
+    if isinstance(conv, float) and np.isfinite(conv):
+        failed = r.info.get("harmonic_convergence_failures") or 0
+        print(f"harmonic convergence (H to 2 H): {conv:.2e}"
+              + (f", {failed} point(s) not solved with 2 H" if failed else ""))
+    for j, d in enumerate(r.outputs[:8]):
+        i = int(np.argmax(r.x_max[:, j]))
+        at = (f"load factor {r.amplitude[i]:.6g}" if amplitude else
+              f"{r.frequency_hz[i]:.6g} Hz")
+        print(f"  largest max |x| of DOF {sc.dof_label(d)}: {r.x_max[i, j]:.6g} at {at}")
+    if len(r.outputs) > 8:
+        print(f"  ... and {len(r.outputs) - 8} more outputs")
+    print(f"run time: {report['run_time_s']:.3f} s ({report['receptance']} receptance, "
+          f"{r.info.get('steps')} steps, {r.info.get('newton_iterations')} Newton iterations)")
+
+
+def _steady_arguments(sub) -> None:
+    """The parser of `dtdyn steady`."""
+    st = sub.add_parser("steady", help="periodic steady state of a scene with [[element]] and "
+                                       "[harmonic] tables: the frequency response curve by "
+                                       "harmonic balance, its folds and stability")
+    st.add_argument("scene", metavar="SCENE", help="scene TOML file with a [harmonic] table")
+    st.add_argument("--out", help="write the curve: .npz, or .csv (one row per point) with its "
+                                  "metadata in <name>.csv.json; dtdyn.load_result reads it back")
+    st.add_argument("--plot", help="draw max |x| of each output against the frequency, unstable "
+                                   "parts dashed, to this image file (.png, .pdf, ...)")
+
+
 def _show_arguments(p) -> None:
     """The arguments of `dtdyn scheme show` and of its alias `dtdyn show`."""
     p.add_argument("scheme", metavar="SCHEME",
@@ -894,6 +994,7 @@ def _parser() -> argparse.ArgumentParser:
     sr.add_argument("--out", help="write freq_hz, maximax, positive, negative to this CSV")
     _fds_arguments(sub)
     _random_arguments(sub)
+    _steady_arguments(sub)
     st = sub.add_parser("stability", help="spectral radius, period elongation and algorithmic "
                                           "damping of each scheme")
     st.add_argument("schemes", nargs="*", metavar="SCHEME",
@@ -997,6 +1098,7 @@ def main(argv=None) -> int:
         return int(exc.code or 0)
     handler = {"generate": _generate, "show": _show, "scheme": _scheme, "simulate": _simulate,
                "stability": _stability, "srs": _srs, "fds": _fds, "random": _random,
+               "steady": _steady,
                "bench": _bench,
                "modes": _modes, "spectrum": _spectrum, "batch": _batch}[args.command]
     try:

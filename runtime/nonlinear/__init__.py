@@ -4,13 +4,13 @@ TMM) and their ODE reference (reference)."""
 
 from dtdyn._engine.lazy import attach
 
-# `harmonic_balance` is also a module of this package (the attribute is the module): use
-# dtdyn.harmonic_balance until the module is private
 __all__, __getattr__, __dir__ = attach(__name__, {
     "_chain": ["nonlinear_chain_response"],
     "_elements": ["BoucWen", "Cubic", "Gap", "Law", "Polynomial"],
     "_reference": ["check_reference", "reference_response"],
     "_response": ["nonlinear_mck_response"],
-    "_harmonic_balance": ["HarmonicBalanceResult", "harmonic_balance_amplitude"],
+    "_harmonic_balance": ["HarmonicBalanceResult", "harmonic_balance",
+                          "harmonic_balance_amplitude"],
+    "_backbone": ["BackboneResult", "backbone"],
     "_stations": ["nonlinear_beam_response", "nonlinear_shaft_response"],
 })

@@ -35,12 +35,20 @@ gives the quadratic eigenproblem
     [lambda^2 M_h + lambda (2 M_h N + C_h + G_v) + (M_h N^2 + C_h N + K_h + G_y + G_v N)] p = 0
 
 in the Fourier coefficients of p (N = omega D, M_h = I (x) M, ..., G_y, G_v the elements'
-linearization dg/dy, dg/dy' in the harmonic basis). Of its 2 n (2 H + 1) eigenvalues the 2 n
-with the smallest |Im lambda| approximate the Floquet exponents (the others are copies shifted
-by i k omega); the orbit is stable when all have Re lambda < 0 (Floquet multipliers
-e^{lambda T} inside the unit circle). References: Krack & Gross, "Harmonic Balance for
-Nonlinear Vibration Problems", Springer 2019 (ch. 2-5); Cameron & Griffin, J. Appl. Mech. 56
-(1989) 149 (AFT); Lazarus & Thomas, C. R. Mecanique 338 (2010) 510 (Hill's method).
+linearization dg/dy, dg/dy' in the harmonic basis). Its 2 n (2 H + 1) eigenvalues are the
+Floquet exponents and their copies shifted by i k omega (with p e^{-i k omega t}); of each the
+copy whose eigenvector is centred on harmonic 0 (the centre of mass sum_k k |p_k|^2 /
+sum_k |p_k|^2 over k = -H .. H within 1/2 of 0; among more such, the smallest |Im lambda|) is
+kept, 2 n in all; the orbit is stable when all
+have Re lambda < 0 (Floquet multipliers e^{lambda T} inside the unit circle). An exponent
+crossing Re lambda = 0 between two points is located along the arc (Brent's method on its real
+part) and named by its Im lambda there, modulo omega: 0 a fold (from the tangent) or a branch
+point, omega / 2 a period doubling, else a Neimark-Sacker bifurcation. References: Krack &
+Gross, "Harmonic Balance for Nonlinear Vibration Problems", Springer 2019 (ch. 2-5); Cameron &
+Griffin, J. Appl. Mech. 56 (1989) 149 (AFT); Lazarus & Thomas, C. R. Mecanique 338 (2010) 510
+(Hill's method); Peletan, Baguet, Torkhani & Jacquet-Richardet, Nonlinear Dyn. 72 (2013) 671,
+and Guillot, Lazarus, Thomas, Vergez & Cochelin, J. Comput. Phys. 416 (2020) 109477 (the
+selection by the eigenvectors).
 """
 from __future__ import annotations
 
@@ -238,6 +246,12 @@ def _block_real(A):
     return out.reshape((2 * nh - 1) * r, (2 * nh - 1) * c)
 
 
+def _projected(Ef, g, Ei):
+    """E_f diag(g_e) E_i for each element e (g: (ne, N)) -> (ne, 2H+1, 2H+1), as BLAS
+    products (numpy's einsum of the three factors does not use BLAS)."""
+    return (Ef[None, :, :] * g[:, None, :]) @ Ei
+
+
 # ----------------------------------------------------------------------------------------------
 # the elements' laws with their derivatives (CasADi)
 
@@ -321,8 +335,8 @@ class _System:
         R = _real(_complex(U) - a * load + np.einsum("kef,kf->ke", Hyy, G)).ravel()
         if not jacobian:
             return R, None, None
-        Jel = (np.einsum("jn,en,nk->ejk", self.Ef, gy, self.Ei)
-               + omega * np.einsum("jn,en,nk->ejk", self.Ef, gv, self.Ei @ self.D))
+        Jel = _projected(self.Ef, gy, self.Ei) + omega * _projected(self.Ef, gv,
+                                                                     self.Ei @ self.D)
         nU = (2 * H + 1) * ne
         Jg = np.zeros((2 * H + 1, ne, 2 * H + 1, ne))
         idx = np.arange(ne)
@@ -348,8 +362,7 @@ class _System:
     def linearization(self, U, omega):
         """The elements' dg/dy and dg/dy' in the harmonic basis: (ne, 2H+1, 2H+1) each."""
         _, _, gy, gv = self.forces(U, omega)
-        return (np.einsum("jn,en,nk->ejk", self.Ef, gy, self.Ei),
-                np.einsum("jn,en,nk->ejk", self.Ef, gv, self.Ei))
+        return _projected(self.Ef, gy, self.Ei), _projected(self.Ef, gv, self.Ei)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -357,7 +370,9 @@ class _System:
 
 
 def _hill(M, C, K, L, Jy, Jv, omega, D):
-    """The 2n Floquet exponents (those with the smallest |Im|) of the orbit (module docstring)."""
+    """The 2n Floquet exponents of the orbit (module docstring): of the 2 n (2 H + 1)
+    eigenvalues, the 2n whose eigenvectors are centred on harmonic 0 (|centre| <= 1/2, then
+    the smallest |Im|)."""
     n, nH = M.shape[0], D.shape[0]
     I_H = np.eye(nH)
     Nab = omega * D
@@ -369,10 +384,32 @@ def _hill(M, C, K, L, Jy, Jv, omega, D):
           + Gv @ np.kron(Nab, np.eye(n)))
     m = n * nH
     Z, I_m = np.zeros((m, m)), np.eye(m)
-    lam = sla.eigvals(np.block([[Z, I_m], [-A0, -A1]]), np.block([[I_m, Z], [Z, A2]]))
-    lam = lam[np.isfinite(lam)]
+    lam, vec = sla.eig(np.block([[Z, I_m], [-A0, -A1]]), np.block([[I_m, Z], [Z, A2]]))
+    ok = np.isfinite(lam)
+    lam, vec = lam[ok], vec[:m, ok]
     keep = lam.size // nH
-    return lam[np.argsort(np.abs(lam.imag), kind="stable")[:keep]]
+    centre = np.abs(_centre(vec, n, nH))
+    # the central copies (|centre| <= 1/2: one per exponent when the truncation resolves
+    # them) by |Im|, then the others by |centre|; the |Im| among the central ones settles
+    # the cases where several are central: an odd law's orbit decouples the even and the odd
+    # harmonics, and with few harmonics each block has its own (poorer or better) copies
+    order = np.lexsort((np.abs(lam.imag), np.where(centre <= 0.5 + 1e-9, 0.0, centre)))
+    return lam[order[:keep]]
+
+
+def _centre(vec, n, nH):
+    """The centre of mass sum_k k |p_k|^2 / sum_k |p_k|^2 (k = -H .. H) of each eigenvector
+    p(t) = sum_k p_k e^{i k omega t} (the columns of ``vec``, real-basis layout). A copy of an
+    exponent shifted by i j omega has p e^{-i j omega t}, its centre moved by -j: the copy
+    centred nearest 0 is kept (Peletan et al. 2013; Guillot et al. 2020), where the |Im|
+    criterion alone can pick two copies of one exponent whose Im is near omega / 2."""
+    P = vec.reshape(nH, n, -1)
+    w0 = np.sum(np.abs(P[0]) ** 2, axis=0)
+    a, b = P[1::2], P[2::2]
+    wp = np.sum(np.abs(a + 1j * b) ** 2, axis=1) / 4      # e^{+i k theta}: (a + i b) / 2
+    wm = np.sum(np.abs(a - 1j * b) ** 2, axis=1) / 4      # e^{-i k theta}: (a - i b) / 2
+    k = np.arange(1, (nH - 1) // 2 + 1)[:, None]
+    return np.sum(k * (wp - wm), axis=0) / (w0 + np.sum(wp + wm, axis=0))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -414,12 +451,29 @@ class HarmonicBalanceResult:
         -(k omega)^2 X_k + r A_k.
     a_abs_max : (points, outputs) ndarray or None
         max |absolute acceleration| over a period.
+    harmonic_convergence : (points,) ndarray
+        At the points re-solved with 2 H harmonics (``convergence_points``): the largest
+        change of x_max over the outputs, relative to the largest x_max there,
+        max_o |x_max(2H) - x_max(H)| / max_o x_max(2H); NaN at the other points (and where
+        the 2 H solve failed, counted in info["harmonic_convergence_failures"]).
+    bifurcation_kind : (bifurcations,) str ndarray
+        "fold" (from the tangent, as ``folds``), "neimark_sacker" (a complex pair of Floquet
+        exponents crossing the imaginary axis: multipliers leaving or entering the unit circle
+        off the real axis), "period_doubling" (a multiplier through -1) or "branch_point" (a
+        real multiplier through +1 where the curve has no fold); sorted by index. The last
+        three need ``stability=True``.
+    bifurcation_index : (bifurcations,) int ndarray
+        The point next to each bifurcation.
+    bifurcation_frequency_hz, bifurcation_amplitude : (bifurcations,) ndarray
+        The frequency and the load factor at each (the crossing refined along the arc).
     info : dict
         newton_iterations, steps, rejected_steps, law_evaluations, receptance_evaluations,
         run_time, receptance, n_time, harmonics, stop; harmonic_error (the largest, over the
         points, of the last two kept harmonics' largest |X_k| relative to the largest x_max:
         an estimate of the truncation error; NaN with harmonics < 3, where the last two kept
-        would include the fundamental) and harmonic_error_points (per point).
+        would include the fundamental) and harmonic_error_points (per point);
+        harmonic_convergence (the largest of ``harmonic_convergence``, NaN when no point was
+        checked) and harmonic_convergence_failures.
 
     Examples
     --------
@@ -447,9 +501,48 @@ class HarmonicBalanceResult:
     fold_amplitude: np.ndarray | None = None
     a_abs_harmonics: np.ndarray | None = None
     a_abs_max: np.ndarray | None = None
+    harmonic_convergence: np.ndarray | None = None
+    bifurcation_kind: np.ndarray | None = None
+    bifurcation_index: np.ndarray | None = None
+    bifurcation_frequency_hz: np.ndarray | None = None
+    bifurcation_amplitude: np.ndarray | None = None
 
-    def plot(self, output: int = 0, ax=None):
-        """x_max of ``outputs[output]`` against frequency, unstable points dashed."""
+    def save(self, path):
+        """Write the curve to ``path``: ``.npz``, or ``.csv`` (one row per point) with its
+        metadata in ``<name>.csv.json``, by the extension; every field, complex arrays as real
+        and imaginary parts (`dtdyn._engine.curve_io`); atomic. `dtdyn.load_result` reads it
+        back.
+
+        Parameters
+        ----------
+        path : str or Path
+            A ``.npz`` or ``.csv`` file name in an existing folder.
+
+        Returns
+        -------
+        Path
+            ``path``.
+        """
+        from dtdyn._engine.curve_io import save_curve
+        return save_curve(self, path)
+
+    def plot(self, output: int = 0, ax=None, backbone=None):
+        """x_max of ``outputs[output]`` against frequency, unstable points dashed.
+
+        Parameters
+        ----------
+        output : int
+            Index into ``outputs``.
+        ax : matplotlib Axes, optional
+            Draw into these axes; a new figure otherwise.
+        backbone : BackboneResult, optional
+            A backbone (`backbone`) drawn over the curve (dotted), for the same DOF; it must
+            be among the backbone's outputs.
+
+        Returns
+        -------
+        matplotlib Axes
+        """
         plt = require("matplotlib.pyplot", "plot", "HarmonicBalanceResult.plot")
         if ax is None:
             ax = plt.figure().add_subplot()
@@ -459,6 +552,13 @@ class HarmonicBalanceResult:
             ax.plot(f[i:i + 2], x[i:i + 2], "C0-" if st[i] and st[i + 1] else "C3--", lw=1.2)
         ax.set_xlabel("frequency, Hz")
         ax.set_ylabel(f"max |x| of DOF {int(self.outputs[output])}")
+        if backbone is not None:
+            dof = int(self.outputs[output])
+            where = np.flatnonzero(np.asarray(backbone.outputs) == dof)
+            if where.size == 0:
+                raise ValueError(f"backbone: DOF {dof} (outputs[{output}]) is not among the "
+                                 f"backbone's outputs {list(map(int, backbone.outputs))}")
+            backbone.plot(output=int(where[0]), ax=ax)
         return ax
 
 
@@ -508,7 +608,7 @@ def _force_harmonics(force, nf, H, name="force", per="per force_dofs entry"):
         raise ValueError(f"{name} has a non-finite amplitude: {force!r}")
     if not np.any(F):
         raise ValueError(f"{name} is zero everywhere: a forced response needs a non-zero load "
-                         "(the unforced backbone is not implemented)")
+                         "(the unforced motion: `backbone`)")
     return F
 
 
@@ -676,13 +776,18 @@ _COMMON_PARAMETERS = """harmonics : int
     n_time : int, optional
         Samples per period of the AFT (default: the power of 2 >= 8 (H + 1); at least 2 H + 2).
         A polynomial law of degree p is alias-free from (p + 1) H + 1 samples.
-    receptance : {"auto", "modal", "direct", "banded"}
+    receptance : {"auto", "modal", "direct", "banded", "reduced"}
         "modal": the exact modal sum over all 2n poles (one eigenproblem, then O(n) per
         harmonic); "direct": an LU of K - w^2 M + i w C per harmonic and evaluation (sparse
         matrices stay sparse); "banded": LAPACK's banded LU of a sparse symmetric banded model
         (chains, beams, shafts without branches), O(n) per harmonic. "auto": modal for dense
         models up to 2000 DOFs, banded for sparse symmetric ones of bandwidth <= 16 (a `Chain`,
-        `Beam`, `Shaft`), else direct.
+        `Beam`, `Shaft`), else direct. "reduced" (sparse symmetric models with Rayleigh or no
+        damping): the modes below a cut-off above the highest harmonic plus the higher modes'
+        residual as a short series, built once, so that a point costs the same whatever n; it
+        is checked at setup against "banded" at the highest harmonic frequency (1e-8 relative)
+        and falls back to "banded", with a warning, when the check fails (info["receptance"]
+        and info["receptance_check"] say which ran and why).
     stability : bool
         Hill's method at every point (dense, of size 2 n (2 H + 1), refused above 6000).
     step, max_step, min_step : float
@@ -695,20 +800,36 @@ _COMMON_PARAMETERS = """harmonics : int
     tol : float
         Newton stops when its step is below ``tol`` times the largest scaled unknown.
     max_iter : int
-        Newton iterations per corrector."""
+        Newton iterations per corrector.
+    convergence_points : int or "all"
+        The points re-solved with 2 H harmonics (and 2 ``n_time`` samples) at the same
+        frequency and load, from the H solution, for ``harmonic_convergence``: this many
+        spread evenly along the curve (its ends included) and the point of the largest
+        amplitude; "all" every point; 0 none."""
 
 
-def _receptance(receptance, M, C, K, L, outputs, B):
-    """The receptance object of the choice ``receptance`` (and M, C, K as it holds them)."""
+def _receptance(receptance, M, C, K, L, outputs, B, w_max=None):
+    """The receptance object of the choice ``receptance`` (and M, C, K as it holds them);
+    ``w_max``: the highest angular frequency it will be asked for, if known (rad/s; "reduced"
+    is then set up once)."""
     sparse = sps.issparse(M) or sps.issparse(K)
     n = M.shape[0]
     width = None
-    if receptance in ("auto", "banded"):
+    if receptance in ("auto", "banded", "reduced"):
         width = (_bandwidth(M, C, K) if sparse and all(_symmetric(A) for A in (M, C, K))
                  else None)
-        if receptance == "banded" and width is None:
-            raise ValueError("receptance='banded' needs sparse symmetric M, C, K (a Chain, Beam "
-                             "or Shaft, or scipy.sparse matrices)")
+        if receptance in ("banded", "reduced") and width is None:
+            raise ValueError(f"receptance={receptance!r} needs sparse symmetric M, C, K (a Chain, "
+                             "Beam or Shaft, or scipy.sparse matrices)")
+    if receptance == "reduced":
+        from dtdyn.nonlinear._receptance import ReducedReceptance, rayleigh_coefficients
+        damping = rayleigh_coefficients(M, C, K)
+        if damping is None:
+            raise ValueError("receptance='reduced' needs Rayleigh damping C = alpha M + beta K "
+                             "(or none): the modes must diagonalize C")
+        exact = _BandedReceptance(M, C, K, L, outputs, B, width)
+        return ReducedReceptance(exact, M, C, K, L, outputs, B, damping, w_max=w_max,
+                                 strict=True), (M, C, K)
     if receptance == "auto":
         receptance = ("banded" if width is not None and width <= BANDED_MAX_WIDTH else
                       "direct" if (sparse or n > MODAL_MAX_DOFS) else "modal")
@@ -726,8 +847,9 @@ def _receptance(receptance, M, C, K, L, outputs, B):
 
 def _prepare(M, C, K, elements, force_dofs, force, ground_acceleration, influence, harmonics,
              outputs, n_time, receptance, stability, step, max_step, min_step, max_angle, tol,
-             max_iter, max_points, omega=None):
-    """The checked inputs: (system, continuation options, model data for the result)."""
+             max_iter, max_points, convergence_points, omega=None, w_top=None):
+    """The checked inputs: (system, continuation options, model data for the result);
+    ``w_top``: the highest fundamental angular frequency of the run (rad/s), if known."""
     M, C, K, names, rigid, is_model = _model(M, C, K)
     sparse = sps.issparse(M) or sps.issparse(K)
     M, C, K = linalg.mck(M, C, K, keep_sparse=sparse)
@@ -752,9 +874,9 @@ def _prepare(M, C, K, elements, force_dofs, force, ground_acceleration, influenc
     outputs = validate.dof_indices("outputs", outputs, n, names=names)
     B, F, r_g, A_g = _loads(M, n, names, rigid, force_dofs, force, ground_acceleration,
                             influence, H)
-    if receptance not in ("auto", "modal", "direct", "banded"):
-        raise ValueError(f"receptance must be 'auto', 'modal', 'direct' or 'banded', got "
-                         f"{receptance!r}")
+    if receptance not in ("auto", "modal", "direct", "banded", "reduced"):
+        raise ValueError(f"receptance must be 'auto', 'modal', 'direct', 'banded' or 'reduced', "
+                         f"got {receptance!r}")
     validate.flag("stability", stability)
     if stability and 2 * n * (2 * H + 1) > HILL_MAX_SIZE:
         raise ValueError(f"stability=True: Hill's method is a dense eigenproblem of size 2 n "
@@ -771,12 +893,21 @@ def _prepare(M, C, K, elements, force_dofs, force, ground_acceleration, influenc
         raise ValueError(f"need min_step <= step <= max_step, got {min_step!r}, {step!r}, "
                          f"{max_step!r}")
 
+    if not (convergence_points == "all" or (isinstance(convergence_points, (int, np.integer))
+                                            and not isinstance(convergence_points, bool)
+                                            and convergence_points >= 0)):
+        raise ValueError(f"convergence_points must be an integer >= 0 or 'all', got "
+                         f"{convergence_points!r}")
+
     L = element_matrix(elements, n)
-    rec, (M, C, K) = _receptance(receptance, M, C, K, L, outputs, B)
+    # the highest harmonic frequency of the curve, H w_top (the H -> 2 H check asks for more:
+    # a reduced receptance is rebuilt for it then)
+    w_max = None if w_top is None else w_top * H
+    rec, (M, C, K) = _receptance(receptance, M, C, K, L, outputs, B, w_max=w_max)
     system = _System(rec, _law_function(elements, N), len(elements), outputs.size, F, H, N,
                      omega)
     model = dict(M=M, C=C, K=K, L=L, outputs=outputs, r_g=r_g, A_g=A_g, stability=stability,
-                 is_model=is_model)
+                 is_model=is_model, elements=elements, convergence_points=convergence_points)
     return system, tol, max_iter, opts, model
 
 
@@ -850,10 +981,11 @@ def _curve(system, cont, U, p0, p1, opts, model, t_start) -> HarmonicBalanceResu
     points, tw, arcs, steps, rejected, stop = _arc(system, cont, U, p0, p1, **opts)
 
     # folds: sign changes of d p / ds, refined by a root search along the arc
-    folds, fold_p = [], []
+    folds, fold_p, fold_steps = [], [], set()
     for i in range(len(tw) - 1):
         if np.sign(tw[i]) != np.sign(tw[i + 1]) and i < len(arcs):
             folds.append(i if abs(tw[i]) < abs(tw[i + 1]) else i + 1)
+            fold_steps.add(i)
             fold_p.append(_refine_fold(cont, *arcs[i], tw[i], tw[i + 1]))
     fold_p = np.array(fold_p, dtype=float)
 
@@ -892,13 +1024,32 @@ def _curve(system, cont, U, p0, p1, opts, model, t_start) -> HarmonicBalanceResu
         width = max(v.size for v in lam)
         lam = np.array([np.pad(v, (0, width - v.size), constant_values=np.nan) for v in lam])
         stable = np.nanmax(lam.real, axis=1) < 1e-9 * omega
+
+        def hill_at(U, w):
+            return _hill(Md, Cd, Kd, model["L"], *system.linearization(U, w), w, D)
+        crossings = _crossings(lam, omega, p, fold_steps, cont, arcs, system, hill_at)
+    else:
+        crossings = []
+    kinds = ["fold"] * len(folds) + [c[0] for c in crossings]
+    b_index = np.array(list(folds) + [c[1] for c in crossings], dtype=np.int64)
+    b_p = np.concatenate([fold_p, [c[2] for c in crossings]])
+    order = np.argsort(b_index, kind="stable")
+    b_kind = np.array(kinds, dtype="U16")[order] if kinds else np.array([], dtype="U16")
+    b_index, b_p = b_index[order], b_p[order]
+    convergence = _harmonic_convergence(system, cont, points, x_max, model)
     info = dict(newton_iterations=cont.newton, steps=steps, rejected_steps=rejected,
                 law_evaluations=system.evaluations,
                 receptance_evaluations=system.receptance_evaluations,
                 run_time=time.perf_counter() - t_start, receptance=system.rec.name,
+                receptance_check=getattr(system.rec, "check", None),
                 n_time=system.N, harmonics=H, stop=stop,
                 harmonic_error=float(harmonic_error.max()),
-                harmonic_error_points=harmonic_error)
+                harmonic_error_points=harmonic_error,
+                harmonic_convergence=(float(np.nanmax(convergence))
+                                      if np.isfinite(convergence).any() else np.nan),
+                harmonic_convergence_failures=int(np.count_nonzero(
+                    np.isinf(convergence))))
+    convergence[np.isinf(convergence)] = np.nan
     if system.fixed_omega is None:
         fold_w, fold_a = fold_p, np.ones(fold_p.size)
     else:
@@ -908,7 +1059,11 @@ def _curve(system, cont, U, p0, p1, opts, model, t_start) -> HarmonicBalanceResu
         x_max=x_max, rms=rms, stable=stable, floquet_exponents=lam,
         folds=np.array(folds, dtype=np.int64), fold_frequency_hz=fold_w / (2 * np.pi),
         outputs=model["outputs"], element_harmonics=np.transpose(Yel, (0, 2, 1)), info=info,
-        amplitude=amplitude, fold_amplitude=fold_a, a_abs_harmonics=a_abs, a_abs_max=a_abs_max)
+        amplitude=amplitude, fold_amplitude=fold_a, a_abs_harmonics=a_abs, a_abs_max=a_abs_max,
+        harmonic_convergence=convergence, bifurcation_kind=b_kind, bifurcation_index=b_index,
+        bifurcation_frequency_hz=(b_p / (2 * np.pi) if system.fixed_omega is None else
+                                  np.full(b_p.size, system.fixed_omega / (2 * np.pi))),
+        bifurcation_amplitude=(np.ones(b_p.size) if system.fixed_omega is None else b_p))
 
 
 @public(renamed={"frequencies": "freqs_hz"})
@@ -916,7 +1071,7 @@ def harmonic_balance(M, C=None, K=None, *, elements, freqs_hz, force_dofs=None, 
                      ground_acceleration=None, influence=None, harmonics=7, outputs=None,
                      n_time=None, receptance="auto", stability=True, step=0.02, max_step=0.1,
                      min_step=1e-7, max_angle=0.35, max_points=5000, tol=1e-10,
-                     max_iter=20) -> HarmonicBalanceResult:
+                     max_iter=20, convergence_points=10) -> HarmonicBalanceResult:
     """Periodic steady-state frequency response of M q'' + C q' + K q + L^T g = f(t) by
     harmonic balance with pseudo-arclength continuation (through folds) and Hill's stability.
 
@@ -974,11 +1129,11 @@ def harmonic_balance(M, C=None, K=None, *, elements, freqs_hz, force_dofs=None, 
     (True, 0)
     """
     t_start = time.perf_counter()
+    f0, f1 = _frequency_range(freqs_hz)
     system, tol, max_iter, opts, model = _prepare(
         M, C, K, elements, force_dofs, force, ground_acceleration, influence, harmonics,
         outputs, n_time, receptance, stability, step, max_step, min_step, max_angle, tol,
-        max_iter, max_points)
-    f0, f1 = _frequency_range(freqs_hz)
+        max_iter, max_points, convergence_points, w_top=2 * np.pi * max(f0, f1))
     w0, w1 = 2 * np.pi * f0, 2 * np.pi * f1
     cont = _Continuation(system, tol, max_iter, abs(w1 - w0))
     # the first point: Newton at the start frequency from the linear response
@@ -997,7 +1152,7 @@ def harmonic_balance_amplitude(M, C=None, K=None, *, elements, frequency_hz, amp
                                influence=None, harmonics=7, outputs=None, n_time=None,
                                receptance="auto", stability=True, step=0.02, max_step=0.1,
                                min_step=1e-7, max_angle=0.35, max_points=5000, tol=1e-10,
-                               max_iter=20) -> HarmonicBalanceResult:
+                               max_iter=20, convergence_points=10) -> HarmonicBalanceResult:
     """Periodic steady state at a fixed forcing frequency, continued in the load's amplitude:
     the load a f(t) for a from ``amplitudes[0]`` to ``amplitudes[1]`` (through folds).
 
@@ -1039,7 +1194,7 @@ def harmonic_balance_amplitude(M, C=None, K=None, *, elements, frequency_hz, amp
     system, tol, max_iter, opts, model = _prepare(
         M, C, K, elements, force_dofs, force, ground_acceleration, influence, harmonics,
         outputs, n_time, receptance, stability, step, max_step, min_step, max_angle, tol,
-        max_iter, max_points, omega=w)
+        max_iter, max_points, convergence_points, omega=w, w_top=w)
     cont = _Continuation(system, tol, max_iter, abs(a1 - a0))
     ne = system.ne
     Hm, _ = system.receptance(w)
@@ -1089,3 +1244,148 @@ def _refine_fold(cont, U, w, t, ds, su, tw0, tw1):
         return w
     finally:
         cont.su = su_now
+
+
+# ----------------------------------------------------------------------------------------------
+# bifurcations from the Floquet exponents
+
+#: an exponent whose Im / omega is within this of 0 (mod 1) is real (a multiplier near +1
+#: when it crosses), within this of 1/2 a period-doubling one (a multiplier near -1)
+REAL_TOL = 1e-3
+
+
+def _kind(lam, omega):
+    """0 real, 1 complex (Neimark-Sacker when it crosses), 2 period doubling, per exponent."""
+    f = np.abs(lam.imag / omega) % 1.0
+    f = np.minimum(f, 1.0 - f)
+    return np.where(f < REAL_TOL, 0, np.where(f > 0.5 - REAL_TOL, 2, 1))
+
+
+def _match(a, b, omega):
+    """b reordered (and shifted by multiples of i omega) to follow a, by the assignment of
+    least total distance modulo i omega."""
+    from scipy.optimize import linear_sum_assignment
+    d = a[:, None] - b[None, :]
+    shift = np.round(d.imag / omega)
+    r, c = linear_sum_assignment(np.abs(d - 1j * omega * shift))
+    out = np.empty_like(a)
+    out[r] = b[c] + 1j * omega * shift[r, c]
+    return out
+
+
+def _crossings(lam, omega, params, fold_steps, cont, arcs, system, hill_at):
+    """(kind, index, parameter) of each exponent crossing the imaginary axis between two
+    points: "neimark_sacker" for a complex pair (Im neither 0 nor omega / 2 mod omega),
+    "period_doubling" at omega / 2, "branch_point" for a real exponent where the tangent has
+    no fold (a fold's real exponent is the fold itself, recorded from the tangent: a real
+    crossing, or one whose kind changes over the step, within a step of a fold is skipped)."""
+    out = []
+    for i in range(len(lam) - 1):
+        a, b = lam[i], lam[i + 1]
+        a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+        if a.size != b.size or a.size == 0:
+            continue
+        b = _match(a, b, omega[i])
+        ua, ub = a.real > 1e-9 * omega[i], b.real > 1e-9 * omega[i + 1]
+        ka, kb = _kind(a, omega[i]), _kind(b, omega[i + 1])
+        for j in np.flatnonzero(ua != ub):
+            if ka[j] == kb[j] and ka[j] and a[j].imag < 0:
+                continue                           # the conjugate of a pair counted once
+            p, frac, root = _refine_crossing(cont, arcs[i] if i < len(arcs) else None, system,
+                                             hill_at, a[j], b[j], omega[i], params[i:i + 2])
+            if root is not None:         # the kind of the exponent where Re = 0
+                kind = int(_kind(np.array([root]), omega[i])[0])
+            else:                        # a kind that changes over the step: the unstable side
+                kind = int(ka[j] if ka[j] == kb[j] else (kb[j] if ub[j] else ka[j]))
+            # next to a fold, real crossings (and undetermined ones) are the fold itself
+            if fold_steps & {i - 1, i, i + 1} and (kind == 0 or (root is None
+                                                                 and ka[j] != kb[j])):
+                continue
+            name = ("branch_point", "neimark_sacker", "period_doubling")[kind]
+            out.append((name, i if frac < 0.5 else i + 1, p))
+    return out
+
+
+def _refine_crossing(cont, arc, system, hill_at, la, lb, omega, pab):
+    """(the parameter where Re lambda = 0 between two points, the fraction of the step, the
+    exponent there or None): Brent's method along the step (a corrector and Hill's method per
+    evaluation) on the real part of the exponent nearest the linear interpolation of la and
+    lb. The exponent is returned when its |Re| at the root is below 1e-8 omega (not a jump
+    between exponents); when the search fails, the linear interpolation of the points'
+    parameters ``pab`` in Re lambda and None."""
+    from scipy.optimize import brentq
+    frac = float(la.real / (la.real - lb.real))
+    linear = (pab[0] + frac * (pab[1] - pab[0]), frac, None)
+    if arc is None:
+        return linear
+    U, p, t, ds, su = arc
+    su_now = cont.su
+    cont.su = su
+    x0 = np.concatenate([U.ravel() / su, [p / cont.sw]])
+    found = {}
+
+    def re_at(s):
+        x, _ = cont.correct(x0 + s * t, t, x0, s)
+        if x is None:
+            raise NewtonError("crossing refinement failed")
+        Ux, px = x[:-1].reshape(U.shape) * su, x[-1] * cont.sw
+        lam = hill_at(Ux, px if system.fixed_omega is None else system.fixed_omega)
+        d = lam - (la + (s / ds) * (lb - la))
+        d = d - 1j * omega * np.round(d.imag / omega)
+        found[s] = (px, lam[np.argmin(np.abs(d))])
+        return found[s][1].real
+    try:
+        s = brentq(lambda s: la.real if s == 0.0 else re_at(s), 0.0, ds, xtol=1e-10 * ds,
+                   rtol=1e-14)
+        if s not in found:
+            re_at(s)
+        px, root = found[s]
+        return px, s / ds, (root if abs(root.real) <= 1e-8 * omega else None)
+    except (NewtonError, ValueError):
+        return linear
+    finally:
+        cont.su = su_now
+
+
+# ----------------------------------------------------------------------------------------------
+# convergence in the number of harmonics
+
+
+def _check_indices(n_points, spec, x_max):
+    """The points re-solved with 2 H harmonics: ``spec`` of them spread evenly along the curve
+    (first and last included) and the one of the largest amplitude; all with "all"."""
+    if spec == "all":
+        return np.arange(n_points)
+    if spec == 0:
+        return np.array([], dtype=int)
+    idx = np.round(np.linspace(0, n_points - 1, min(spec, n_points))).astype(int)
+    return np.unique(np.append(idx, int(np.argmax(x_max.max(axis=1)))))
+
+
+def _harmonic_convergence(system, cont, points, x_max, model):
+    """max over the outputs of |x_max(2H) - x_max(H)| / max x_max(2H) at the checked points
+    (NaN elsewhere; inf where Newton failed with 2 H harmonics)."""
+    out = np.full(len(points), np.nan)
+    idx = _check_indices(len(points), model["convergence_points"], x_max)
+    if idx.size == 0:
+        return out
+    H2 = 2 * system.H
+    F2 = np.zeros((H2 + 1, system.F.shape[1]), complex)
+    F2[:system.H + 1] = system.F
+    sys2 = _System(system.rec, _law_function(model["elements"], 2 * system.N), system.ne,
+                   system.no, F2, H2, 2 * system.N, system.fixed_omega)
+    sys2._static = system._static
+    cont2 = _Continuation(sys2, cont.tol, cont.max_iter, cont.sw)
+    for i in idx:
+        U, p, _ = points[i]
+        U2 = np.zeros((2 * H2 + 1, system.ne))
+        U2[:U.shape[0]] = U
+        cont2.su = max(np.abs(U).max(), 1e-300)
+        try:
+            U2, _ = cont2.solve_fixed(U2, p)
+        except NewtonError:
+            out[i] = np.inf
+            continue
+        x2 = _peak(sys2.outputs(U2, p))
+        out[i] = np.abs(x2 - x_max[i]).max() / max(x2.max(), 1e-300)
+    return out

@@ -632,3 +632,117 @@ def test_the_issue_keyword_frequencies_still_works():
         r = harmonic_balance(np.eye(1), [[C_D]], np.eye(1), elements=[Cubic(0, k3=K3)],
                              force_dofs=[0], force=[F_D], frequencies=RANGE, harmonics=1)
     assert np.array_equal(r.frequency_hz, _duffing(1).frequency_hz)
+
+
+# ----------------------------------------------------------------------------------------------
+# (i) the change from H to 2 H harmonics; bifurcations
+
+
+def test_harmonic_convergence_equals_the_error_against_shooting():
+    """With H = 3 the orbit's amplitude is off by up to 1e-3; harmonic_convergence
+    (|x_max(2H) - x_max(H)| / x_max(2H)) equals the error against the shooting orbit's max |x|
+    up to the 2 H solution's own error, geometrically smaller (3 % of it at the largest
+    amplitude, less elsewhere): within 10 % at every checked point (the ends, the largest
+    amplitude and points spread along the curve, on every branch)."""
+    r = _duffing(3, convergence_points=8)
+    checked = np.flatnonzero(np.isfinite(r.harmonic_convergence))
+    assert 8 <= checked.size <= 9 and checked[0] == 0 and checked[-1] == r.omega.size - 1
+    assert int(np.argmax(r.x_max[:, 0])) in checked
+    assert r.info["harmonic_convergence"] == np.nanmax(r.harmonic_convergence)
+    assert r.info["harmonic_convergence_failures"] == 0
+    for i in checked:
+        w, X = r.omega[i], r.harmonics[i, 0]
+        k = np.arange(X.size)
+        z0 = [np.sum(X).real, np.sum(1j * k * w * X).real]
+        _, sol, _ = _shoot(np.eye(1), np.array([[C_D]]), np.eye(1), [(0, None, K3)], F_D, 0, w,
+                           z0)
+        t = np.linspace(0, 2 * np.pi / w, 4097)
+        j = int(np.argmax(np.abs(sol(t)[0])))
+        peak = -minimize_scalar(lambda s, sol=sol: -abs(sol(s)[0]),
+                                bounds=(t[max(j - 1, 0)], t[j + 1]),
+                                method="bounded", options=dict(xatol=1e-12)).fun
+        true = abs(peak - r.x_max[i, 0]) / peak
+        assert abs(r.harmonic_convergence[i] - true) <= 0.1 * true + 1e-9, \
+            (r.frequency_hz[i], r.harmonic_convergence[i], true)
+    none = _duffing(3, convergence_points=0)
+    assert np.isnan(none.harmonic_convergence).all() and np.isnan(none.info[
+        "harmonic_convergence"])
+    every = harmonic_balance_amplitude(np.eye(1), [[C_D]], np.eye(1), elements=[Cubic(0, k3=K3)],
+                                       force_dofs=[0], force=[F_D], frequency_hz=0.2,
+                                       amplitudes=(0.5, 1.0), harmonics=3, stability=False,
+                                       convergence_points="all")
+    assert np.isfinite(every.harmonic_convergence).all()
+
+
+def test_duffing_bifurcations_are_its_two_folds(duffing7):
+    r = duffing7
+    assert list(r.bifurcation_kind) == ["fold", "fold"]
+    assert np.array_equal(r.bifurcation_index, r.folds)
+    assert np.array_equal(r.bifurcation_frequency_hz, r.fold_frequency_hz)
+
+
+# two identical Duffing oscillators coupled by a weak spring, forced on the first: 1:1 internal
+# resonance, localized branches, and Neimark-Sacker bifurcations (Krein collisions of the
+# multipliers, which leave the unit circle as complex pairs)
+KC, CC, FC = 0.05, 0.01, 0.02
+
+
+def _coupled(**kw):
+    M = np.eye(2)
+    K = np.array([[1 + KC, -KC], [-KC, 1 + KC]])
+    C = CC * np.eye(2)
+    r = harmonic_balance(M, C, K, elements=[Cubic(0, k3=1.0), Cubic(1, k3=1.0)],
+                         force_dofs=[0], force=[FC], freqs_hz=(0.16, 0.21), harmonics=9,
+                         max_step=0.05, **kw)
+    return r, (M, C, K)
+
+
+def test_neimark_sacker_points_against_shooting():
+    """Every Neimark-Sacker point found by harmonic balance is bracketed by shooting orbits
+    (at the points on both sides) whose monodromy matrices have all multipliers inside the unit
+    circle on the stable side and a complex pair outside on the other; Hill's multipliers equal
+    the monodromy's there (1e-6); the first one's frequency equals the shooting's (the root of
+    max |mu| - 1 along the branch, Brent's method) to 1e-9. (Two of the five share their step
+    with a fold, the stability flags then agree on both sides; they are left out.)"""
+    from scipy.optimize import brentq
+    r, (M, C, K) = _coupled()
+    cubic = [(0, None, 1.0), (1, None, 1.0)]
+    kinds = list(r.bifurcation_kind)
+    assert kinds.count("neimark_sacker") >= 4 and kinds.count("fold") == r.folds.size
+    assert not {"period_doubling", "branch_point"} & set(kinds)
+
+    def state(i, frac=0.0):
+        X, w = r.harmonics[i], r.omega[i]
+        X = X + frac * (r.harmonics[i + 1] - X)
+        w = w + frac * (r.omega[i + 1] - w)
+        k = np.arange(X.shape[1])
+        return np.concatenate([X.sum(axis=1).real, (X * 1j * k * w).sum(axis=1).real])
+
+    ns = [(i, f) for kind, i, f in zip(r.bifurcation_kind, r.bifurcation_index,
+                                       r.bifurcation_frequency_hz) if kind == "neimark_sacker"]
+    checked = 0
+    for n, (i, f) in enumerate(ns):
+        steps = [j for j in (i - 1, i) if r.stable[j] != r.stable[j + 1]]
+        if len(steps) != 1:
+            continue               # a fold in the same step (checked by the folds' tests)
+        lo = steps[0]
+        mus = []
+        for j in (lo, lo + 1):
+            _, _, mu = _shoot(M, C, K, cubic, FC, 0, r.omega[j], state(j))
+            hill = np.sort(np.abs(np.exp(r.floquet_exponents[j] * 2 * np.pi / r.omega[j])))
+            assert np.allclose(hill, np.sort(np.abs(mu)), rtol=1e-6), (j, hill, mu)
+            assert r.stable[j] == (np.abs(mu).max() < 1)
+            mus.append(mu)
+        out = mus[1] if r.stable[lo] else mus[0]
+        assert np.all(np.abs(mus[0 if r.stable[lo] else 1]) < 1)
+        big = out[np.abs(out) > 1]
+        assert big.size == 2 and np.all(np.abs(big.imag) > 1e-2 * np.abs(big)), out
+        checked += 1
+        if n == 0:
+            def excess(ff, lo=lo):
+                frac = (ff - r.frequency_hz[lo]) / (r.frequency_hz[lo + 1] - r.frequency_hz[lo])
+                _, _, mu = _shoot(M, C, K, cubic, FC, 0, 2 * np.pi * ff, state(lo, frac))
+                return np.abs(mu).max() - 1
+            f_shoot = brentq(excess, r.frequency_hz[lo], r.frequency_hz[lo + 1], xtol=1e-13)
+            assert abs(f / f_shoot - 1) < 1e-9, (f, f_shoot)
+    assert checked >= 3

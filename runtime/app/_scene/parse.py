@@ -326,7 +326,8 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".",  # noqa: C901 (a che
             raise ValueError(f"nonlinear.accuracy = {options['accuracy']!r}: a {kind} with "
                              "[[element]] runs the DT-TMM sweep at a fixed nonlinear.substeps "
                              "(accuracy targets run on matrices and chains)")
-        if kind in MODEL_MODULES and scheme in MODAL:
+        steady_only = "harmonic" in data and "time" not in data and "scheme" not in data
+        if kind in MODEL_MODULES and scheme in MODAL and not steady_only:
             raise ValueError(f"scheme.name = {scheme!r}: the modal methods run on matrices; a "
                              f"{kind} with [[element]] runs the DT-TMM sweep with a one-step "
                              "scheme (newmark, hht, generalized_alpha, ...)")
@@ -355,13 +356,18 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".",  # noqa: C901 (a che
     x0 = v0 = None
     if "initial" in data:
         x0, v0 = _parse_initial(data["initial"], n_dof)
+    harmonic = None
+    if "harmonic" in data:  # the steady state's table (dtdyn steady)
+        from dtdyn.app._scene.steady import parse_harmonic
+
+        harmonic = parse_harmonic(data["harmonic"], n_dof, names, kind, elements)
     return Scene(title=title, **chain, loads=loads,
                  loaded=loaded, force=force, scheme=scheme, scheme_params=params, form=form,
                  sweep=sweep, backend=backend, dt=dt, n_steps=n_steps, outputs=outputs,
                  quantities=quantities, source=source, base_dir=base_dir, kind=kind, M=M, C=C, K=K,
                  dof_names=names, elements=elements, nonlinear=options, ground=ground,
                  ground_quantity=ground_quantity, influence=influence, x0=x0, v0=v0, model=model,
-                 unstable=unstable)
+                 unstable=unstable, harmonic=harmonic)
 
 
 def load_scene(path: str | os.PathLike | None = None) -> Scene:

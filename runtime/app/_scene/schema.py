@@ -132,6 +132,28 @@ The scheme of a nonlinear scene is ``scheme.name`` (default ``"modal_ramp"``): a
 ``model.sparse = true`` is refused) with the loads sampled every ``dt`` and the stored outputs
 and quantities the scene asks for; it is not compared with the exact solution.
 
+The periodic steady state of a scene with ``[[element]]`` tables (``dtdyn steady``,
+`run_steady`; ``scenes/duffing_steady.toml``) is set by a ``[harmonic]`` table whose keys are the
+keywords of `harmonic_balance` (dtdyn.app._scene.steady describes them all)::
+
+    [harmonic]
+    freqs_hz = [0.05, 0.4]              # (start, end), Hz
+    harmonics = 7                       # optional (default 7)
+    force_dofs = [0]                    # loaded DOFs (indices or model.dofs names)
+    force = [0.1]                       # one per force_dofs entry: a number or [re, im]
+    # force_harmonics = [[0.0, 0.1, [0.0, 0.02]]]   # or a row of harmonics 0, 1, ... per DOF
+    # ground_acceleration = 0.05        # or support motion (a number or [re, im]), influence
+    stability = true                    # optional; step, max_step, min_step, max_angle,
+                                        #   max_points, tol, max_iter, n_time, receptance too
+    # frequency_hz = 0.25, amplitudes = [0.05, 15.0]: the load's amplitude swept at one
+    #   frequency (harmonic_balance_amplitude) instead of freqs_hz
+
+``[output] outputs`` chooses the stored DOFs. ``[time]``, ``[scheme]``, ``[nonlinear]``,
+``[[load]]``, ``[ground]`` and ``[initial]`` belong to the time histories: a scene may hold both
+kinds of table; ``dtdyn simulate`` then ignores ``[harmonic]`` and ``dtdyn steady`` ignores
+those. A beam or shaft scene with ``[[element]]`` and ``[harmonic]`` but neither ``[time]`` nor
+``[scheme]`` needs no time-history scheme.
+
 Every error is a ``ValueError`` that names the file and the field, e.g.
 ``p3.toml: model.mass[3] = -1.0: every entry must be finite and > 0`` or
 ``p4.toml: element[1].expression = '__import__("os")': ...``.
@@ -160,8 +182,8 @@ QUANTITIES = ("x", "v", "a")
 #: run_scene compares with the matrix-exponential solution up to this many DOFs
 EXACT_MAX_DOF = 2000
 
-_TOP_KEYS = ("title", "model", "load", "ground", "initial", "element", "nonlinear", "scheme",
-             "time", "output", "branch")
+_TOP_KEYS = ("title", "model", "load", "ground", "initial", "element", "nonlinear", "harmonic",
+             "scheme", "time", "output", "branch")
 #: the units each [ground] quantity may be given in, the default first
 GROUND_UNITS = {"acceleration": ("m/s^2", "g"), "velocity": ("m/s",), "displacement": ("m",)}
 #: standard gravity, m/s^2 (a [ground] record in units of g)
@@ -309,6 +331,9 @@ class Scene:
         ("acceleration", "velocity", "displacement"), and r (None: ones).
     x0, v0 : ndarray or None
         The ``[initial]`` displacement and velocity of every DOF (None: rest).
+    harmonic : dict or None
+        The ``[harmonic]`` table as the keywords of `harmonic_balance` (with ``frequency_hz``
+        and ``amplitudes``: of `harmonic_balance_amplitude`), checked; None without one.
 
     Examples
     --------
@@ -352,6 +377,7 @@ class Scene:
     ground_stiffness: np.ndarray | None = None
     ground_damping: np.ndarray | None = None
     model: object | None = None  # the model object of a kind in MODEL_MODULES (e.g. a Shaft)
+    harmonic: dict | None = None  # the [harmonic] table: harmonic_balance's keywords
 
     @property
     def chain(self) -> dict:
