@@ -30,6 +30,7 @@ import numpy as np
 import scipy.linalg as sla
 
 import dtdyn as dd
+from dtdyn.linear import _beam
 from dtdyn.app import measure, pin_blas
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
@@ -44,18 +45,18 @@ MODES = (0, 1, 2, 3, 5, 9, 30, 100)
 def case(ends, n, repeats):
     beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=L, elements=n, left=ends[0], right=ends[1])
     M, _, K = (A.toarray() for A in dd.beam_matrices(beam))
-    rigid = dd.linear.beam.rigid_body_modes(beam)
+    rigid = _beam.rigid_body_modes(beam)
     modes = [rigid + j for j in MODES if rigid + j < beam.n_dof]
     ref, lam_lapack = extended_eigenvalues(K, M, modes)
     w = dd.beam_frequencies(beam)
     ours = np.abs(w[modes] ** 2 - ref) / ref
     lapack = np.abs(lam_lapack[modes] - ref) / ref
     worst = np.max(ours / np.maximum(lapack, np.finfo(float).eps))
-    wide, dd.linear.beam._WIDE = dd.linear.beam._WIDE, np.float64
+    wide, _beam._WIDE = _beam._WIDE, np.float64
     try:
         double = np.max(np.abs(dd.beam_frequencies(beam)[modes] ** 2 - ref) / ref)
     finally:
-        dd.linear.beam._WIDE = wide
+        _beam._WIDE = wide
     t_all = measure(lambda: dd.beam_frequencies(beam), repeats)[1]
     t_10 = measure(lambda: dd.beam_frequencies(beam, count=10), repeats)[1]
     e_all = measure(lambda: sla.eigh(K, M, eigvals_only=True), repeats)[1]

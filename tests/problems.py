@@ -1,8 +1,29 @@
-"""The reference problems for the tests: P1-P4 live in dtdyn.app._problems (one home); this adds the
-tests' own helpers."""
+"""The reference problems for the tests: P1-P4 are `dtdyn.problem` (one home, dtdyn.app); this adds
+the tests' own helpers."""
 import numpy as np
 
-from dtdyn.app._problems import p1, p2, p3, p4  # noqa: F401  (re-exported for the tests)
+from dtdyn import problem
+
+
+def p1() -> dict:
+    """P1, `dtdyn.problem("P1")`: one DOF under a unit step."""
+    return problem("P1")
+
+
+def p2() -> dict:
+    """P2, `dtdyn.problem("P2")`: the 2-DOF chain."""
+    return problem("P2")
+
+
+def p3() -> dict:
+    """P3, `dtdyn.problem("P3")`: the undamped 15-DOF chain of Kumar & Sankar (1986)."""
+    return problem("P3")
+
+
+def p4(n_samples: int = 100_000) -> dict:
+    """P4, `dtdyn.problem("P4")`: the nonlinear 4-DOF chain under ``n_samples`` of white noise."""
+    return problem("P4", n_samples=n_samples)
+
 
 _KEYS = ("mass", "stiffness", "damping", "dt", "T", "force_dofs")
 P1, P2, P3 = ({k: p[k] for k in _KEYS if k in p} for p in (p1(), p2(), p3()))

@@ -15,6 +15,7 @@ __all__, __getattr__, __dir__ = attach(__name__, {
     "_scene.run": ["run_scene"],
     "_scene.steady": ["run_steady"],
     "_batch.run": ["run_batch"],
+    "_batch.store": ["ResumeMismatchError"],
     "_batch.montecarlo": ["monte_carlo_summary"],
     # the `dtdyn` command's entry point, main(argv) -> exit code
     "_cli": ["main"],

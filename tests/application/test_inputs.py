@@ -2,8 +2,7 @@
 import numpy as np
 import pytest
 
-from dtdyn.linear._chain import chain_response
-from dtdyn.linear._mck import mck_response
+from dtdyn.linear import chain_response, mck_response
 
 M, K, C = [2.0, 3.0], [20.0, 15.0], [5.0, 6.0]
 F = np.ones((11, 1))

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
-from dtdyn._engine.result_io import check_result_path
 
 FORMATS = ["npz", "nc", "csv"]
 
@@ -61,8 +60,6 @@ def test_xarray_view(chain_result):
 def test_bad_paths_are_refused_before_writing(chain_result, tmp_path, name, message):
     with pytest.raises(ValueError, match=message):
         chain_result.save(tmp_path / name)
-    with pytest.raises(ValueError, match=message):
-        check_result_path(tmp_path / name)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -225,31 +222,3 @@ def test_earlier_commented_csv_still_loads(tmp_path):
     np.testing.assert_array_equal(back.x, [[1, 2], [5, 6]])
     np.testing.assert_array_equal(back.a, [[3, 4], [7, 8]])
     assert back.info["dt"] == 0.5 and back.meta["title"] == "old" and back.v is None
-
-
-def test_csv_and_sidecar_are_written_together(tmp_path, chain_result, monkeypatch):
-    """A failure while writing leaves the earlier table and sidecar as they were and no
-    temporary file; the pair is replaced only once both are complete."""
-    from dtdyn._engine import atomic, result_io
-
-    path = chain_result.save(tmp_path / "r.csv")
-    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
-    real = result_io._csv_files
-
-    def broken(response, p):
-        table, _ = real(response, p)
-        return table, None  # the sidecar's writer fails (bytes expected)
-
-    monkeypatch.setattr(result_io, "_csv_files", broken)
-    changed = dd.Response(chain_result.t, chain_result.outputs, x=2 * chain_result.x)
-    with pytest.raises(TypeError):
-        changed.save(path)
-    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
-
-    def second_fails(fh):
-        raise OSError("disk full")
-
-    with pytest.raises(OSError, match="disk full"):
-        atomic.write_atomic_files([(tmp_path / "a.txt", lambda fh: fh.write(b"a")),
-                                   (tmp_path / "b.txt", second_fails)])
-    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before

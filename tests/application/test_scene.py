@@ -9,8 +9,7 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from dtdyn.app._loads import sample_load
-from dtdyn._engine.result import Response
-from dtdyn import load_result
+from dtdyn import Response, load_result
 from dtdyn.app._scene import load_scene, plot_response, run_scene, save_results
 
 from dtdyn.app._problems import P3_MASS, P3_STIFFNESS  # the scene file must hold P3
@@ -305,8 +304,7 @@ def test_save_results_leaves_nothing_behind_on_failure(tmp_path, monkeypatch):
         f.write(b"partial")
         raise OSError("disk full")
 
-    from dtdyn._engine import result_io
-    monkeypatch.setattr(result_io.np, "savez", broken_savez)
+    monkeypatch.setattr(np, "savez", broken_savez)   # the numpy the result files write with
     with pytest.raises(OSError, match="disk full"):
         save_results(out, r, s)
     assert out.read_bytes() == b"previous"

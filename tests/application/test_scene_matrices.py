@@ -14,7 +14,7 @@ import scipy.sparse as sps
 from numpy.testing import assert_allclose, assert_array_equal
 
 from dtdyn.app._cli import main
-from dtdyn.linear._mck import mck_response
+from dtdyn.linear import mck_response
 from dtdyn.app._scene import load_scene, plot_response, run_scene, save_results
 
 M2 = np.array([[2.0, 0.5], [0.5, 1.0]])          # consistent-mass-like: not diagonal

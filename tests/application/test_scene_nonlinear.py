@@ -11,11 +11,10 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 from dtdyn.app import _problems as problems
-from dtdyn.linear._chain import chain_matrices
+from dtdyn import DtdynStepStabilityError, NewtonError
+from dtdyn.linear import chain_matrices
 from dtdyn.app._cli import main
-from dtdyn.nonlinear._elements import Cubic, Gap, Law
-from dtdyn.nonlinear._reference import reference_response
-from dtdyn.nonlinear._response import DtdynStepStabilityError, NewtonError, nonlinear_mck_response
+from dtdyn.nonlinear import Cubic, Gap, Law, nonlinear_mck_response, reference_response
 from dtdyn.app._scene import load_scene, run_scene
 
 P4_FILE = Path(str(importlib.resources.files("dtdyn.app").joinpath("scenes/p4.toml")))

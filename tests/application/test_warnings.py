@@ -14,10 +14,9 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
-from dtdyn._engine.errors import DtdynStabilityWarning, SRSSamplingWarning
-from dtdyn._engine.public import public, warn
+from dtdyn import DtdynStabilityWarning, SRSSamplingWarning
+from dtdyn.app._batch import Spectrum
 from dtdyn.app._cli import main
-from dtdyn.modal._spectrum import default_periods
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = Path(dd.__file__).resolve().parent
@@ -106,22 +105,6 @@ def test_warn_names_the_first_frame_outside_dtdyn():
 
 
 # --- once per call ---------------------------------------------------------------------------
-def test_a_warning_raised_many_times_in_one_call_is_shown_once():
-    """`warn` inside a public call: the same (category, message) three times is one warning;
-    another message is a second; a new call warns again."""
-    @public
-    def noisy(n):
-        for _ in range(n):
-            warn("the same thing", SRSSamplingWarning)
-        warn("something else", SRSSamplingWarning)
-
-    with warnings.catch_warnings(record=True) as rec:
-        warnings.simplefilter("always")
-        noisy(3)
-        noisy(3)
-    assert [str(w.message) for w in rec] == ["the same thing", "something else"] * 2
-
-
 def test_response_spectrum_warns_once_for_all_damping_ratios():
     """Periods too short for the record, four damping ratios (eight filter banks): one
     SRSSamplingWarning, naming the shortest period, its samples and its bias bound."""
@@ -144,7 +127,7 @@ def test_default_spectrum_of_a_100_hz_record_is_quiet():
     with warnings.catch_warnings():
         warnings.simplefilter("error", SRSSamplingWarning)
         s = dd.response_spectrum(ag, 0.01)
-        T = default_periods(0.01, count=40, shortest=0.05, longest=4.0)
+        T = Spectrum().resolved(0.01).periods       # the batch's srs reducer's periods
         dd.response_spectrum(ag, 0.01, T)
         fs = 100.0
         dd.shock_response_spectrum(ag, 0.01, np.geomspace(fs / 1e4, fs / 10, 100))
@@ -167,37 +150,6 @@ def test_default_commands_on_a_100_hz_record_print_no_warning(tmp_path, capsys):
     assert main(["spectrum", str(rec), "--dt", "0.01", "--periods", "0.02", "5", "10"]) == 0
     err = capsys.readouterr().err
     assert err.count("warning:") == 1 and "T = 0.02 s spans 2 samples" in err, err
-
-
-def test_default_periods_bias_bound_and_accuracy():
-    """The default periods start at 10 samples per period, where the linear-interpolation
-    bias bound 1 - sinc^2(dt/T) is 3.2 % (< 5 %, the warning level, reached at 8.03 dt). And
-    the bound is what a record shows: SA of an ordinary 100 Hz record against SA of its
-    band-limited (FFT) interpolation, 16 times finer, differs by less than the bound at
-    10 dt, and by more than 5 % at 4 dt (where the old default periods went below)."""
-    from scipy.signal import resample
-
-    from dtdyn.modal._spectrum import WARN_SAMPLES_PER_PERIOD
-
-    dt = 0.01
-    T = default_periods(dt)
-    assert T[0] == pytest.approx(10 * dt) and T.size == 60
-    assert 1 - np.sinc(dt / T[0]) ** 2 == pytest.approx(0.0325, abs=5e-4)
-    assert 1 - np.sinc(1 / WARN_SAMPLES_PER_PERIOD) ** 2 == pytest.approx(0.05, rel=1e-9)
-    assert default_periods(0.001)[0] == pytest.approx(0.02)       # 1 kHz: from 0.02 s
-    with pytest.raises(ValueError, match="dt = 1 s"):
-        default_periods(1.0)
-    ag = np.r_[_ordinary_record(seed=1), np.zeros(200)]
-    periods = np.array([4 * dt, 10 * dt])
-    linear = dd.response_spectrum(ag, dt, periods[1:])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", SRSSamplingWarning)
-        linear4 = dd.response_spectrum(ag, dt, periods[:1])
-        band = dd.response_spectrum(resample(ag, 16 * ag.size), dt / 16, periods)
-    err10 = abs(linear.sa[0, 0] / band.sa[0, 1] - 1)
-    err4 = abs(linear4.sa[0, 0] / band.sa[0, 0] - 1)
-    assert err10 < 1 - np.sinc(0.1) ** 2, err10
-    assert err4 > 0.05, err4
 
 
 def test_srs_default_frequencies_sampled_peaks_against_exact():
@@ -253,15 +205,13 @@ def test_renamed_srs_keywords_and_fields_warn_and_agree():
 
 
 def test_batch_spectrum_damping_ratio():
-    from dtdyn.app._batch import Spectrum
-
     with pytest.warns(DeprecationWarning, match="'damping' is now 'damping_ratio'"):
         old = Spectrum(periods=(0.1, 1.0), damping=0.02)
     assert old == Spectrum(periods=(0.1, 1.0), damping_ratio=0.02)
     with pytest.warns(DeprecationWarning):
         assert old.damping == 0.02
-    assert Spectrum().resolved(0.01).periods == tuple(
-        default_periods(0.01, count=40, shortest=0.05, longest=4.0))
+    # 40 periods from max(0.05 s, 10 dt) to 4 s (docs/batch.md)
+    assert Spectrum().resolved(0.01).periods == tuple(np.geomspace(max(0.05, 10 * 0.01), 4.0, 40))
     assert Spectrum().resolved(0.001).periods[0] == pytest.approx(0.05)
 
 

@@ -12,7 +12,7 @@ import scipy.linalg as sla
 
 import dtdyn as dd
 from dtdyn.generated import beam as derived
-from dtdyn._engine.schemes import NAMES
+from dtdyn.generated.scheme_table import TABLE  # the built-in schemes, in order
 
 E, I, RHO_A, LENGTH = 2.1e11, 8.0e-6, 20.0, 3.0
 SCALE = np.sqrt(E * I / (RHO_A * LENGTH**4))
@@ -87,7 +87,7 @@ def _step_at_midspan(beam, form, scheme, backend, n=1500, dt=2e-5, **kw):
 
 
 #: the unconditionally stable schemes (a beam's highest mode is far beyond the others' limits)
-STABLE = [s for s in NAMES if s not in ("central_difference", "linear_acceleration",
+STABLE = [s for s in TABLE if s not in ("central_difference", "linear_acceleration",
                                         "fox_goodwin", "newmark_1_8")]
 
 

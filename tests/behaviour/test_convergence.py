@@ -42,7 +42,7 @@ import pytest
 from dtdyn.generated import SCHEMES
 from dtdyn.linear._chain import chain_matrices, chain_response
 from dtdyn.linear._exact import exact_response
-from dtdyn.app._problems import P3_MASS, P3_STIFFNESS
+from dtdyn import problem
 
 SLOPE_TOL = 0.25  # see the module docstring
 
@@ -56,7 +56,7 @@ P2_STEPS = (80, 160, 320, 640, 1280)
 P2_LOADED = [1]  # last mass, 0-based
 
 # ---------------------------------------------------------------------------------------- P3
-P3_STIFF = P3_STIFFNESS  # P3_MASS, P3_STIFFNESS: dtdyn.app._problems
+P3_MASS, P3_STIFF = (problem("P3")[key] for key in ("mass", "stiffness"))
 P3_T = 0.8
 P3_DTS = (2e-3, 1e-3, 5e-4, 2.5e-4)
 

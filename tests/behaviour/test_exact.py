@@ -8,7 +8,7 @@ from scipy.integrate import quad_vec, solve_ivp
 from scipy.linalg import expm
 
 from dtdyn.linear._exact import exact_response, foh_matrices
-from dtdyn._engine.result import Response
+from dtdyn import Response
 
 
 def chain(m, k, c):

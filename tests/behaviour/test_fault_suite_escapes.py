@@ -18,9 +18,7 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
-from dtdyn._engine import validate
-from dtdyn.app._cli import main
-from dtdyn.app._scene.parse import stored_columns
+from dtdyn.app import main
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "faults.md"
 START, END = "<!-- faults:start -->", "<!-- faults:end -->"
@@ -156,18 +154,7 @@ def test_escape_is_named_within_5_s(case, tmp_path):
     assert took < LIMIT_S, f"{case[0]}: {took:.2f} s"
 
 
-# --- a valid run that was refused, and the estimate behind it ---------------------------------
-
-def test_scene_estimate_counts_what_is_stored():
-    """A chain scene stores the time, the loaded DOFs' force columns and the outputs' quantities,
-    not a force column per DOF (a 2,000-mass, 400,000-step, one-output scene was refused with
-    "needs 5.97 GiB"; it needs 3 values per sample, 9.6 MB)."""
-    assert stored_columns(2000, 1, False, 1, 1) == 3
-    assert stored_columns(2000, 2, False, 3, 2) == 1 + 2 + 6
-    # support motion loads every DOF that M r reaches (at most all) plus the record itself
-    assert stored_columns(2000, 0, True, 1, 1) == 1 + 2001 + 1
-    assert 400_001 * stored_columns(2000, 1, False, 1, 1) * 8 < 10e6
-
+# --- a valid run that was refused (the estimate behind it: tests/application/test_scene_limits.py)
 
 def _chain_scene(n, steps, dt=1e-4):
     ones = ", ".join(["1.0"] * n)
@@ -190,7 +177,7 @@ def _chain_scene(n, steps, dt=1e-4):
 
 SCENE_RUN = """
 import resource, sys
-from dtdyn.app._cli import main
+from dtdyn.app import main
 with open("/proc/self/statm") as fh:
     mapped = int(fh.read().split()[0]) * resource.getpagesize()
 resource.setrlimit(resource.RLIMIT_AS, (mapped + {limit_mb} * 2**20, resource.RLIM_INFINITY))
@@ -228,20 +215,6 @@ def test_the_same_scene_at_a_smaller_size_matches_chain_response(tmp_path):
     # the exact check ran (50 DOFs, 2,000 steps); Newmark's phase error at omega_max dt = 0.2
     # ((omega dt)^2 / 12 = 0.3 % per period of the highest modes) leaves about 1 %
     assert report["check"] == "done" and report["max_rel_error"] < 0.05
-
-
-def test_dense_conversion_check_names_the_size_before_allocating(monkeypatch):
-    """The one dense-conversion check (validate.dense_conversion) counts n x n x 8 B per copy
-    and names the sparse paths; a model that fits passes untouched."""
-    monkeypatch.setattr(validate, "available_memory", lambda: 10 * 2**20)  # 10 MiB
-    M, C, K = _chain_sparse(1000)  # dense: 8 MB each, 24 MB for the three
-    with pytest.raises(MemoryError, match=r"exact_response: M is a sparse 1,000 x 1,000 matrix; "
-                       r"as dense matrices \(3 of this size\) they would need 22.9 MiB, more "
-                       r"than the 10 MiB available"):
-        dd.exact_response(M, C, K, np.ones(11), 1e-3, force_dofs=[0])
-    M, C, K = _chain_sparse(300)  # 0.7 MB each: converted
-    r = dd.exact_response(M, C, K, np.ones(11), 1e-3, force_dofs=[0], outputs=[0])
-    assert r.x.shape == (11, 1)
 
 
 def test_mck_response_still_answers_a_tiny_dt():
@@ -289,16 +262,6 @@ def test_cli_names_a_deep_scene_in_one_line(tmp_path, capsys):
     assert main(["simulate", str(path), "--out", str(tmp_path / "r.npz")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "nested too deep" in err, err
-
-
-def test_an_oversized_scene_file_is_refused_before_reading(tmp_path, monkeypatch):
-    from dtdyn.app._scene import parse
-
-    monkeypatch.setattr(parse, "MAX_SCENE_BYTES", 100)
-    path = _write(tmp_path, "big.toml", _chain_scene(20, 10))
-    with pytest.raises(ValueError, match=r"big\.toml: the scene file is [\d,]+ bytes; the limit "
-                                         r"is 100"):
-        dd.load_scene(path)
 
 
 # --- docs/faults.md: the table is what these tests raise --------------------------------------

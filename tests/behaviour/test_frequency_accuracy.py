@@ -14,6 +14,7 @@ import pytest
 import scipy.linalg as sla
 
 import dtdyn as dd
+from dtdyn.linear import _beam
 
 E, I, RHO_A, L = 2.1e11, 8e-6, 20.0, 3.0
 
@@ -109,7 +110,7 @@ def test_rigid_modes_exact_zeros_and_fast():
                           right="free")
     w = dd.beam_frequencies(pinned_free, count=3)
     assert w[0] == 0.0 and w[1] > 0.0
-    assert dd.linear.beam.rigid_body_modes(pinned_free) == 1
+    assert _beam.rigid_body_modes(pinned_free) == 1
 
 
 def test_roots_do_not_depend_on_count_and_few_counts(monkeypatch):
@@ -117,17 +118,17 @@ def test_roots_do_not_depend_on_count_and_few_counts(monkeypatch):
     below and all); regula falsi inside each isolating bracket needs far fewer counts than
     bisecting to adjacent floats (93 for this beam)."""
     beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=L, elements=200, left="clamped", right="free")
-    inertia = dd.linear.beam._inertia
+    inertia = _beam._inertia
     calls = []
 
     def counted(*args, **kwargs):
         calls.append(args[1].size)
         return inertia(*args, **kwargs)
 
-    monkeypatch.setattr(dd.linear.beam, "_inertia", counted)
+    monkeypatch.setattr(_beam, "_inertia", counted)
     w5 = dd.beam_frequencies(beam, count=5)
     assert len(calls) <= 30, len(calls)
-    monkeypatch.setattr(dd.linear.beam, "_inertia", inertia)
+    monkeypatch.setattr(_beam, "_inertia", inertia)
     w = dd.beam_frequencies(beam, count=40)
     assert np.array_equal(w[:5], w5)
     assert np.array_equal(dd.beam_frequencies(beam, below=float(w[12]) * (1 + 1e-9)), w[:13])
@@ -135,7 +136,7 @@ def test_roots_do_not_depend_on_count_and_few_counts(monkeypatch):
     M, _, K = (A.toarray() for A in dd.beam_matrices(beam))
     lam = sla.eigh(K, M, eigvals_only=True)
     between = np.sqrt(lam[:39] * lam[1:40])
-    assert np.array_equal(dd.linear.beam.wittrick_williams_counts(beam, between),
+    assert np.array_equal(_beam.wittrick_williams_counts(beam, between),
                           np.arange(1, 40))
 
 
@@ -143,7 +144,7 @@ def test_guarded_pass_gives_the_same_counts():
     """The guarded pass (taken when a pivot cancels exactly) counts as the plain one."""
     beam = dd.Beam(E=E, I=I, rho_A=RHO_A, length=L, elements=30, left="pinned", right="free",
                    supports=[dd.Support(node=12, k_w=1e6)])
-    mod = dd.linear.beam
+    mod = _beam
     blocks = mod._count_blocks(beam)
     lam = np.geomspace(1.0, 1e14, 200).astype(mod._WIDE) * mod._WIDE(blocks[-1])
     plain, logdet = mod._inertia(blocks, lam, det=True)

@@ -1,4 +1,4 @@
-"""Harmonic balance (runtime/nonlinear/harmonic_balance.py) against independent truths.
+"""Harmonic balance (dd.harmonic_balance) against independent truths.
 
 Truths: the linear frequency response (a direct solve of K - w^2 M + i w C); the first-harmonic
 Duffing relation [(k - m w^2) a + 3/4 k3 a^3]^2 + (c w a)^2 = F^2 (exact for a one-harmonic
@@ -14,7 +14,6 @@ from scipy.optimize import minimize_scalar
 
 import dtdyn as dd
 from dtdyn import nonlinear_mck_response
-from dtdyn._engine.errors import NewtonError
 from dtdyn.nonlinear._elements import BoucWen, Cubic, Law, element_matrix
 from dtdyn.nonlinear._harmonic_balance import harmonic_balance, harmonic_balance_amplitude
 
@@ -310,7 +309,7 @@ def test_misspelled_keyword_is_named():
 
 
 def test_undamped_resonance_of_the_linear_part_is_a_newton_error():
-    with pytest.raises((NewtonError, ValueError)):
+    with pytest.raises((dd.NewtonError, ValueError)):
         harmonic_balance(np.eye(1), [[0.0]], np.eye(1), elements=[Cubic(0, k3=0.0)],
                          force_dofs=[0], force=[1.0], freqs_hz=(0.1, 0.3))
 

@@ -31,16 +31,3 @@ def test_c_loop_equals_numpy_loop(model, scheme):
     for q in "xva":
         ref = getattr(a, q)
         assert np.abs(getattr(b, q) - ref).max() <= t * np.abs(ref).max(), q
-
-
-def test_c_loop_stores_only_what_is_asked_and_runs_in_blocks(model, monkeypatch):
-    from dtdyn._engine import stepping
-
-    M, C, K, f = model
-    monkeypatch.setattr(stepping, "CHECK_BLOCK", 7)   # many calls, the history carried
-    a = dd.mck_response(M, C, K, f, 1e-3, force_dofs=[3, 9], quantities=("v",), backend="numpy")
-    b = dd.mck_response(M, C, K, f, 1e-3, force_dofs=[3, 9], quantities=("v",))
-    assert b.x is None and b.a is None
-    assert np.abs(b.v - a.v).max() <= 1e-12 * np.abs(a.v).max()
-    with pytest.raises(ValueError, match="backend must be 'c' or 'numpy'"):
-        dd.mck_response(M, C, K, f, 1e-3, force_dofs=[3, 9], backend="fortran")

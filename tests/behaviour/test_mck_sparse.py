@@ -82,19 +82,6 @@ def test_sparse_c_loop_equals_numpy_and_dense_loops(request, model, scheme):
     _compare(b, c, scheme, "sparse C vs dense C")
 
 
-def test_sparse_c_loop_in_blocks_stores_only_what_is_asked(chain, monkeypatch):
-    from dtdyn._engine import stepping
-
-    M, C, K = chain
-    f = np.random.default_rng(4).standard_normal(2001)
-    monkeypatch.setattr(stepping, "CHECK_BLOCK", 7)  # many calls, the history carried
-    kw = dict(force_dofs=[199], quantities=("v",), outputs=[5, 150], scheme="park")
-    a = dd.mck_response(M, C, K, f, 1e-3, backend="numpy", **kw)
-    b = dd.mck_response(M, C, K, f, 1e-3, **kw)
-    assert b.x is None and b.a is None and b.v.shape == (2001, 2)
-    assert np.abs(b.v - a.v).max() <= 1e-12 * np.abs(a.v).max()
-
-
 @pytest.mark.parametrize("backend", ["c", "numpy"])
 def test_singular_sparse_effective_matrix_is_named(backend):
     # DOF 2 has neither mass, damper nor spring: M + Dv C + Dx K has a zero row

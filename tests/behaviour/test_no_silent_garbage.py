@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
-from dtdyn.app._cli import main
+from dtdyn.app import main
 
 MASS, STIFF, DAMP = [1.0, 1.0], [1e4, 1e4], [0.0, 0.0]   # omega_max = 161.8 rad/s
 

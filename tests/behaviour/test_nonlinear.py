@@ -663,36 +663,6 @@ def test_modal_path_with_real_poles_agrees_with_casadi(method):
         assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max(), q
 
 
-@pytest.mark.parametrize("variant", [[], ["-DNL_EXPLICIT=1"], ["-DNL_EXPLICIT=1", "-DNL_NZ=0"],
-                                     ["-mavx", "-mfma"],
-                                     ["-mavx", "-mfma", "-DNL_EXPLICIT=1", "-DNL_NZ=0"]])
-def test_modal_path_compiles_cleanly(tmp_path, variant):
-    """nl_loop.c with the modal path compiled in (its vectors of 4 are GCC/Clang vector
-    extensions) as C99 with -Wall -Wextra -Werror -pedantic, as the general path is checked in
-    tests/generated_code: implicit and explicit (NL_EXPLICIT, with and without internal states),
-    with and without the fused multiply-add intrinsics (VFMA)."""
-    import shutil
-    import subprocess
-
-    from dtdyn._engine import cbuild
-    cc = shutil.which("cc") or shutil.which("gcc")
-    if cc is None:
-        pytest.skip("no C compiler on this machine")
-    src = tmp_path / "nl_loop.c"
-    src.write_text(cbuild.generated_source("nl_loop.c"))
-    sizes = {"NS": 10, "NF": 1, "NE": 2, "NW": 4, "NZ": 1, "NO": 5, "NM": 6, "NH": 4, "NST": 7}
-    for flag in variant:
-        if flag.startswith("-DNL_N"):
-            key, value = flag[5:].split("=")
-            sizes[key] = int(value)
-    defines = [f"-DNL_{k}={v}" for k, v in sizes.items()]
-    defines += [f for f in variant if not f.startswith("-DNL_N")]
-    proc = subprocess.run([cc, "-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", *defines,
-                           "-c", str(src), "-o", str(tmp_path / "k.o")],
-                          capture_output=True, text=True)
-    assert proc.returncode == 0, proc.stderr
-
-
 def test_p4_explicit_convergence_order(P4, P4_ref):
     """Seventh order (the polynomial of degree 6 extrapolated over the step), approached from
     below on these 3,000 samples: 2^5.99 from 1 to 2 sub-steps, 2^6.75 from 2 to 4 (measured);
@@ -874,7 +844,7 @@ def test_forces_before_start_on_a_stiff_damped_model():
     import time
     import warnings
 
-    from dtdyn._engine.errors import DtdynAccuracyWarning
+    from dtdyn import DtdynAccuracyWarning
     M, els, x0 = np.eye(2), [Cubic(0, k3=1e9)], [1e-3, 1.0001e-3]
     f = np.zeros((201, 1))
     for k2, expect_warning in ((5e9, False), (5e13, True)):

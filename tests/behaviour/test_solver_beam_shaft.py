@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
+from dtdyn.linear import _beam, _shaft
 
 FIELDS = ("x", "v", "a", "a_abs", "x_abs")
 SCHEMES = [("newmark", {}), ("hht", {"alpha": -0.1}), ("wilson", {"theta": 1.42}),
@@ -109,8 +110,8 @@ def test_solver_equals_mck_response_on_the_assembled_matrices(kind):
     for case in cases(model):
         force = case.pop("force")
         if "influence" not in case and any(k.startswith("ground") for k in case):
-            case["influence"] = (dd.linear.beam.rigid_translation(model)[:, 0] if kind == "beam"
-                                 else dd.linear.shaft.rigid_rotation(model))
+            case["influence"] = (_beam.rigid_translation(model)[:, 0] if kind == "beam"
+                                 else _shaft.rigid_rotation(model))
         case["force_dofs"] = [model.dof(d) if isinstance(d, str) else d
                               for d in case["force_dofs"]]
         got = solver.run(force, **case)

@@ -16,7 +16,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
 from dtdyn.modal import _srs as S
-from dtdyn.app._cli import main
+from dtdyn.app import main
 from dtdyn.modal._srs import SRSSamplingWarning, sdof_response, shock_response_spectrum
 
 G = 9.80665
@@ -398,7 +398,7 @@ def test_cli_srs_csv_record_and_errors(tmp_path, capsys):
 
 
 def test_cli_response_choices_match_runtime(capsys):
-    from dtdyn.app._cli import main
+    from dtdyn.app import main
 
     assert main(["srs", "--help"]) == 0
     text = capsys.readouterr().out

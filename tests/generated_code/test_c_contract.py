@@ -111,9 +111,7 @@ def test_python_side_names_the_refusal(monkeypatch):
 
 @pytest.mark.skipif(not cbuild.c_available(), reason="no C compiler on this machine")
 def test_shaft_kernel_refuses_a_short_work_array_at_entry():
-    from dtdyn.linear._shaft import _c_function
-
-    fn = _c_function("newmark")
+    fn = kernels.c_scheme_function("shaft", "newmark")
     N = 4
     work = np.full(gen.SHAFT_ROWS * N - 1, 7.0)
     parent = np.array([-1, 0, 1, 2], dtype=np.int64)

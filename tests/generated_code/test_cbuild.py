@@ -165,6 +165,14 @@ def test_rejects_bad_name(bad):
         cbuild.load_library(AXPY_SRC, bad)
 
 
+@pytest.mark.parametrize("name", ["x; system(\"rm -rf /\")", "a b", "../../etc/passwd", "",
+                                  "x\n#include <stdio.h>"])
+def test_names_never_reach_c_unchecked(name):
+    """(From the fault suite, tests/behaviour/test_fault_suite.py.)"""
+    with pytest.raises(ValueError):
+        cbuild.load_library("int f(void) { return 1; }", name)
+
+
 # --- cache integrity: a damaged, emptied or swapped library is rebuilt, never loaded -------------
 
 OTHER_SRC = "double other(double x) { return -x; }\n"

@@ -28,7 +28,7 @@ from numpy.testing import assert_allclose
 import dtdyn.generated as G
 from dtdyn.generated import tmm as gtmm
 from dtdyn._engine import kernels
-from dtdyn.linear._chain import DtdynAccuracyWarning, chain_response
+from dtdyn import DtdynAccuracyWarning, chain_response
 
 RTOL = 1e-13
 N_DRAWS = 25

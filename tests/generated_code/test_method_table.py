@@ -1,10 +1,10 @@
 """The nonlinear modal methods are data of the one scheme table (generated/scheme_table.py
 METHODS and AUTO, from dtdyn.derive.nonlinear), beside the time integrators (TABLE), and the
-runtime reads them from there."""
+engine's scheme registry reads the integrators from there (that the nonlinear room reads the
+methods from there: tests/behaviour/test_nonlinear_method_table.py)."""
 from dtdyn._engine.schemes import NAMES
 from dtdyn.generated import nl_modal
 from dtdyn.generated.scheme_table import AUTO, METHODS, TABLE
-from dtdyn.nonlinear import _accuracy as accuracy, _linear_step as linear_step
 
 
 def test_methods_sit_beside_the_time_integrators():
@@ -12,18 +12,6 @@ def test_methods_sit_beside_the_time_integrators():
     assert NAMES == tuple(TABLE)                       # the time integrators only
     assert AUTO["singular_mass"] in TABLE
     assert {AUTO[k] for k in ("first", "next", "then")} <= set(METHODS)
-    assert (accuracy.AUTO, accuracy.AUTO_NEXT, accuracy.AUTO_THEN, accuracy.AUTO_SINGULAR_M) == (
-        AUTO["first"], AUTO["next"], AUTO["then"], AUTO["singular_mass"])
-
-
-def test_runtime_reads_the_table():
-    assert linear_step.MODAL == tuple(METHODS)
-    assert set(linear_step.POLYNOMIAL) == set(nl_modal.POLYNOMIALS)   # those with tables
-    assert linear_step.EXPLICIT == ("modal_explicit",)
-    for name, row in METHODS.items():
-        assert row["order"] == row["degree"] + 1, name
-        assert accuracy.scheme_order(name, {}) == row["order"]
-        assert linear_step.THETA_LIMIT[name] == row["theta_limit"]
 
 
 def test_theta_limits():

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from dtdyn.app._cli import main
+from dtdyn.app import main
 from dtdyn.random_vibration import psd_table
 from dtdyn.random_vibration._spectra import (extreme_response_spectrum, fatigue_damage_spectrum,
                                             fds_equivalent_psd, vibration_response_spectrum)

@@ -21,7 +21,7 @@ pytest.importorskip("zarr")
 
 from scipy import stats  # noqa: E402
 
-from dtdyn.app._batch import Damage, Rms, Welch, monte_carlo_summary  # noqa: E402
+from dtdyn.app import Damage, Rms, Welch, monte_carlo_summary  # noqa: E402
 from dtdyn.random_vibration import (chain_random_response, psd_table,  # noqa: E402
                                     spectral_damage)
 

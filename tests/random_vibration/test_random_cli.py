@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
-from dtdyn.app._cli import main
+from dtdyn.app import main
 from dtdyn.random_vibration import psd_table, random_response
 
 ROWS = [(5.0, 1.0), (40.0, 1.0), (100.0, 0.16)]
