@@ -7,8 +7,9 @@ with a work array receives its length (``n_work``) and returns ``DTDYN_ERR_WORK`
 touching it when it is too short. Where the length is a count of rows, the count is a constant
 here (the runtime allocates ``<ROWS> * N``); where it is a formula of the problem's sizes (the
 modal filters, the nonlinear loops), the kernel's source defines a size function in `KERNELS`
-(``dtdyn_modal_filters_work``, ``dtdyn_nl_work``, ``dtdyn_nl_chain_work``) that the runtime calls
-to allocate and the kernel calls to check, so the formula is written once."""
+(``dtdyn_modal_filters_work``, ``dtdyn_nl_work``, ``dtdyn_nl_chain_work``,
+``dtdyn_nl_stations_work``) that the runtime calls to allocate and the kernel calls to check, so
+the formula is written once."""
 from __future__ import annotations
 
 import re
@@ -25,9 +26,9 @@ KERNELS = {
         "long n_work", "double *ehist", "double *err", "int threads")),
     # every dtdyn_shaft_<scheme> (derive/shaft.py): the DT-TMM loop of a torsional tree
     "dtdyn_shaft": ("int", (
-        "int form", "long N", "long n_steps", "const long *parent", "const double *gu",
-        "const double *gS", "const double *gR", "const double *m", "const double *k",
-        "const double *c", "const double *kg", "const double *cg", "double dt",
+        "int form", "int sweep", "long N", "long n_steps", "const long *parent",
+        "const double *gu", "const double *gS", "const double *gR", "const double *m",
+        "const double *k", "const double *c", "const double *kg", "const double *cg", "double dt",
         "const double *params", "long n_loaded", "const long *loaded", "const double *force",
         "double *hist", "long n_out", "const long *out_idx", "double *xo", "double *vo",
         "double *ao", "double *work", "long n_work")),
@@ -106,6 +107,16 @@ KERNELS = {
         "nl_int *restrict iwork", "long n_iwork")),
     # csrc/nl_chain.h: the doubles dtdyn_nl_chain's work needs for these dims
     "dtdyn_nl_chain_work": ("long", ("const long *dims",)),
+    # csrc/nl_stations.h: beams (block chain step) and shafts (the tree sweep through
+    # ``sweep``, NULL for a beam) with nonlinear elements, the whole record
+    "dtdyn_nl_stations": ("int", (
+        "const long *dims", "shaft_fn sweep", "const long *const *idx",
+        "const double *const *mats", "double *restrict H", "double *restrict u",
+        "double *restrict g", "double *restrict rate", "double *const *out", "double h",
+        "double tol", "double *stats", "long *fail", "double *restrict work", "long n_work",
+        "nl_int *restrict iwork", "long n_iwork")),
+    # ... and the doubles its work needs for these dims
+    "dtdyn_nl_stations_work": ("long", ("const long *dims",)),
 }
 
 #: the contract's numbers: name -> (value, meaning); ``#define DTDYN_<name> <value>`` in
@@ -147,6 +158,14 @@ CONSTANTS = {
     "BLOCK_CHAIN_GAP": (8, "doubles before each row (64 bytes: the rows stay aligned)"),
     "BLOCK_CHAIN_ALIGN": (8, "the node stride P of every per-node row: N + 1 rounded up to a "
                              "multiple of this many doubles (64 bytes: the rows stay aligned)"),
+    # dtdyn_nl_stations' model (its dims[0], nl_stations.h)
+    "NL_STATIONS_BEAM": (0, "a beam: the block chain step (block_chain.h)"),
+    "NL_STATIONS_SHAFT": (1, "a shaft or tree: the tree sweep dtdyn_shaft_<scheme>"),
+    # the Newton solve of dtdyn_nl_chain and dtdyn_nl_stations (their dims[15], dims[16];
+    # newton.h)
+    "NEWTON_PLAIN": (0, "plain Newton: an LU of the Jacobian at every iteration (newton_solve)"),
+    "NEWTON_KEPT_LU": (1, "the LU factors kept while the iteration contracts (newton_kept), "
+                          "their nu^2 + nu doubles in work"),
     # dtdyn_modal_filters' work (modal_filters.h): 2 m (MODAL_BLOCK + n_out) doubles
     "MODAL_BLOCK": (256, "samples per block of the modal filters (the states' rows of a block "
                          "are kept in work: 2 m MODAL_BLOCK doubles, then 2 m n_out weights)"),
@@ -195,7 +214,7 @@ def check_layout(plain_rows: int = 0) -> None:
 BODIES = {"ss_response.c": "ss_response.h", "filter_bank.c": "filter_bank.h",
           "sturm.c": "sturm.h", "fma_peak.c": "fma_peak.h", "mck_loop.c": "mck_loop.h",
           "block_chain.c": "block_chain.h", "nl_loop.c": "nl_loop.h", "nl_chain.c": "nl_chain.h",
-          "rainflow.c": "rainflow.h"}
+          "nl_stations.c": "nl_stations.h", "rainflow.c": "rainflow.h"}
 
 #: the kernels each generated source defines
 SOURCES = {
@@ -211,6 +230,8 @@ SOURCES = {
                        "dtdyn_modal_filters"),
     "nl_loop.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_work", "dtdyn_nl_run"),
     "nl_chain.c": ("dtdyn_set_stop", "nl_residual", "dtdyn_nl_chain_work", "dtdyn_nl_chain"),
+    "nl_stations.c": ("dtdyn_set_stop", "dtdyn_block_chain_factor", "dtdyn_block_chain_solve",
+                      "nl_residual", "dtdyn_nl_stations_work", "dtdyn_nl_stations"),
 }
 
 #: kernel -> the loop it runs with subnormals flushed to zero (csrc/flush_subnormals.h): the
@@ -218,7 +239,7 @@ SOURCES = {
 FLUSHED = {"dtdyn_ss_states": "ss_states_run", "dtdyn_filter_bank": "filter_bank_run",
            "dtdyn_mck_loop": "mck_loop_run", "dtdyn_block_chain_loop": "block_chain_loop_run",
            "dtdyn_modal_filters": "modal_filters_run", "dtdyn_nl_run": "nl_loop_run",
-           "dtdyn_nl_chain": "nl_chain_run"}
+           "dtdyn_nl_chain": "nl_chain_run", "dtdyn_nl_stations": "nl_stations_run"}
 
 _SCALARS = {"int": "c_int", "long": "c_long", "double": "c_double"}
 
@@ -246,7 +267,8 @@ def header(schemes: list[str], shaft_schemes: list[str]) -> dict:
             protos += [prototype(kernel, f"dtdyn_shaft_{s}") for s in shaft_schemes]
         else:
             protos.append(prototype(kernel))
-    return {"typedefs": [*TYPEDEFS, pointer_typedef("chain_fn", "dtdyn_chain")],
+    return {"typedefs": [*TYPEDEFS, pointer_typedef("chain_fn", "dtdyn_chain"),
+                         pointer_typedef("shaft_fn", "dtdyn_shaft")],
             "defines": [(f"DTDYN_{n}", v, doc) for n, (v, doc) in CONSTANTS.items()],
             "prototypes": protos}
 
@@ -279,8 +301,9 @@ def flushed_entries(source: str) -> str:
 
 
 def _ctype(param: str) -> str:
-    """ctypes name of a C parameter: pointers (and the function pointer chain_fn) are addresses."""
-    if "*" in param or param.split()[0] == "chain_fn":
+    """ctypes name of a C parameter: pointers (and the function pointers chain_fn, shaft_fn) are
+    addresses."""
+    if "*" in param or param.split()[0] in ("chain_fn", "shaft_fn"):
         return "c_void_p"
     return _SCALARS[param.split()[-2]]
 

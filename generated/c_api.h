@@ -18,6 +18,12 @@ typedef int (*chain_fn)(int form, int sweep, long N, long n_steps, const double 
                         const double *force, double *hist, long n_out, const long *out_idx,
                         double *xo, double *vo, double *ao, double *work, long n_work,
                         double *ehist, double *err, int threads);
+typedef int (*shaft_fn)(int form, int sweep, long N, long n_steps, const long *parent,
+                        const double *gu, const double *gS, const double *gR, const double *m,
+                        const double *k, const double *c, const double *kg, const double *cg,
+                        double dt, const double *params, long n_loaded, const long *loaded,
+                        const double *force, double *hist, long n_out, const long *out_idx,
+                        double *xo, double *vo, double *ao, double *work, long n_work);
 
 /* success */
 #define DTDYN_OK (0)
@@ -70,6 +76,15 @@ typedef int (*chain_fn)(int form, int sweep, long N, long n_steps, const double 
 /* the node stride P of every per-node row: N + 1 rounded up to a multiple of this many doubles (64
  * bytes: the rows stay aligned) */
 #define DTDYN_BLOCK_CHAIN_ALIGN (8)
+/* a beam: the block chain step (block_chain.h) */
+#define DTDYN_NL_STATIONS_BEAM (0)
+/* a shaft or tree: the tree sweep dtdyn_shaft_<scheme> */
+#define DTDYN_NL_STATIONS_SHAFT (1)
+/* plain Newton: an LU of the Jacobian at every iteration (newton_solve) */
+#define DTDYN_NEWTON_PLAIN (0)
+/* the LU factors kept while the iteration contracts (newton_kept), their nu^2 + nu doubles in work
+ */
+#define DTDYN_NEWTON_KEPT_LU (1)
 /* samples per block of the modal filters (the states' rows of a block are kept in work: 2 m
  * MODAL_BLOCK doubles, then 2 m n_out weights) */
 #define DTDYN_MODAL_BLOCK (256)
@@ -155,13 +170,13 @@ int dtdyn_chain_bossak(int form, int sweep, long N, long n_steps, const double *
                        double *hist, long n_out, const long *out_idx, double *xo, double *vo,
                        double *ao, double *work, long n_work, double *ehist, double *err,
                        int threads);
-int dtdyn_shaft_newmark(int form, long N, long n_steps, const long *parent, const double *gu,
-                        const double *gS, const double *gR, const double *m, const double *k,
-                        const double *c, const double *kg, const double *cg, double dt,
-                        const double *params, long n_loaded, const long *loaded,
+int dtdyn_shaft_newmark(int form, int sweep, long N, long n_steps, const long *parent,
+                        const double *gu, const double *gS, const double *gR, const double *m,
+                        const double *k, const double *c, const double *kg, const double *cg,
+                        double dt, const double *params, long n_loaded, const long *loaded,
                         const double *force, double *hist, long n_out, const long *out_idx,
                         double *xo, double *vo, double *ao, double *work, long n_work);
-int dtdyn_shaft_average_acceleration(int form, long N, long n_steps, const long *parent,
+int dtdyn_shaft_average_acceleration(int form, int sweep, long N, long n_steps, const long *parent,
                                      const double *gu, const double *gS, const double *gR,
                                      const double *m, const double *k, const double *c,
                                      const double *kg, const double *cg, double dt,
@@ -169,7 +184,7 @@ int dtdyn_shaft_average_acceleration(int form, long N, long n_steps, const long 
                                      const double *force, double *hist, long n_out,
                                      const long *out_idx, double *xo, double *vo, double *ao,
                                      double *work, long n_work);
-int dtdyn_shaft_linear_acceleration(int form, long N, long n_steps, const long *parent,
+int dtdyn_shaft_linear_acceleration(int form, int sweep, long N, long n_steps, const long *parent,
                                     const double *gu, const double *gS, const double *gR,
                                     const double *m, const double *k, const double *c,
                                     const double *kg, const double *cg, double dt,
@@ -177,19 +192,19 @@ int dtdyn_shaft_linear_acceleration(int form, long N, long n_steps, const long *
                                     const double *force, double *hist, long n_out,
                                     const long *out_idx, double *xo, double *vo, double *ao,
                                     double *work, long n_work);
-int dtdyn_shaft_fox_goodwin(int form, long N, long n_steps, const long *parent, const double *gu,
-                            const double *gS, const double *gR, const double *m, const double *k,
-                            const double *c, const double *kg, const double *cg, double dt,
-                            const double *params, long n_loaded, const long *loaded,
+int dtdyn_shaft_fox_goodwin(int form, int sweep, long N, long n_steps, const long *parent,
+                            const double *gu, const double *gS, const double *gR, const double *m,
+                            const double *k, const double *c, const double *kg, const double *cg,
+                            double dt, const double *params, long n_loaded, const long *loaded,
                             const double *force, double *hist, long n_out, const long *out_idx,
                             double *xo, double *vo, double *ao, double *work, long n_work);
-int dtdyn_shaft_newmark_1_8(int form, long N, long n_steps, const long *parent, const double *gu,
-                            const double *gS, const double *gR, const double *m, const double *k,
-                            const double *c, const double *kg, const double *cg, double dt,
-                            const double *params, long n_loaded, const long *loaded,
+int dtdyn_shaft_newmark_1_8(int form, int sweep, long N, long n_steps, const long *parent,
+                            const double *gu, const double *gS, const double *gR, const double *m,
+                            const double *k, const double *c, const double *kg, const double *cg,
+                            double dt, const double *params, long n_loaded, const long *loaded,
                             const double *force, double *hist, long n_out, const long *out_idx,
                             double *xo, double *vo, double *ao, double *work, long n_work);
-int dtdyn_shaft_central_difference(int form, long N, long n_steps, const long *parent,
+int dtdyn_shaft_central_difference(int form, int sweep, long N, long n_steps, const long *parent,
                                    const double *gu, const double *gS, const double *gR,
                                    const double *m, const double *k, const double *c,
                                    const double *kg, const double *cg, double dt,
@@ -197,37 +212,37 @@ int dtdyn_shaft_central_difference(int form, long N, long n_steps, const long *p
                                    const double *force, double *hist, long n_out,
                                    const long *out_idx, double *xo, double *vo, double *ao,
                                    double *work, long n_work);
-int dtdyn_shaft_fox_euler(int form, long N, long n_steps, const long *parent, const double *gu,
-                          const double *gS, const double *gR, const double *m, const double *k,
-                          const double *c, const double *kg, const double *cg, double dt,
-                          const double *params, long n_loaded, const long *loaded,
+int dtdyn_shaft_fox_euler(int form, int sweep, long N, long n_steps, const long *parent,
+                          const double *gu, const double *gS, const double *gR, const double *m,
+                          const double *k, const double *c, const double *kg, const double *cg,
+                          double dt, const double *params, long n_loaded, const long *loaded,
                           const double *force, double *hist, long n_out, const long *out_idx,
                           double *xo, double *vo, double *ao, double *work, long n_work);
-int dtdyn_shaft_wilson(int form, long N, long n_steps, const long *parent, const double *gu,
-                       const double *gS, const double *gR, const double *m, const double *k,
-                       const double *c, const double *kg, const double *cg, double dt,
-                       const double *params, long n_loaded, const long *loaded, const double *force,
-                       double *hist, long n_out, const long *out_idx, double *xo, double *vo,
-                       double *ao, double *work, long n_work);
-int dtdyn_shaft_houbolt(int form, long N, long n_steps, const long *parent, const double *gu,
-                        const double *gS, const double *gR, const double *m, const double *k,
-                        const double *c, const double *kg, const double *cg, double dt,
-                        const double *params, long n_loaded, const long *loaded,
+int dtdyn_shaft_wilson(int form, int sweep, long N, long n_steps, const long *parent,
+                       const double *gu, const double *gS, const double *gR, const double *m,
+                       const double *k, const double *c, const double *kg, const double *cg,
+                       double dt, const double *params, long n_loaded, const long *loaded,
+                       const double *force, double *hist, long n_out, const long *out_idx,
+                       double *xo, double *vo, double *ao, double *work, long n_work);
+int dtdyn_shaft_houbolt(int form, int sweep, long N, long n_steps, const long *parent,
+                        const double *gu, const double *gS, const double *gR, const double *m,
+                        const double *k, const double *c, const double *kg, const double *cg,
+                        double dt, const double *params, long n_loaded, const long *loaded,
                         const double *force, double *hist, long n_out, const long *out_idx,
                         double *xo, double *vo, double *ao, double *work, long n_work);
-int dtdyn_shaft_park(int form, long N, long n_steps, const long *parent, const double *gu,
-                     const double *gS, const double *gR, const double *m, const double *k,
-                     const double *c, const double *kg, const double *cg, double dt,
-                     const double *params, long n_loaded, const long *loaded, const double *force,
-                     double *hist, long n_out, const long *out_idx, double *xo, double *vo,
-                     double *ao, double *work, long n_work);
-int dtdyn_shaft_hht(int form, long N, long n_steps, const long *parent, const double *gu,
+int dtdyn_shaft_park(int form, int sweep, long N, long n_steps, const long *parent,
+                     const double *gu, const double *gS, const double *gR, const double *m,
+                     const double *k, const double *c, const double *kg, const double *cg,
+                     double dt, const double *params, long n_loaded, const long *loaded,
+                     const double *force, double *hist, long n_out, const long *out_idx, double *xo,
+                     double *vo, double *ao, double *work, long n_work);
+int dtdyn_shaft_hht(int form, int sweep, long N, long n_steps, const long *parent, const double *gu,
                     const double *gS, const double *gR, const double *m, const double *k,
                     const double *c, const double *kg, const double *cg, double dt,
                     const double *params, long n_loaded, const long *loaded, const double *force,
                     double *hist, long n_out, const long *out_idx, double *xo, double *vo,
                     double *ao, double *work, long n_work);
-int dtdyn_shaft_generalized_alpha(int form, long N, long n_steps, const long *parent,
+int dtdyn_shaft_generalized_alpha(int form, int sweep, long N, long n_steps, const long *parent,
                                   const double *gu, const double *gS, const double *gR,
                                   const double *m, const double *k, const double *c,
                                   const double *kg, const double *cg, double dt,
@@ -235,12 +250,12 @@ int dtdyn_shaft_generalized_alpha(int form, long N, long n_steps, const long *pa
                                   const double *force, double *hist, long n_out,
                                   const long *out_idx, double *xo, double *vo, double *ao,
                                   double *work, long n_work);
-int dtdyn_shaft_bossak(int form, long N, long n_steps, const long *parent, const double *gu,
-                       const double *gS, const double *gR, const double *m, const double *k,
-                       const double *c, const double *kg, const double *cg, double dt,
-                       const double *params, long n_loaded, const long *loaded, const double *force,
-                       double *hist, long n_out, const long *out_idx, double *xo, double *vo,
-                       double *ao, double *work, long n_work);
+int dtdyn_shaft_bossak(int form, int sweep, long N, long n_steps, const long *parent,
+                       const double *gu, const double *gS, const double *gR, const double *m,
+                       const double *k, const double *c, const double *kg, const double *cg,
+                       double dt, const double *params, long n_loaded, const long *loaded,
+                       const double *force, double *hist, long n_out, const long *out_idx,
+                       double *xo, double *vo, double *ao, double *work, long n_work);
 int dtdyn_ss_states(long ns, long n_steps, const double *restrict At, const double *restrict w,
                     double *restrict X);
 int dtdyn_filter_bank(long n, long n_in, long n_out, long n_sec, const double *restrict sos,
@@ -294,5 +309,11 @@ int dtdyn_nl_chain(const long *dims, chain_fn sweep, const long *const *idx,
                    double tol, double *stats, long *fail, double *restrict work, long n_work,
                    nl_int *restrict iwork, long n_iwork);
 long dtdyn_nl_chain_work(const long *dims);
+int dtdyn_nl_stations(const long *dims, shaft_fn sweep, const long *const *idx,
+                      const double *const *mats, double *restrict H, double *restrict u,
+                      double *restrict g, double *restrict rate, double *const *out, double h,
+                      double tol, double *stats, long *fail, double *restrict work, long n_work,
+                      nl_int *restrict iwork, long n_iwork);
+long dtdyn_nl_stations_work(const long *dims);
 
 #endif /* DTDYN_C_API_H */

@@ -43,6 +43,7 @@ SIGNATURES = {
         "c_int",
         (
             "c_int",
+            "c_int",
             "c_long",
             "c_long",
             "c_void_p",
@@ -244,6 +245,29 @@ SIGNATURES = {
         ),
     ),
     "dtdyn_nl_chain_work": ("c_long", ("c_void_p",)),
+    "dtdyn_nl_stations": (
+        "c_int",
+        (
+            "c_void_p",
+            "c_void_p",
+            "c_void_p",
+            "c_void_p",
+            "c_void_p",
+            "c_void_p",
+            "c_void_p",
+            "c_void_p",
+            "c_void_p",
+            "c_double",
+            "c_double",
+            "c_void_p",
+            "c_void_p",
+            "c_void_p",
+            "c_long",
+            "c_void_p",
+            "c_long",
+        ),
+    ),
+    "dtdyn_nl_stations_work": ("c_long", ("c_void_p",)),
 }
 
 #: success
@@ -296,6 +320,14 @@ BLOCK_CHAIN_ROWS = 2
 BLOCK_CHAIN_GAP = 8
 #: the node stride P of every per-node row: N + 1 rounded up to a multiple of this many doubles (64 bytes: the rows stay aligned)
 BLOCK_CHAIN_ALIGN = 8
+#: a beam: the block chain step (block_chain.h)
+NL_STATIONS_BEAM = 0
+#: a shaft or tree: the tree sweep dtdyn_shaft_<scheme>
+NL_STATIONS_SHAFT = 1
+#: plain Newton: an LU of the Jacobian at every iteration (newton_solve)
+NEWTON_PLAIN = 0
+#: the LU factors kept while the iteration contracts (newton_kept), their nu^2 + nu doubles in work
+NEWTON_KEPT_LU = 1
 #: samples per block of the modal filters (the states' rows of a block are kept in work: 2 m MODAL_BLOCK doubles, then 2 m n_out weights)
 MODAL_BLOCK = 256
 
@@ -326,5 +358,9 @@ CONSTANTS = {
     "BLOCK_CHAIN_ROWS": BLOCK_CHAIN_ROWS,
     "BLOCK_CHAIN_GAP": BLOCK_CHAIN_GAP,
     "BLOCK_CHAIN_ALIGN": BLOCK_CHAIN_ALIGN,
+    "NL_STATIONS_BEAM": NL_STATIONS_BEAM,
+    "NL_STATIONS_SHAFT": NL_STATIONS_SHAFT,
+    "NEWTON_PLAIN": NEWTON_PLAIN,
+    "NEWTON_KEPT_LU": NEWTON_KEPT_LU,
     "MODAL_BLOCK": MODAL_BLOCK,
 }

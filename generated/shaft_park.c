@@ -155,25 +155,27 @@
     a0[i] = a1;
 #include "shaft_loop.h"
 
-/* form: DTDYN_FORM_*. Returns DTDYN_OK, DTDYN_ERR_FORM for an absent form, DTDYN_ERR_WORK
+/* form: DTDYN_FORM_*; sweep: DTDYN_SWEEP_STABLE (the Riccati factors computed into work) or
+   DTDYN_SWEEP_REUSE (those a previous call left in work, for the same tree, scheme, dt, form
+   and loaded DOFs). Returns DTDYN_OK, DTDYN_ERR_FORM for an absent form, DTDYN_ERR_WORK
    (nothing written) when n_work is below DTDYN_SHAFT_ROWS N (generated/c_api.h). */
-int dtdyn_shaft_park(int form, long N, long n_steps, const long *parent, const double *gu,
-                     const double *gS, const double *gR, const double *m, const double *k,
-                     const double *c, const double *kg, const double *cg, double dt,
-                     const double *params, long n_loaded, const long *loaded, const double *force,
-                     double *hist, long n_out, const long *out_idx, double *xo, double *vo,
-                     double *ao, double *work, long n_work) {
+int dtdyn_shaft_park(int form, int sweep, long N, long n_steps, const long *parent,
+                     const double *gu, const double *gS, const double *gR, const double *m,
+                     const double *k, const double *c, const double *kg, const double *cg,
+                     double dt, const double *params, long n_loaded, const long *loaded,
+                     const double *force, double *hist, long n_out, const long *out_idx, double *xo,
+                     double *vo, double *ao, double *work, long n_work) {
     unsigned long long mode;
     int rc = DTDYN_ERR_FORM;
     if (N < 0 || n_work < DTDYN_SHAFT_ROWS * N)
         return DTDYN_ERR_WORK;
     mode = dtdyn_flush_on(); /* subnormals flushed (shaft_loop.h) */
     if (form == DTDYN_FORM_DISPLACEMENT)
-        rc = run_displacement(N, n_steps, parent, gu, gS, gR, m, k, c, kg, cg, dt, params, n_loaded,
-                              loaded, force, hist, n_out, out_idx, xo, vo, ao, work);
+        rc = run_displacement(sweep, N, n_steps, parent, gu, gS, gR, m, k, c, kg, cg, dt, params,
+                              n_loaded, loaded, force, hist, n_out, out_idx, xo, vo, ao, work);
     if (form == DTDYN_FORM_ACCELERATION)
-        rc = run_acceleration(N, n_steps, parent, gu, gS, gR, m, k, c, kg, cg, dt, params, n_loaded,
-                              loaded, force, hist, n_out, out_idx, xo, vo, ao, work);
+        rc = run_acceleration(sweep, N, n_steps, parent, gu, gS, gR, m, k, c, kg, cg, dt, params,
+                              n_loaded, loaded, force, hist, n_out, out_idx, xo, vo, ao, work);
     dtdyn_flush_off(mode);
     return rc;
 }

@@ -583,6 +583,9 @@ def _advance_factory(backend, tree, dt, loaded, outputs, form, operands=None):
     out64 = np.ascontiguousarray(outputs, dtype=np.int64)
     N = m.size
     work = np.empty(c_api.SHAFT_ROWS * N)  # rows from the one spec (dtdyn.derive.c_api)
+    # the advance whose Riccati factors work holds: its next calls reuse them (SWEEP_REUSE:
+    # the same numbers); another advance of this call computes its own
+    owner = [None]
 
     def make_advance(sch, coeffs):
         fn = _c_function(sch) if backend == "c" else None
@@ -598,7 +601,9 @@ def _advance_factory(backend, tree, dt, loaded, outputs, form, operands=None):
             force = np.ascontiguousarray(force)
             assert H.flags.c_contiguous and H.dtype == np.float64
             p_ = lambda a: None if a is None else a.ctypes.data  # noqa: E731
-            rc = fn(kernels.FORM_CODE[form], N, force.shape[0] - 1, parent.ctypes.data,
+            sweep = c_api.SWEEP_REUSE if owner[0] is advance else c_api.SWEEP_STABLE
+            owner[0] = None  # work is being rewritten
+            rc = fn(kernels.FORM_CODE[form], sweep, N, force.shape[0] - 1, parent.ctypes.data,
                     gu.ctypes.data, gS.ctypes.data, gR.ctypes.data, m.ctypes.data, k.ctypes.data,
                     c.ctypes.data, p_(kg), p_(cg), dt, params.ctypes.data, loaded64.size,
                     loaded64.ctypes.data, force.ctypes.data, H.ctypes.data, out64.size,
@@ -608,6 +613,7 @@ def _advance_factory(backend, tree, dt, loaded, outputs, form, operands=None):
             if rc != c_api.OK:
                 raise kernels.DtdynKernelError(f"dtdyn_shaft_{sch.name}", rc,
                                                f"N = {N}, n_work = {work.size}")
+            owner[0] = advance
             return 0.0
         return advance
     return make_advance

@@ -43,12 +43,15 @@ scheme="auto" (`nonlinear_mck_response` without a scheme, with a target): modal_
 modal_quintic, whose runs carry an embedded estimate (`reach_embedded`), and when a run's
 estimate is not confirmed by the next one or a run fails, the Richardson sequence of modal_ramp
 (`AUTO_THEN`): seventh or sixth order where the element forces are smooth, the second-order ramp
-invariant where they are not.
+invariant where they are not. On a long record the embedded estimates are checked on its first
+samples (`probe_window`), and the record then runs once, its estimate trusted: an accuracy
+target at the price of one run with the estimate.
 """
 from __future__ import annotations
 
 import math
 import time
+from functools import partial
 
 import numpy as np
 
@@ -304,25 +307,119 @@ AUTO, AUTO_NEXT = _AUTO["first"], _AUTO["next"]
 AUTO_THEN, AUTO_SINGULAR_M = _AUTO["then"], _AUTO["singular_mass"]
 
 
+#: the window that checks the embedded estimate before one run of the record is trusted: the
+#: record's first PROBE_SAMPLES samples, on records of at least PROBE_RECORDS times as many
+#: (shorter records: two runs of the record, the second confirming the first)
+PROBE_SAMPLES, PROBE_RECORDS = 2000, 8
+#: the window's estimate must meet the target with this margin before the record runs at its
+#: sub-steps: the record holds more than its start (P4, 100,000 samples: the record's estimate
+#: 11x the first 2,000 samples'); a record whose estimate misses the target runs again
+PROBE_MARGIN = 10.0
+
+
+def probe_window(n_samples):
+    """The samples of the window that checks the embedded estimate (`reach_embedded`), or None
+    when the record is too short for one (fewer than PROBE_RECORDS windows)."""
+    return PROBE_SAMPLES if n_samples >= PROBE_RECORDS * PROBE_SAMPLES else None
+
+
+def _confirms(r, prev, spent):
+    """(confirmed, difference): the difference of two runs (~ the coarser one's error) within a
+    factor 3 of the coarser run's estimate; its time added to spent[0]."""
+    t0 = time.perf_counter()
+    d, est = difference(r, prev), prev.info["error_estimate"]
+    spent[0] += time.perf_counter() - t0
+    return est / 3 <= d <= 3 * est, d
+
+
+def _probe(run_w, samples, accuracy, substeps, max_substeps, p, log, runs, spent):
+    """The window's sub-steps: runs of the first ``samples`` samples from ``substeps``, the next
+    S from the order p (S (estimate / goal)^(1/p) up, goal = accuracy / PROBE_MARGIN, the
+    margin its safety;
+    max(S + 1, S 2^(2/p)) when the estimate meets the goal: a run whose error is at most a
+    quarter of it), until a run's estimate meets the goal and some run's estimate has been
+    confirmed by the next one (`_confirms`): the coarsest such S (the estimator then follows
+    the runs on this problem). None when a window run fails, has no embedded estimate or does
+    not confirm the one before (the window is the record's start: a run that fails there fails
+    on the record too). Appends to ``log`` and ``runs``, the differences' time to spent[0]."""
+    goal = accuracy / PROBE_MARGIN
+    S, prev, confirmed = substeps, None, False
+    where = f"window of {samples} samples"
+    while S <= max_substeps:
+        try:
+            r = run_w(S)
+        except (NewtonError, DtdynStepStabilityError) as exc:
+            log.append((S, None, f"{where}: {type(exc).__name__}"))
+            return None
+        if r.info.get("error_estimate_kind") != "embedded":
+            log.append((S, None, f"{where}: no embedded estimate"))
+            return None
+        runs.append(r)
+        est = r.info["error_estimate"]
+        note = where
+        if prev is not None:
+            ok, d = _confirms(r, prev, spent)
+            if not ok:
+                log.append((S, est, f"{where}: difference {d:.3g} to {prev.info['substeps']} "
+                            f"sub-steps does not confirm its estimate "
+                            f"{prev.info['error_estimate']:.3g}"))
+                return None
+            confirmed = True
+            note += f", confirms {prev.info['substeps']}"
+        log.append((S, est, note))
+        if confirmed and prev.info["error_estimate"] <= goal:
+            return prev.info["substeps"]
+        if confirmed and est <= goal:
+            return S
+        if est <= goal:
+            grow = 2.0 ** (2.0 / p)
+        else:
+            grow = (est / goal) ** (1.0 / p) if math.isfinite(est) else 2.0
+        prev, S = r, max(S + 1, math.ceil(S * grow))
+    return None
+
+
 def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=None,
-                   after=None):
+                   after=None, probe=None):
     """``accuracy`` for a method whose every run reports an embedded estimate (modal_quintic and
-    modal_explicit on the C backend). Run S; when its estimate exceeds the target the next S
-    follows from the order p, S (estimate / accuracy)^(1/p) * 1.2 rounded up (at least 2 S when
-    the estimate already meets it: the confirmation). A run's estimate is trusted only when the
-    next run confirms it: the difference of the two runs (~ the coarser one's error) within a
-    factor 3 of the coarser run's estimate. Unconfirmed (a kink, a hysteresis, a run far from
-    the asymptotic range: the force polynomial's error is then not its next term), the
-    Richardson sequence `reach` takes over from ``substeps`` (trusted from three levels when it
-    is this method's: ``observed``). A run that fails (NewtonError, a modal step beyond its
-    stability limit) hands over to `reach` too, as does a run without an embedded estimate.
-    ``then``: (run, method, params) of that Richardson sequence when it is not this method's
-    (scheme "auto": `AUTO_THEN`); ``after``: (run, method) of another method with an embedded
-    estimate tried the same way before it (scheme "auto": `AUTO_NEXT` after `AUTO`). The
-    result's info["scheme"] names the method that ran."""
+    modal_explicit on the C backend).
+
+    With ``probe`` = (run_w(S, method), samples), a run of the record's first ``samples``
+    samples (`probe_window`: long records), the window checks the estimator first (`_probe`:
+    runs from ``substeps`` until an estimate meets the target with the margin PROBE_MARGIN
+    and a run has confirmed the estimate of the one before), and the record then runs once at
+    that S: its estimate at or below the target is trusted and returned, one run of the record.
+    A window that fails or does not confirm hands over as an unconfirmed record would (below);
+    a record whose estimate misses the target goes on as follows, from that run.
+
+    Without a window (short records): run S; when its estimate exceeds the target the next S
+    follows from the order p, S (estimate / accuracy)^(1/p) * 1.2 rounded up (at least 2 S
+    when the estimate already meets it: the confirmation). A run's estimate is trusted only
+    when the next run confirms it: the difference of the two runs (~ the coarser one's error)
+    within a factor 3 of the coarser run's estimate. Unconfirmed (a kink, a hysteresis, a run
+    far from the asymptotic range: the force polynomial's error is then not its next term),
+    the Richardson sequence `reach` takes over from ``substeps`` (trusted from three levels
+    when it is this method's: ``observed``). A run that fails (NewtonError, a modal step
+    beyond its stability limit) hands over to `reach` too, as does a run without an embedded
+    estimate. ``then``: (run, method, params) of that Richardson sequence when it is not this
+    method's (scheme "auto": `AUTO_THEN`); ``after``: (run, method) of another method with an
+    embedded estimate tried the same way before it (scheme "auto": `AUTO_NEXT` after
+    `AUTO`). The result's info["scheme"] names the method that ran; info["estimate_window"]
+    the window's samples and sub-steps when one decided."""
     p = scheme_order(method, params)
     S, runs, log, prev, prev_S = substeps, [], [], None, None
     successor = after[1] if after is not None else "the Richardson sequence"
+    spent = [0.0]  # the estimates' own work (differences of the runs), s
+    trusted = None  # the window's levels when a single run of the record may be trusted
+    if probe is not None:
+        window = []
+        S_w = _probe(partial(probe[0], method=method), probe[1], accuracy, substeps,
+                     max_substeps, p, log, window, spent)
+        runs += window
+        if S_w is None:
+            S = max_substeps + 1  # straight to the successor
+        else:
+            S, trusted = S_w, [r.info["substeps"] for r in window]
     while S <= max_substeps:
         try:
             r = run(S)
@@ -335,26 +432,36 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=N
         runs.append(r)
         est = r.info["error_estimate"]
         if prev is not None:
-            d, est_prev = difference(r, prev), prev.info["error_estimate"]
-            confirmed = est_prev / 3 <= d <= 3 * est_prev
+            confirmed, d = _confirms(r, prev, spent)
+            est_prev = prev.info["error_estimate"]
             log.append((S, est, None if confirmed else f"difference {d:.3g} to {prev_S} "
                         f"sub-steps does not confirm its estimate {est_prev:.3g}"))
             if not confirmed:
                 break
             if est <= accuracy:
                 return _finish((est, r, False, S, None, [prev_S, S]), accuracy, True, runs, p,
-                               log, 0.0, method)
+                               log, spent[0], method)
+        elif trusted is not None:
+            log.append((S, est, f"the window's runs at {', '.join(map(str, trusted))} "
+                        "sub-steps confirmed the estimator"))
+            if est <= accuracy:
+                out = _finish((est, r, False, S, None, [S]), accuracy, True, runs, p, log,
+                              spent[0], method)
+                out.info["estimate_window"] = {"samples": probe[1], "substeps": trusted}
+                return out
         else:
             log.append((S, est, None))
         grow = (est / accuracy) ** (1.0 / p) * 1.2 if math.isfinite(est) else 2.0
         prev, prev_S = r, S
         S = max(2 * S if est <= accuracy else S + 1, math.ceil(S * grow))
     if after is not None:
-        out = reach_embedded(after[0], accuracy, substeps, max_substeps, after[1], {}, then)
+        out = reach_embedded(after[0], accuracy, substeps, max_substeps, after[1], {}, then,
+                             probe=probe)
     else:
         run_r, method_r, params_r = then or (run, method, params)
         out = reach(run_r, accuracy, substeps, max_substeps, method_r, params_r,
                     observed=then is None)
     out.info["accuracy_log"] = _log(log, method) + out.info["accuracy_log"]
     out.info.update(_timing(runs + [out]))
+    out.info["estimate_time"] = out.info.get("estimate_time", 0.0) + spent[0]
     return out

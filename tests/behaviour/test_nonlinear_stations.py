@@ -9,12 +9,16 @@ the element forces g, except a beam's rotational accelerations (their bound in
 test_beam_equals_assembled). Each case is first checked to be nonlinear: the elements change the
 response by far more than the tolerance (against the linear shaft_response / beam_response).
 """
+import os
+import shutil
+
 import numpy as np
 import pytest
 
 import dtdyn as dd
 from dtdyn.linear._shaft import rigid_rotation
 from dtdyn.nonlinear import _response as NL
+from dtdyn.nonlinear import _stations as stations
 
 SCHEMES = [("newmark", {}), ("hht", {"alpha": -0.1}), ("generalized_alpha", {"rho_inf": 0.7})]
 
@@ -174,3 +178,78 @@ def test_bad_element_dofs_are_named(shaft_case, beam_case):
     with pytest.raises(ValueError, match="multistep"):
         dd.nonlinear_beam_response(beam, f, 1e-4, force_dofs=dofs, scheme="houbolt",
                                    elements=[dd.Cubic(0, k3=1.0)])
+
+
+# the C loop needs a C compiler (CC, else cc), as the kernels do
+needs_c = pytest.mark.skipif(shutil.which(os.environ.get("CC", "cc")) is None,
+                             reason="no C compiler on this machine")
+
+
+def _python_loop(monkeypatch):
+    """Run the next calls in Python around the same step kernels (no compiled whole loop)."""
+    monkeypatch.setattr(stations, "_c_driver", lambda *a: None)
+
+
+@needs_c
+@pytest.mark.parametrize("model", ["shaft", "beam"])
+def test_c_loop_equals_the_python_loop(shaft_case, beam_case, monkeypatch, model):
+    """The whole loop in C (generated/nl_stations.c) computes what the Python loop around the
+    same step kernel (beam_response's block chain, shaft_response's tree sweep) computes, in
+    the same order: bit for bit, two substeps, every quantity stored. Truth for both:
+    test_*_equals_assembled."""
+    if model == "shaft":
+        shaft, elements, f, dofs = shaft_case
+        run = lambda: dd.nonlinear_shaft_response(  # noqa: E731
+            shaft, f, 1e-3, force_dofs=dofs, elements=elements, substeps=2, scheme="hht",
+            alpha=-0.1, quantities=("x", "v", "a", "g"))
+    else:
+        beam, elements, f, dofs = beam_case
+        run = lambda: dd.nonlinear_beam_response(  # noqa: E731
+            beam, f, 1e-4, force_dofs=dofs, elements=elements, substeps=2, form="acceleration",
+            quantities=("x", "v", "a", "g"))
+    c = run()
+    _python_loop(monkeypatch)
+    py = run()
+    assert (c.info["loop"], py.info["loop"]) == ("c", "python")
+    assert c.info["newton_iterations"]["max"] >= 1
+    for q in "xvag":
+        np.testing.assert_array_equal(getattr(c, q), getattr(py, q), err_msg=q)
+    assert c.info["newton_iterations"] == py.info["newton_iterations"]
+    assert c.info["max_residual"] == py.info["max_residual"]
+
+
+@needs_c
+def test_c_loop_with_internal_states(shaft_case, monkeypatch):
+    """An element that needs y' and has an internal state (BoucWen) beside the cubics: 6
+    unknowns, whose Newton step LAPACK (Python loop) and newton.h's LU (C loop) solve with
+    their own rounding, so the loops agree to rounding (1e-12 of each quantity's peak;
+    measured ~1e-15) rather than bit for bit."""
+    shaft, elements, f, dofs = shaft_case
+    els = [*elements, dd.BoucWen(shaft.dof("out.0"), stiffness=3e3, alpha=0.1, beta=50.0,
+                                 gamma=50.0)]
+
+    def run():
+        return dd.nonlinear_shaft_response(shaft, f, 1e-3, force_dofs=dofs, elements=els,
+                                           substeps=2, quantities=("x", "v", "a", "g", "z"))
+    c = run()
+    _python_loop(monkeypatch)
+    py = run()
+    assert (c.info["loop"], py.info["loop"]) == ("c", "python") and np.abs(c.z).max() > 0
+    for q in "xvagz":
+        _close(getattr(c, q), getattr(py, q), q, rtol=1e-12)
+
+
+@needs_c
+def test_c_loop_names_the_step_where_newton_fails(beam_case, monkeypatch):
+    """No Newton iteration allowed (max_iter=0): the C loop's failure is the
+    Python loop's NewtonError, naming the same step."""
+    beam, elements, f, dofs = beam_case
+    messages = []
+    for python in (False, True):
+        if python:
+            _python_loop(monkeypatch)
+        with pytest.raises(NL.NewtonError, match=r"at step \d+ \(sample \d+") as info:
+            dd.nonlinear_beam_response(beam, f, 1e-4, force_dofs=dofs, elements=elements,
+                                       max_iter=0)
+        messages.append(str(info.value))
+    assert messages[0] == messages[1]

@@ -1,8 +1,8 @@
 """Run by test_sanitizers.py in a subprocess with libasan and libubsan preloaded: the chain, shaft,
-beam (block chain), mck, nonlinear (mck, its modal path, and chain) loops and the modal filters
-(per mode and as sections), compiled with
--fsanitize=address,undefined, on tiny problems. With the argument ``overflow``: the chain kernel
-told its work is longer than it is (the check at entry passes), which ASan must report."""
+beam (block chain), mck, nonlinear (mck, its modal path, chain, beam and shaft) loops and the modal
+filters (per mode and as sections), compiled with -fsanitize=address,undefined, on tiny problems.
+With the argument ``overflow``: the chain kernel told its work is longer than it is (the check at
+entry passes), which ASan must report."""
 import sys
 import warnings
 
@@ -45,6 +45,15 @@ cubic = [dtdyn.Cubic(0, k3=1e8)]
 dtdyn.nonlinear_mck_response(M, C, K, 50 * f, 1e-3, force_dofs=[0, 8], elements=cubic,
                              scheme="newmark")
 dtdyn.nonlinear_chain_response(m, k, c, 50 * f, 1e-3, force_dofs=[0, 8], elements=cubic)
+# nl_stations: a beam (block chain step in the library) and a tree (its sweep by pointer)
+dtdyn.nonlinear_beam_response(dtdyn.Beam(E=2e11, I=1e-8, rho_A=1.0, length=1.0, elements=4),
+                              20 * f[:, 0], 1e-4, force_dofs=[7],
+                              elements=[dtdyn.Cubic(7, k3=1e12), dtdyn.Gap(3, gap=0.0,
+                                                                           stiffness=1e3)])
+dtdyn.nonlinear_shaft_response(dtdyn.Shaft(np.ones(5), 1e4 * np.ones(5), 0.1 * np.ones(5),
+                                           branches=[dtdyn.Branch(2, [0.5], [5e3], ratio=2.0)]),
+                               50 * f[:, 0], 1e-3, force_dofs=[4],
+                               elements=[dtdyn.Cubic(1, 5, k3=1e8)], substeps=2)
 for scheme in ("modal_quintic", "modal_explicit"):  # nl_loop's modal path and its estimate
     dtdyn.nonlinear_mck_response(M, C, K, 50 * f, 1e-3, force_dofs=[0, 8], elements=cubic,
                                  scheme=scheme)

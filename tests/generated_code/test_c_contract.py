@@ -118,8 +118,9 @@ def test_shaft_kernel_refuses_a_short_work_array_at_entry():
     ones, hist = np.ones(N), np.zeros((3, N))
     loaded = np.array([3], dtype=np.int64)
     force, params = np.ones((3, 1)), np.array([0.25, 0.5])
-    rc = fn(gen.FORM_DISPLACEMENT, N, 2, parent.ctypes.data, ones.ctypes.data, ones.ctypes.data,
-            ones.ctypes.data, ones.ctypes.data, ones.ctypes.data, ones.ctypes.data, None, None,
+    rc = fn(gen.FORM_DISPLACEMENT, gen.SWEEP_STABLE, N, 2, parent.ctypes.data, ones.ctypes.data,
+            ones.ctypes.data, ones.ctypes.data, ones.ctypes.data, ones.ctypes.data,
+            ones.ctypes.data, None, None,
             1e-3, params.ctypes.data, 1, loaded.ctypes.data, force.ctypes.data,
             hist.ctypes.data, 0, None, None, None, None, work.ctypes.data, work.size)
     assert rc == gen.ERR_WORK and not hist.any() and (work == 7.0).all()

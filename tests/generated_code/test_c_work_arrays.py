@@ -1,12 +1,12 @@
 """Every C entry point with scratch memory receives its size and refuses a short one at entry
 (DTDYN_ERR_WORK, DtdynKernelError in Python): the mck loop, the block chain (beams), the modal
-filters, the nonlinear loop (general and modal path) and the nonlinear chain. The sizes come
-from the one spec (dtdyn.derive.c_api): the row counts as constants of both generated/c_api.h
-and generated/c_api.py, or, where the size is a formula of the problem's sizes (the modal
-filters, the nonlinear loops), a size function the kernel's own source defines and the runtime
-calls. Each refusal test gives the runtime's side a size one short (a drifted side) and expects
-the error, so a kernel that wrote past its buffer instead would fail it. (The chain and shaft
-kernels: test_c_contract.py.)"""
+filters, the nonlinear loop (general and modal path), the nonlinear chain and the nonlinear beam
+and shaft loop. The sizes come from the one spec (dtdyn.derive.c_api): the row counts as constants
+of both generated/c_api.h and generated/c_api.py, or, where the size is a formula of the problem's
+sizes (the modal filters, the nonlinear loops), a size function the kernel's own source defines and
+the runtime calls. Each refusal test gives the runtime's side a size one short (a drifted side) and
+expects the error, so a kernel that wrote past its buffer instead would fail it. (The chain and
+shaft kernels: test_c_contract.py.)"""
 import re
 from importlib import resources
 
@@ -188,7 +188,7 @@ def shrunk(monkeypatch):
     pytest.importorskip("casadi")
     if not cbuild.c_available():
         pytest.skip("no C compiler on this machine")
-    from dtdyn.nonlinear import _chain as chain, _response as response
+    from dtdyn.nonlinear import _chain as chain, _response as response, _stations as stations
 
     def install(name):
         load = cbuild.load_library
@@ -196,9 +196,11 @@ def shrunk(monkeypatch):
                             lambda *a, **k: _Shrunk(load(*a, **k), name))
         response._c_runner.cache_clear()
         chain._c_driver.cache_clear()
+        stations._c_driver.cache_clear()
     yield install
     response._c_runner.cache_clear()  # no shrunk library outlives the test
     chain._c_driver.cache_clear()
+    stations._c_driver.cache_clear()
 
 
 @pytest.mark.parametrize("scheme", ["modal_quintic", "modal_explicit"])
@@ -226,3 +228,24 @@ def test_nl_chain_refuses_a_short_work_array(shrunk):
     with pytest.raises(DtdynKernelError, match="work array is too short") as info:
         dtdyn.nonlinear_chain_response(m, k, c, 50 * f, 1e-3, **kw)
     assert info.value.code == gen.ERR_WORK and info.value.kernel == "dtdyn_nl_chain"
+
+
+@pytest.mark.parametrize("model", ["beam", "shaft"])
+def test_nl_stations_refuses_a_short_work_array(shrunk, model):
+    """The nonlinear beam and shaft loop (nl_stations.h): its work holds the step kernel's rows
+    (block chain or tree sweep), the loop's scratch and CasADi's work."""
+    el = dtdyn.Cubic(1, k3=1e8)
+    if model == "beam":
+        beam = dtdyn.Beam(E=2e11, I=1e-8, rho_A=1.0, length=1.0, elements=4)
+        run = lambda: dtdyn.nonlinear_beam_response(  # noqa: E731
+            beam, np.ones(21), 1e-4, force_dofs=[7], elements=[el])
+    else:
+        shaft = dtdyn.Shaft(np.ones(5), 1e4 * np.ones(5), 0.1 * np.ones(5))
+        run = lambda: dtdyn.nonlinear_shaft_response(  # noqa: E731
+            shaft, np.ones(21), 1e-3, force_dofs=[4], elements=[el])
+    ok = run()
+    assert np.isfinite(ok.x).all() and ok.info["loop"] == "c"
+    shrunk("dtdyn_nl_stations_work")
+    with pytest.raises(DtdynKernelError, match="work array is too short") as info:
+        run()
+    assert info.value.code == gen.ERR_WORK and info.value.kernel == "dtdyn_nl_stations"

@@ -52,7 +52,7 @@
         tw[t - lo] = Fb - Dn; \
     }
 
-static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
+static int SHAFT_RUN(int sweep, long N, long n_steps, const long *parent, const double *gu,
                             const double *gS, const double *gR, const double *m, const double *k,
                             const double *c, const double *kg, const double *cg, double dt,
                             const double *params, long n_loaded, const long *loaded,
@@ -77,6 +77,10 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
     double th[SHAFT_BLOCK], tw[SHAFT_BLOCK], Rc, uc;
     long n, i, j, t, lo, hi, step;
     (void)dt; (void)params; (void)alpha_u;
+    if (sweep == DTDYN_SWEEP_REUSE) { /* the factors a previous call left in work */
+        n_lone = (long)SR[0];
+        goto factored;
+    }
     memset(SR, 0, (size_t)N * sizeof(double));
     memset(jf, 0, (size_t)N * sizeof(double));
     for (n = N - 1; n >= 0; --n) { /* Riccati factors: S from the leaves to the root */
@@ -103,6 +107,9 @@ static int SHAFT_RUN(long N, long n_steps, const long *parent, const double *gu,
     }
     memset(Fe, 0, (size_t)N * sizeof(double));
     memset(RR, 0, (size_t)N * sizeof(double));
+    if (N > 0) /* SR is read by the factors alone: it keeps n_lone for a later call */
+        SR[0] = (double)n_lone;
+factored:
     if (few)
         n_byidx = dtdyn_sorted_loads(n_loaded, loaded, byidx);
     for (step = 0; step < n_steps; ++step) {
