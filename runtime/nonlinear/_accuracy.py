@@ -323,6 +323,10 @@ def probe_window(n_samples):
     return PROBE_SAMPLES if n_samples >= PROBE_RECORDS * PROBE_SAMPLES else None
 
 
+#: `_probe`'s answer for a window without response
+QUIET = -1
+
+
 def _confirms(r, prev, spent):
     """(confirmed, difference): the difference of two runs (~ the coarser one's error) within a
     factor 3 of the coarser run's estimate; its time added to spent[0]."""
@@ -341,7 +345,9 @@ def _probe(run_w, samples, accuracy, substeps, max_substeps, p, log, runs, spent
     confirmed by the next one (`_confirms`): the coarsest such S (the estimator then follows
     the runs on this problem). None when a window run fails, has no embedded estimate or does
     not confirm the one before (the window is the record's start: a run that fails there fails
-    on the record too). Appends to ``log`` and ``runs``, the differences' time to spent[0]."""
+    on the record too); QUIET when a window run's estimate is 0 (no response in the window:
+    the record's runs confirm each other as without a window). Appends to ``log`` and
+    ``runs``, the differences' time to spent[0]."""
     goal = accuracy / PROBE_MARGIN
     S, prev, confirmed = substeps, None, False
     where = f"window of {samples} samples"
@@ -356,6 +362,9 @@ def _probe(run_w, samples, accuracy, substeps, max_substeps, p, log, runs, spent
             return None
         runs.append(r)
         est = r.info["error_estimate"]
+        if not est > 0.0:      # no response in the window: nothing there checks the estimator
+            log.append((S, est, f"{where}: estimate {est:.3g}, no window (the record confirms)"))
+            return QUIET
         note = where
         if prev is not None:
             ok, d = _confirms(r, prev, spent)
@@ -418,6 +427,8 @@ def reach_embedded(run, accuracy, substeps, max_substeps, method, params, then=N
         runs += window
         if S_w is None:
             S = max_substeps + 1  # straight to the successor
+        elif S_w == QUIET:
+            pass                  # no window: the record's runs, from substeps
         else:
             S, trusted = S_w, [r.info["substeps"] for r in window]
     while S <= max_substeps:

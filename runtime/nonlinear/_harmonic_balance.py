@@ -394,7 +394,19 @@ def _hill(M, C, K, L, Jy, Jv, omega, D):
     # the cases where several are central: an odd law's orbit decouples the even and the odd
     # harmonics, and with few harmonics each block has its own (poorer or better) copies
     order = np.lexsort((np.abs(lam.imag), np.where(centre <= 0.5 + 1e-9, 0.0, centre)))
-    return lam[order[:keep]]
+    # one copy per exponent: a candidate congruent modulo i omega to one kept already is
+    # another copy of it (at Im = +-omega / 2, a real negative multiplier, both copies are
+    # centred at +-1/2 and tie on |Im|), and the next candidate takes its place
+    kept = []
+    for i in order:
+        d = lam[i] - lam[kept]
+        k = np.round(d.imag / omega)
+        if np.any((k != 0) & (np.abs(d - 1j * k * omega) <= 1e-6 * max(omega, abs(lam[i])))):
+            continue
+        kept.append(i)
+        if len(kept) == keep:
+            break
+    return lam[np.array(kept, dtype=int)]
 
 
 def _centre(vec, n, nH):
@@ -1036,12 +1048,14 @@ def _curve(system, cont, U, p0, p1, opts, model, t_start) -> HarmonicBalanceResu
     order = np.argsort(b_index, kind="stable")
     b_kind = np.array(kinds, dtype="U16")[order] if kinds else np.array([], dtype="U16")
     b_index, b_p = b_index[order], b_p[order]
+    # the receptance the curve ran with (the H -> 2H check may rebuild or replace it)
+    receptance, check = system.rec.name, dict(getattr(system.rec, "check", None) or {}) or None
     convergence = _harmonic_convergence(system, cont, points, x_max, model)
     info = dict(newton_iterations=cont.newton, steps=steps, rejected_steps=rejected,
                 law_evaluations=system.evaluations,
                 receptance_evaluations=system.receptance_evaluations,
-                run_time=time.perf_counter() - t_start, receptance=system.rec.name,
-                receptance_check=getattr(system.rec, "check", None),
+                run_time=time.perf_counter() - t_start, receptance=receptance,
+                receptance_check=check,
                 n_time=system.N, harmonics=H, stop=stop,
                 harmonic_error=float(harmonic_error.max()),
                 harmonic_error_points=harmonic_error,
@@ -1289,12 +1303,13 @@ def _crossings(lam, omega, params, fold_steps, cont, arcs, system, hill_at):
         ua, ub = a.real > 1e-9 * omega[i], b.real > 1e-9 * omega[i + 1]
         ka, kb = _kind(a, omega[i]), _kind(b, omega[i + 1])
         for j in np.flatnonzero(ua != ub):
-            if ka[j] == kb[j] and ka[j] and a[j].imag < 0:
+            if ka[j] == kb[j] == 1 and a[j].imag < 0:
                 continue                           # the conjugate of a pair counted once
             p, frac, root = _refine_crossing(cont, arcs[i] if i < len(arcs) else None, system,
                                              hill_at, a[j], b[j], omega[i], params[i:i + 2])
-            if root is not None:         # the kind of the exponent where Re = 0
-                kind = int(_kind(np.array([root]), omega[i])[0])
+            if root is not None:         # the kind of the exponent where Re = 0, at the
+                w_root = p if system.fixed_omega is None else system.fixed_omega  # root's omega
+                kind = int(_kind(np.array([root]), w_root)[0])
             else:                        # a kind that changes over the step: the unstable side
                 kind = int(ka[j] if ka[j] == kb[j] else (kb[j] if ub[j] else ka[j]))
             # next to a fold, real crossings (and undetermined ones) are the fold itself

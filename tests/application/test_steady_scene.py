@@ -353,3 +353,14 @@ def test_unsaveable_field_is_named(tmp_path):
     with pytest.raises(ValueError, match=r"HarmonicBalanceResult\.amplitude holds a object"):
         r.save(tmp_path / "x.npz")
     assert not list(tmp_path.iterdir())
+
+
+def test_convergence_points_reach_the_call(tmp_path):
+    """[harmonic] convergence_points = 0 (no H -> 2H re-solve) and = 3: as the call's."""
+    for n in (0, 3):
+        path = small(tmp_path, add=f"convergence_points = {n}\n")
+        r, _ = run_steady(dd.load_scene(path))
+        checked = np.isfinite(r.harmonic_convergence).sum()
+        assert (checked == 0) if n == 0 else (1 <= checked <= n + 1)
+    with pytest.raises(ValueError, match="harmonic.convergence_points"):
+        dd.load_scene(small(tmp_path, add="convergence_points = -1\n"))

@@ -745,3 +745,30 @@ def test_neimark_sacker_points_against_shooting():
             f_shoot = brentq(excess, r.frequency_hz[lo], r.frequency_hz[lo + 1], xtol=1e-13)
             assert abs(f / f_shoot - 1) < 1e-9, (f, f_shoot)
     assert checked >= 3
+
+
+def test_period_doubling_of_a_quadratic_oscillator_against_the_monodromy():
+    """x'' + 0.02 x' + x + x^2 = 0.3 cos(w t): between 0.30 and 0.33 Hz one Floquet multiplier
+    is real and below -1 (a period-doubled branch). Hill's exponents there sit at Im = +-w/2,
+    whose two copies tie; each kept exponent must be a different multiplier. Truth: the
+    multipliers of the monodromy matrix of the variational equation along the harmonic-balance
+    orbit (solve_ivp, rtol 1e-11); both bifurcations are period doublings."""
+    c = 0.02
+    r = harmonic_balance(np.eye(1), [[c]], np.eye(1),
+                         elements=[dd.Polynomial(0, coeffs=(0.0, 0.0, 1.0))], force_dofs=[0],
+                         force=[0.3], freqs_hz=(0.25, 0.40), harmonics=6, convergence_points=0)
+    for j in range(r.frequency_hz.size):
+        X, w = r.harmonics[j][0], r.omega[j]
+        k = np.arange(X.size)
+
+        def rhs(t, s):
+            x = np.real(np.sum(X * np.exp(1j * k * w * t)))
+            return (np.array([[0.0, 1.0], [-(1.0 + 2.0 * x), -c]]) @ s.reshape(2, 2)).ravel()
+        sol = solve_ivp(rhs, (0.0, 2 * np.pi / w), np.eye(2).ravel(), rtol=1e-11, atol=1e-12)
+        mu = np.sort(np.abs(np.linalg.eigvals(sol.y[:, -1].reshape(2, 2))))
+        hill = np.sort(np.abs(np.exp(r.floquet_exponents[j] * 2 * np.pi / w)))
+        np.testing.assert_allclose(hill, mu, rtol=1e-4, err_msg=f"point {j}")
+        assert r.stable[j] == (mu.max() < 1.0), j
+    assert list(r.bifurcation_kind) == ["period_doubling", "period_doubling"]
+    lo, hi = r.bifurcation_frequency_hz
+    assert 0.29 < lo < 0.305 and 0.32 < hi < 0.34

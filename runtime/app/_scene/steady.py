@@ -15,8 +15,8 @@ model and elements), saving and plotting the frequency response curve.
                                         #   or [re, im]; or ground_acceleration_harmonics = [...]
     # influence = [1.0, 1.0]            # matrices and beam scenes: r, one entry per DOF
     stability = true                    # optional: Hill's method at every point
-    # step, max_step, min_step, max_angle, max_points, tol, max_iter, n_time, receptance:
-    #   optional, harmonic_balance's keywords and defaults
+    # step, max_step, min_step, max_angle, max_points, tol, max_iter, n_time, receptance,
+    #   convergence_points: optional, harmonic_balance's keywords and defaults
     # frequency_hz = 0.25               # instead of freqs_hz: at one frequency, the load
     # amplitudes = [0.05, 15.0]         #   factor continued from start to end
                                         #   (harmonic_balance_amplitude)
@@ -45,8 +45,8 @@ from dtdyn.app._scene.schema import Scene, _choice, _dof_index, _number_list, _t
 HARMONIC_KEYS = ("freqs_hz", "frequency_hz", "amplitudes", "harmonics", "force_dofs", "force",
                  "force_harmonics", "ground_acceleration", "ground_acceleration_harmonics",
                  "influence", "stability", "step", "max_step", "min_step", "max_angle",
-                 "max_points", "tol", "max_iter", "n_time", "receptance")
-RECEPTANCES = ("auto", "modal", "direct", "banded")
+                 "max_points", "tol", "max_iter", "n_time", "receptance", "convergence_points")
+RECEPTANCES = ("auto", "modal", "direct", "banded", "reduced")
 #: the most outputs `plot_steady` draws, one panel each
 MAX_PANELS = 8
 
@@ -259,6 +259,10 @@ def _options(tbl: dict, H: int, defaults: dict) -> dict:
             kw[key] = _integer(f"harmonic.{key}", tbl[key], minimum)
     if "receptance" in tbl:
         kw["receptance"] = _choice("harmonic.receptance", tbl["receptance"], RECEPTANCES)
+    if "convergence_points" in tbl:     # the points re-solved with 2 H harmonics: n or "all"
+        value = tbl["convergence_points"]
+        kw["convergence_points"] = "all" if value == "all" else \
+            _integer("harmonic.convergence_points", value, 0)
     return kw
 
 
