@@ -197,7 +197,11 @@ if __name__ == "__main__":
     print(buf.getvalue(), end="")
     if not quick:
         doc = pathlib.Path(__file__).resolve().parents[1] / "docs" / "solver_reuse.md"
-        doc.write_text(
+        # benchmarks/nonlinear_solver_reuse.py's section, which ends the page, is kept
+        from nonlinear_solver_reuse import SECTION
+        old = doc.read_text() if doc.exists() else ""
+        kept = "\n" + SECTION + old.split("\n" + SECTION, 1)[1] if SECTION in old else ""
+        doc.write_text(kept.join([
             "# Many load cases on one model\n\n"
             "`dd.Matrices(M, C, K).solver(dt, ...)` checks the model and the options, checks the "
             "stability limit, factorizes the effective matrix and M and loads the C loop once; "
@@ -223,4 +227,4 @@ if __name__ == "__main__":
             f"{models['beam']['beam_response'] / models['beam']['solver.run']:.2f} x a beam "
             "solver's run and a `shaft_response` call "
             f"{models['shaft']['shaft_response'] / models['shaft']['solver.run']:.2f} x a "
-            "shaft solver's run.\n")
+            "shaft solver's run.\n", ""]))

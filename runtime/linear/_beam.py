@@ -36,7 +36,8 @@ from dtdyn._engine import ground as support
 from dtdyn._engine import linalg, validate
 from dtdyn._engine.public import public
 from dtdyn.linear import _mck as mck
-from dtdyn.linear._solver import Model, Solver, check_backend, scheme_key, schemes_of_run
+from dtdyn.linear._solver import (Model, Solver, check_backend, nonlinear_solver, scheme_key,
+                                  schemes_of_run)
 
 __all__ = ["Beam", "PointMass", "Support", "beam_matrices", "beam_frequencies", "beam_response"]
 
@@ -257,7 +258,8 @@ class Beam(Model):
 
     @public
     def solver(self, dt, *, scheme="newmark", form="displacement", backend="c", outputs=None,
-               quantities=("x", "v", "a"), unstable="raise", **scheme_params) -> BeamSolver:
+               quantities=("x", "v", "a"), unstable="raise", elements=None, substeps=None, tol=None,
+               max_iter=None, **scheme_params) -> BeamSolver:
         """Prepare the beam for many load cases at the sample step ``dt``.
 
         Checks the options and the stability limit (a bound of the beam's highest mode),
@@ -286,6 +288,13 @@ class Beam(Model):
         unstable : {"raise", "warn"}
             A conditionally stable scheme beyond its limit: refused here
             (DtdynUnstableError), or warned about.
+        elements : sequence of elements, optional
+            Localized nonlinear elements (`Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen`):
+            the solver of `nonlinear_beam_response` instead; each ``run`` is one call of it
+            with these options (the elements checked once; the step not yet kept between
+            runs).
+        substeps, tol, max_iter : optional
+            With ``elements`` only: as `nonlinear_beam_response` (its defaults when None).
         **scheme_params
             The scheme's parameters.
 
@@ -304,6 +313,13 @@ class Beam(Model):
         >>> r1.x.shape, bool(np.allclose(r2.x, 2 * r1.x))
         ((201, 1), True)
         """
+        nonlinear = dict(substeps=substeps, tol=tol, max_iter=max_iter)
+        if elements is not None:  # dtdyn.nonlinear's solver, by the registry (the layers)
+            return nonlinear_solver(self, dt, elements, scheme=scheme, form=form,
+                                    backend=backend, outputs=outputs, quantities=quantities,
+                                    unstable=unstable, **nonlinear,
+                                    **scheme_params)
+        nonlinear_solver(self, dt, None, **nonlinear)  # none of them without elements
         return BeamSolver(self, dt, scheme, form, backend, outputs, quantities, unstable,
                           scheme_params)
 

@@ -22,7 +22,7 @@ from dtdyn._engine import validate
 from dtdyn._engine.result import Response
 from dtdyn._engine.errors import DtdynAccuracyWarning
 from dtdyn._engine.public import public, warn
-from dtdyn.linear._solver import Model, Solver, schemes_of_run
+from dtdyn.linear._solver import Model, Solver, nonlinear_solver, schemes_of_run
 from dtdyn.linear._stability import chain_highest_frequency
 
 #: the plain sweep warns above this estimated relative error
@@ -131,7 +131,8 @@ class Chain(Model):
     @public
     def solver(self, dt, *, scheme="newmark", form="displacement", sweep="stable", backend="c",
                outputs=None, quantities=("x", "v", "a"), unstable="raise", workers=None,
-               **scheme_params) -> ChainSolver:
+               elements=None, substeps=None, tol=None,
+               max_iter=None, **scheme_params) -> ChainSolver:
         """Prepare the chain for many load cases at the sample step ``dt``.
 
         Checks the options and the stability limit (the chain's highest mode) and loads the
@@ -158,6 +159,13 @@ class Chain(Model):
             As `chain_response`: refused here, or warned about.
         workers : int, optional
             Threads of the C stable sweep of each run, as `chain_response`.
+        elements : sequence of elements, optional
+            Localized nonlinear elements (`Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen`):
+            the solver of `nonlinear_chain_response` instead; each ``run`` is one call of it
+            with these options (the elements checked once; the step not yet kept between
+            runs).
+        substeps, tol, max_iter : optional
+            With ``elements`` only: as `nonlinear_chain_response` (its defaults when None).
         **scheme_params
             The scheme's parameters.
 
@@ -177,6 +185,13 @@ class Chain(Model):
         ...                                outputs=[1]).x).all())
         True
         """
+        nonlinear = dict(substeps=substeps, tol=tol, max_iter=max_iter)
+        if elements is not None:  # dtdyn.nonlinear's solver, by the registry (the layers)
+            return nonlinear_solver(self, dt, elements, scheme=scheme, form=form,
+                                    backend=backend, outputs=outputs, quantities=quantities,
+                                    unstable=unstable, sweep=sweep, workers=workers, **nonlinear,
+                                    **scheme_params)
+        nonlinear_solver(self, dt, None, **nonlinear)  # none of them without elements
         return ChainSolver(self, dt, scheme, form, sweep, backend, outputs, quantities,
                            unstable, workers, scheme_params)
 

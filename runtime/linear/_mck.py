@@ -27,7 +27,8 @@ from dtdyn._engine import linalg
 from dtdyn._engine.kernels import DtdynKernelError
 from dtdyn._engine.public import public
 from dtdyn._engine.result import Response
-from dtdyn.linear._solver import Model, Solver, check_backend, schemes_of_run, scheme_key
+from dtdyn.linear._solver import (Model, Solver, check_backend, nonlinear_solver,
+                                  schemes_of_run, scheme_key)
 from dtdyn.linear._stability import highest_frequency
 
 
@@ -344,8 +345,10 @@ class Matrices(Model):
         return f"Matrices({self.n_dof} DOFs, {'sparse' if self.sparse else 'dense'})"
 
     @public
-    def solver(self, dt, *, scheme="newmark", form="acceleration", backend="c", outputs=None,
-               quantities=("x", "v", "a"), unstable="raise", **scheme_params) -> MatricesSolver:
+    def solver(self, dt, *, scheme=None, form="acceleration", backend="c", outputs=None,
+               quantities=("x", "v", "a"), unstable="raise", elements=None, substeps=None,
+               modes=None, tol=None, max_iter=None, solver=None, compiled=None, estimate=None,
+               accuracy=None, **scheme_params) -> MatricesSolver:
         """Prepare the model for many load cases at the sample step ``dt``.
 
         Checks the options and the stability limit, factorizes the effective matrix of each
@@ -353,26 +356,44 @@ class Matrices(Model):
         the consistent initial acceleration), and loads the C loop, once. Each ``run`` of the
         returned solver is then one load case, the results of `mck_response` bitwise.
 
+        With ``elements`` (localized nonlinear elements) the solver is that of
+        `nonlinear_mck_response` (`dtdyn.nonlinear._solver.MatricesNonlinearSolver`): it
+        checks the options and the elements, builds the scheme's linear step (the modal
+        decomposition, the force polynomials' weights) and compiles the element laws into the
+        C loop once; its ``run`` equals `nonlinear_mck_response` bitwise.
+
         Parameters
         ----------
         dt : float
             Sample step, s, > 0.
-        scheme : str
-            Any scheme of `chain_response`; its parameters (``beta``, ``gamma``, ``theta``,
-            ``alpha``, ``rho_inf``) as keywords.
+        scheme : str, optional
+            Any scheme of `chain_response` (default "newmark"); its parameters (``beta``,
+            ``gamma``, ``theta``, ``alpha``, ``rho_inf``) as keywords. With ``elements``: a
+            scheme of `nonlinear_mck_response` (default "modal_ramp").
         form : {"acceleration", "displacement"}
             The step's unknown: the acceleration a_e, (M + Dv C + Dx K) a_e = F - C Ev - K Ex
             (`mck_response`'s), or the displacement increment u = x_e - x_n (implicit schemes
             only); both solve the scheme's equations, to rounding.
         backend : {"c", "numpy"}
-            As `mck_response`.
+            As `mck_response` (with ``elements``: "c" or "casadi").
         outputs : sequence of int, optional
             DOFs whose response is stored (all by default).
         quantities : subset of ("x", "v", "a")
-            What is stored; the others are None in the results.
+            What is stored; the others are None in the results (with ``elements`` also "g",
+            "z").
         unstable : {"raise", "warn"}
             A conditionally stable scheme beyond its limit for the highest mode: refused here
-            (DtdynUnstableError), or warned about.
+            (DtdynUnstableError), or warned about (linear solvers only).
+        elements : sequence of elements, optional
+            `Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen`: a nonlinear solver (above).
+        substeps, modes, tol, max_iter, solver, compiled : optional
+            With ``elements`` only: as `nonlinear_mck_response` (its defaults when None).
+        estimate : bool, optional
+            With ``elements`` only: False skips the embedded estimate of modal_quintic and
+            modal_explicit (True, a second run at other sub-steps, is the function's only).
+        accuracy : float, optional
+            Refused: an accuracy target picks the method and the sub-steps per record, so it
+            is an option of `nonlinear_mck_response`, not of a solver.
         **scheme_params
             The scheme's parameters.
 
@@ -380,7 +401,8 @@ class Matrices(Model):
         -------
         Solver
             ``run(force, force_dofs=..., x0=..., v0=..., ground_acceleration=...)`` per load
-            case; safe to call from several threads at once.
+            case; safe to call from several threads at once (with ``elements``: a
+            `MatricesNonlinearSolver`, its C backend's runs too).
 
         Examples
         --------
@@ -392,8 +414,15 @@ class Matrices(Model):
         ...                              scheme="hht", alpha=-0.1).x).all())
         True
         """
-        return MatricesSolver(self, dt, scheme, form, backend, outputs, quantities, unstable,
-                              scheme_params)
+        nonlinear = dict(substeps=substeps, modes=modes, tol=tol, max_iter=max_iter,
+                         solver=solver, compiled=compiled, estimate=estimate, accuracy=accuracy)
+        if elements is not None:  # dtdyn.nonlinear's solver, by the registry (the layers)
+            return nonlinear_solver(self, dt, elements, form=form, unstable=unstable,
+                                    scheme=scheme, backend=backend, outputs=outputs,
+                                    quantities=quantities, **nonlinear, **scheme_params)
+        nonlinear_solver(self, dt, None, **nonlinear)  # none of them without elements
+        return MatricesSolver(self, dt, "newmark" if scheme is None else scheme, form, backend,
+                              outputs, quantities, unstable, scheme_params)
 
 
 class MatricesSolver(Solver):

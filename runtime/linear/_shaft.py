@@ -27,7 +27,8 @@ from dtdyn._engine.kernels import params_array
 from dtdyn._engine.public import public
 from dtdyn.generated import c_api
 from dtdyn.generated import shaft as gen
-from dtdyn.linear._solver import Model, Solver, check_backend, schemes_of_run
+from dtdyn.linear._solver import (Model, Solver, check_backend, nonlinear_solver,
+                                  schemes_of_run)
 from dtdyn.linear._stability import highest_frequency
 
 #: the ends a line of disks may have
@@ -450,7 +451,8 @@ class Shaft(Model):
 
     @public
     def solver(self, dt, *, scheme="newmark", form="displacement", backend="c", outputs=None,
-               quantities=("x", "v", "a"), unstable="raise", **scheme_params) -> ShaftSolver:
+               quantities=("x", "v", "a"), unstable="raise", elements=None, substeps=None, tol=None,
+               max_iter=None, **scheme_params) -> ShaftSolver:
         """Prepare the shaft for many load cases at the sample step ``dt``.
 
         Checks the options, the stability limit (the lumped model's highest mode) and each
@@ -478,6 +480,13 @@ class Shaft(Model):
         unstable : {"raise", "warn"}
             A conditionally stable scheme beyond its limit: refused here
             (DtdynUnstableError), or warned about.
+        elements : sequence of elements, optional
+            Localized nonlinear elements (`Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen`):
+            the solver of `nonlinear_shaft_response` instead; each ``run`` is one call of it
+            with these options (the elements checked once; the step not yet kept between
+            runs).
+        substeps, tol, max_iter : optional
+            With ``elements`` only: as `nonlinear_shaft_response` (its defaults when None).
         **scheme_params
             The scheme's parameters.
 
@@ -496,6 +505,13 @@ class Shaft(Model):
         >>> r1.x.shape, bool(np.allclose(r2.x, 2 * r1.x))
         ((201, 1), True)
         """
+        nonlinear = dict(substeps=substeps, tol=tol, max_iter=max_iter)
+        if elements is not None:  # dtdyn.nonlinear's solver, by the registry (the layers)
+            return nonlinear_solver(self, dt, elements, scheme=scheme, form=form,
+                                    backend=backend, outputs=outputs, quantities=quantities,
+                                    unstable=unstable, **nonlinear,
+                                    **scheme_params)
+        nonlinear_solver(self, dt, None, **nonlinear)  # none of them without elements
         return ShaftSolver(self, dt, scheme, form, backend, outputs, quantities, unstable,
                            scheme_params)
 

@@ -29,6 +29,35 @@ from dtdyn.linear._stability import check_dt
 #: the backends of the linear solvers
 BACKENDS = ("c", "numpy")
 
+#: the solvers of models with localized nonlinear elements, by model class name:
+#: ``NONLINEAR["Matrices"](model, dt, elements=..., **options)``. dtdyn.nonlinear fills it when
+#: it is imported (`dtdyn.nonlinear._solver.register`; ``import dtdyn`` imports it): the layers
+#: keep dtdyn.linear from importing dtdyn.nonlinear
+NONLINEAR: dict = {}
+
+
+def nonlinear_solver(model, dt, elements, **options):
+    """``model.solver(dt, elements=..., **options)``: the nonlinear solver `NONLINEAR` holds
+    for the model's class (the options that are None take its defaults; the factory refuses
+    the linear solvers' own options). Without elements: None, after refusing any option that
+    is not None (the nonlinear options given to a linear solver)."""
+    name = type(model).__name__
+    if elements is None:  # a linear solver: no nonlinear option may be given
+        given = [k for k, v in options.items() if v is not None]
+        if given:
+            raise ValueError(f"{given[0]}={options[given[0]]!r} is an option of the solvers with "
+                             "elements (the nonlinear functions'); this solver has no elements")
+        return None
+    options = {k: v for k, v in options.items() if v is not None}
+    make = NONLINEAR.get(name)
+    if make is None:
+        if not NONLINEAR:
+            raise RuntimeError("elements= needs dtdyn.nonlinear, which registers the nonlinear "
+                               "solvers when imported: import dtdyn (or dtdyn.nonlinear) first")
+        raise TypeError(f"{name}.solver takes no elements (nonlinear solvers: "
+                        f"{', '.join(sorted(NONLINEAR))})")
+    return make(model, dt, elements=elements, **options)
+
 
 def check_backend(backend) -> str:
     """``backend`` if it is one of `BACKENDS`, else a ValueError naming it."""

@@ -30,24 +30,21 @@ from __future__ import annotations
 
 import ctypes
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from functools import lru_cache, partial
 from importlib import resources
 
 import numpy as np
 
-from dtdyn._engine import ground as support
 from dtdyn._engine import cbuild
 from dtdyn._engine import linalg
 from dtdyn._engine import validate
-from dtdyn._engine.kernels import DtdynKernelError
-from dtdyn.generated import c_api
-from dtdyn.nonlinear._elements import casadi_ops, check_elements, element_matrix
-from dtdyn._engine.stepping import check_quantities
+from dtdyn.nonlinear._elements import casadi_ops, element_matrix  # noqa: F401 (tests' NL.)
 from dtdyn._engine.result import Response
 from dtdyn._engine.errors import DtdynStepStabilityError, NewtonError
 from dtdyn._engine.extras import require
-from dtdyn.nonlinear._linear_step import EXPLICIT, POLYNOMIAL, THETA_LIMIT, LinearStep, linear_step
+from dtdyn.nonlinear._linear_step import EXPLICIT, POLYNOMIAL, THETA_LIMIT, LinearStep
+from dtdyn.nonlinear._linear_step import linear_step  # noqa: F401 (the tests' NL.linear_step)
 
 # ----------------------------------------------------------------------------------------------
 # the per-step residual of the elements (CasADi SX), shared by both backends
@@ -165,13 +162,14 @@ def _pad_rows(a):
     return np.vstack([a, np.zeros((n - a.shape[0], a.shape[1]))])
 
 
-def _modal_mats(step: LinearStep, md, past) -> list:
+def _modal_mats(step: LinearStep, md, past=None) -> list:
     """The modal path's matrices (nl_loop.c, modal_run): the modal rows in the order ``perm``
     (T's 2 x 2 blocks first) and padded, as the output rows, to a multiple of 4: [dia off], [H Bf],
     Eg, the stencil, Bg, Bs = Bg + sum_i H_i (g's weights summed: the estimate's), Cw^T, Cw Bg,
     [Co Dof Dog]; the estimate's Cw e_k from e_{k-1}: (Cw T)^T, Cw Eg, Cw Bs; its forces
     before t_0, oldest first (``past``: g_{-1}, g_{-2}, ... as rows); and |Cw Bg| on the y rows
-    (ne x ne, its rows padded to a multiple of 4: modal_explicit's theta)."""
+    (ne x ne, its rows padded to a multiple of 4: modal_explicit's theta). ``past`` None:
+    None in its place (`_past`, each run's)."""
     nm, nh, ne, p = md["nm"], md["nh"], step.Bg.shape[1], md["perm"]
     Bg, Cw = step.Bg[:nm][p], step.Cw[:, :nm][:, p]
     H, Eg = md["H"][p], md["Eg"][p]
@@ -185,16 +183,43 @@ def _modal_mats(step: LinearStep, md, past) -> list:
             _pad_rows(Cw.T), Cw @ Bg,
             _pad_rows(np.hstack([step.Co[:, :nm][:, p], step.Dof, step.Dog])),
             _pad_rows((Cw @ T).T), Cw @ Eg, Cw @ Bs,
-            np.append(past[md["stencil"].size - 2::-1] if md["stencil"].size else [], 0.0),
-            _pad_rows(np.abs(Cw @ Bg)[:ne])]
+            None if past is None else _past(md, past), _pad_rows(np.abs(Cw @ Bg)[:ne])]
+
+
+#: the place of the forces before t_0 in the C loop's matrices (`_modal_mats`, nl_loop.h)
+PAST = 22
+
+
+def _past(md, past):
+    """The modal loop's forces before t_0, oldest first, then 0 (``past``: g_{-1}, g_{-2},
+    ... as rows)."""
+    return np.append(past[md["stencil"].size - 2::-1] if md["stencil"].size else [], 0.0)
+
+
+def _c_mats(step: LinearStep) -> list:
+    """The C loop's matrices of ``step`` in column-major order, the forces before t_0 (the
+    modal path's mats[PAST], each run's) None."""
+    par = np.concatenate([step.Dwg.ravel(order="F"), [step.h]])
+    mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, par, step.Co, step.Dof,
+            step.Dog]
+    if step.modal is not None:  # the modal path: only the modal rows and columns (nl_loop.c)
+        mats += _modal_mats(step, step.modal)
+    return [None if m is None else np.asfortranarray(m, dtype=float) for m in mats]
 
 
 #: steps per block of the modal loop's embedded estimate (nl_loop.c, estimate_block)
 ESTIMATE_BLOCK = 128
 
 
+def _c_addresses(mats) -> tuple:
+    """(``mats``, their data addresses): what `_run_c` passes the loop (None: 0)."""
+    return mats, [0 if m is None else m.ctypes.data for m in mats]
+
+
 def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate, theta_limit,
-           nzo, past):
+           nzo, past, mats=None):
+    """One run of the C loop (``mats``: `_c_mats` of ``step`` and their addresses, as a
+    solver keeps them (`_c_addresses`); made when None)."""
     run, n_w, n_iw, lib = runner
     ns, nf, no = step.A.shape[0], force.shape[1], step.Co.shape[0]
     n_samples = force.shape[0]
@@ -203,16 +228,14 @@ def _run_c(runner, step: LinearStep, sz, force, S, tol, max_iter, x, u, g, rate,
     extra = [] if md is None else [md["nm"], md["nh"], nst, n_w + 1, ESTIMATE_BLOCK]
     dims = np.array([ns, nf, sz.ne, sz.nw, sz.nz, no, n_samples, S, max_iter, nzo] + extra,
                     dtype=np.int64)
-    par = np.concatenate([step.Dwg.ravel(order="F"), [step.h]])
-    mats = [step.A, step.Bf, step.Bg, step.Cw, step.Dwf, step.Dwg, par, step.Co, step.Dof,
-            step.Dog]
-    if md is not None:  # the modal path: only the modal rows and columns (nl_loop.c)
-        mats += _modal_mats(step, md, past)
-    mats = [np.asfortranarray(m, dtype=float) for m in mats]
-    if md is not None:  # the loop's modal rows in the order perm, copied back after the run
+    mats, addresses = _c_addresses(_c_mats(step)) if mats is None else mats
+    ptrs = (ctypes.c_void_p * len(addresses))(*addresses)
+    if md is not None:
+        before = np.asfortranarray(_past(md, past), dtype=float)  # kept alive to the run's end
+        ptrs[PAST] = before.ctypes.data
+        # the loop's modal rows in the order perm, copied back after the run
         xa, x = x, x.copy()
         x[:md["nm"]] = xa[md["perm"]]
-    ptrs = (ctypes.c_void_p * len(mats))(*[m.ctypes.data for m in mats])
     out = np.empty((n_samples, no + nzo))
     stats = np.zeros(6 + no)  # then the estimate's largest |error| per output row, the LUs
     fail = np.zeros(1, dtype=np.int64)
@@ -429,8 +452,8 @@ QUANTITIES = ("x", "v", "a", "g", "z")
 
 
 
-# noqa below: one function on purpose, the entry point that validates and dispatches its keywords
-# (schemes, accuracy targets, backends); issue 27's solver layer splits it
+# noqa below: the accuracy targets' dispatch (methods, sub-steps per record) stays here; a run
+# is one solver (`dtdyn.nonlinear._solver.MatricesNonlinearSolver`) and one run
 def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, scheme=None,  # noqa: C901
                        substeps=1, outputs=None, quantities=("x", "v", "a"), modes=None,
                        backend="c", tol=1e-12, max_iter=30, solver="newton", compiled=False,
@@ -673,135 +696,21 @@ def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, sch
         # the polynomial methods' nominal order (6, 7) is trusted only as far as the runs show it
         return acc.reach(run, target, S0, cap, scheme, scheme_params,
                          observed=scheme in POLYNOMIAL)
-    t0 = time.perf_counter()
-    M, C, K = linalg.mck(M, C, K)
-    n = M.shape[0]
-    method = scheme
-    dt = validate.positive_scalar("dt", dt)
-    fs = 1.0 / dt
-    force, force_dofs, ground = support.prepare(M, force, force_dofs, n, ground_acceleration,
-                                                influence, dt=dt,
-                                                ground_velocity=ground_velocity,
-                                                ground_displacement=ground_displacement)
-    force_dofs = validate.dof_indices("force_dofs", force_dofs, n)
-    outputs = validate.dof_indices("outputs", outputs, n)
-    quantities = check_quantities(quantities, QUANTITIES)
-    elements = check_elements(elements)
-    if not elements:
-        raise ValueError("elements is empty: use mck_response or modal_filter_response for a "
-                         "linear model")
-    S = validate.step_count("substeps", substeps)
-    max_iter = validate.step_count("max_iter", max_iter)
-    tol = validate.positive_scalar("tol", tol)
-    if backend not in ("c", "casadi"):
-        raise ValueError(f"backend must be 'c' or 'casadi', got {backend!r}")
-    if solver not in ("newton", "fast_newton"):
-        raise ValueError(f"solver must be 'newton' or 'fast_newton', got {solver!r}")
-    if compiled and solver != "fast_newton":
-        raise ValueError("compiled=True needs solver='fast_newton': CasADi cannot generate C for "
-                         "its 'newton' rootfinder")
-    f = validate.force_record(force, force_dofs.size)
-    q0, qd0 = validate.initial_conditions(x0, v0, n)
-    validate.output_size("nonlinear_mck_response", f.shape[0],
-                         len(quantities) * max(outputs.size, len(elements)))
-    L = element_matrix(elements, n)
-    sz = _sizes(elements)
-    h = dt / S
-    step = linear_step(method, M, C, K, h, force_dofs, L, outputs, modes, sz.need_v,
-                       estimate=estimate is not False,
-                       **scheme_params)
-    # only the quantities asked are computed and stored: rows of x, v, a per output DOF, then
-    # the element forces g (Dog = I), then the internal states z (copied by the loop)
-    asked = [q for q in ("x", "v", "a") if q in quantities]
-    rows = np.concatenate([np.arange(outputs.size) + outputs.size * "xva".index(q)
-                           for q in asked] + [np.zeros(0, dtype=int)])
-    Co, Dof, Dog = step.Co[rows], step.Dof[rows], step.Dog[rows]
-    if "g" in quantities:
-        Co = np.vstack([Co, np.zeros((sz.ne, Co.shape[1]))])
-        Dof = np.vstack([Dof, np.zeros((sz.ne, Dof.shape[1]))])
-        Dog = np.vstack([Dog, np.eye(sz.ne)])
-    step = replace(step, Co=Co, Dof=Dof, Dog=Dog)
-    if "z" in quantities and not sz.nz:
-        raise ValueError("quantities asks for 'z', but no element has internal states (BoucWen "
-                         "has z)")
-    nzo = sz.nz if "z" in quantities else 0
-    y0, yd0 = L @ q0, L @ qd0
-    g0, rate0 = _forces_at_rest(elements, sz, y0, yd0)
-    # the loop solves every sample's step, t_0's too, with the trapezoidal z_k = z_{k-1} +
-    # h/2 (z'_k + z'_{k-1}): "previous" values z = 0, z' = -z'_0 make z_0 = 0 its solution
-    # (the states start from 0, whatever y'_0 is)
-    rate0 = -rate0
-    x = np.ascontiguousarray(step.X0f @ f[0] + step.X0g @ g0 + step.X0x @ q0 + step.X0v @ qd0)
-    # the force polynomials' past: g_0 at rest, else the motion's continuation
-    # (`startup`); the history rows end the state, g_{-1} first
-    n_hist = step.modal["nh"] // sz.ne if step.modal else 0
-    nst = step.modal["stencil"].size if step.modal else 0
-    past = np.tile(g0, (max(n_hist, nst - 1), 1))
-    if len(past) and (q0.any() or qd0.any()):
-        from dtdyn.nonlinear._startup import forces_before_start
-        smooth = forces_before_start(M, C, K, L, elements, force_dofs, f, dt, q0, qd0, h,
-                                     len(past))
-        if smooth is not None:
-            past = smooth
-            x[x.size - n_hist * sz.ne:] = past[:n_hist].ravel()
-    u = np.concatenate([y0] + ([yd0] if sz.need_v else []) + [np.zeros(sz.nz)])
-    t1 = time.perf_counter()
+    from dtdyn.linear._mck import Matrices
+    from dtdyn.nonlinear._solver import LAZY, MatricesNonlinearSolver
 
-    used, embedded, t_around = backend, None, 0.0
-    if backend == "c":
-        dims = (step.A.shape[0], f.shape[1], sz.ne, sz.nw, sz.nz, step.Co.shape[0])
-        if step.modal is not None:
-            dims += (step.modal["nm"], step.modal["nh"], step.modal["stencil"].size)
-        reuse = LU_REUSE_MIN is not None and sz.nw + sz.nz >= LU_REUSE_MIN
-        runner, t_build, t_compile = _c_runner(elements, dims, method in EXPLICIT, reuse)
-        used = "c" if runner is not None else "casadi"
-    if used == "c":
-        t2 = time.perf_counter()
-        rc, out, stats, fail, t_run = _run_c(runner, step, sz, f, S, tol, max_iter, x, u,
-                                             g0.copy(), rate0.copy(),
-                                             THETA_LIMIT.get(method, np.inf), nzo, past)
-        t_around = time.perf_counter() - t2 - t_run  # the Python around the loop: setup
-        if rc == 2:
-            raise RuntimeError(f"dtdyn_nl_run was compiled for other sizes than {dims}")
-        if rc == c_api.ERR_WORK:
-            raise DtdynKernelError("dtdyn_nl_run", rc, f"dims {dims}")
-        if rc == 3:
-            _stability_error(method, fail, S, fs, stats[3])
-        if rc:
-            _newton_error(fail, S, fs, stats[3], max_iter, method in EXPLICIT and not sz.nz)
-        iters = {"max": int(stats[0]), "mean": stats[1] / ((f.shape[0] - 1) * S + 1),
-                 "factorizations": int(stats[-1])}
-        worst, theta = float(stats[2]), float(stats[4])
-        if step.modal is not None and step.modal["stencil"].size:
-            embedded = stats[5:-1]
-    else:
-        xa = np.concatenate([x, u, g0, rate0, [0.0, 0.0]])
-        out, worst, theta, t_build, t_compile, t_run = _run_casadi(
-            elements, step, sz, f, S, solver, tol, max_iter, compiled, xa, method, fs, nzo)
-        iters = None
-    no = outputs.size
-    store = {q: out[:, asked.index(q) * no:(asked.index(q) + 1) * no] if q in asked else None
-             for q in ("x", "v", "a")}
-    n_motion = len(asked) * no
-    store["g"] = out[:, n_motion:n_motion + sz.ne] if "g" in quantities else None
-    store["z"] = out[:, step.Co.shape[0]:] if nzo else None
-    estimate_info = {}
-    if embedded is not None:  # largest |error| per output row, relative per quantity
-        est = 0.0
-        for i, q in enumerate(asked):
-            scale = np.abs(store[q]).max()
-            e = embedded[i * no:(i + 1) * no].max()
-            est = max(est, float(e / scale) if scale > 0 else (0.0 if e == 0 else np.inf))
-        estimate_info = {"error_estimate": est, "error_estimate_kind": "embedded"}
-    return support.finish(Response(dt * np.arange(f.shape[0]), outputs, **store,
-                    info={"scheme": method, "substeps": S, "backend": used, "dt": dt,
-                          "n_steps": f.shape[0] - 1,
-                          "elements": [el.describe() for el in elements],
-                          "setup_time": t1 - t0 + t_around, "construct_time": t_build,
-                          "compile_time": t_compile, "run_time": t_run,
-                          "newton_iterations": iters, "max_residual": worst,
-                          "max_theta": theta, **estimate_info,
-                          **({"params": scheme_params} if scheme_params else {})}), ground)
+    t0 = time.perf_counter()
+    solver_ = MatricesNonlinearSolver(
+        Matrices(M, C, K), dt, elements=elements, scheme=scheme, substeps=substeps,
+        outputs=outputs, quantities=quantities, modes=modes, backend=backend, tol=tol,
+        max_iter=max_iter, solver=solver, compiled=compiled, estimate=estimate, force_dofs=LAZY,
+        **scheme_params)
+    t1 = time.perf_counter()
+    res = solver_.run(force, force_dofs=force_dofs, x0=x0, v0=v0,
+                      ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
+                      ground_displacement=ground_displacement, influence=influence)
+    res.info["setup_time"] += t1 - t0  # the solver's construction is this call's setup too
+    return res
 
 
 def _smooth(elements) -> bool:
@@ -852,3 +761,7 @@ def _newton_error(k, S, fs, resid, max_iter, evaluated=False):
     raise NewtonError(f"Newton did not converge at step {k} ({where}, t = {k / (fs * S):.6g} s): "
                       f"residual {resid:.3g} after at most {max_iter} iterations; try more "
                       "substeps (or smoothing for a Gap)")
+
+
+# the solver of Matrices with elements, registered for dtdyn.linear (`_solver.register`)
+from dtdyn.nonlinear import _solver as _solver  # noqa: E402,F401
