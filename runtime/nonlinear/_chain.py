@@ -165,7 +165,8 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
         mats = [m, k, c, *kernels.ground_elements(chain), kernels.params_array(info), run.U,
                 run.par, f]
         dims = [N, len(info.history), run.loaded.size, force_dofs.size, sz.ne, sz.nw, sz.nz,
-                outputs.size, f.shape[0], S, max_iter, kernels.FORM_CODE[form], *run.rows]
+                outputs.size, f.shape[0], S, max_iter, kernels.FORM_CODE[form], *run.rows,
+                newton_code(sz)]
         return _run_c(driver, sweep_fn, dims, idx, mats, run.H, run.u, run.g, run.rate,
                       run.store, h, tol, S)
 
@@ -194,7 +195,8 @@ def condensed_response(make_advance, n, history, elements, ei, ej, force_dofs, o
     ``outputs``, ``x0``, ``v0`` in that numbering too; ``f`` the checked force record;
     ``accel(f0) -> a_0`` the consistent initial acceleration for the load f0 = f_0 - L^T g_0
     (the model's M, C, K with x0, v0); ``c_loop(run)``: a compiled whole loop over the prepared
-    ``run`` returning (max iterations, total, largest residual), or None to run the Python loop
+    ``run`` returning (max iterations, total, largest residual, LU factorizations of the
+    kept-LU Newton or 0: `newton_code`), or None to run the Python loop
     (the step's advance, U_e, the Newton solve by `newton_solve`).
 
     Returns ``(store, stats)``: the stored x, v, a (columns ``outputs``), g, z per sample, and
@@ -257,8 +259,11 @@ def condensed_response(make_advance, n, history, elements, ei, ej, force_dofs, o
     run = SimpleNamespace(loaded=loaded, pf=pf, pi=pi, pj=pj, U=U, par=par, H=H, u=u, g=g,
                           rate=rate, store=store, rows=(ix, iv, ia))
     done = c_loop(run) if c_loop is not None else None
+    kept = {}
     if done is not None:
-        iters, total, worst = done
+        iters, total, worst, formed = done
+        if formed:  # newton_kept (newton_code)
+            kept = {"factorizations": formed}
     else:
         fn = _residual_evaluator(elements, sz, backend)
         scale, scale_u, iters, worst, total = 0.0, 0.0, 0, 0.0, 0
@@ -296,7 +301,7 @@ def condensed_response(make_advance, n, history, elements, ei, ej, force_dofs, o
     return store, {"loop": "c" if done is not None else "python", "setup_end": t1,
                    "run_time": t2 - t1,
                    "newton_iterations": {"max": iters,
-                                         "mean": total / max((n_samples - 1) * S, 1)},
+                                         "mean": total / max((n_samples - 1) * S, 1), **kept},
                    "max_residual": worst}
 
 
@@ -323,6 +328,24 @@ def newton_solve(evaluate, u, scale_r, scale_u, tol, max_iter):
         if it == max_iter:
             return u, -1, rn, rest
         u = u - d
+
+
+#: the C loops of chains, beams and shafts keep the LU factors of the Newton Jacobian from step
+#: to step (modified Newton, newton_kept in newton.h) from this many unknowns u = [w; z] on;
+#: below, every iteration solves with the Jacobian at its iterate (newton_solve, the Python
+#: loop's steps). Measured (docs/newton_kept_lu.md): 1.35x to 1.83x faster from 24 to 48
+#: Bouc-Wen unknowns (one factorization a record), 0.88x to 0.94x for 12 to 30 cubic springs
+#: (whose Jacobian follows the state: twice the iterations), 1.03x to 1.09x for 50 to 80.
+#: None: never.
+LU_KEPT_MIN: int | None = 24
+
+
+def newton_code(sz):
+    """dims' Newton code of the C loops (nl_chain.h, nl_stations.h): ``c_api.NEWTON_KEPT_LU``
+    (newton_kept) from `LU_KEPT_MIN` unknowns on, else ``c_api.NEWTON_PLAIN``."""
+    least = LU_KEPT_MIN
+    return c_api.NEWTON_KEPT_LU if least is not None and sz.nw + sz.nz >= least else \
+        c_api.NEWTON_PLAIN
 
 
 def _grow(s, v):
@@ -356,7 +379,8 @@ def _c_driver(elements, sz):
 
 
 def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
-    """The time loop in generated/nl_chain.c; (max iterations, total, largest residual)."""
+    """The time loop in generated/nl_chain.c; (max iterations, total, largest residual, LU
+    factorizations of the kept-LU Newton, 0 without it)."""
     run, n_w, n_iw, lib = driver
     max_iter, N = dims[10], dims[0]
     arrays = lambda xs, dtype: [np.ascontiguousarray(a, dtype=dtype) for a in xs]  # noqa: E731
@@ -366,7 +390,7 @@ def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
     dims = np.array(dims, dtype=np.int64)
     pointers = lambda xs: (ctypes.c_void_p * len(xs))(  # noqa: E731
         *[0 if a is None else a.ctypes.data for a in xs])
-    stats = np.zeros(4)
+    stats = np.zeros(5)
     fail = np.zeros(1, dtype=np.int64)
     # the chain kernel's rows (c_api.CHAIN_ROWS_STABLE N), the Newton solve's, then CasADi's
     work = np.zeros(max(lib.dtdyn_nl_chain_work(dims.ctypes.data), 1))
@@ -385,7 +409,7 @@ def _run_c(driver, chain, dims, idx, mats, H, u, g, rate, store, h, tol, S):
         _newton_error(int(fail[0]), S, h, float(stats[3]), max_iter)
     if rc:
         raise RuntimeError(f"dtdyn_nl_chain returned {rc}")
-    return int(stats[0]), float(stats[1]), float(stats[2])
+    return int(stats[0]), float(stats[1]), float(stats[2]), int(stats[4])
 
 
 def _residual_evaluator(elements, sz, backend):

@@ -35,7 +35,7 @@ from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.stepping import check_quantities
 from dtdyn.generated import c_api
-from dtdyn.nonlinear._chain import _newton_error, condensed_response
+from dtdyn.nonlinear._chain import _newton_error, condensed_response, newton_code
 from dtdyn.nonlinear._elements import check_elements
 from dtdyn.nonlinear._response import QUANTITIES, _c_source, _residual_function, _sizes
 
@@ -352,7 +352,8 @@ def _run_c(driver, sz, kind, N, last, sweep, run, model_idx, model_mats, H, U, o
     elements' sizes ``sz`` on the ``run`` `condensed_response` prepared, with H and U in the
     step kernel's layout (``offset``: a DOF's place in a history row) and the step's own
     arguments ``model_idx``, ``model_mats`` (arrays, addresses or None); ``last``: dims[15].
-    Returns (max iterations, total, largest residual)."""
+    Returns (max iterations, total, largest residual, LU factorizations of the kept-LU Newton
+    or 0: `dtdyn.nonlinear._chain.newton_code`)."""
     from dtdyn.linear._beam import _aligned
 
     call, n_iw, lib = driver
@@ -371,12 +372,13 @@ def _run_c(driver, sz, kind, N, last, sweep, run, model_idx, model_mats, H, U, o
             for a in arrays + model_mats]
     state = [np.ascontiguousarray(a, dtype=float) for a in (run.u, run.g, run.rate)]
     dims = np.array([kind, N, H.shape[0], run.loaded.size, run.pf.size, sz.ne, sz.nw, sz.nz,
-                     outputs.size, n_samples, S, max_iter, ix, iv, ia, last], dtype=np.int64)
+                     outputs.size, n_samples, S, max_iter, ix, iv, ia, last, newton_code(sz)],
+                    dtype=np.int64)
 
     def pointers(xs):
         return (ctypes.c_void_p * len(xs))(*[a if a is None or isinstance(a, int)
                                              else a.ctypes.data for a in xs])
-    stats = np.zeros(4)
+    stats = np.zeros(5)
     fail = np.zeros(1, dtype=np.int64)
     work = _aligned((max(lib.dtdyn_nl_stations_work(dims.ctypes.data), 1),))
     iwork = np.zeros(n_iw + 1, dtype=np.int64)
@@ -395,4 +397,4 @@ def _run_c(driver, sz, kind, N, last, sweep, run, model_idx, model_mats, H, U, o
         raise RuntimeError(f"dtdyn_nl_stations: the step kernel returned {int(fail[0])}")
     if rc:
         raise RuntimeError(f"dtdyn_nl_stations returned {rc}")
-    return int(stats[0]), float(stats[1]), float(stats[2])
+    return int(stats[0]), float(stats[1]), float(stats[2]), int(stats[4])

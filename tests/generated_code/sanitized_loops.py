@@ -1,6 +1,7 @@
 """Run by test_sanitizers.py in a subprocess with libasan and libubsan preloaded: the chain, shaft,
-beam (block chain), mck, nonlinear (mck, its modal path, chain, beam and shaft) loops and the modal
-filters (per mode and as sections), compiled with -fsanitize=address,undefined, on tiny problems.
+beam (block chain), mck, nonlinear (mck, its modal path, chain, beam and shaft, these three also
+with the kept-LU Newton) loops and the modal filters (per mode and as sections), compiled with
+-fsanitize=address,undefined, on tiny problems.
 With the argument ``overflow``: the chain kernel told its work is longer than it is (the check at
 entry passes), which ASan must report."""
 import sys
@@ -54,6 +55,27 @@ dtdyn.nonlinear_shaft_response(dtdyn.Shaft(np.ones(5), 1e4 * np.ones(5), 0.1 * n
                                            branches=[dtdyn.Branch(2, [0.5], [5e3], ratio=2.0)]),
                                50 * f[:, 0], 1e-3, force_dofs=[4],
                                elements=[dtdyn.Cubic(1, 5, k3=1e8)], substeps=2)
+# the kept-LU Newton (newton_kept): a chain with 8 Bouc-Wen elements (24 unknowns, from
+# LU_KEPT_MIN on), then the beam and the shaft with it from 1 unknown on
+from dtdyn.nonlinear import _chain as nl_chain  # noqa: E402
+assert nl_chain.LU_KEPT_MIN <= 24
+hysteretic = [dtdyn.BoucWen(i, i - 1 if i else None, stiffness=5e3, beta=50.0, gamma=50.0)
+              for i in range(8)]
+kept = dtdyn.nonlinear_chain_response(m, k, c, 50 * f, 1e-3, force_dofs=[0, 8],
+                                      elements=hysteretic)
+assert kept.info["newton_iterations"]["factorizations"] >= 1
+nl_chain.LU_KEPT_MIN = 1
+kept = dtdyn.nonlinear_beam_response(dtdyn.Beam(E=2e11, I=1e-8, rho_A=1.0, length=1.0,
+                                                elements=4),
+                                     20 * f[:, 0], 1e-4, force_dofs=[7],
+                                     elements=[dtdyn.Cubic(7, k3=1e12), dtdyn.Cubic(5, k3=1e12),
+                                               dtdyn.Gap(3, gap=0.0, stiffness=1e3)])
+assert kept.info["newton_iterations"]["factorizations"] >= 1
+kept = dtdyn.nonlinear_shaft_response(dtdyn.Shaft(np.ones(5), 1e4 * np.ones(5), 0.1 * np.ones(5)),
+                                      50 * f[:, 0], 1e-3, force_dofs=[4],
+                                      elements=[dtdyn.Cubic(i, i + 1, k3=1e8) for i in range(4)])
+assert kept.info["newton_iterations"]["factorizations"] >= 1
+nl_chain.LU_KEPT_MIN = 24
 for scheme in ("modal_quintic", "modal_explicit"):  # nl_loop's modal path and its estimate
     dtdyn.nonlinear_mck_response(M, C, K, 50 * f, 1e-3, force_dofs=[0, 8], elements=cubic,
                                  scheme=scheme)

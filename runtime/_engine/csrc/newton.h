@@ -2,7 +2,8 @@
 #ifndef DTDYN_NEWTON_H
 #define DTDYN_NEWTON_H
 #include "c_api.h"
-/* Small dense helpers of the per-step Newton solves (included by nl_loop.c and nl_chain.c). */
+/* Small dense helpers of the per-step Newton solves (included by nl_loop.c, nl_chain.c and
+   nl_stations.c). */
 #include <float.h>
 /* LU with partial pivoting of J (column-major n x n) in place: the multipliers below the
    diagonal, U on and above it, the row swapped into row k at step k in piv[k]. 1 when J is
@@ -27,11 +28,14 @@ static int lu_factor(long n, double *restrict J, long *restrict piv)
                 t = J[j * n + k]; J[j * n + k] = J[j * n + p]; J[j * n + p] = t;
             }
         }
-        for (i = k + 1; i < n; ++i) {
-            const double l = J[k * n + i] / J[k * n + k];
-            J[k * n + i] = l;
-            for (j = k + 1; j < n; ++j)
-                J[j * n + i] -= l * J[j * n + k];
+        /* the multipliers, then the trailing columns one at a time (contiguous: each entry
+           meets the same operations, in the same order, as in a row-by-row update) */
+        for (i = k + 1; i < n; ++i)
+            J[k * n + i] = J[k * n + i] / J[k * n + k];
+        for (j = k + 1; j < n; ++j) {
+            const double u = J[j * n + k];
+            for (i = k + 1; i < n; ++i)
+                J[j * n + i] -= J[k * n + i] * u;
         }
     }
     return 0;
@@ -181,6 +185,96 @@ static long newton_solve(long nu, long ne, double *restrict u, double *restrict 
             return -1;
         for (i = 0; i < nu; ++i)
             u[i] += r[i];
+    }
+}
+
+/*
+ * newton_solve with the LU factors of the Newton matrix kept from iteration to iteration and
+ * from step to step, at runtime sizes (the chain and station loops with DTDYN_NEWTON_KEPT_LU;
+ * nl_loop.h's newton_fixed is the same at compile-time sizes): modified Newton,
+ * u <- u - J_f^-1 r(u), J_f the Jacobian where the factors were formed. They are formed anew,
+ * at the current iterate, when the iteration does not contract (|d_i| > KEPT_CONTRACT
+ * |d_{i-1}|) and at every iteration from KEPT_FRESH_ITERS on (plain Newton from there, so that
+ * a step plain Newton solves within max_iter is not refused). The residual test is the rule's;
+ * the step test |J_f^-1 r| <= tol s_u accepts with factors formed at this iterate (the rule's),
+ * or after an iteration that contracted by KEPT_CONTRACT (the remaining error is then below
+ * |d| / (1 - KEPT_CONTRACT)): never on the first iteration with older factors, whose Jacobian
+ * may belong to another state of the elements (a contact that has opened since). J stays the
+ * Jacobian at u. An LU costs ~nu^3 / 3 multiply-adds, a solve with its factors ~nu^2.
+ */
+enum { KEPT_FRESH_ITERS = 4 };
+#define KEPT_CONTRACT 0.25
+
+typedef struct {
+    double *f;     /* nu x nu: lu_factor's factors of J_f */
+    long *piv;     /* nu: its row swaps */
+    int have;      /* f and piv hold factors */
+    double formed; /* factorizations so far */
+} lu_kept;
+
+/* d = -J_f^-1 r (r unchanged), after forming the factors at J when asked to (*fresh) or when
+   there are none; 1 when J is singular. *fresh: the factors are J's */
+static inline int lu_kept_step(long nu, lu_kept *restrict lu, const double *restrict J,
+                               const double *restrict r, double *restrict d, int *fresh)
+{
+    if (*fresh || !lu->have) {
+        copy(nu * nu, J, lu->f);
+        lu->have = 0;
+        if (lu_factor(nu, lu->f, lu->piv))
+            return 1;
+        lu->have = 1;
+        lu->formed += 1.0;
+        *fresh = 1;
+    }
+    copy(nu, r, d);
+    lu_apply(nu, lu->f, lu->piv, d);
+    return 0;
+}
+
+/* newton_solve's arguments and result, with the kept factors lu and d (nu doubles: the step) */
+static inline long newton_kept(long nu, long ne, double *restrict u, double *restrict r,
+                               double *restrict J, double scale_r, double scale_u, double tol,
+                               long max_iter, const double **arg, double **res, nl_int *iw,
+                               double *w, double *rn, double *theta, lu_kept *restrict lu,
+                               double *restrict d)
+{
+    const double lim_r = tol * fmax(scale_r, DBL_MIN), lim_u = tol * fmax(scale_u, DBL_MIN);
+    double dprev = INFINITY;
+    long it, i, k;
+    for (it = 0;; ++it) {
+        double dn;
+        int fresh = it >= KEPT_FRESH_ITERS;
+        nl_residual(arg, res, iw, w, 0);
+        *rn = norm_inf(nu, r);
+        if (!(*rn < INFINITY))
+            return -1;
+        *theta = 0.0;
+        for (i = 0; i < ne; ++i) {
+            double row = 0.0;
+            for (k = 0; k < ne; ++k)
+                row += fabs(J[k * nu + i] - (i == k ? 1.0 : 0.0));
+            if (row > *theta)
+                *theta = row;
+        }
+        if (*rn <= lim_r)
+            return it;
+        if (lu_kept_step(nu, lu, J, r, d, &fresh))
+            return -1;
+        dn = norm_inf(nu, d);
+        if (!fresh && it > 0 && !(dn <= KEPT_CONTRACT * dprev)) {
+            fresh = 1;
+            if (lu_kept_step(nu, lu, J, r, d, &fresh))
+                return -1;
+            dn = norm_inf(nu, d);
+        }
+        /* older factors: accepted after a contracting iteration only */
+        if ((fresh || it > 0) && dn <= lim_u)
+            return it;
+        if (it == max_iter)
+            return -1;
+        for (i = 0; i < nu; ++i)
+            u[i] += d[i];
+        dprev = dn;
     }
 }
 #endif /* DTDYN_NEWTON_H */

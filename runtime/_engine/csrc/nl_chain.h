@@ -15,7 +15,8 @@
  * kernel of the scheme, called through a pointer one step at a time; after the first call it
  * reuses the Riccati factors left in its work (DTDYN_SWEEP_REUSE). The residual, its Jacobian, g and
  * z' come from `nl_residual` (CasADi code generation of the element laws, appended to this
- * source). Newton accepts u by the rule of every backend (newton_solve in newton.h).
+ * source). Newton accepts u by the rule of every backend (newton_solve in newton.h; with dims'
+ * newton = DTDYN_NEWTON_KEPT_LU, newton_kept: the LU factors kept from step to step).
  * Returns 0; DTDYN_STOPPED (stop.h) when stopped; 1 when Newton failed (not converged in
  * max_iter iterations, singular Jacobian or non-finite) at step fail[0] with residual
  * stats[3]; 4 when the chain kernel failed; DTDYN_ERR_WORK (nothing written) when work or
@@ -34,7 +35,8 @@
 
 /*
  * dims: N, nh, n_loaded, nf (force columns), ne, nw, nz, no, n_samples, S, max_iter, form,
- *       ix, iv, ia (the rows of x0, v0, a0 in H).
+ *       ix, iv, ia (the rows of x0, v0, a0 in H), newton (DTDYN_NEWTON_PLAIN: newton_solve;
+ *       DTDYN_NEWTON_KEPT_LU: newton_kept, the LU factors kept from step to step).
  * idx:  loaded (n_loaded), pf (nf), pi (ne), pj (ne; -1: ground) as positions in loaded;
  *       ei, ej (ne; -1: ground) as masses; outputs (no).
  * mats: m, k, c, kg, cg (the chain kernel's), params (the scheme's), U (ne x nh x N), par ([Dwg; h], Dwg nw x ne
@@ -42,18 +44,21 @@
  * state: H, u (nw + nz: the last solution), g (ne), rate (nz); updated in place.
  * out:  x, v, a (n_samples x no each), then g (n_samples x ne) and z (n_samples x nz), NULL
  *       when not stored.
- * stats: [max iterations, total iterations, max final residual, failing residual].
+ * stats: [max iterations, total iterations, max final residual, failing residual, LU
+ *       factorizations of newton_kept (0 with newton_solve)].
  * work: n_work >= dtdyn_nl_chain_work(dims) doubles: DTDYN_CHAIN_ROWS_STABLE N (chain kernel)
- *       + 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz (nl_chain_scratch), then
- *       the CasADi work; iwork: n_iwork >= CasADi's (nl_residual_work).
+ *       + 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz + 1) + ne + nz, with newton_kept
+ *       (nw + nz)(nw + nz + 1) more (nl_chain_scratch), then the CasADi work; iwork:
+ *       n_iwork >= CasADi's (nl_residual_work).
  */
 /* the doubles of nl_chain_run's work before CasADi's: the chain kernel's rows, the loads of
-   the step's two ends (frc), then Q, z_old, z'_old, r, J, g, z' */
+   the step's two ends (frc), then Q, z_old, z'_old, r, J, g, z', with newton_kept its step d
+   and the kept factors */
 static long nl_chain_scratch(const long *dims)
 {
     const long N = dims[0], nl = dims[2], ne = dims[4], nw = dims[5], nz = dims[6];
-    const long nu = nw + nz;
-    return DTDYN_CHAIN_ROWS_STABLE * N + 2 * nl + nw + nz + nz + nu + nu * nu + ne + nz;
+    const long nu = nw + nz, kept = dims[15] == DTDYN_NEWTON_KEPT_LU ? nu + nu * nu : 0;
+    return DTDYN_CHAIN_ROWS_STABLE * N + 2 * nl + nw + nz + nz + nu + nu * nu + ne + nz + kept;
 }
 
 long dtdyn_nl_chain_work(const long *dims)
@@ -73,6 +78,7 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
     const long nw = dims[5], nz = dims[6], no = dims[7], n_samples = dims[8], S = dims[9];
     const long max_iter = dims[10], ix = dims[12], iv = dims[13], ia = dims[14];
     const long nu = nw + nz, size = nh * N;
+    const int kept = dims[15] == DTDYN_NEWTON_KEPT_LU;
     const int form = (int)dims[11];
     const long *loaded = idx[0], *pf = idx[1], *pi = idx[2], *pj = idx[3], *ei = idx[4];
     const long *ej = idx[5], *outs = idx[6];
@@ -80,7 +86,9 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
     const double *params = mats[5], *U = mats[6], *par = mats[7], *Dwg = par, *force = mats[8];
     double *cwork = work, *frc = cwork + DTDYN_CHAIN_ROWS_STABLE * N, *Q = frc + 2 * nl, *zold = Q + nw;
     double *rold = zold + nz, *r = rold + nz, *J = r + nu, *gn = J + nu * nu, *rn_ = gn + ne;
-    double *cw = rn_ + nz;
+    double *d = rn_ + nz, *cw = d + (kept ? nu + nu * nu : 0);
+    long piv[kept && nu > 0 ? nu : 1];
+    lu_kept lu = {kept ? d + nu : NULL, piv, 0, 0.0};
     const double *arg[5];
     double *res[4];
     double scale = 0.0, scale_u = 0.0;
@@ -93,7 +101,7 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
     if (N < 0 || cw - work != nl_chain_scratch(dims) || n_work < dtdyn_nl_chain_work(dims)
         || n_iwork < (long)sz_iw)
         return DTDYN_ERR_WORK;
-    stats[0] = stats[1] = stats[2] = stats[3] = 0.0;
+    stats[0] = stats[1] = stats[2] = stats[3] = stats[4] = 0.0;
     for (n = 0; n < n_samples; ++n) {
         const double *f0 = force + n * nf, *f1 = f0 + nf;
         for (o = 0; o < no; ++o) {
@@ -143,8 +151,13 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
             for (i = 0; i < nz; ++i)
                 u[nw + i] = zold[i] + h * rold[i];
             scale = grow(scale, norm_inf(nw, Q));
-            it = newton_solve(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork,
-                              cw, &rn, &theta);
+            if (kept)
+                it = newton_kept(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork,
+                                 cw, &rn, &theta, &lu, d);
+            else
+                it = newton_solve(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res,
+                                  iwork, cw, &rn, &theta);
+            stats[4] = lu.formed;
             if (it < 0 || !(norm_inf(ne, gn) < INFINITY)) {
                 fail[0] = n * S + j;
                 stats[3] = rn;

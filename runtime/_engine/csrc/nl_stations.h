@@ -21,10 +21,11 @@
  *     called through a pointer for one step; a history row is N doubles (disks).
  * The element law's residual, its Jacobian, g and z' come from `nl_residual` (CasADi's code
  * generation, appended to this source); Newton accepts u by the rule of every backend
- * (newton_solve in newton.h). Returns 0; DTDYN_STOPPED (stop.h) when stopped; 1 when Newton
- * failed at step fail[0] with residual stats[3]; 4 when the step kernel failed (its code in
- * fail[0]); DTDYN_ERR_WORK (nothing written) when work or iwork is shorter than it needs
- * (dtdyn_nl_stations_work, nl_residual_work).
+ * (newton_solve in newton.h, or newton_kept with its LU factors kept: dims' newton). Returns
+ * 0; DTDYN_STOPPED (stop.h) when stopped; 1 when Newton failed at step fail[0] with residual
+ * stats[3]; 4 when the step kernel failed (its code in fail[0]); DTDYN_ERR_WORK (nothing
+ * written) when work or iwork is shorter than it needs (dtdyn_nl_stations_work,
+ * nl_residual_work).
  */
 #ifndef DTDYN_NL_STATIONS_H
 #define DTDYN_NL_STATIONS_H
@@ -40,7 +41,8 @@
 /*
  * dims: kind (DTDYN_NL_STATIONS_BEAM or _SHAFT), N (nodes or disks), nh, n_loaded, nf (force
  *       columns), ne, nw, nz, no, n_samples, S, max_iter, ix, iv, ia (the rows of x0, v0, a0 in
- *       H), then the beam's n_shift (its scheme's lags) or the shaft's form (DTDYN_FORM_*).
+ *       H), then the beam's n_shift (its scheme's lags) or the shaft's form (DTDYN_FORM_*),
+ *       then newton (DTDYN_NEWTON_PLAIN: newton_solve; DTDYN_NEWTON_KEPT_LU: newton_kept).
  * idx:  loaded (n_loaded, ascending: the step's DOFs, the beam's as node-system indices
  *       2 i + c), pf (nf), pi (ne), pj (ne; -1: ground) as positions in loaded; ei, ej (ne; -1:
  *       ground), outs (no) as offsets in a history row; then the beam's shift (n_shift pairs)
@@ -52,12 +54,13 @@
  * state: H, u (nw + nz: the last solution), g (ne), rate (nz); updated in place.
  * out:  x, v, a (n_samples x no each), then g (n_samples x ne) and z (n_samples x nz), NULL
  *       when not stored.
- * stats: [max iterations, total iterations, max final residual, failing residual].
+ * stats: [max iterations, total iterations, max final residual, failing residual, LU
+ *        factorizations of newton_kept (0 with newton_solve)].
  * work: n_work >= dtdyn_nl_stations_work(dims) doubles: the step's (the beam's
  *       DTDYN_BLOCK_CHAIN_ROWS (P + DTDYN_BLOCK_CHAIN_GAP), 64-byte aligned as the caller gives
  *       work; the shaft's DTDYN_SHAFT_ROWS N), then 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz
- *       + 1) + ne + nz (nl_stations_scratch), then the CasADi work; iwork: n_iwork >= CasADi's
- *       (nl_residual_work).
+ *       + 1) + ne + nz, with newton_kept (nw + nz)(nw + nz + 1) more (nl_stations_scratch),
+ *       then the CasADi work; iwork: n_iwork >= CasADi's (nl_residual_work).
  */
 
 /* doubles of a history row */
@@ -75,11 +78,12 @@ static long nl_stations_step_work(const long *dims)
 }
 
 /* the doubles of the work before CasADi's: the step's, the loads of the step's two ends (frc),
-   then Q, z_old, z'_old, r, J, g, z' */
+   then Q, z_old, z'_old, r, J, g, z', with newton_kept its step d and the kept factors */
 static long nl_stations_scratch(const long *dims)
 {
     const long nl = dims[3], ne = dims[5], nw = dims[6], nz = dims[7], nu = nw + nz;
-    return nl_stations_step_work(dims) + 2 * nl + nw + nz + nz + nu + nu * nu + ne + nz;
+    const long kept = dims[16] == DTDYN_NEWTON_KEPT_LU ? nu + nu * nu : 0;
+    return nl_stations_step_work(dims) + 2 * nl + nw + nz + nz + nu + nu * nu + ne + nz + kept;
 }
 
 long dtdyn_nl_stations_work(const long *dims)
@@ -117,12 +121,15 @@ DTDYN_LOOP int nl_stations_run(const long *dims, shaft_fn sweep, const long *con
     const long nw = dims[6], nz = dims[7], no = dims[8], n_samples = dims[9], S = dims[10];
     const long max_iter = dims[11], ix = dims[12], iv = dims[13], ia = dims[14];
     const long n = nl_stations_row(dims), nu = nw + nz, size = nh * n;
+    const int kept = dims[16] == DTDYN_NEWTON_KEPT_LU;
     const long *pf = idx[1], *pi = idx[2], *pj = idx[3], *ei = idx[4], *ej = idx[5];
     const long *outs = idx[6];
     const double *U = mats[0], *par = mats[1], *Dwg = par, *force = mats[2];
     double *swork = work, *frc = swork + nl_stations_step_work(dims), *Q = frc + 2 * nl;
     double *zold = Q + nw, *rold = zold + nz, *r = rold + nz, *J = r + nu, *gn = J + nu * nu;
-    double *rn_ = gn + ne, *cw = rn_ + nz;
+    double *rn_ = gn + ne, *d = rn_ + nz, *cw = d + (kept ? nu + nu * nu : 0);
+    long piv[kept && nu > 0 ? nu : 1];
+    lu_kept lu = {kept ? d + nu : NULL, piv, 0, 0.0};
     const double *xs = H + ix * n, *vs = H + iv * n, *as = H + ia * n;
     const double *arg[5];
     double *res[4];
@@ -138,7 +145,7 @@ DTDYN_LOOP int nl_stations_run(const long *dims, shaft_fn sweep, const long *con
         || cw - work != nl_stations_scratch(dims) || n_work < dtdyn_nl_stations_work(dims)
         || n_iwork < (long)sz_iw)
         return DTDYN_ERR_WORK;
-    stats[0] = stats[1] = stats[2] = stats[3] = 0.0;
+    stats[0] = stats[1] = stats[2] = stats[3] = stats[4] = 0.0;
     for (k = 0; k < n_samples; ++k) {
         const double *f0 = force + k * nf, *f1 = f0 + nf;
         for (o = 0; o < no; ++o) {
@@ -189,8 +196,13 @@ DTDYN_LOOP int nl_stations_run(const long *dims, shaft_fn sweep, const long *con
             for (i = 0; i < nz; ++i)
                 u[nw + i] = zold[i] + h * rold[i];
             scale = grow(scale, norm_inf(nw, Q));
-            it = newton_solve(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork,
-                              cw, &rn, &theta);
+            if (kept)
+                it = newton_kept(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork,
+                                 cw, &rn, &theta, &lu, d);
+            else
+                it = newton_solve(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res,
+                                  iwork, cw, &rn, &theta);
+            stats[4] = lu.formed;
             if (it < 0 || !(norm_inf(ne, gn) < INFINITY)) {
                 fail[0] = k * S + j;
                 stats[3] = rn;
