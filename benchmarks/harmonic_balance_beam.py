@@ -9,9 +9,20 @@ ground, a gap (clearance 1 mm, stiffness 1e5 N/m, both sides) at mid-span, a for
 outputs: the tip and mid-span deflections. Hill's stability is off (its dense eigenproblem
 is refused above 2 n (2 H + 1) = 6000).
 
+0. The linear beam's tip receptance at 1e-3, 15, 18, 60, 110 and 1875 Hz against the closed
+   form of the continuous cantilever with Rayleigh damping (mpmath, 40 digits; the
+   discretization error of 1,000 elements is below 1e-9 there), for N = 1,000, 2,000 (and
+   10,000 with ``--full``), with the damping of the model (alpha + beta) and with beta alone
+   (alpha = 0): by LAPACK's banded LU alone ("banded LU"), by the banded receptance of
+   `harmonic_balance` (the same LU refined with residuals in twice the working precision;
+   the size of its last correction under the row) and by the reduced receptance (its modes
+   refined). Below: the first two frequencies by ARPACK and refined against
+   ``beam_frequencies``, and the first mode's damping in the assembled C (phi^T C phi, C phi
+   summed exactly) against alpha + beta k_1.
 1. The curve (H = 10 harmonics, n_time 128 samples per period, ``max_step=0.03`` for about
    200 points, ``convergence_points=0``) with ``receptance="reduced"`` and ``"banded"`` for
-   N = 100, 300, 1,000, 2,000 (and 10,000 with ``--full``). Per run: the points, the setup
+   N = 100, 300, 1,000, 2,000 (and 10,000 with ``--full``, the reduced receptance only).
+   Per run: the points, the setup
    (the run time of a two-point curve over the same band: the reduced receptance's modes and
    residual terms, built for the whole band, and two points' Newton), the time per point
    over the rest of the 200-point run (``info["run_time"]`` of one run after a warm-up; BLAS
@@ -23,7 +34,8 @@ is refused above 2 n (2 H + 1) = 6000).
 2. Convergence in the harmonics at N = 300: ``harmonic_convergence`` (x_max with 2 H
    harmonics and twice the samples against H, at 10 points and the peak) for H = 10 and 20.
 3. Three frequencies (15 and 18.5 Hz, the gap in contact near the first resonance, and 110 Hz
-   near the second) at N = 1,000 (``--td-elements``): the harmonic balance at that frequency
+   near the second) at N = 1,000 (and 10,000 with ``--full``; ``--td-elements``): the
+   harmonic balance at that frequency
    (H = 20 and 40, reduced; H = 20, banded; each with the first tol of the list above that
    gets through) against ``nonlinear_beam_response``
    (Newmark's average acceleration, the C loop) from rest for 3 s, the force ramped in over
@@ -35,8 +47,8 @@ is refused above 2 n (2 H + 1) = 6000).
    differences of the harmonic balance from Richardson's value.
 
 The script writes docs/harmonic_balance_beam.md with its output.
-Usage: python benchmarks/harmonic_balance_beam.py [--full] [--td-elements N]
-(about 4 minutes; --full adds N = 10,000 to part 1)
+Usage: python benchmarks/harmonic_balance_beam.py [--full] [--td-elements N ...]
+(about 5 minutes; --full adds N = 10,000 to parts 0, 1 and 3, about 10 minutes more)
 """
 from __future__ import annotations
 
@@ -46,6 +58,7 @@ import sys
 import time
 import warnings
 
+import mpmath
 import numpy as np
 
 import dtdyn as dd
@@ -59,6 +72,10 @@ BAND = (5.0, 150.0)
 TOLS = (1e-10, 1e-9, 1e-8, 1e-7, 1e-6, 1e-5)
 TD_FREQS = (15.0, 18.5, 110.0)
 TD_DURATION, TD_RAMP, TD_STEPS = 3.0, 0.5, (512, 1024)
+#: part 1 runs the banded receptance up to this N
+BANDED_MAX_N = 2000
+#: part 0's frequencies (Hz)
+P0_FREQS = (1e-3, 15.0, 18.0, 60.0, 110.0, 1875.0)
 DOC = pathlib.Path(__file__).resolve().parent.parent / "docs" / "harmonic_balance_beam.md"
 
 
@@ -110,13 +127,109 @@ def check_text(info):
     return f"failed: {c.get('reason', '?')}"
 
 
+def exact_tip_receptance(omega, alpha, beta):
+    """The tip receptance of the continuous clamped-free beam with Rayleigh damping (EI (1 + i
+    omega beta), rho_A (omega^2 - i omega alpha)) at omega (rad/s), in 40-digit arithmetic:
+    H = (sin x cosh x - cos x sinh x) / (EI* b^3 (1 + cos x cosh x)), x = b L,
+    b^4 = rho_A (omega^2 - i omega alpha) / EI*."""
+    with mpmath.workdps(40):
+        om = mpmath.mpf(omega)
+        ei = mpmath.mpf(E) * I * (1 + 1j * om * beta)
+        b = (mpmath.mpf(RHO_A) * (om ** 2 - 1j * om * alpha) / ei) ** 0.25
+        x = b * L
+        num = mpmath.sin(x) * mpmath.cosh(x) - mpmath.cos(x) * mpmath.sinh(x)
+        return complex(num / (ei * b ** 3 * (1 + mpmath.cos(x) * mpmath.cosh(x))))
+
+
+def part0(sizes, lines):
+    """The tip receptance of the linear beam against the continuous beam's closed form."""
+    import scipy.linalg as sla
+    import scipy.sparse.linalg as spla
+
+    from dtdyn.nonlinear._elements import element_matrix
+    from dtdyn.nonlinear._harmonic_balance import _bandwidth, _BandedReceptance
+    from dtdyn.nonlinear._receptance import (ReducedReceptance, exact_product,
+                                             rayleigh_coefficients)
+    lines.append("0) the tip receptance |H / H_exact - 1| of the linear beam against the "
+                 "continuous beam's closed form (mpmath)")
+    lines.append(f"{'N':>6} {'damping':>9} {'receptance':>16} "
+                 + " ".join(f"{f:>8g}Hz" for f in P0_FREQS))
+    for n in sizes:
+        ref = beam(n)
+        for name, (alpha, beta) in (("alpha+beta", ref.rayleigh), ("beta only",
+                                                                   (0.0, ref.rayleigh[1]))):
+            first = len(lines)
+            b = dd.Beam(E=E, I=I, rho_A=RHO_A, length=L, elements=n, rayleigh=(alpha, beta))
+            M, C, K = dd.beam_matrices(b)
+            tip = b.dof(f"w{n}")
+            Lm = element_matrix([dd.Cubic(tip, k3=1.0)], M.shape[0])
+            B = np.zeros((M.shape[0], 1))
+            B[tip] = 1.0
+            out = np.array([tip])
+            exact = _BandedReceptance(M, C, K, Lm, out, B, _bandwidth(M, C, K))
+            t0 = time.perf_counter()
+            rec = ReducedReceptance(exact, M, C, K, Lm, out, B, rayleigh_coefficients(M, C, K),
+                                    w_max=2 * np.pi * 10 * BAND[1])
+            t_setup = time.perf_counter() - t0
+            w = 2 * np.pi * np.array(P0_FREQS)
+            h = np.array([exact_tip_receptance(wk, alpha, beta) for wk in w])
+            bM, bC, bK = exact.bands
+            plain = np.array([sla.solve_banded((3, 3), bK - wk * wk * bM + 1j * wk * bC,
+                                               B[:, 0].astype(complex))[tip] for wk in w])
+            refined, corr = [], []
+            for wk in w:
+                refined.append(exact(np.array([wk]))[0][0, 0, 0])
+                corr.append(exact.last_correction)
+            reduced = rec(w)[0][:, 0, 0]
+            rows = (("banded LU", plain), ("banded refined", np.array(refined)),
+                    ("reduced", reduced))
+            for label, v in rows:
+                lines.append(f"{n:>6} {name:>9} {label:>16} "
+                             + " ".join(f"{abs(x / y - 1):>10.1e}" for x, y in zip(v, h)))
+            lines.append(f"{'':>33}" + " ".join(f"{c:>10.0e}" for c in corr)
+                         + "  <- the refinement's last correction (relative)")
+            if rec.name != "reduced":
+                lines.append(f"{'':>8}reduced fell back: {rec.check.get('reason')}")
+            else:
+                k = rec.k
+                m = k.size
+                lu = spla.splu(rec.K)
+                op = spla.LinearOperator(K.shape, matvec=lu.solve, dtype=float)
+                k0 = spla.eigsh(rec.K, m, M=rec.M, sigma=0.0, OPinv=op,
+                                return_eigenvectors=False)
+                ww = dd.beam_frequencies(b, count=2) ** 2
+                lines.append(f"{'':>8}reduced: {rec.check['modes']} modes, setup "
+                             f"{t_setup:.2f} s; f1, f2 against beam_frequencies: ARPACK "
+                             f"{abs(np.sqrt(np.sort(k0)[0] / ww[0]) - 1):.1e}, "
+                             f"{abs(np.sqrt(np.sort(k0)[1] / ww[1]) - 1):.1e}; refined "
+                             f"{abs(np.sqrt(k[0] / ww[0]) - 1):.1e}, "
+                             f"{abs(np.sqrt(k[1] / ww[1]) - 1):.1e}; C's damping of mode 1, "
+                             f"phi^T C phi / (alpha + beta k_1) - 1: "
+                             f"{modal_damping_error(rec, exact_product, alpha, beta):.1e}")
+            print("\n".join(lines[first:]), flush=True)
+    lines.append("")
+
+
+def modal_damping_error(rec, exact_product, alpha, beta):
+    """phi_1^T C phi_1 / (alpha + beta k_1) - 1 for the reduced receptance's first mode (C phi
+    exactly), the first mode's damping in the assembled C against the Rayleigh damping."""
+    phi = rec.modes[:, :1]
+    hi, lo = exact_product(rec.cd, phi)
+    return float(phi[:, 0] @ (hi + lo)[:, 0]) / (alpha + beta * rec.k[0]) - 1
+
+
 def part1(sizes, lines):
     lines.append(f"1) the curve {BAND[0]:g} .. {BAND[1]:g} Hz, H = 10, max_step 0.03")
     lines.append(f"{'N':>6} {'receptance':>10} {'points':>6} {'tol':>6} {'setup s':>8} "
                  f"{'ms/point':>8} {'Newton/pt':>9} {'tip max mm':>10}  reduced check")
-    per_point = {}
+    per_point, wall_time, newton = {}, {}, {}
     for n in sizes:
         for rec in ("reduced", "banded"):
+            if rec == "banded" and n > BANDED_MAX_N:
+                lines.append(f"{n:>6} {rec:>10}  not run: its LU does not converge near the "
+                             f"first resonance at this N (part 0)")
+                print(lines[-1], flush=True)
+                continue
             t0 = time.perf_counter()
             first, tol, err = curve(n, rec, max_points=2)
             wall = time.perf_counter() - t0
@@ -141,11 +254,22 @@ def part1(sizes, lines):
             pts = r.omega.size
             ms = 1e3 * (r.info["run_time"] - t_first) / (pts - 2)
             per_point[(n, r.info["receptance"], rec)] = ms
+            wall_time[(n, rec)] = (r.info["run_time"], pts)
+            newton[(n, rec)] = r.info["newton_iterations"] / pts
             lines.append(f"{n:>6} {rec:>10} {pts:>6} {tol:>6.0e} {t_first:>8.2f} {ms:>8.2f} "
                          f"{r.info['newton_iterations'] / pts:>9.2f} "
                          f"{1e3 * r.x_max[:, 0].max():>10.5f}  "
                          + (check_text(r.info) if rec == "reduced" else ""))
             print(lines[-1], flush=True)
+    a, b = per_point.get((1000, "reduced", "reduced")), per_point.get((10_000, "reduced",
+                                                                       "reduced"))
+    if a and b:
+        run, pts = wall_time[(10_000, "reduced")]
+        nw = {n: newton[(n, "reduced")] for n in (1000, 10_000)}
+        lines.append(f"reduced, N = 10,000 / N = 1,000: cost per point {b / a:.2f}, per Newton "
+                     f"iteration {(b / nw[10_000]) / (a / nw[1000]):.2f}; the curve at "
+                     f"N = 10,000: {pts} points in {run:.1f} s (info['run_time'], the setup "
+                     f"included)")
     return per_point
 
 
@@ -201,6 +325,9 @@ def part3(n, lines):
         rich = x2 + (x2 - x1) / 3
         hb = {}
         for rec, h in (("reduced", 20), ("banded", 20), ("reduced", 40)):
+            if rec == "banded" and n > BANDED_MAX_N:
+                hb[(rec, h)] = (np.full(2, np.nan), np.nan, "not run")
+                continue
             # the band from f to its end (the first point, at f): the reduced receptance is
             # built and checked for the band as in part 1
             r, tol, err = curve(n, rec, harmonics=h, freqs_hz=(f, BAND[1]), max_points=2)
@@ -222,10 +349,47 @@ def part3(n, lines):
     lines.append(f"largest |HB reduced / Richardson - 1|: {worst:.1e}")
 
 
+def part4(sizes, lines, duration=4.0, dts=(2e-4, 1e-4)):
+    """The time domain's rounding: a tip force ramped to FORCE (0.5 s) and held, the tip
+    deflection at the end against the static solution k x + k3 x^3 = FORCE, k = 3 EI / L^3
+    (Hermite elements are nodally exact for a static load; the gap at mid-span stays open)."""
+    k = 3 * E * I / L ** 3
+    roots = np.roots([K3, 0.0, k, -FORCE])
+    x_static = float(roots[np.abs(roots.imag) < 1e-12].real.max())
+    lines.append(f"\n4) the time domain's rounding: the tip force ramped to {FORCE:g} N over "
+                 f"{TD_RAMP:g} s and held for {duration:g} s in all, average acceleration; the "
+                 f"tip deflection at the end (and its mean over the last 0.5 s) against the "
+                 f"static solution {x_static:.10e} m; the model's damping (alpha+beta), and at "
+                 f"the largest N alpha M alone and beta K alone")
+    cases = [(n, "alpha+beta", dt) for n in sizes for dt in dts]
+    cases += [(max(sizes), name, dts[-1]) for name in ("alpha only", "beta only")]
+    for n, name, dt in cases:
+        b, args = problem(n)
+        alpha, beta = b.rayleigh
+        if name != "alpha+beta":
+            b = dd.Beam(E=E, I=I, rho_A=RHO_A, length=L, elements=n,
+                        rayleigh=(alpha, 0.0) if name == "alpha only" else (0.0, beta))
+        t = np.arange(int(round(duration / dt)) + 1) * dt
+        ramp = np.where(t < TD_RAMP, 0.5 * (1 - np.cos(np.pi * t / TD_RAMP)), 1.0)
+        t0 = time.perf_counter()
+        r = dd.nonlinear_beam_response(b, FORCE * ramp, dt, force_dofs=args["force_dofs"],
+                                       elements=args["elements"], outputs=args["outputs"],
+                                       quantities=("x",), scheme="average_acceleration")
+        x = r.x[:, 0]
+        tail = x[-int(round(0.5 / dt)):]
+        lines.append(f"   N = {n:>6}, {name:>10}, dt = {dt:g}: end "
+                     f"{x[-1] / x_static - 1:>9.1e}, mean "
+                     f"{tail.mean() / x_static - 1:>9.1e}, spread over the last 0.5 s "
+                     f"{(tail.max() - tail.min()) / x_static:.1e} "
+                     f"({time.perf_counter() - t0:.1f} s)")
+        print(lines[-1], flush=True)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="also N = 10,000 in part 1")
-    ap.add_argument("--td-elements", type=int, default=1000, help="N of part 3")
+    ap.add_argument("--td-elements", type=int, nargs="+", default=None,
+                    help="N of part 3 (default 1000; with --full 1000 and 10000)")
     ap.add_argument("--no-write", action="store_true", help="do not write the doc")
     args = ap.parse_args(argv)
     sizes = (100, 300, 1000, 2000) + ((10_000,) if args.full else ())
@@ -234,9 +398,13 @@ def main(argv=None):
         lines.append(pin.describe())
         curve(20, "reduced", freqs_hz=(5.0, 6.0))              # warm-up: imports, CasADi
         t0 = time.perf_counter()
+        part0((1000, 2000) + ((10_000,) if args.full else ()), lines)
         part1(sizes, lines)
         part2(lines)
-        part3(args.td_elements, lines)
+        td = args.td_elements or ((1000, 10_000) if args.full else (1000,))
+        for n in td:
+            part3(n, lines)
+        part4(td, lines)
         lines.append(f"\ntotal {time.perf_counter() - t0:.0f} s")
     text = "\n".join(lines)
     print(text)
@@ -249,25 +417,62 @@ EXPLANATION = """\
 # Harmonic balance on a beam: reduced and banded receptances, and the time domain
 
 `python benchmarks/harmonic_balance_beam.py` (its docstring has the model and what each column
-is): a cantilever with a cubic spring at the tip and a gap at mid-span, the frequency response
-curve over its first two modes by `harmonic_balance` with `receptance="reduced"` and
-`"banded"`, and three of its points against long `nonlinear_beam_response` runs.
+is): a cantilever with a cubic spring at the tip and a gap at mid-span, its linear receptance
+against the continuous beam's closed form, the frequency response curve over its first two
+modes by `harmonic_balance` with `receptance="reduced"` and `"banded"`, and three of its
+points against long `nonlinear_beam_response` runs.
 
-What the output shows. The reduced receptance (modes below a cut-off and the residual series,
-checked against the banded receptance at the top of the band) is a smooth function of the
-frequency: Newton converges to the default `tol=1e-10` and the time per point does not grow
-with N while its check passes. The banded receptance (LAPACK's banded LU at every harmonic and
-evaluation) carries the rounding of a solve with the beam's stiffness matrix, about eps N^3.5
-relative (docs/beam_conditioning.md), and that rounding changes from one frequency to the
-next: the continuation's Newton stalls below a tolerance that grows with N, and from about
-1,000 elements no tolerance gets the curve through the band. From 2,000 elements the reduced
-receptance's own check fails for the same reason (ARPACK's modes come from the same
-ill-conditioned factors, and the banded receptance it is checked against is no better), it
-falls back to the banded one and fails with it. The curve of a 10,000-element beam is
-therefore out of reach of both receptances as they are; a beam of the elements its band needs
-(docs/beam_conditioning.md: 6 to 10 per wavelength of the highest harmonic's mode) gives the
-same curve. Part 3 is the check of the curve against the time domain on the largest model
-where the reduced receptance passes its check.
+What the output shows.
+
+Part 0, the linear receptance. A Hermite beam of N elements has cond(K) ~ N^4, and LAPACK's
+banded LU loses about eps N^3.5 of a solve (docs/beam_conditioning.md), more in complex
+arithmetic near a resonance ("banded LU": 2.7e-3 at 18 Hz for N = 1,000, all digits at 10,000).
+The banded receptance of `harmonic_balance` refines every solve with the residual summed in
+twice the working precision: where the LU keeps some digits the refinement converges (its last
+correction near 1e-16) and the receptance is that of the matrices to rounding. At N = 10,000
+the LU's error is 0.2 to 1 up to 110 Hz, and below 60 Hz the refinement cannot start from it
+(its corrections stay at 2e-2 .. 0.5): no banded solve in double precision gives the receptance
+of a 10,000-element beam near its first mode. The reduced receptance gets it from the modes:
+ARPACK's (shift-invert with SuperLU's factors of K) are off by 3.8e-3 in f1 at N = 10,000, and
+after residual correction with a banded LU of K - k_r M per mode they equal `beam_frequencies`
+to 2e-15; the residual series solves with K, refined. It passes its check against the refined
+banded receptance at the top of the band (where the refinement converges) at every N, and with
+beta-only damping it equals the continuous beam to 6e-6 at 10,000 elements (at 18 Hz: the
+model's own error in f1, docs/beam_conditioning.md, times the peak's amplification), 3e-7 or
+less elsewhere in the band.
+
+With the model's damping, alpha M + beta K, a second loss appears, in the matrices
+themselves: `beam_matrices` sums C = alpha M + beta K entry by entry in double precision, and
+at large N an entry of alpha M (of order rho_A h) falls below the rounding of beta K's (of
+order beta EI / h^3): the first mode's damping phi^T C phi in the assembled C is
+40 % below alpha + beta k_1 at N = 10,000 (1e-4 at 2,000, 7e-6 at 1,000). Every receptance
+here, and `nonlinear_beam_response` (the node blocks of the same C), solve that assembled
+model: its tip receptance at 18 Hz differs from the Rayleigh beam's by 0.67 at N = 10,000,
+the curve's peak is about 7.9 mm instead of 5.0 mm. Keeping alpha M and beta K apart (C v
+as alpha M v + beta K v) would remove it; it is not the receptances' doing.
+
+Part 1, the curve. The reduced receptance's time per Newton iteration does not grow with N
+(the ratios 10,000 / 1,000 are printed under the table; per point the 10,000-element curve
+costs more because it is another curve: its assembled C damps the first mode less, the peak
+is higher and sharper, and Newton takes more iterations per point), and the 10,000-element
+curve, setup included, takes a few seconds. The refined banded receptance gets through the
+band at `tol=1e-10` for every N where it is run, at a cost per point that grows with N
+(exact residual products with K and C at every solve): it is the reference, not the fast
+path.
+
+Part 3, the time domain. At N = 1,000 the harmonic balance equals the extrapolated time
+domain to about 1e-5, the time domain's own dt error. At N = 10,000 the time domain does not
+converge: its amplitude changes by about 1e-3 from one period to the next after 3 s, and
+P = 512 and 1024 steps per period differ by percents (at 18.5 Hz, near the first mode, they
+settle on different amplitudes). Part 4 shows why: a static tip load, ramped in and held,
+gives the static deflection to 4e-9 (the mean over the last 0.5 s) at N = 1,000, but at
+N = 10,000 the deflection fluctuates by percents of itself from step to step, also with
+alpha M alone as damping (no beta K in C to lose alpha M against): the time stepping's solves
+and products with K in double precision carry the eps N^3.5 rounding of part 0 at every
+step; with beta K alone the run does not settle at all. The 1e-4 comparison of the issue at
+N = 10,000 is therefore out of reach of `nonlinear_beam_response` in double precision; the
+harmonic balance's receptance at 10,000 elements is checked instead against the continuous
+beam (part 0, linear).
 
 Output of `python benchmarks/harmonic_balance_beam.py{flag}` (2-core shared machine; every
 number from this run):

@@ -26,7 +26,15 @@ low modes (a solve with K of a beam of many elements carries rounding errors alo
 modes, cond(K) ~ N^4: P removes them).
 
 Each evaluation then costs O(m + J) per row and column, whatever the size of the model. The
-modes come from ARPACK (shift-invert about 0 with the same LU). The cut-off: the highest
+modes come from ARPACK (shift-invert about 0 with the same LU), each then refined by residual
+correction with a banded LU of K - k_r M (`refined_modes`), and every solve with K is refined
+by residuals in twice the working precision (`refined_solve`): a Hermite beam of N elements
+has cond(K) ~ N^4 and a double-precision LU loses about eps N^3.5 (ARPACK's lowest frequency
+of a 10,000-element beam: 4e-3; refined: 1e-15 from `beam_frequencies`). The kept modes'
+damping is C's own, phi^T C phi (C phi summed exactly), as an m x m matrix where
+alpha + beta k_r does not reproduce it: C = alpha M + beta K summed entry by entry in double
+precision loses alpha M against beta K at large N (a 10,000-element beam: the first mode's
+damping 40 % below alpha + beta k_1), and the model is C as it is. The cut-off: the highest
 frequency asked for, w_c (the highest harmonic of the band, with a margin), times 2.5 (the
 series' ratio |b / (a s)| <= 0.16); the number of terms J grows until the reduced receptance
 equals the exact banded one (`_BandedReceptance`) at w_c and at the first natural frequency
@@ -56,6 +64,122 @@ REDUCED_FIRST = 4.0
 #: the verified range: this multiple of the highest frequency asked for (so that a continuation
 #: step a little past the end of the band needs no new setup)
 REDUCED_MARGIN = 1.25
+
+
+# ----------------------------------------------------------------------------------------------
+# solves with a banded matrix refined by residuals in twice the working precision: a Hermite
+# beam of N elements has cond(K) ~ N^4, and a double-precision LU of K loses about eps N^3.5
+# relative (docs/beam_conditioning.md); b - K x summed exactly (Dekker's two-product, Knuth's
+# two-sum) and corrected with the same LU recovers the digits while that loss is below 1
+
+#: Dekker's splitter: a = hi + lo with hi, lo of 26 bits, so that their products are exact
+_SPLITTER = 134217729.0
+#: refinement steps at most (each stops early when its correction no longer halves)
+REFINE_STEPS = 6
+#: refinement stops at a correction below this (relative to the solution's largest entry)
+REFINE_TOL = 1e-13
+
+
+def _split(a):
+    c = _SPLITTER * a
+    hi = c - (c - a)
+    return hi, a - hi
+
+
+def band_diagonals(mats, width):
+    """One sparse matrix or a list of them (half-bandwidth ``width``), row-aligned by diagonals
+    for `exact_product`: a[m, j, i] = A_m[i, i + j - width] (0 outside), with its two halves."""
+    single = not isinstance(mats, (list, tuple))
+    mats = [mats] if single else list(mats)
+    n = mats[0].shape[0]
+    a = np.zeros((len(mats), 2 * width + 1, n))
+    for m, A in enumerate(mats):
+        A = sps.coo_matrix(A)
+        np.add.at(a[m], (A.col - A.row + width, A.row), A.data)
+    return (single, width, a[..., None], *(h[..., None] for h in _split(a)))
+
+
+def exact_product(bands, X):
+    """A X as an unevaluated sum hi + lo (X real (n, k), A from `band_diagonals`; a list of
+    matrices gives (matrices, n, k) arrays): every product exact (Dekker's two-product) and
+    the sums compensated (Knuth's two-sum), so that hi + lo is A X to about eps^2 |A| |X|."""
+    single, w, a, ah, al = bands
+    n, k = X.shape
+    Xh, Xl = _split(X)
+    s, err = np.zeros((a.shape[0], n, k)), np.zeros((a.shape[0], n, k))
+    for j in range(2 * w + 1):
+        d = j - w
+        rows, cols = (slice(0, n - d), slice(d, n)) if d >= 0 else (slice(-d, n), slice(0, n + d))
+        aj, ahj, alj = a[:, j, rows], ah[:, j, rows], al[:, j, rows]
+        b, bh, bl, t0 = X[cols], Xh[cols], Xl[cols], s[:, rows]
+        p = aj * b
+        pe = ((ahj * bh - p) + ahj * bl + alj * bh) + alj * bl
+        t = t0 + p
+        bb = t - t0
+        err[:, rows] += ((t0 - (t - bb)) + (p - bb)) + pe
+        s[:, rows] = t
+    return (s[0], err[0]) if single else (s, err)
+
+
+def refined_solve(solve, diags, B, steps=REFINE_STEPS):
+    """X with A X = B (real): ``solve`` an LU's solve, then corrections X += solve(B - A X)
+    with the residual from `exact_product`, until a correction is below REFINE_TOL |X| or no
+    longer halves (at most ``steps``)."""
+    X = solve(B)
+    last = np.inf
+    for _ in range(steps):
+        hi, lo = exact_product(diags, X)
+        dX = solve((B - hi) - lo)
+        size = float(np.abs(dX).max()) / max(float(np.abs(X).max()), 1e-300)
+        if size > last:                   # diverging: the LU too inaccurate to correct with
+            break
+        X = X + dX
+        if size <= REFINE_TOL or size > 0.5 * last:
+            break
+        last = size
+    return X
+
+
+def refined_modes(K, M, k, phi, width, steps=4):
+    """The eigenpairs (k, phi) of K phi = k M phi (from ARPACK) refined one by one: residual
+    correction with the banded LU of K - k_r M (LAPACK, partial pivoting) and the residual
+    (K - rho M) x in twice the working precision, rho the Rayleigh quotient (x <- x - (z - a y),
+    A z = r, A y = M x, a making the step M-orthogonal to x); then M-orthonormalized."""
+    from scipy.linalg import lapack
+    n = K.shape[0]
+    diags = band_diagonals(K, width)
+    M = sps.csr_matrix(M)
+    bands = []
+    for A in (K, M):
+        A = sps.coo_matrix(A)
+        ab = np.zeros((3 * width + 1, n))
+        np.add.at(ab, (2 * width + A.row - A.col, A.col), A.data)
+        bands.append(ab)
+    rho = np.array(k, dtype=float)
+    out = np.array(phi, dtype=float)
+    for r in range(rho.size):
+        lu, piv, info = lapack.dgbtrf(bands[0] - rho[r] * bands[1], width, width)
+        if info != 0:                                       # k_r exact to the last bit
+            continue
+        x = out[:, r] / np.abs(out[:, r]).max()
+        for step in range(steps + 1):
+            hi, lo = exact_product(diags, x[:, None])
+            Mx = M @ x
+            rho[r] = float(x @ (hi[:, 0] + lo[:, 0])) / float(x @ Mx)
+            if step == steps:
+                break
+            res = (hi[:, 0] - rho[r] * Mx) + lo[:, 0]
+            z = lapack.dgbtrs(lu, width, width, np.column_stack([res, Mx]), piv)[0]
+            a = float(Mx @ z[:, 0]) / float(Mx @ z[:, 1])
+            x = x - (z[:, 0] - a * z[:, 1])
+            x = x / np.abs(x).max()
+        out[:, r] = x
+    for r in range(rho.size):                                # M-orthonormal (Gram-Schmidt)
+        x = out[:, r]
+        if r:
+            x = x - out[:, :r] @ (out[:, :r].T @ (M @ x))
+        out[:, r] = x / np.sqrt(float(x @ (M @ x)))
+    return rho, out
 
 
 def rayleigh_coefficients(M, C, K, tol=1e-8):
@@ -117,6 +241,9 @@ class ReducedReceptance:
         self.name = "reduced"
         self.check = dict(receptance="reduced", rtol=rtol, builds=0)
         self._lu = None
+        self.Cm = None
+        width = exact.width
+        self.kd, self.cd = band_diagonals(self.K, width), band_diagonals(self.C, width)
         if w_max is not None and w_max > 0:
             self._build(REDUCED_MARGIN * w_max)
 
@@ -137,12 +264,16 @@ class ReducedReceptance:
         a = 1.0 + 1j * w * self.beta
         b = w * w - 1j * w * self.alpha
         da, db = 1j * self.beta, 2.0 * w - 1j * self.alpha
-        # modes: 1 / (a k - b)
-        den = a[:, None] * self.k[None, :] - b[:, None]
-        d = 1.0 / den
-        dd = -(da * self.k[None, :] - db[:, None]) * d * d
-        H = np.einsum("rp,mp,pc->mrc", self.A, d, self.Bm)
-        dH = np.einsum("rp,mp,pc->mrc", self.A[:self.ne], dd, self.Bm)
+        if self.Cm is None:        # modes: 1 / (a k - b)
+            den = a[:, None] * self.k[None, :] - b[:, None]
+            d = 1.0 / den
+            dd = -(da * self.k[None, :] - db[:, None]) * d * d
+            H = np.einsum("rp,mp,pc->mrc", self.A, d, self.Bm)
+            dH = np.einsum("rp,mp,pc->mrc", self.A[:self.ne], dd, self.Bm)
+        else:                      # (diag(k) - w^2 I + i w Phi^T C Phi)^-1 by its 2m poles
+            d = 1.0 / (1j * w[:, None] - self.poles[None, :])
+            H = np.einsum("rp,mp,pc->mrc", self.Ap, d, self.Xb)
+            dH = np.einsum("rp,mp,pc->mrc", self.Ap[:self.ne], -1j * d * d, self.Xb)
         if J:
             q = b / self.s
             dq = db / self.s
@@ -181,13 +312,20 @@ class ReducedReceptance:
         if self._lu is None:
             self._lu = spla.splu(self.K)
         lu = self._lu
+        width = self.exact.width
+
+        def solve(V):            # K^-1 V refined (cond(K) ~ N^4 for a beam of N elements)
+            return refined_solve(lu.solve, self.kd, V)
+
         if m:
             op = spla.LinearOperator(self.K.shape, matvec=lu.solve, dtype=float)
             k, phi = spla.eigsh(self.K, m, M=self.M, sigma=0.0, OPinv=op)
-            phi = phi / np.sqrt(np.einsum("nr,nr->r", phi, self.M @ phi))
+            k, phi = refined_modes(self.K, self.M, k, phi, width)
+            hi, lo = exact_product(self.cd, phi)        # phi^T C phi, C phi exactly
+            Cp = phi.T @ (hi + lo)
+            Cp = 0.5 * (Cp + Cp.T)
             if m >= 2:       # alpha, beta from the modes' damping: C's entries may have lost
-                Cp = phi.T @ (self.C @ phi)       # alpha M to rounding (a long beam)
-                c = np.diag(Cp)
+                c = np.diag(Cp)                           # alpha M to rounding (a long beam)
                 (alpha, beta), *_ = np.linalg.lstsq(np.column_stack([np.ones(m), k / k[-1]]),
                                                    c, rcond=None)
                 fit = np.abs(alpha + beta * k / k[-1] - c).max()
@@ -196,9 +334,19 @@ class ReducedReceptance:
                     return self._give_up(f"the damping is not Rayleigh's (alpha M + beta K) in "
                                          f"the modes: {max(fit, off) / np.abs(c).max():.1e}")
                 self.alpha, self.beta = max(float(alpha), 0.0), max(float(beta) / k[-1], 0.0)
+            # the kept modes with C's own modal damping matrix where alpha + beta k_r misses
+            # it (C = alpha M + beta K summed in double loses alpha M at large N: its lowest
+            # modes' damping is off, and C couples them)
+            miss = np.abs(Cp - np.diag(self.alpha + self.beta * k)).max(axis=1)
+            self.Cm = Cp if np.any(miss > 1e-3 * self.rtol * np.diag(Cp)) else None
         else:
             k, phi = np.zeros(0), np.zeros((n, 0))
-        self.k, self.A, self.Bm = k, self.rows @ phi, phi.T @ self.cols
+            self.Cm = None
+        self.k, self.A, self.Bm, self.modes = k, self.rows @ phi, phi.T @ self.cols, phi
+        if self.Cm is not None:    # the kept modes' poles and residue factors (dense, 2m)
+            from dtdyn.modal._model import modal_factors
+            self.poles, psi, x = modal_factors(np.eye(m), self.Cm, np.diag(k))
+            self.Ap, self.Xb = self.A @ psi, x @ self.Bm
         self.s = w_m * w_m
         MP = self.M @ phi
 
@@ -207,7 +355,7 @@ class ReducedReceptance:
 
         checks = np.array([w_c])
         Hx = self.exact(checks)[0][0]
-        V = project(lu.solve(self.cols))
+        V = project(solve(self.cols))
         S = []
         err = np.inf
         for _ in range(REDUCED_MAX_TERMS):
@@ -219,7 +367,7 @@ class ReducedReceptance:
                 err = min(err, err_new)
                 break
             err = err_new
-            V = project(lu.solve(self.M @ V)) * self.s
+            V = project(solve(self.M @ V)) * self.s
         self.check.update(modes=int(m), terms=len(S), cutoff_hz=w_m / 2 / np.pi,
                           verified_to_hz=w_c / 2 / np.pi, error=err)
         if err > self.rtol:
