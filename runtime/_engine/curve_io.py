@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from dtdyn._engine.atomic import write_atomic, write_atomic_files
-from dtdyn._engine.result_io import (_META_KEY, _json_safe, _split_info, _versions,
+from dtdyn._engine.result_io import (_META_KEY, check_table, _json_safe, _split_info, _versions,
                                      check_result_path, sidecar_path)
 
 #: the ``format`` entry of the metadata (.npz) and of a table's sidecar (.csv)
@@ -278,13 +278,7 @@ def read_csv(path: Path, lookup):
                          f"{sidecar.name!r} {meta['columns'][:4]}...")
     table = np.loadtxt(text, delimiter=",", ndmin=2)
     n = meta["n_points"]
-    if table.shape != (n, len(header)):
-        raise ValueError(f"the table is {table.shape[0]} x {table.shape[1]}; {sidecar.name!r} "
-                         f"says {n} x {len(header)}")
-    if hashlib.sha256(data).hexdigest() != meta.get("table_sha256"):
-        from dtdyn._engine.public import warn
-        warn(f"{path.name} changed after it was saved (its SHA-256 differs from the one in "
-             f"{sidecar.name}); its values are read as they are now", UserWarning)
+    check_table(table, n, header, data, meta, sidecar, path)
     arrays, start = {}, 0
     for entry in meta["layout"]:
         block = table[:, start:start + entry["columns"]]

@@ -322,6 +322,18 @@ def curve_type(name: str):
     return getattr(sys.modules["dtdyn"], name)
 
 
+def check_table(table, rows: int, header, data: bytes, meta: dict, sidecar: Path, path: Path):
+    """A CSV table's shape against its sidecar (ValueError), its bytes against the sidecar's
+    SHA-256 (a warning: the values are read as they are now)."""
+    if table.shape != (rows, len(header)):
+        raise ValueError(f"the table is {table.shape[0]} x {table.shape[1]}; {sidecar.name!r} "
+                         f"says {rows} x {len(header)}")
+    if hashlib.sha256(data).hexdigest() != meta.get("table_sha256"):
+        from dtdyn._engine.public import warn
+        warn(f"{path.name} changed after it was saved (its SHA-256 differs from the one in "
+             f"{sidecar.name}); its values are read as they are now", UserWarning)
+
+
 def _build(t, outputs, quantities: dict, metadata, dof_names=None, arrays=None):
     from dtdyn._engine.result import Response
     meta = json.loads(metadata) if isinstance(metadata, str) else metadata
@@ -377,13 +389,7 @@ def _read_csv(path: Path):
         raise ValueError(f"its header {header[:4]}... differs from the columns in "
                          f"{sidecar.name!r} {meta['columns'][:4]}...")
     table = np.loadtxt(text, delimiter=",", ndmin=2)
-    if table.shape != (meta["n_samples"], len(header)):
-        raise ValueError(f"the table is {table.shape[0]} x {table.shape[1]}; {sidecar.name!r} "
-                         f"says {meta['n_samples']} x {len(header)}")
-    if hashlib.sha256(data).hexdigest() != meta.get("table_sha256"):
-        from dtdyn._engine.public import warn
-        warn(f"{path.name} changed after it was saved (its SHA-256 differs from the one in "
-             f"{sidecar.name}); its values are read as they are now", UserWarning)
+    check_table(table, meta["n_samples"], header, data, meta, sidecar, path)
     quantities, start = {}, 1
     for q, width in meta["layout"]:
         quantities[q] = np.ascontiguousarray(table[:, start:start + width])

@@ -43,7 +43,7 @@ from dtdyn._engine.extras import require
 from dtdyn._engine.public import public
 from dtdyn.nonlinear._elements import check_elements, element_matrix
 from dtdyn.nonlinear._harmonic_balance import (_basis, _complex, _law_function, _model, _peak,
-                                               _positive_int, _projected, _solve)
+                                               _positive_int, _projected, _range, _solve)
 
 __all__ = ["backbone", "BackboneResult"]
 
@@ -225,17 +225,6 @@ def _quadrature():
     h = 1.0 / _PANELS
     nodes = (np.arange(_PANELS)[:, None] * h + 0.5 * h * (x + 1.0)).ravel()
     return nodes, np.tile(0.5 * h * w, _PANELS)
-
-
-def _range(name, values):
-    try:
-        v = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be (start, end), got {values!r}") from None
-    if v.shape != (2,) or not np.all(np.isfinite(v)) or np.any(v <= 0) or v[0] == v[1]:
-        raise ValueError(f"{name} must be (start, end): two different finite numbers > 0, got "
-                         f"{values!r}")
-    return float(v[0]), float(v[1])
 
 
 def _linear_mode(M, K, mode):

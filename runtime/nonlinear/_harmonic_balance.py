@@ -741,15 +741,20 @@ def _model(M, C, K):
     return M, C, K, None, None, False
 
 
-def _frequency_range(freqs_hz):
+def _range(name, values, unit=""):
+    """(start, end) of a continuation range: two different finite numbers > 0."""
     try:
-        f = np.asarray(freqs_hz, dtype=float)
+        v = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f"freqs_hz must be (start, end) in Hz, got {freqs_hz!r}") from None
-    if f.shape != (2,) or not np.all(np.isfinite(f)) or np.any(f <= 0) or f[0] == f[1]:
-        raise ValueError(f"freqs_hz must be (start, end) in Hz, two different finite "
-                         f"numbers > 0, got {freqs_hz!r}")
-    return float(f[0]), float(f[1])
+        raise ValueError(f"{name} must be (start, end){unit}, got {values!r}") from None
+    if v.shape != (2,) or not np.all(np.isfinite(v)) or np.any(v <= 0) or v[0] == v[1]:
+        raise ValueError(f"{name} must be (start, end){unit}, two different finite numbers "
+                         f"> 0, got {values!r}")
+    return float(v[0]), float(v[1])
+
+
+def _frequency_range(freqs_hz):
+    return _range("freqs_hz", freqs_hz, " in Hz")
 
 
 def _positive_int(name, value, minimum):
