@@ -761,7 +761,7 @@ def test_period_doubling_of_a_quadratic_oscillator_against_the_monodromy():
         X, w = r.harmonics[j][0], r.omega[j]
         k = np.arange(X.size)
 
-        def rhs(t, s):
+        def rhs(t, s, X=X, w=w, k=k):
             x = np.real(np.sum(X * np.exp(1j * k * w * t)))
             return (np.array([[0.0, 1.0], [-(1.0 + 2.0 * x), -c]]) @ s.reshape(2, 2)).ravel()
         sol = solve_ivp(rhs, (0.0, 2 * np.pi / w), np.eye(2).ravel(), rtol=1e-11, atol=1e-12)
