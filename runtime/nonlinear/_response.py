@@ -207,7 +207,7 @@ def _c_mats(step: LinearStep) -> list:
     return [None if m is None else np.asfortranarray(m, dtype=float) for m in mats]
 
 
-#: steps per block of the modal loop's embedded estimate (nl_loop.c, estimate_block)
+#: steps per block of the modal loop's embedded estimate (nl_loop.c, estimate_prep and modal_run)
 ESTIMATE_BLOCK = 128
 
 

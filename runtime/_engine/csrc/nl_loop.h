@@ -30,12 +30,6 @@
 #include <math.h>
 
 #ifdef __GNUC__
-/* an empty statement the compiler may not move memory accesses across */
-#define COMPILER_BARRIER() __asm__ __volatile__("" ::: "memory")
-#else
-#define COMPILER_BARRIER() ((void)0)
-#endif
-#ifdef __GNUC__
 /* hidden: the call stays inside this library (no interposition), so it can be inlined */
 int nl_residual(const double **arg, double **res, nl_int *iw, double *w, int mem)
     __attribute__((visibility("hidden")));
@@ -259,16 +253,19 @@ static inline int solve_step(double *restrict u, double *restrict r, double *res
  *     e_k = T e_{k-1} + Bs dg_{k-1} + Eg nabla^{NST-1} g_k,     Bs = Bg + sum_i H_i
  *
  * (Bs: g's weights over the steps of its polynomial summed, for an error that changes slowly
- * over them); stats[5 + i] = max over the samples of |Co_m e + Dog dg|_i. The Newton loop only
- * copies J, dg/du and g of each step into a block of EB steps (work + dims[13]); `estimate_block`
- * then runs the recursion over the block, away from the Newton solves: the gains K_k and the
- * differences step by step (independent), then the recursion, then the outputs at the samples
- * (independent). The recursion forms Cw e_k from the previous step (generated/nonlinear.md):
+ * over them); stats[5 + i] = max over the samples of |Co_m e + Dog dg|_i. The recursion forms
+ * Cw e_k from the previous step (generated/nonlinear.md):
  *
  *     Cw e_k = (Cw T) e_{k-1} + (Cw Bs) dg_{k-1} + (Cw Eg) nabla^{NST-1} g_k,
  *
  * so that the loop-carried path from dg_{k-1} to dg_k is two small products, not the sum over
- * the modes.
+ * the modes. The loop copies J, dg/du and g of each step into a block of EB steps (work +
+ * dims[13]); at the block's end `estimate_prep` forms its gains K_k and differences (independent,
+ * out of line), and during the next block the loop runs the recursion over it, one step of the
+ * estimate (estimate_step, estimate_out at the samples) after each step of the solution. In a
+ * pass of its own the recursion is bound by its latency (each step's error feeds the next through
+ * the elements' tangent stiffness); inside the loop the processor overlaps its chain with the
+ * solution's, and it costs about its instructions (on P4 about half the time of the pass).
  *
  * mats beyond the general ones (column-major, modal rows padded to NMP, output rows to NOP):
  * T = [dia; off] (2 NMP), [H Bf] (NMP x (NH + NF)), Eg (NMP x NE), the stencil
@@ -276,9 +273,10 @@ static inline int solve_step(double *restrict u, double *restrict r, double *res
  * (NOP x (NM + NF + NE)), (Cw T)^T (NMP x NW), Cw Eg (NW x NE), Cw Bs (NW x NE), the forces
  * before t_0 ((NST - 1) x NE: g_{1-NST} .. g_{-1}, for the first steps' differences), |Cw Bg|
  * on the y rows (NEP x NE, explicit_rows). res[4] of
- * nl_residual: dg/du (NE x (NW + NZ)). dims[13], dims[14]: the estimate's block (offset in
- * work, EB steps): J (EB NU^2), dg/du (EB NE NU), g ((EB + NST - 1) NE), K (EB NE NW),
- * nabla^{NST-1} g (EB NE), [e; dg] (EB (NMP + NE)).
+ * nl_residual: dg/du (NE x (NW + NZ)). dims[13], dims[14]: the estimate's blocks (offset in
+ * work, EB steps): two sets (the block being stepped, the one whose recursion runs along) of
+ * J (EB NU^2), dg/du (EB NE NU), g ((EB + NST - 1) NE), K (EB NW NEP4), nabla^{NST-1} g (EB NE);
+ * then the output rows [Co_m Dog] (NO (NMP + NEP4)).
  */
 typedef double v4 __attribute__((vector_size(32), aligned(8))); /* 4 rows, loads unaligned */
 #if defined(__FMA__) && defined(__AVX__)
@@ -416,128 +414,6 @@ static inline void tangent_gain(const double *restrict J, const double *restrict
 }
 
 /*
- * The embedded estimate over a block of nb steps (modal_run's comment): J, dg/du and g of each
- * step (g after NST - 1 earlier ones) in; e (the last step's error of eta), dg (its element
- * forces' error) and the running max of |Co_m e + Dog dg| per output row (at the steps of a
- * sample: step index k0 + k a multiple of S) carried from block to block. Three passes: the
- * gains and differences of each step (independent), the recursion (e_k, dg_k into Xb), the
- * outputs at the samples (independent).
- */
-#ifdef __GNUC__
-/* kept out of line: inlined, it crowds the Newton loop's registers. An estimate, not the
-   solution, so its products and sums may fuse (fma; GCC here, clang's pragma in the body):
-   fewer instructions on P4's recursion, which is bound by both latency and throughput */
-#ifdef __clang__
-#define ESTIMATE_ATTRIBUTES __attribute__((noinline))
-#else
-#define ESTIMATE_ATTRIBUTES __attribute__((noinline, optimize("fp-contract=fast")))
-#endif
-static void estimate_block(long nb, long k0, long S, const double *const *mats,
-                           const double *restrict Jb, const double *restrict Gub,
-                           double *restrict Gb, double *restrict Kb, double *restrict Db,
-                           double *restrict Xb, v4 *restrict e_io, double *restrict dg_io,
-                           v4 *restrict mx) ESTIMATE_ATTRIBUTES;
-#endif
-static void estimate_block(long nb, long k0, long S, const double *const *mats,
-                           const double *restrict Jb, const double *restrict Gub,
-                           double *restrict Gb, double *restrict Kb, double *restrict Db,
-                           double *restrict Xb, v4 *restrict e_io, double *restrict dg_io,
-                           v4 *restrict mx)
-{
-#ifdef __clang__
-#pragma clang fp contract(fast)
-#endif
-    enum { ne = NL_NE, nw = NL_NW, nu = NL_NW + NL_NZ, nm = NL_NM, nf = NL_NF, nst = NL_NST };
-    enum { nx = NMP + NL_NE }; /* a row of Xb: e_k (padded), dg_k */
-    const double *Tb = mats[10], *Eg = mats[12], *stencil = mats[13], *Bs = mats[15];
-    const double *Cout = mats[18], *CTw = mats[19], *CE = mats[20], *CBs = mats[21];
-    v4 e[NMV];
-    double dg[ne];
-    long k, i, c, v;
-    for (v = 0; v < NMV; ++v)
-        e[v] = e_io[v];
-    copy(ne, dg_io, dg);
-    /* the gains K_k and the differences nabla^{NST-1} g_k (g_k at row k + NST - 1 of Gb); the
-       explicit polynomial without internal states has J = I, so K_k = dg/du itself */
-#if defined(NL_EXPLICIT) && NL_NZ == 0
-    const double *Ks = Gub;
-    (void)Jb, (void)Kb;
-#else
-    const double *Ks = Kb;
-    for (k = 0; k < nb; ++k)
-        tangent_gain(Jb + k * nu * nu, Gub + k * ne * nu, Kb + k * ne * nw);
-#endif
-    for (k = 0; k < nb * ne; ++k) { /* over step and element at once */
-        double s = stencil[0] * Gb[k + (nst - 1) * ne];
-        for (c = 1; c < nst; ++c)
-            s += stencil[c] * Gb[k + (nst - 1 - c) * ne];
-        Db[k] = s;
-    }
-    /* the recursion, Cw e_k from e_{k-1}: the chain from one dg to the next is short */
-    for (k = 0; k < nb; ++k) {
-        const double *dn = Db + k * ne, *K = Ks + k * ne * nw;
-        double ce[nw];
-        for (i = 0; i < nw; ++i) { /* Cw e_k = (Cw T) e_{k-1} + (Cw Eg) dn_k + (Cw Bs) dg_{k-1} */
-            double a = CE[i] * dn[0], b = CBs[i] * dg[0];
-            for (c = 1; c < ne; ++c) {
-                a += CE[c * nw + i] * dn[c];
-                b += CBs[c * nw + i] * dg[c];
-            }
-            ce[i] = vdot(NMV, CTw + i * NMP, e) + (a + b);
-        }
-        for (v = 0; v < NMV; ++v) { /* e_k = T e_{k-1} + (Eg dn_k + Bs dg_{k-1}) */
-            const v4 y = e[v], yp = {y[1], y[0], y[3], y[2]};
-            v4 a = *(const v4 *)(Eg + v * 4) * dn[0], b = *(const v4 *)(Bs + v * 4) * dg[0];
-            for (c = 1; c < ne; ++c) {
-                a += *(const v4 *)(Eg + (c * NMV + v) * 4) * dn[c];
-                b += *(const v4 *)(Bs + (c * NMV + v) * 4) * dg[c];
-            }
-            e[v] = (*(const v4 *)(Tb + 4 * v) * y + *(const v4 *)(Tb + NMP + 4 * v) * yp) +
-                   (a + b);
-            *(v4 *)(Xb + k * nx + 4 * v) = e[v];
-        }
-        for (i = 0; i < ne; ++i) { /* dg_k = K_k Cw e_k */
-            double s = K[i] * ce[0];
-            for (c = 1; c < nw; ++c)
-                s += K[c * ne + i] * ce[c];
-            dg[i] = Xb[k * nx + NMP + i] = s;
-        }
-    }
-    /* Co_m e + Dog dg at the samples (the columns of eta and g in [Co Dof Dog]), into two
-       running maxima taken alternately, so that neither waits on the other */
-    {
-        v4 m2[2][NOV];
-        long h;
-        for (v = 0; v < NOV; ++v)
-            m2[0][v] = m2[1][v] = mx[v];
-        for (k = (S - k0 % S) % S; k < nb; k += 2 * S)
-            for (h = 0; h < 2 && k + h * S < nb; ++h) {
-                const double *xk = Xb + (k + h * S) * nx;
-                for (v = 0; v < NOV; ++v) {
-                    v4 a = *(const v4 *)(Cout + v * 4) * xk[0];
-                    v4 b = *(const v4 *)(Cout + ((nm + nf) * NOV + v) * 4) * xk[NMP];
-                    for (c = 1; c < nm; ++c)
-                        a += *(const v4 *)(Cout + (c * NOV + v) * 4) * xk[c];
-                    for (c = 1; c < ne; ++c)
-                        b += *(const v4 *)(Cout + ((nm + nf + c) * NOV + v) * 4) * xk[NMP + c];
-                    a += b;
-                    vmax_abs(m2[h] + v, &a);
-                }
-            }
-        for (v = 0; v < NOV; ++v) {
-            mx[v] = m2[0][v];
-            vmax_abs(mx + v, m2[1] + v);
-        }
-    }
-    for (v = 0; v < NMV; ++v)
-        e_io[v] = e[v];
-    copy(ne, dg, dg_io);
-    /* the last NST - 1 forces in front, for the next block's differences */
-    for (k = 0; k + 1 < nst; ++k)
-        copy(ne, Gb + (nb + k) * ne, Gb + k * ne);
-}
-
-/*
  * The explicit force polynomial (NL_EXPLICIT, modal_explicit): Dwg = 0, so w_k = Q_k. Its
  * stability measure is the weight of g_k on the next step's displacements, theta =
  * |(Cw Bg) dg/dy|_inf (y rows and columns; generated/nonlinear.md). Each element's force depends
@@ -642,6 +518,166 @@ static inline int explicit_block(long nb, long first, const double *restrict tb,
 }
 #endif
 
+enum { NWV = (NL_NW + 3) / 4, NEV4 = (NL_NE + 3) / 4, NEP4 = 4 * NEV4 };
+
+/*
+ * The embedded estimate (modal_run's comment). `estimate_prep`, once per block of nb steps: the
+ * gains K_k, their columns padded to NEP4 rows (the loop writes them itself for the explicit
+ * polynomial without internal states, whose K_k is dg/du), and the differences
+ * nabla^{NST-1} g_k (g_k at row k + NST - 1 of Gb); then the last NST - 1 forces copied to the
+ * front of Gn, the next block's g.
+ */
+#ifdef __GNUC__
+/* out of line (it runs once per block). An estimate, not the solution, so its products and sums
+   may fuse (fma; GCC here, clang's pragma in the body) */
+#ifdef __clang__
+#define ESTIMATE_ATTRIBUTES __attribute__((noinline))
+#else
+#define ESTIMATE_ATTRIBUTES __attribute__((noinline, optimize("fp-contract=fast")))
+#endif
+static void estimate_prep(long nb, const double *restrict stencil, const double *restrict Jb,
+                          const double *restrict Gub, double *restrict Gb, double *restrict Kb,
+                          double *restrict Db, double *restrict Gn) ESTIMATE_ATTRIBUTES;
+#endif
+static void estimate_prep(long nb, const double *restrict stencil, const double *restrict Jb,
+                          const double *restrict Gub, double *restrict Gb, double *restrict Kb,
+                          double *restrict Db, double *restrict Gn)
+{
+    enum { ne = NL_NE, nw = NL_NW, nu = NL_NW + NL_NZ, nst = NL_NST };
+    long k, c;
+#ifdef __clang__
+#pragma clang fp contract(fast)
+#endif
+#if defined(NL_EXPLICIT) && NL_NZ == 0
+    (void)Jb, (void)Gub, (void)Kb; /* K_k = dg/du: the loop wrote it */
+#else
+    for (k = 0; k < nb; ++k) { /* K_k, its columns padded to NEP4 rows */
+        double *Kp = Kb + k * nw * NEP4, K[ne * nw];
+        long r, i;
+        tangent_gain(Jb + k * nu * nu, Gub + k * ne * nu, K);
+        for (r = 0; r < nw; ++r)
+            for (i = 0; i < NEP4; ++i)
+                Kp[r * NEP4 + i] = i < ne ? K[r * ne + i] : 0.0;
+    }
+#endif
+    for (k = 0; k < nb * ne; ++k) {
+        double s = stencil[0] * Gb[k + (nst - 1) * ne];
+        for (c = 1; c < nst; ++c)
+            s += stencil[c] * Gb[k + (nst - 1 - c) * ne];
+        Db[k] = s;
+    }
+    for (k = 0; k + 1 < nst; ++k)
+        copy(ne, Gb + (nb + k) * ne, Gn + k * ne);
+}
+
+/* y = [<A_0, x>, <A_1, x>, ...] for the NW rows A + i NMP, 4 rows to a vector: the rows' products
+   summed pairwise across lanes (lanes 0 + 1 and 2 + 3, then the two halves) */
+static inline void vdots4(const double *restrict A, const v4 *restrict x, v4 *restrict y)
+{
+    int q, l, v;
+    for (q = 0; q < NWV; ++q) {
+        v4 p[4], t0, t1;
+        for (l = 0; l < 4; ++l) {
+            const double *a = A + (4 * q + l) * NMP;
+            p[l] = VSPLAT(0.0);
+            if (4 * q + l < NL_NW) {
+                p[l] = *(const v4 *)a * x[0];
+                for (v = 1; v < NMV; ++v)
+                    p[l] = VFMA(*(const v4 *)(a + 4 * v), x[v], p[l]);
+            }
+        }
+        t0 = (v4){p[0][0], p[1][0], p[0][2], p[1][2]} + (v4){p[0][1], p[1][1], p[0][3], p[1][3]};
+        t1 = (v4){p[2][0], p[3][0], p[2][2], p[3][2]} + (v4){p[2][1], p[3][1], p[2][3], p[3][3]};
+        y[q] = (v4){t0[0], t0[1], t1[0], t1[1]} + (v4){t0[2], t0[3], t1[2], t1[3]};
+    }
+}
+
+/*
+ * One step of the estimate's recursion (a row of a block: its differences dn, its gains K with
+ * their columns padded to NEP4), e and dg (NEV4 vectors) carried:
+ *     Cw e_k = (Cw Eg) dn_k + (Cw Bs) dg_{k-1} + (Cw T) e_{k-1},   dg_k = K_k Cw e_k,
+ *     e_k = T e_{k-1} + Eg dn_k + Bs dg_{k-1}
+ * (the terms of dg_{k-1} last but one, those of e_{k-1} last: the paths from the previous step
+ * short). cw: the columns of Cw Eg, then of Cw Bs, padded to 4 NWV rows.
+ */
+static inline void estimate_step(const double *const *mats, const v4 *restrict cw,
+                                 const double *restrict dn, const double *restrict K,
+                                 v4 *restrict e, v4 *restrict dg)
+{
+    enum { ne = NL_NE, nw = NL_NW };
+    const double *Tb = mats[10], *Eg = mats[12], *Bs = mats[15], *CTw = mats[19];
+    v4 ce[NWV], bd[ne], y[NWV];
+    int q, c, v;
+    for (c = 0; c < ne; ++c)
+        bd[c] = VSPLAT(dg[c / 4][c % 4]);
+    vdots4(CTw, e, y);
+    for (q = 0; q < NWV; ++q) {
+        v4 s = cw[q] * VSPLAT(dn[0]);
+        for (c = 1; c < ne; ++c)
+            s = VFMA(cw[c * NWV + q], VSPLAT(dn[c]), s);
+        for (c = 0; c < ne; ++c)
+            s = VFMA(cw[(ne + c) * NWV + q], bd[c], s);
+        ce[q] = s + y[q];
+    }
+    for (v = 0; v < NMV; ++v) {
+        const v4 x = e[v], xp = {x[1], x[0], x[3], x[2]};
+        v4 s = *(const v4 *)(Tb + NMP + 4 * v) * xp;
+        for (c = 0; c < ne; ++c)
+            s = VFMA(*(const v4 *)(Eg + (c * NMV + v) * 4), VSPLAT(dn[c]), s);
+        for (c = 0; c < ne; ++c)
+            s = VFMA(*(const v4 *)(Bs + (c * NMV + v) * 4), bd[c], s);
+        e[v] = VFMA(*(const v4 *)(Tb + 4 * v), x, s);
+    }
+    for (q = 0; q < NEV4; ++q) {
+        v4 s = *(const v4 *)(K + q * 4) * VSPLAT(ce[0][0]);
+        for (c = 1; c < nw; ++c)
+            s = VFMA(*(const v4 *)(K + (c * NEV4 + q) * 4), VSPLAT(ce[c / 4][c % 4]), s);
+        dg[q] = s;
+    }
+}
+
+/* the running largest and smallest values, lane by lane, of y: NaN lanes of y skipped */
+static inline void vrange(v4 *restrict mx, v4 *restrict mn, const v4 *restrict y)
+{
+#if defined(__FMA__) && defined(__AVX__)
+    *mx = (v4)_mm256_max_pd((__m256d)*y, (__m256d)*mx);
+    *mn = (v4)_mm256_min_pd((__m256d)*y, (__m256d)*mn);
+#else
+    typedef long long v4m __attribute__((vector_size(32), aligned(8)));
+    const v4m up = *y > *mx, down = *y < *mn;
+    *mx = (v4)(((v4m)*y & up) | ((v4m)*mx & ~up));
+    *mn = (v4)(((v4m)*y & down) | ((v4m)*mn & ~down));
+#endif
+}
+
+/* the running largest and smallest values (mx, mn: NOV vectors) of Co_m e + Dog dg: R holds the
+   rows [Co_m  Dog], padded to NMP + NEP4; 4 rows to a vector, their products summed across lanes
+   as in vdots4 */
+static inline void estimate_out(const double *restrict R, const v4 *restrict e,
+                                const v4 *restrict dg, v4 *restrict mx, v4 *restrict mn)
+{
+    enum { nx = NMP + NEP4 };
+    int q, l, v;
+    for (q = 0; q < NOV; ++q) {
+        v4 p[4], t0, t1, y;
+        for (l = 0; l < 4; ++l) {
+            const double *a = R + (4 * q + l) * nx;
+            p[l] = VSPLAT(0.0);
+            if (4 * q + l < NL_NO) {
+                p[l] = *(const v4 *)(a + NMP) * dg[0];
+                for (v = 1; v < NEV4; ++v)
+                    p[l] = VFMA(*(const v4 *)(a + NMP + 4 * v), dg[v], p[l]);
+                for (v = 0; v < NMV; ++v)
+                    p[l] = VFMA(*(const v4 *)(a + 4 * v), e[v], p[l]);
+            }
+        }
+        t0 = (v4){p[0][0], p[1][0], p[0][2], p[1][2]} + (v4){p[0][1], p[1][1], p[0][3], p[1][3]};
+        t1 = (v4){p[2][0], p[3][0], p[2][2], p[3][2]} + (v4){p[2][1], p[3][1], p[2][3], p[3][3]};
+        y = (v4){t0[0], t0[1], t1[0], t1[1]} + (v4){t0[2], t0[3], t1[2], t1[3]};
+        vrange(mx + q, mn + q, &y);
+    }
+}
+
 static int modal_run(const long *dims, const double *const *mats, const double *restrict force,
                      double *restrict x, double *restrict u, double *restrict g,
                      double *restrict rate, double *restrict out, double tol,
@@ -662,19 +698,22 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     const double h = par[nw * ne];
     double f[nf + 1], Q[nw + 1], zold[nz + 1], rold[nz + 1], r[nu + 1], J[nu * nu + 1];
     double Gu[ne * nu + 1]; /* dg/du at the accepted u (the estimate's) */
-    v4 eta[NMV], Lx[NMV], ov[NOV], e[NMV], mx[NOV];
-    double dg[ne], CL[nw + 1];
+    v4 eta[NMV], Lx[NMV], ov[NOV];
+    double CL[nw + 1];
     /* the force history g_{k-1}, ..., g_{k-NH/NE} (the columns H of [H Bf]) as a ring: g_k is
        written at ring + ih and ring + ih + nh, so ring + ih always holds the history in order */
     double ring[2 * nh + 1];
     long ih = 0;
     double *cw = work;  /* CasADi work */
-    /* the estimate's block (modal_run's comment): J, dg/du, g (after NST - 1 earlier), K, the
-       differences */
-    double *Jb = work + (nst > 0 ? dims[13] : 0), *Gub = Jb + eb * nu * nu;
-    double *Gb = Gub + eb * ne * nu, *Kb = Gb + (eb + (nst > 0 ? nst - 1 : 0)) * ne;
-    double *Db = Kb + eb * ne * nw, *Xb = Db + eb * ne;
-    long kb = 0, k0 = 0;
+    /* the estimate (the comment above): two sets of a block's J, dg/du, g (after NST - 1
+       earlier), K, differences (sets[p]: the block being stepped, sets[1 - p]: the one whose
+       recursion runs along once have), the output rows Rb; e, dg and the largest and smallest
+       outputs carried; the columns of Cw Eg and Cw Bs as vectors; sc: steps to the next sample */
+    enum { nx = NMP + NEP4 };
+    const long set = eb * (nu * nu + ne * nu + NEP4 * nw + ne) + (eb + (nst > 0 ? nst - 1 : 0)) * ne;
+    double *sets[2][5], *Rb = work + (nst > 0 ? dims[13] : 0) + 2 * set;
+    v4 e[NMV], dgv[NEV4], mx[NOV], mn[NOV], cwv[2 * ne * NWV + 1];
+    long kb = 0, p = 0, have = 0, sc = 1;
     const double *arg[5];
     double *res[5];
     lu_keep lu; /* the kept LU factors (newton_fixed), their count in stats[5 + no] */
@@ -714,26 +753,50 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     copy(nh, x + nm, ring);
     copy(nh, x + nm, ring + nh);
     vdots(nw, CwT, Lx, CL);
+    zero(nw, Q); /* (written at every step; the explicit loop's u after the last) */
     for (i = 0; i < NMV; ++i)
         e[i] = (v4){0.0, 0.0, 0.0, 0.0};
     for (i = 0; i < NOV; ++i)
-        mx[i] = (v4){0.0, 0.0, 0.0, 0.0};
-    zero(ne, dg);
+        mx[i] = mn[i] = (v4){0.0, 0.0, 0.0, 0.0};
 #if defined(NL_EXPLICIT) && NL_NZ == 0
     for (i = 0; i < NEV; ++i) {
         ok[i] = (v4i){-1, -1, -1, -1};
         mx_th[i] = VSPLAT(0.0);
     }
 #endif
+    for (c = 0; c < 2; ++c) {
+        double *b = work + (nst > 0 ? dims[13] : 0) + c * set;
+        sets[c][0] = b;
+        sets[c][1] = b + eb * nu * nu;
+        sets[c][2] = sets[c][1] + eb * ne * nu;
+        sets[c][3] = sets[c][2] + (eb + (nst > 0 ? nst - 1 : 0)) * ne;
+        sets[c][4] = sets[c][3] + eb * NEP4 * nw;
+        zero(eb * NEP4 * nw, sets[c][3]); /* K's padding */
+    }
     for (k = 0; k + 1 < nst; ++k) /* g before t_0, oldest first */
-        copy(ne, mats[22] + k * ne, Gb + k * ne);
-    for (n = 0; n < n_samples; ++n) {
-        const double *f0 = force + n * nf;
-        const double *f1 = (n + 1 < n_samples) ? f0 + nf : f0;
-        const long nsub = (n + 1 < n_samples) ? S : 1;
-        if ((n & 1023) == 0 && dtdyn_stop_flag)
-            return DTDYN_STOPPED;
-        for (j = 0; j < nsub; ++j) {
+        copy(ne, mats[22] + k * ne, sets[0][2] + k * ne);
+    for (c = 0; c < 2 * ne * NWV; ++c) /* the columns of Cw Eg and Cw Bs, padded */
+        for (i = 0; i < 4; ++i) {
+            const long col = c / NWV, row = 4 * (c % NWV) + i;
+            cwv[c][i] = row < nw ? (col < ne ? mats[20][col * nw + row]
+                                            : mats[21][(col - ne) * nw + row]) : 0.0;
+        }
+    for (i = 0; i < NEV4; ++i)
+        dgv[i] = VSPLAT(0.0);
+    for (i = 0; nst > 0 && i < no; ++i) /* the output rows [Co_m  Dog], padded */
+        for (c = 0; c < nx; ++c)
+            Rb[i * nx + c] = c < nm ? Cout[c * NOP + i]
+                             : (c >= NMP && c < NMP + ne) ? Cout[(nm + nf + c - NMP) * NOP + i]
+                                                          : 0.0;
+    n = 0;
+    j = 0;
+    while (n < n_samples) {
+        for (;;) {
+            const double *f0 = force + n * nf;
+            const double *f1 = (n + 1 < n_samples) ? f0 + nf : f0;
+            const long nsub = (n + 1 < n_samples) ? S : 1;
+            if (j == 0 && (n & 1023) == 0 && dtdyn_stop_flag)
+                return DTDYN_STOPPED;
             if (j == 0) { /* the sample itself: f_n (no division on the way) */
                 copy(nf, f0, f);
             } else {
@@ -814,21 +877,27 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                 stats[4] = stats[4] > th_max ? stats[4] : th_max;
                 return rc;
             }
-            if (nst > 0) { /* the estimate, a block at a time: J, dg/du and g of the step */
+            if (nst > 0) { /* the estimate: J, dg/du (K) and g of this step into the block, one
+                              step of the block before's recursion */
 #if !defined(NL_EXPLICIT) || NL_NZ > 0
-                copy(nu * nu, J, Jb + kb * nu * nu);
+                copy(nu * nu, J, sets[p][0] + kb * nu * nu);
 #endif
-                copy(ne * nu, Gu, Gub + kb * ne * nu);
-                copy(ne, g, Gb + (kb + nst - 1) * ne);
-                if (++kb == eb) {
-                    /* compiler barriers: without them GCC lays the Newton loop out around the
-                       call so that P4's loop takes ~1 ms per 100,000 steps longer */
-                    COMPILER_BARRIER();
-                    estimate_block(kb, k0, S, mats, Jb, Gub, Gb, Kb, Db, Xb, e, dg, mx);
-                    COMPILER_BARRIER();
-                    k0 += kb;
-                    kb = 0;
+#if defined(NL_EXPLICIT) && NL_NZ == 0
+                for (c = 0; c < nw; ++c) /* K_k = dg/du, its columns padded (zeros, kept) */
+                    copy(ne, Gu + c * ne, sets[p][3] + (kb * nw + c) * NEP4);
+#else
+                copy(ne * nu, Gu, sets[p][1] + kb * ne * nu);
+#endif
+                copy(ne, g, sets[p][2] + (kb + nst - 1) * ne);
+                if (have) { /* the block before: its step kb */
+                    estimate_step(mats, cwv, sets[1 - p][4] + kb * ne,
+                                  sets[1 - p][3] + kb * nw * NEP4, e, dgv);
+                    if (--sc == 0) { /* a sample */
+                        sc = S;
+                        estimate_out(Rb, e, dgv, mx, mn);
+                    }
                 }
+                ++kb;
             }
             if (j == 0) { /* Co eta + Dof f + Dog g */
                 double *o = out + n * (no + nzo);
@@ -845,6 +914,20 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                 copy(ne, g, ring + ih);
                 copy(ne, g, ring + ih + nh);
             }
+            if (++j == nsub) {
+                j = 0;
+                if (++n == n_samples)
+                    break;
+            }
+            if (nst > 0 && kb == eb)
+                break;
+        }
+        if (nst > 0 && kb == eb) { /* out of the steps' loop: no call inside it */
+            double **c = sets[p];
+            estimate_prep(eb, mats[13], c[0], c[1], c[2], c[3], c[4], sets[1 - p][2]);
+            p = 1 - p;
+            have = 1;
+            kb = 0;
         }
     }
 #if defined(NL_EXPLICIT) && NL_NZ == 0
@@ -855,10 +938,40 @@ static int modal_run(const long *dims, const double *const *mats, const double *
 #endif
     stats[4] = stats[4] > th_max ? stats[4] : th_max;
     if (nst > 0) {
-        if (kb > 0)
-            estimate_block(kb, k0, S, mats, Jb, Gub, Gb, Kb, Db, Xb, e, dg, mx);
-        for (i = 0; i < no; ++i)
-            stats[5 + i] = mx[i / 4][i % 4];
+        /* the rest of the block before, then this one's kb steps */
+        for (k = have ? kb : eb; k < eb; ++k) {
+            estimate_step(mats, cwv, sets[1 - p][4] + k * ne, sets[1 - p][3] + k * nw * NEP4, e,
+                          dgv);
+            if (--sc == 0) {
+                sc = S;
+                estimate_out(Rb, e, dgv, mx, mn);
+            }
+        }
+        if (kb > 0) {
+            double **c = sets[p];
+            estimate_prep(kb, mats[13], c[0], c[1], c[2], c[3], c[4], sets[1 - p][2]);
+            for (k = 0; k < kb; ++k) {
+                estimate_step(mats, cwv, c[4] + k * ne, c[3] + k * nw * NEP4, e, dgv);
+                if (--sc == 0) {
+                    sc = S;
+                    estimate_out(Rb, e, dgv, mx, mn);
+                }
+            }
+        }
+        { /* max |out| = max(largest, -smallest); NaN when e or dg is not finite in the end
+             (the maxima skip a NaN, but once there it stays: every lane reaches dg) */
+            double bad = 0.0;
+            for (i = 0; i < NMV; ++i)
+                for (c = 0; c < 4; ++c)
+                    bad += e[i][c] * 0.0;
+            for (i = 0; i < NEV4; ++i)
+                for (c = 0; c < 4; ++c)
+                    bad += dgv[i][c] * 0.0;
+            for (i = 0; i < no; ++i) {
+                const double a = mx[i / 4][i % 4], b = -mn[i / 4][i % 4];
+                stats[5 + i] = (a > b ? a : b) + bad;
+            }
+        }
     }
 #if defined(NL_EXPLICIT) && NL_NZ == 0
     copy(nw, Q, u);
@@ -873,9 +986,9 @@ static int modal_run(const long *dims, const double *const *mats, const double *
 
 /*
  * The doubles of nl_loop_run's work for these dims: CasADi's work (nl_residual_work), then, with
- * the embedded estimate (NL_NST > 0), its block of dims[14] steps from dims[13] (modal_run's
- * layout: J, dg/du, g after NST - 1 earlier ones, K, the differences, [e; dg]). -1 when the
- * block would overlap CasADi's work.
+ * the embedded estimate (NL_NST > 0), its blocks of dims[14] steps from dims[13] (modal_run's
+ * layout: two sets of J, dg/du, g after NST - 1 earlier ones, K, the differences; then the
+ * output rows). -1 when they would overlap CasADi's work.
  */
 long dtdyn_nl_work(const long *dims)
 {
@@ -887,8 +1000,8 @@ long dtdyn_nl_work(const long *dims)
         const long eb = dims[14];
         if (dims[13] < (long)sz_w || eb < 0)
             return -1;
-        return dims[13] + eb * (nu * nu + ne * nu + ne * nw + ne + NMP + ne)
-               + (eb + nst - 1) * ne;
+        return dims[13] + 2 * (eb * (nu * nu + ne * nu + NEP4 * nw + ne) + (eb + nst - 1) * ne)
+               + NL_NO * (NMP + NEP4);
     }
 #endif
     (void)dims;
