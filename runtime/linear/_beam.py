@@ -290,9 +290,9 @@ class Beam(Model):
             (DtdynUnstableError), or warned about.
         elements : sequence of elements, optional
             Localized nonlinear elements (`Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen`):
-            the solver of `nonlinear_beam_response` instead; each ``run`` is one call of it
-            with these options (the elements checked once; the step not yet kept between
-            runs).
+            the solver of `nonlinear_beam_response` instead: the checks, the linear step, the
+            elements' unit responses and the compiled loop prepared once, each ``run`` equal
+            to the function bitwise.
         substeps, tol, max_iter : optional
             With ``elements`` only: as `nonlinear_beam_response` (its defaults when None).
         **scheme_params

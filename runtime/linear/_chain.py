@@ -161,9 +161,9 @@ class Chain(Model):
             Threads of the C stable sweep of each run, as `chain_response`.
         elements : sequence of elements, optional
             Localized nonlinear elements (`Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen`):
-            the solver of `nonlinear_chain_response` instead; each ``run`` is one call of it
-            with these options (the elements checked once; the step not yet kept between
-            runs).
+            the solver of `nonlinear_chain_response` instead: the checks, the linear step, the
+            elements' unit responses and the compiled loop prepared once, each ``run`` equal
+            to the function bitwise.
         substeps, tol, max_iter : optional
             With ``elements`` only: as `nonlinear_chain_response` (its defaults when None).
         **scheme_params

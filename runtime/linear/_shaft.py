@@ -482,9 +482,9 @@ class Shaft(Model):
             (DtdynUnstableError), or warned about.
         elements : sequence of elements, optional
             Localized nonlinear elements (`Cubic`, `Polynomial`, `Gap`, `Law`, `BoucWen`):
-            the solver of `nonlinear_shaft_response` instead; each ``run`` is one call of it
-            with these options (the elements checked once; the step not yet kept between
-            runs).
+            the solver of `nonlinear_shaft_response` instead: the checks, the linear step, the
+            elements' unit responses and the compiled loop prepared once, each ``run`` equal
+            to the function bitwise.
         substeps, tol, max_iter : optional
             With ``elements`` only: as `nonlinear_shaft_response` (its defaults when None).
         **scheme_params

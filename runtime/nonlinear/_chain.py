@@ -6,7 +6,8 @@ with the element forces g as loads -L^T g (runtime/elements.py) the state after 
     H_{k+1} = H_lin + sum_e g_e U_e,
 
 H_lin the sweep with g_{k+1} = 0 (g_k known), U_e the step's response to the unit load pair of
-element e at t_{k+1} from rest (one sweep per element, once per run). The element deformations
+element e at t_{k+1} from rest (one sweep per element, once per `ChainNonlinearSolver` and
+loaded DOFs). The element deformations
 then satisfy w - Dwg g(w, z) = Q with Q = W(H_lin), Dwg = [W(U_e)]: the condensed per-step
 problem of generated/nonlinear.md, here with K_eff^-1 L^T applied by the sweep instead of a
 factorization. Each step costs one sweep over the chain (O(N), generated C kernel), a Newton
@@ -18,7 +19,9 @@ with backend="numpy", in Python around the NumPy sweep, step for step the same c
 from __future__ import annotations
 
 import ctypes
+import threading
 import time
+from contextlib import nullcontext
 from functools import cache
 from types import SimpleNamespace
 from importlib import resources
@@ -113,75 +116,242 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
     (1001, 50)
     """
     t0 = time.perf_counter()
-    chain = chain_parameters(mass, stiffness, damping, ground_stiffness, ground_damping)
-    m, k, c, kg, cg = chain
-    N = m.size
-    dt = validate.positive_scalar("dt", dt)
-    force, force_dofs, ground = support.prepare(sps.diags(m), force, force_dofs, N,
-                                                ground_acceleration, influence, dt=dt,
-                                                ground_velocity=ground_velocity,
-                                                ground_displacement=ground_displacement)
-    force_dofs = validate.dof_indices("force_dofs", force_dofs, N)
-    outputs = validate.dof_indices("outputs", outputs, N)
-    quantities = check_quantities(quantities, QUANTITIES)
-    elements = check_elements(elements)
-    if not elements:
-        raise ValueError("elements is empty: use chain_response for a linear chain")
-    for e, el in enumerate(elements):
-        for name, d in (("i", el.i), ("j", el.j)):
-            if d is not None and d >= N:
-                raise ValueError(f"elements[{e}] ({type(el).__name__}).{name} = {d} is outside "
-                                 f"the chain's masses 0..{N - 1}")
-    S = validate.step_count("substeps", substeps)
-    f = validate.force_record(force, force_dofs.size)
-    x0, v0 = validate.initial_conditions(x0, v0, N)
-    validate.output_size("nonlinear_chain_response", f.shape[0], 3 * outputs.size)
-    info = get_scheme(scheme, **scheme_params)
-    if info.startup_steps:
-        raise ValueError(f"scheme {info.name!r} is multistep; the nonlinear chain needs a "
-                         "one-step scheme (newmark, hht, generalized_alpha, ...)")
-    h = dt / S
-    sz = _sizes(elements)
-    ei = np.array([el.i for el in elements], dtype=np.int64)
-    ej = np.array([-1 if el.j is None else el.j for el in elements], dtype=np.int64)
+    model = SimpleNamespace(mass=mass, stiffness=stiffness, damping=damping,
+                            ground_stiffness=ground_stiffness, ground_damping=ground_damping)
+    solver = ChainNonlinearSolver(model, dt, elements=elements, scheme=scheme, form=form,
+                                  substeps=substeps, outputs=outputs, quantities=quantities,
+                                  backend=backend, tol=tol, max_iter=max_iter, **scheme_params)
+    return solver._run(t0, force, force_dofs, x0, v0, ground_acceleration, ground_velocity,
+                       ground_displacement, influence)
 
-    def make_advance(loaded):
-        return kernels.chain_advance(backend, info, info.coefficients(form, h), form, "stable",
-                                     chain, h, loaded, np.zeros(0, dtype=np.int64))
 
-    def accel(f0):  # a_0 = M^-1 (f_0 - L^T g_0 - C v_0 - K x_0)
-        if x0.any() or v0.any():
-            _, Cc, Kc = chain_matrices(m, k, c, sparse=True, ground_stiffness=kg,
-                                       ground_damping=cg)
-            f0 = f0 - Cc @ v0 - Kc @ x0
-        return f0 / m
+class ChainNonlinearSolver:
+    """A `Chain` with localized nonlinear elements, prepared for one sample step; `run` runs
+    one load case.
 
-    def c_loop(run):  # the whole loop in generated/nl_chain.c, when it compiles
-        driver = _c_driver(elements, sz) if backend == "c" else None
-        sweep_fn = kernels.c_chain_function(info) if driver else None
-        if sweep_fn is None:
-            return None
-        idx = [run.loaded, run.pf, run.pi, run.pj, ei, ej, outputs]
-        mats = [m, k, c, *kernels.ground_elements(chain), kernels.params_array(info), run.U,
-                run.par, f]
-        dims = [N, len(info.history), run.loaded.size, force_dofs.size, sz.ne, sz.nw, sz.nz,
-                outputs.size, f.shape[0], S, max_iter, kernels.FORM_CODE[form], *run.rows,
-                newton_code(sz)]
-        return _run_c(driver, sweep_fn, dims, idx, mats, run.H, run.u, run.g, run.rate,
-                      run.store, h, tol, S)
+    Made by ``chain.solver(dt, elements=[...], ...)``. Prepared once: the checks of the chain,
+    the options and the elements, the scheme and the compiled loop (generated/nl_chain.c with
+    the elements' residual and the chain kernel); per distinct ``force_dofs`` (at its first
+    run, kept): the step for the loaded masses and the elements' unit responses U_e (one sweep
+    per element). ``nonlinear_chain_response(mass, stiffness, damping, force, dt,
+    elements=..., **kw)`` is this solver and one run, bitwise.
 
-    store, stats = condensed_response(make_advance, N, info.history, elements, ei, ej,
-                                      force_dofs, outputs, f, x0, v0, accel, S, h, quantities,
-                                      tol, max_iter, backend, c_loop=c_loop)
-    n_samples = f.shape[0]
-    return support.finish(Response(dt * np.arange(n_samples), outputs,
-                    **{q: store[q] if q in quantities else None for q in ("x", "v", "a")},
-                    g=store["g"], z=store["z"],
-                    info={"method": f"DT-TMM {info.name} ({form} form, stable sweep)",
-                          "scheme": info.name, "params": dict(info.params), "dt": dt,
-                          "n_steps": n_samples - 1, "substeps": S, "backend": backend,
-                          "elements": [el.describe() for el in elements],
-                          "setup_time": stats.pop("setup_end") - t0, **stats}), ground)
+    Thread safety: with the compiled loop, `run` may be called from several threads at once
+    (a run allocates its own state, work and outputs and only reads the solver's arrays; the
+    loop releases the GIL); the first run with new ``force_dofs`` builds its plan under a
+    lock, and the Python loop's runs (backend "numpy" or no compiler) take a lock: one at a
+    time.
+
+    Parameters
+    ----------
+    model : Chain
+        The linear chain (its ``mass``, ``stiffness``, ``damping``, ``ground_stiffness``,
+        ``ground_damping``).
+    dt : float
+        Sample step, s, > 0.
+    elements : sequence of elements
+        As `nonlinear_chain_response`.
+    scheme : str
+        A one-step scheme (default "newmark").
+    form : {"displacement", "acceleration"}
+        Primary unknown of the step.
+    substeps : int
+        Steps per sample.
+    outputs : sequence of int, optional
+        Stored masses (all by default).
+    quantities : subset of ("x", "v", "a", "g", "z")
+        What is stored.
+    backend : {"c", "numpy"}
+        The implementation.
+    tol : float
+        Newton's tolerance.
+    max_iter : int
+        Newton iterations per step.
+    **scheme_params
+        The scheme's parameters.
+
+    Attributes
+    ----------
+    model : Chain
+        The model.
+    dt : float
+        The sample step, s.
+    elements : tuple
+        The checked elements.
+    scheme, form, backend : str
+        As given.
+    params : dict
+        The scheme's parameters as given.
+    substeps : int
+        Steps per sample.
+    outputs : ndarray of int
+        The stored masses.
+    quantities : tuple of str
+        The stored quantities.
+    setup_time : float
+        Seconds the construction took.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> chain = dd.Chain(np.ones(50), np.full(50, 1e4), np.full(50, 0.5))
+    >>> solver = chain.solver(1e-3, elements=[dd.Cubic(0, k3=1e7)], quantities=("x",))
+    >>> [solver.run(np.full(1001, f), force_dofs=[49]).x.shape for f in (1.0, 2.0)]
+    [(1001, 50), (1001, 50)]
+    """
+
+    def __init__(self, model, dt, *, elements, scheme="newmark", form="displacement",
+                 substeps=1, outputs=None, quantities=("x", "v", "a"), backend="c", tol=1e-12,
+                 max_iter=30, **scheme_params):
+        t0 = time.perf_counter()
+        self.model = model
+        self._chain = chain = chain_parameters(model.mass, model.stiffness, model.damping,
+                                               model.ground_stiffness, model.ground_damping)
+        m = chain[0]
+        self._N = N = m.size
+        self.dt = validate.positive_scalar("dt", dt)
+        self.outputs = validate.dof_indices("outputs", outputs, N)
+        self.quantities = check_quantities(quantities, QUANTITIES)
+        elements = check_elements(elements)
+        if not elements:
+            raise ValueError("elements is empty: use chain_response for a linear chain")
+        for e, el in enumerate(elements):
+            for name, d in (("i", el.i), ("j", el.j)):
+                if d is not None and d >= N:
+                    raise ValueError(f"elements[{e}] ({type(el).__name__}).{name} = {d} is "
+                                     f"outside the chain's masses 0..{N - 1}")
+        self.elements = elements
+        self.substeps = S = validate.step_count("substeps", substeps)
+        self._info = info = get_scheme(scheme, **scheme_params)
+        if info.startup_steps:
+            raise ValueError(f"scheme {info.name!r} is multistep; the nonlinear chain needs a "
+                             "one-step scheme (newmark, hht, generalized_alpha, ...)")
+        self._sz = sz = _sizes(elements)
+        if "z" in self.quantities and not sz.nz:
+            raise ValueError("quantities asks for 'z', but no element has internal states "
+                             "(BoucWen has z)")
+        self.scheme, self.params, self.form, self.backend = scheme, dict(scheme_params), form, \
+            backend
+        self._tol, self._max_iter = tol, max_iter
+        self._h = h = self.dt / S
+        self._ei = np.array([el.i for el in elements], dtype=np.int64)
+        self._ej = np.array([-1 if el.j is None else el.j for el in elements], dtype=np.int64)
+        none = np.zeros(0, dtype=np.int64)
+        self._make_advance = lambda loaded: kernels.chain_advance(
+            backend, info, info.coefficients(form, h), form, "stable", chain, h, loaded, none)
+        self._driver = _c_driver(elements, sz) if backend == "c" else None
+        self._sweep = kernels.c_chain_function(info) if self._driver else None
+        if self._sweep is not None:
+            self._mats = [*chain[:3], *kernels.ground_elements(chain),
+                          kernels.params_array(info)]
+        self._mass = sps.diags(m)
+        self._ck = None  # the sparse C, K of the initial acceleration (first run from x0, v0)
+        self._plans: dict = {}
+        self._plan_lock = threading.Lock()
+        self._loop_lock = threading.Lock()
+        self.setup_time = time.perf_counter() - t0
+
+    def __repr__(self) -> str:
+        params = "".join(f", {k}={v!r}" for k, v in self.params.items())
+        return (f"<{type(self).__name__} of {self.model!r}: dt={self.dt!r}, "
+                f"{len(self.elements)} elements, scheme={self.scheme!r}{params}, "
+                f"form={self.form!r}, substeps={self.substeps}, backend={self.backend!r}>")
+
+    def _plan(self, force_dofs):
+        """The `condensed_plan` of ``force_dofs``, built at its first use under the lock."""
+        key = force_dofs.tobytes()
+        plan = self._plans.get(key)
+        if plan is None:
+            with self._plan_lock:
+                plan = self._plans.get(key)
+                if plan is None:
+                    plan = self._plans[key] = condensed_plan(
+                        self._make_advance, self._N, self._info.history, self.elements,
+                        self._ei, self._ej, force_dofs, self._h)
+        return plan
+
+    def run(self, force, *, force_dofs=None, x0=None, v0=None, ground_acceleration=None,
+            ground_velocity=None, ground_displacement=None, influence=None) -> Response:
+        """One load case: the time history of the chain and its elements under ``force``.
+
+        Parameters
+        ----------
+        force : array_like, shape (n_steps + 1, len(force_dofs))
+            Force samples at t_k = k dt, linear between samples (a 1-D array is one column);
+            may be None with a ground record.
+        force_dofs : sequence of int, optional
+            0-based loaded masses (all when None).
+        x0, v0 : (N,) array_like, optional
+            Initial displacement and velocity (rest when None); the elements start from the
+            deformations they give, their internal states from 0.
+        ground_acceleration, ground_velocity, ground_displacement : array_like, optional
+            One ground record, as `nonlinear_chain_response` takes it.
+        influence : array_like, optional
+            r, each mass's motion per unit support motion (default: ones).
+
+        Returns
+        -------
+        Response
+            As `nonlinear_chain_response`, bitwise: ``x``, ``v``, ``a`` (``g``, ``z``) of the
+            outputs, ``info`` with the times of this run and the Newton statistics.
+
+        Raises
+        ------
+        NewtonError
+            A step did not converge.
+        """
+        return self._run(time.perf_counter(), force, force_dofs, x0, v0, ground_acceleration,
+                         ground_velocity, ground_displacement, influence)
+
+    def _run(self, t0, force, force_dofs, x0, v0, ground_acceleration, ground_velocity,
+             ground_displacement, influence):
+        N, dt, S, h, sz, info = self._N, self.dt, self.substeps, self._h, self._sz, self._info
+        outputs, quantities, tol, max_iter = self.outputs, self.quantities, self._tol, \
+            self._max_iter
+        force, force_dofs, ground = support.prepare(self._mass, force, force_dofs, N,
+                                                    ground_acceleration, influence, dt=dt,
+                                                    ground_velocity=ground_velocity,
+                                                    ground_displacement=ground_displacement)
+        force_dofs = validate.dof_indices("force_dofs", force_dofs, N)
+        f = validate.force_record(force, force_dofs.size)
+        x0, v0 = validate.initial_conditions(x0, v0, N)
+        validate.output_size("nonlinear_chain_response", f.shape[0], 3 * outputs.size)
+        plan = self._plan(force_dofs)
+        m, k, c, kg, cg = self._chain
+
+        def accel(f0):  # a_0 = M^-1 (f_0 - L^T g_0 - C v_0 - K x_0)
+            if x0.any() or v0.any():
+                if self._ck is None:
+                    self._ck = chain_matrices(m, k, c, sparse=True, ground_stiffness=kg,
+                                              ground_damping=cg)[1:]
+                Cc, Kc = self._ck
+                f0 = f0 - Cc @ v0 - Kc @ x0
+            return f0 / m
+
+        c_loop = None
+        if self._sweep is not None:
+            def c_loop(run):  # the whole loop in generated/nl_chain.c
+                idx = [run.loaded, run.pf, run.pi, run.pj, self._ei, self._ej, outputs]
+                mats = [*self._mats, run.U, run.par, f]
+                dims = [N, len(info.history), run.loaded.size, force_dofs.size, sz.ne, sz.nw,
+                        sz.nz, outputs.size, f.shape[0], S, max_iter,
+                        kernels.FORM_CODE[self.form], *run.rows, newton_code(sz)]
+                return _run_c(self._driver, self._sweep, dims, idx, mats, run.H, run.u, run.g,
+                              run.rate, run.store, h, tol, S)
+        # the Python loop shares the plan's advance (and its scratch): one run at a time
+        with self._loop_lock if c_loop is None else nullcontext():
+            store, stats = condensed_run(plan, outputs, f, x0, v0, accel, S, h, quantities,
+                                         tol, max_iter, self.backend, c_loop=c_loop)
+        n_samples = f.shape[0]
+        return support.finish(Response(
+            dt * np.arange(n_samples), outputs,
+            **{q: store[q] if q in quantities else None for q in ("x", "v", "a")},
+            g=store["g"], z=store["z"],
+            info={"method": f"DT-TMM {info.name} ({self.form} form, stable sweep)",
+                  "scheme": info.name, "params": dict(info.params), "dt": dt,
+                  "n_steps": n_samples - 1, "substeps": S, "backend": self.backend,
+                  "elements": [el.describe() for el in self.elements],
+                  "setup_time": stats.pop("setup_end") - t0, **stats}), ground)
 
 
 def condensed_response(make_advance, n, history, elements, ei, ej, force_dofs, outputs, f, x0,
@@ -200,7 +370,19 @@ def condensed_response(make_advance, n, history, elements, ei, ej, force_dofs, o
     (the step's advance, U_e, the Newton solve by `newton_solve`).
 
     Returns ``(store, stats)``: the stored x, v, a (columns ``outputs``), g, z per sample, and
-    "loop", "setup_end", "run_time", "newton_iterations", "max_residual"."""
+    "loop", "setup_end", "run_time", "newton_iterations", "max_residual". The same as
+    `condensed_run` on `condensed_plan`, which a solver keeps per ``force_dofs``."""
+    plan = condensed_plan(make_advance, n, history, elements, ei, ej, force_dofs, h)
+    return condensed_run(plan, outputs, f, x0, v0, accel, S, h, quantities, tol, max_iter,
+                         backend, c_loop=c_loop)
+
+
+def condensed_plan(make_advance, n, history, elements, ei, ej, force_dofs, h):
+    """The part of `condensed_response` that does not depend on the load case's records: the
+    loaded DOFs, the step's ``advance`` for them, the unit responses U_e (one step per element)
+    and the residual's parameters. Its arrays are only read by `condensed_run`; ``advance`` may
+    hold scratch (the Python loop's runs on one plan are then not concurrent); ``cache`` is for
+    a caller's own per-plan arrays."""
     sz = _sizes(elements)
     ei = np.asarray(ei, dtype=np.int64)
     ej = np.asarray(ej, dtype=np.int64)
@@ -241,7 +423,21 @@ def condensed_response(make_advance, n, history, elements, ei, ej, force_dofs, o
     U = np.array(U)  # (ne, nh, n)
     Dwg = np.array([kin(Ue) for Ue in U]).T  # (nw, ne)
     par = np.concatenate([Dwg.ravel(order="F"), [h]])
+    return SimpleNamespace(n=n, names=names, sz=sz, ei=ei, ej=ej, force_dofs=force_dofs,
+                           loaded=loaded, pf=pf, pi=pi, pj=pj, loads=loads, kin=kin,
+                           advance=advance, U=U, Dwg=Dwg, par=par, rows=(ix, iv, ia), cache={},
+                           elements=elements)
 
+
+def condensed_run(plan, outputs, f, x0, v0, accel, S, h, quantities, tol, max_iter, backend,
+                  c_loop=None):
+    """One load case of `condensed_response` on its `condensed_plan` (arguments as there):
+    the initial state, then the compiled loop ``c_loop(run)`` (``run.plan`` the plan) or the
+    Python loop. Returns ``(store, stats)`` as `condensed_response`."""
+    n, names, sz, elements = plan.n, plan.names, plan.sz, plan.elements
+    loaded, pf, pi, pj, loads, kin = (plan.loaded, plan.pf, plan.pi, plan.pj, plan.loads,
+                                      plan.kin)
+    advance, U, Dwg, par, (ix, iv, ia) = plan.advance, plan.U, plan.Dwg, plan.par, plan.rows
     H = np.zeros((len(names), n))
     H[ix], H[iv] = x0, v0
     w0 = kin(H)  # the elements start from the deformations of x0, v0, z from 0
@@ -257,7 +453,7 @@ def condensed_response(make_advance, n, history, elements, ei, ej, force_dofs, o
                          "has z)")
     t1 = time.perf_counter()
     run = SimpleNamespace(loaded=loaded, pf=pf, pi=pi, pj=pj, U=U, par=par, H=H, u=u, g=g,
-                          rate=rate, store=store, rows=(ix, iv, ia))
+                          rate=rate, store=store, rows=(ix, iv, ia), plan=plan)
     done = c_loop(run) if c_loop is not None else None
     kept = {}
     if done is not None:

@@ -421,110 +421,37 @@ RUN_OPTIONS = ("force", "force_dofs", "x0", "v0", "ground_acceleration", "ground
                "ground_displacement", "influence")
 
 
-class DelegatingNonlinearSolver:
-    """The solver of a `Chain`, `Beam` or `Shaft` with elements: each run is one call of the
-    model's nonlinear function (`nonlinear_chain_response`, `nonlinear_beam_response`,
-    `nonlinear_shaft_response`) with the solver's options, so its results are that call's.
-
-    Checked once: ``dt``, the elements (types, none missing; a chain's DOFs in range) and that
-    no option is a run's. Not reused yet: everything else (each run checks the options, builds
-    the step and finds the compiled loop in its cache, as the function does). Runs may be
-    called from several threads as the function may.
-
-    Parameters
-    ----------
-    model : Chain, Beam or Shaft
-        The model.
-    dt : float
-        Sample step, s, > 0.
-    response : callable
-        The model's nonlinear function.
-    head : tuple
-        Its arguments before ``force`` (the chain's arrays, or the beam or shaft).
-    elements : sequence of elements
-        The elements.
-    **options
-        The function's options (scheme, its parameters, form, substeps, outputs, ...).
-
-    Attributes
-    ----------
-    model : Chain, Beam or Shaft
-        The model.
-    dt : float
-        The sample step, s.
-    elements : tuple
-        The checked elements.
-    options : dict
-        What each run passes on.
-    """
-
-    def __init__(self, model, dt, response, head, *, elements, **options):
-        self.model, self._response, self._head = model, response, head
-        self.dt = validate.positive_scalar("dt", dt)
-        elements = check_elements(elements)
-        if not elements:
-            raise ValueError(f"elements is empty: use {type(model).__name__}.solver without "
-                             "elements for a linear model")
-        if type(model).__name__ == "Chain":
-            element_matrix(elements, model.n_dof)
-        for name in RUN_OPTIONS:
-            if name in options:
-                raise ValueError(f"{name} is an option of run(...), not of the solver")
-        self.elements, self.options = elements, options
-
-    def __repr__(self) -> str:
-        return (f"<{type(self).__name__} of {self.model!r}: dt={self.dt!r}, "
-                f"{len(self.elements)} elements, {self._response.__name__} per run>")
-
-    def run(self, force, *, force_dofs=None, x0=None, v0=None, ground_acceleration=None,
-            ground_velocity=None, ground_displacement=None, influence=None) -> Response:
-        """One load case: the model's nonlinear function with the solver's options.
-
-        Parameters
-        ----------
-        force : array_like, shape (n_steps + 1, len(force_dofs))
-            Force samples at t_k = k dt (may be None with a ground record).
-        force_dofs : sequence, optional
-            Loaded DOFs (indices, or a beam's or shaft's DOF names).
-        x0, v0 : (N,) array_like, optional
-            Initial displacement and velocity (rest when None).
-        ground_acceleration, ground_velocity, ground_displacement : array_like, optional
-            One ground record, as the function takes it.
-        influence : array_like, optional
-            r, each DOF's motion per unit support motion.
-
-        Returns
-        -------
-        Response
-            The function's result.
-        """
-        return self._response(*self._head, force, self.dt, elements=self.elements,
-                              force_dofs=force_dofs, x0=x0, v0=v0,
-                              ground_acceleration=ground_acceleration,
-                              ground_velocity=ground_velocity,
-                              ground_displacement=ground_displacement, influence=influence,
-                              **self.options)
-
-
-def chain_solver(chain, dt, **options) -> DelegatingNonlinearSolver:
-    """``Chain.solver(dt, elements=..., ...)``: each run one `nonlinear_chain_response`."""
-    from dtdyn.nonlinear._chain import nonlinear_chain_response
+def chain_solver(chain, dt, **options):
+    """``Chain.solver(dt, elements=..., ...)``: the prepared
+    `dtdyn.nonlinear._chain.ChainNonlinearSolver`, each run bitwise
+    `nonlinear_chain_response`."""
+    from dtdyn.nonlinear._chain import ChainNonlinearSolver
     _linear_only(options, {"sweep": "stable", "workers": None, "unstable": "raise"},
                  "nonlinear_chain_response steps the plain DT-TMM of its own")
-    head = (chain.mass, chain.stiffness, chain.damping)
-    return DelegatingNonlinearSolver(chain, dt, nonlinear_chain_response, head,
-                                     ground_stiffness=chain.ground_stiffness,
-                                     ground_damping=chain.ground_damping, **options)
+    _no_run_options(options)
+    return ChainNonlinearSolver(chain, dt, **options)
 
 
-def station_solver(model, dt, **options) -> DelegatingNonlinearSolver:
-    """``Beam.solver`` / ``Shaft.solver`` with elements: each run one
-    `nonlinear_beam_response` / `nonlinear_shaft_response`."""
+def _no_run_options(options: dict) -> None:
+    """Refuse a run's options (`RUN_OPTIONS`) given to a solver."""
+    for name in RUN_OPTIONS:
+        if name in options:
+            raise ValueError(f"{name} is an option of run(...), not of the solver")
+
+
+def station_solver(model, dt, **options):
+    """``Beam.solver`` / ``Shaft.solver`` with elements: the prepared
+    `dtdyn.nonlinear._stations.BeamNonlinearSolver` / ``ShaftNonlinearSolver``, each run
+    bitwise `nonlinear_beam_response` / `nonlinear_shaft_response`."""
     from dtdyn.nonlinear import _stations
     _linear_only(options, {"unstable": "raise"}, "the nonlinear runs check their own steps")
-    response = (_stations.nonlinear_beam_response if type(model).__name__ == "Beam" else
-                _stations.nonlinear_shaft_response)
-    return DelegatingNonlinearSolver(model, dt, response, (model,), **options)
+    _no_run_options(options)
+    if not check_elements(options.get("elements", ())):
+        raise ValueError(f"elements is empty: use {type(model).__name__}.solver without "
+                         "elements for a linear model")
+    make = (_stations.BeamNonlinearSolver if type(model).__name__ == "Beam" else
+            _stations.ShaftNonlinearSolver)
+    return make(model, dt, **options)
 
 
 def register() -> None:

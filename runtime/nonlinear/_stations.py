@@ -5,7 +5,8 @@ around the model's own linear step: the tree sweep of `shaft_response` (T = S ph
 leaves to the root) or the 2 x 2 block Riccati sweep of `beam_response` on the whole node system
 (held DOFs decoupled). The step is linear in the loads, so with the element forces g as loads
 -L^T g the state after a step is H_lin + sum_e g_e U_e, U_e the step's response to element e's
-unit load pair from rest (one sweep per element, once per run); the element deformations then
+unit load pair from rest (one sweep per element, once per solver and loaded DOFs:
+`BeamNonlinearSolver`, `ShaftNonlinearSolver`); the element deformations then
 satisfy w - Dwg g(w, z) = Q, solved by Newton (`condensed_response`, the one loop of the chain,
 the shaft and the beam). Each step: one sweep (O(N)), the Newton solve in the element unknowns,
 an O(N n_e) update. With a compiler the whole loop runs in generated/nl_stations.c: the beam's
@@ -21,7 +22,9 @@ system by ``beam.free`` as `beam_response` does for its outputs.
 from __future__ import annotations
 
 import ctypes
+import threading
 import time
+from contextlib import nullcontext
 from functools import cache
 from importlib import resources
 
@@ -35,7 +38,7 @@ from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.stepping import check_quantities
 from dtdyn.generated import c_api
-from dtdyn.nonlinear._chain import _newton_error, condensed_response, newton_code
+from dtdyn.nonlinear._chain import _newton_error, condensed_plan, condensed_run, newton_code
 from dtdyn.nonlinear._elements import check_elements
 from dtdyn.nonlinear._response import QUANTITIES, _c_source, _residual_function, _sizes
 
@@ -146,58 +149,12 @@ def nonlinear_shaft_response(shaft, force, dt, *, elements, force_dofs=None, sch
     >>> r.x.shape, r.dof_names
     ((201, 3), ('main.0', 'main.1', 'main.2'))
     """
-    from dtdyn.linear._shaft import (_advance_factory, _check_shaft, _tree_operands,
-                                    check_connections, rigid_rotation, shaft_matrices)
     t0 = time.perf_counter()
-    _check_shaft(shaft)
-    tree = shaft.tree
-    N = tree.J.size
-    dt = validate.positive_scalar("dt", dt)
-    force, force_dofs, ground = support.prepare_model(
-        sps.diags(tree.J), force, force_dofs, tree.names, lambda k: rigid_rotation(shaft),
-        dt=dt, ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
-        ground_displacement=ground_displacement, influence=influence)
-    force_dofs = validate.dof_indices("force_dofs", force_dofs, N)
-    outputs = validate.dof_indices("outputs", outputs, N, names=tree.names)
-    elements, S, info, quantities = _checked("shaft", N, tree.names, elements,
-                                             substeps, scheme, scheme_params, backend, form,
-                                             quantities)
-    f = validate.force_record(force, force_dofs.size)
-    x0, v0 = validate.initial_conditions(x0, v0, N)
-    validate.output_size("nonlinear_shaft_response", f.shape[0], 3 * outputs.size)
-    h = dt / S
-    check_connections(tree, info, form, h)
-    _, C, K = shaft_matrices(shaft)
-    ei = np.array([el.i for el in elements], dtype=np.int64)
-    ej = np.array([-1 if el.j is None else el.j for el in elements], dtype=np.int64)
-    none = np.zeros(0, dtype=np.int64)
-
-    def make_advance(loaded):
-        return _advance_factory(backend, tree, h, loaded, none, form)(
-            info, info.coefficients(form, h))
-
-    def accel(f0):  # a_0 = J^-1 (f_0 - L^T g_0 - C v_0 - K x_0)
-        return (f0 - C @ v0 - K @ x0) / tree.J
-
-    def c_loop(run):  # the whole loop in generated/nl_stations.c, when it compiles
-        sweep = kernels.c_scheme_function("shaft", info) if backend == "c" else None
-        sz = _sizes(elements)
-        driver = _c_driver(elements, sz) if sweep is not None else None
-        if driver is None:
-            return None
-        parent, gu, gS, gR, kg, cg = _tree_operands(tree)
-        steps = [gu, gS, gR, tree.J, tree.k, tree.c, kg, cg, kernels.params_array(info)]
-        return _run_c(driver, sz, c_api.NL_STATIONS_SHAFT, N, kernels.FORM_CODE[form],
-                      ctypes.cast(sweep, ctypes.c_void_p).value, run, [parent], steps,
-                      run.H, run.U, lambda d: d, ei, ej, outputs, f, h, tol, S, max_iter)
-
-    store, stats = condensed_response(make_advance, N, info.history, elements, ei, ej,
-                                      force_dofs, outputs, f, x0, v0, accel, S, h, quantities,
-                                      tol, max_iter, backend, c_loop=c_loop)
-    res = _response(dt, outputs, tree.names, store, stats, quantities, info, form, S, backend,
-                    f"DT-TMM {info.name} ({form} form, tree sweep)", elements, t0,
-                    lambda name: "rotation")
-    return support.finish(res, ground)
+    solver = ShaftNonlinearSolver(shaft, dt, elements=elements, scheme=scheme, form=form,
+                                  substeps=substeps, outputs=outputs, quantities=quantities,
+                                  backend=backend, tol=tol, max_iter=max_iter, **scheme_params)
+    return solver._run(t0, force, force_dofs, x0, v0, ground_acceleration, ground_velocity,
+                       ground_displacement, influence)
 
 
 def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, scheme="newmark",
@@ -258,78 +215,425 @@ def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, schem
     >>> r.x.shape, r.g.shape
     ((201, 1), (201, 1))
     """
-    from dtdyn.linear import _mck as mck
-    from dtdyn.linear._beam import (Beam, _block_advance, _block_library, _block_operator,
-                                    _stride, _to_kernel, beam_matrices, node_blocks, node_system,
-                                    rigid_translation)
     t0 = time.perf_counter()
-    if not isinstance(beam, Beam):
-        raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
-    M, C, K = beam_matrices(beam)
-    n = beam.n_dof
-    dt = validate.positive_scalar("dt", dt)
-    force, force_dofs, ground = support.prepare_model(
-        M, force, force_dofs, beam.dof_names, lambda k: rigid_translation(beam, k), dt=dt,
-        ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
-        ground_displacement=ground_displacement, influence=influence)
-    force_dofs = validate.dof_indices("force_dofs", force_dofs, n)
-    outputs = validate.dof_indices("outputs", outputs, n, names=beam.dof_names)
-    elements, S, info, quantities = _checked("beam", n, beam.dof_names, elements,
-                                             substeps, scheme, scheme_params, backend, form,
-                                             quantities)
-    f = validate.force_record(force, force_dofs.size)
-    x0, v0 = validate.initial_conditions(x0, v0, n)
-    validate.output_size("nonlinear_beam_response", f.shape[0], 3 * outputs.size)
-    h = dt / S
-    nodes = beam.elements + 1
-    nf = 2 * nodes  # the node system (node_system), DOF 2 i + c
-    free = beam.free
-    ei = free[[el.i for el in elements]]
-    ej = np.array([-1 if el.j is None else free[el.j] for el in elements], dtype=np.int64)
-    K_ = info.coefficients(form, h)
-    none = np.zeros(0, dtype=np.int64)
-    lib = _block_library() if backend == "c" else None
-    if lib is not None:  # beam_response's kernel (block_chain.c), A factorized once
-        stored = node_blocks(beam)
-        op = _block_operator(lib, form, info, K_, stored, nodes)
+    solver = BeamNonlinearSolver(beam, dt, elements=elements, scheme=scheme, form=form,
+                                 substeps=substeps, outputs=outputs, quantities=quantities,
+                                 backend=backend, tol=tol, max_iter=max_iter, **scheme_params)
+    return solver._run(t0, force, force_dofs, x0, v0, ground_acceleration, ground_velocity,
+                       ground_displacement, influence)
 
-        def make_advance(loaded):
-            return _block_advance(lib, form, info, K_, stored, nodes, loaded, none, op)
-    else:
-        Mg, Cg, Kg = node_system(beam)
 
-        def make_advance(loaded):
-            return mck.make_advance(form, info, K_, Mg, Cg, Kg, loaded, none, None)
+class _StationsSolver:
+    """The solver parts the shaft's and the beam's share (`ShaftNonlinearSolver`,
+    `BeamNonlinearSolver`): a `condensed_plan` per distinct ``force_dofs``, kept, and one run of
+    `condensed_run` around it. A subclass sets the model's operands in ``__init__`` and
+    `_loop` (the compiled loop of a run, or None)."""
 
-    def c_loop(run):  # the whole loop in generated/nl_stations.c, when it compiles
-        sz = _sizes(elements)
-        driver = _c_driver(elements, sz) if lib is not None else None
-        if driver is None:
+    def _common(self, model, dt, n, names, elements, substeps, scheme, scheme_params, backend,
+                form, outputs, quantities, tol, max_iter):
+        self.model = model
+        self.dt = validate.positive_scalar("dt", dt)
+        self.outputs = validate.dof_indices("outputs", outputs, n, names=names)
+        self.elements, self.substeps, self._info, self.quantities = _checked(
+            self._kind, n, names, elements, substeps, scheme, scheme_params, backend, form,
+            quantities)
+        self._sz = _sizes(self.elements)
+        if "z" in self.quantities and not self._sz.nz:
+            raise ValueError("quantities asks for 'z', but no element has internal states "
+                             "(BoucWen has z)")
+        self.scheme, self.params, self.form, self.backend = scheme, dict(scheme_params), form, \
+            backend
+        self._n, self._names, self._tol, self._max_iter = n, names, tol, max_iter
+        self._h = self.dt / self.substeps
+        self._plans: dict = {}
+        self._plan_lock = threading.Lock()
+        self._loop_lock = threading.Lock()
+
+    def __repr__(self) -> str:
+        params = "".join(f", {k}={v!r}" for k, v in self.params.items())
+        return (f"<{type(self).__name__} of {self.model!r}: dt={self.dt!r}, "
+                f"{len(self.elements)} elements, scheme={self.scheme!r}{params}, "
+                f"form={self.form!r}, substeps={self.substeps}, backend={self.backend!r}>")
+
+    def _plan(self, loaded):
+        """The `condensed_plan` of the loaded DOFs ``loaded`` (state numbering), built at its
+        first use under the lock and kept."""
+        key = loaded.tobytes()
+        plan = self._plans.get(key)
+        if plan is None:
+            with self._plan_lock:
+                plan = self._plans.get(key)
+                if plan is None:
+                    plan = self._plans[key] = condensed_plan(
+                        self._make_advance, self._n_state, self._info.history, self.elements,
+                        self._ei, self._ej, loaded, self._h)
+        return plan
+
+    def run(self, force, *, force_dofs=None, x0=None, v0=None, ground_acceleration=None,
+            ground_velocity=None, ground_displacement=None, influence=None) -> Response:
+        """One load case: the time history of the model and its elements under ``force``.
+
+        Parameters
+        ----------
+        force : array_like, shape (n_steps + 1, len(force_dofs))
+            Force samples at t_k = k dt, linear between samples (a 1-D array is one column);
+            may be None with a ground record.
+        force_dofs : sequence of int or DOF names, optional
+            The loaded DOFs (all DOFs when None).
+        x0, v0 : (N,) array_like, optional
+            Initial displacement and velocity over the model's DOFs (rest when None); the
+            elements start from the deformations they give, their internal states from 0.
+        ground_acceleration, ground_velocity, ground_displacement : array_like, optional
+            One ground record, as the model's nonlinear function takes it.
+        influence : array_like, optional
+            r, each DOF's motion per unit support motion (default: the model's rigid motion).
+
+        Returns
+        -------
+        Response
+            As the model's nonlinear function (`nonlinear_beam_response`,
+            `nonlinear_shaft_response`), bitwise: ``x``, ``v``, ``a`` (``g``, ``z``) of the
+            outputs, ``info`` with the times of this run and the Newton statistics.
+
+        Raises
+        ------
+        NewtonError
+            A step did not converge.
+        """
+        return self._run(time.perf_counter(), force, force_dofs, x0, v0, ground_acceleration,
+                         ground_velocity, ground_displacement, influence)
+
+    def _run(self, t0, force, force_dofs, x0, v0, ground_acceleration, ground_velocity,
+             ground_displacement, influence):
+        n, dt, outputs = self._n, self.dt, self.outputs
+        force, force_dofs, ground = support.prepare_model(
+            self._mass, force, force_dofs, self._names, self._rigid, dt=dt,
+            ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
+            ground_displacement=ground_displacement, influence=influence)
+        force_dofs = validate.dof_indices("force_dofs", force_dofs, n)
+        f = validate.force_record(force, force_dofs.size)
+        x0, v0 = validate.initial_conditions(x0, v0, n)
+        validate.output_size(f"nonlinear_{self._kind}_response", f.shape[0], 3 * outputs.size)
+        plan = self._plan(self._state_dofs(force_dofs))
+        xs, vs = self._state(x0, v0)
+        c_loop = self._loop(f)
+        # the Python loop shares the plan's advance (and its scratch): one run at a time
+        with self._loop_lock if c_loop is None else nullcontext():
+            store, stats = condensed_run(plan, self._state_dofs(outputs), f, xs, vs,
+                                         self._accel(x0, v0), self.substeps, self._h,
+                                         self.quantities, self._tol, self._max_iter,
+                                         self.backend, c_loop=c_loop)
+        res = _response(dt, outputs, self._names, store, stats, self.quantities, self._info,
+                        self.form, self.substeps, self._backend_used, self._method,
+                        self.elements, t0, self._dof_kind)
+        return support.finish(res, ground)
+
+
+class ShaftNonlinearSolver(_StationsSolver):
+    """A `Shaft` with localized nonlinear elements, prepared for one sample step; `run` runs
+    one load case.
+
+    Made by ``shaft.solver(dt, elements=[...], ...)``. Prepared once: the checks of the options
+    and the elements, the shaft's tree operands and matrices, the scheme's tree sweep and the
+    compiled loop (generated/nl_stations.c with the elements' residual); per distinct
+    ``force_dofs`` (at its first run, kept): the step for the loaded DOFs and the elements'
+    unit responses U_e (one sweep per element). ``nonlinear_shaft_response(shaft, force, dt,
+    elements=..., **kw)`` is this solver and one run, bitwise.
+
+    Thread safety: with the compiled loop, `run` may be called from several threads at once
+    (a run allocates its own state, work and outputs and only reads the solver's arrays; the
+    loop releases the GIL); the first run with new ``force_dofs`` builds its plan under a
+    lock, and the Python loop's runs (backend "numpy" or no compiler) take a lock: one at a
+    time.
+
+    Parameters
+    ----------
+    model : Shaft
+        The linear model.
+    dt : float
+        Sample step, s, > 0.
+    elements : sequence of elements
+        As `nonlinear_shaft_response`.
+    scheme : str
+        A one-step scheme (default "newmark").
+    form : {"displacement", "acceleration"}
+        Primary unknown of the step.
+    substeps : int
+        Steps per sample.
+    outputs : sequence of int or DOF names, optional
+        Stored DOFs (all by default).
+    quantities : subset of ("x", "v", "a", "g", "z")
+        What is stored.
+    backend : {"c", "numpy"}
+        The implementation.
+    tol : float
+        Newton's tolerance.
+    max_iter : int
+        Newton iterations per step.
+    **scheme_params
+        The scheme's parameters.
+
+    Attributes
+    ----------
+    model : Shaft
+        The model.
+    dt : float
+        The sample step, s.
+    elements : tuple
+        The checked elements.
+    scheme, form, backend : str
+        As given.
+    params : dict
+        The scheme's parameters as given.
+    substeps : int
+        Steps per sample.
+    outputs : ndarray of int
+        The stored DOFs.
+    quantities : tuple of str
+        The stored quantities.
+    setup_time : float
+        Seconds the construction took.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> s = dd.Shaft([1.0, 2.0, 1.5], [1e4, 2e4, 2e4], [1.0, 1.0, 1.0])
+    >>> solver = s.solver(1e-3, elements=[dd.Cubic(s.dof("main.1"), k3=1e9)])
+    >>> [solver.run(np.full(201, f), force_dofs=["main.2"]).x.shape for f in (50.0, 80.0)]
+    [(201, 3), (201, 3)]
+    """
+
+    _kind = "shaft"
+
+    def __init__(self, model, dt, *, elements, scheme="newmark", form="displacement",
+                 substeps=1, outputs=None, quantities=("x", "v", "a"), backend="c", tol=1e-12,
+                 max_iter=30, **scheme_params):
+        from dtdyn.linear._shaft import (_advance_factory, _check_shaft, _tree_operands,
+                                        check_connections, rigid_rotation, shaft_matrices)
+        t0 = time.perf_counter()
+        _check_shaft(model)
+        tree = model.tree
+        N = tree.J.size
+        self._common(model, dt, N, tree.names, elements, substeps, scheme, scheme_params,
+                     backend, form, outputs, quantities, tol, max_iter)
+        info, h = self._info, self._h
+        check_connections(tree, info, form, h)
+        _, self._C, self._K = shaft_matrices(model)
+        self._J = tree.J
+        self._mass = sps.diags(tree.J)
+        self._rigid = lambda k: rigid_rotation(model)
+        self._ei = np.array([el.i for el in self.elements], dtype=np.int64)
+        self._ej = np.array([-1 if el.j is None else el.j for el in self.elements],
+                            dtype=np.int64)
+        self._n_state = N
+        none = np.zeros(0, dtype=np.int64)
+        coefficients = info.coefficients(form, h)
+        self._make_advance = lambda loaded: _advance_factory(backend, tree, h, loaded, none,
+                                                             form)(info, coefficients)
+        sweep = kernels.c_scheme_function("shaft", info) if backend == "c" else None
+        self._driver = _c_driver(self.elements, self._sz) if sweep is not None else None
+        if self._driver is not None:
+            parent, gu, gS, gR, kg, cg = _tree_operands(tree)
+            self._sweep = ctypes.cast(sweep, ctypes.c_void_p).value
+            self._model_idx = [parent]
+            self._steps = [gu, gS, gR, tree.J, tree.k, tree.c, kg, cg,
+                           kernels.params_array(info)]
+        self._backend_used = backend
+        self._method = f"DT-TMM {info.name} ({form} form, tree sweep)"
+        self._dof_kind = lambda name: "rotation"
+        self.setup_time = time.perf_counter() - t0
+
+    def _state_dofs(self, dofs):
+        return dofs
+
+    def _state(self, x0, v0):
+        return x0, v0
+
+    def _accel(self, x0, v0):
+        C, K, J = self._C, self._K, self._J
+
+        def accel(f0):  # a_0 = J^-1 (f_0 - L^T g_0 - C v_0 - K x_0)
+            return (f0 - C @ v0 - K @ x0) / J
+        return accel
+
+    def _loop(self, f):
+        if self._driver is None:
             return None
-        mats, L, c_u, shift, rows, keep, names = op
-        P = _stride(nodes)
-        steps = [L, c_u, np.array([K_["w0"], K_["w1"]]), *list(mats)]
-        return _run_c(driver, sz, c_api.NL_STATIONS_BEAM, nodes, shift.shape[0], None, run,
-                      [shift, rows], steps, _to_kernel(run.H, nodes), _to_kernel(run.U, nodes),
-                      lambda d: (d & 1) * P + (d >> 1), ei, ej, free[outputs], f, h, tol, S,
-                      max_iter)
+        sz = self._sz
 
-    def accel(f0):  # a_0 = M^-1 (f_0 - L^T g_0 - C v_0 - K x_0) on the kept DOFs
-        a0 = np.zeros(nf)
-        a0[free] = linalg.solver(M, "M")(f0[free] - C @ v0 - K @ x0)
-        return a0
+        def c_loop(run):  # the whole loop in generated/nl_stations.c
+            return _run_c(self._driver, sz, c_api.NL_STATIONS_SHAFT, self._n,
+                          kernels.FORM_CODE[self.form], self._sweep, run, self._model_idx,
+                          self._steps, run.H, run.U, lambda d: d, self._ei, self._ej,
+                          self.outputs, f, self._h, self._tol, self.substeps, self._max_iter)
+        return c_loop
 
-    full = [np.zeros(nf), np.zeros(nf)]
-    full[0][free], full[1][free] = x0, v0
-    store, stats = condensed_response(make_advance, nf, info.history, elements, ei, ej,
-                                      free[force_dofs], free[outputs], f, *full, accel, S, h,
-                                      quantities, tol, max_iter, backend, c_loop=c_loop)
-    method = (f"DT-TMM {info.name} ({form} form, matrix Riccati sweep)" if lib is not None
-              else f"{info.name} ({form} form, assembled matrices, sparse LU)")
-    res = _response(dt, outputs, beam.dof_names, store, stats, quantities, info, form, S,
-                    "c" if lib is not None else "numpy", method, elements, t0,
-                    lambda name: "rotation" if name.startswith("psi") else "translation")
-    return support.finish(res, ground)
+
+class BeamNonlinearSolver(_StationsSolver):
+    """A `Beam` with localized nonlinear elements, prepared for one sample step; `run` runs
+    one load case.
+
+    Made by ``beam.solver(dt, elements=[...], ...)``. Prepared once: the checks of the options
+    and the elements, the beam's matrices and node blocks, the effective matrix factorized by
+    the block Riccati sweep (backend "c"; "numpy": the assembled node system's sparse LU), the
+    compiled loop (generated/nl_stations.c with the elements' residual); per distinct
+    ``force_dofs`` (at its first run, kept): the step for the loaded DOFs and the elements'
+    unit responses U_e (one sweep per element); M's factorization at the first run.
+    ``nonlinear_beam_response(beam, force, dt, elements=..., **kw)`` is this solver and one
+    run, bitwise.
+
+    Thread safety: with the compiled loop, `run` may be called from several threads at once
+    (a run allocates its own state, work and outputs and only reads the solver's arrays; the
+    loop releases the GIL); the first run with new ``force_dofs`` builds its plan under a
+    lock, and the Python loop's runs (backend "numpy" or no compiler) take a lock: one at a
+    time.
+
+    Parameters
+    ----------
+    model : Beam
+        The linear model.
+    dt : float
+        Sample step, s, > 0.
+    elements : sequence of elements
+        As `nonlinear_beam_response`.
+    scheme : str
+        A one-step scheme (default "newmark").
+    form : {"displacement", "acceleration"}
+        Primary unknown of the step.
+    substeps : int
+        Steps per sample.
+    outputs : sequence of int or DOF names, optional
+        Stored DOFs (all by default).
+    quantities : subset of ("x", "v", "a", "g", "z")
+        What is stored.
+    backend : {"c", "numpy"}
+        The implementation.
+    tol : float
+        Newton's tolerance.
+    max_iter : int
+        Newton iterations per step.
+    **scheme_params
+        The scheme's parameters.
+
+    Attributes
+    ----------
+    model : Beam
+        The model.
+    dt : float
+        The sample step, s.
+    elements : tuple
+        The checked elements.
+    scheme, form, backend : str
+        As given.
+    params : dict
+        The scheme's parameters as given.
+    substeps : int
+        Steps per sample.
+    outputs : ndarray of int
+        The stored DOFs.
+    quantities : tuple of str
+        The stored quantities.
+    setup_time : float
+        Seconds the construction took.
+
+    Examples
+    --------
+    >>> import numpy as np, dtdyn as dd
+    >>> beam = dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=20)
+    >>> solver = beam.solver(1e-4, elements=[dd.Cubic(beam.dof("w20"), k3=1e12)],
+    ...                      outputs=["w20"])
+    >>> [solver.run(np.full(201, f), force_dofs=["w20"]).x.shape for f in (100.0, 200.0)]
+    [(201, 1), (201, 1)]
+    """
+
+    _kind = "beam"
+
+    def __init__(self, model, dt, *, elements, scheme="newmark", form="displacement",
+                 substeps=1, outputs=None, quantities=("x", "v", "a"), backend="c", tol=1e-12,
+                 max_iter=30, **scheme_params):
+        from dtdyn.linear import _mck as mck
+        from dtdyn.linear._beam import (Beam, _block_advance, _block_library, _block_operator,
+                                        _stride, beam_matrices, node_blocks, node_system,
+                                        rigid_translation)
+        t0 = time.perf_counter()
+        if not isinstance(model, Beam):
+            raise ValueError(f"beam must be a Beam, got {type(model).__name__}")
+        M, self._C, self._K = beam_matrices(model)
+        self._mass = M
+        self._mass_solve = None
+        n = model.n_dof
+        self._common(model, dt, n, model.dof_names, elements, substeps, scheme, scheme_params,
+                     backend, form, outputs, quantities, tol, max_iter)
+        info, h = self._info, self._h
+        self._rigid = lambda k: rigid_translation(model, k)
+        self._nodes = nodes = model.elements + 1
+        self._n_state = 2 * nodes  # the node system (node_system), DOF 2 i + c
+        self._free = free = model.free
+        self._ei = free[[el.i for el in self.elements]]
+        self._ej = np.array([-1 if el.j is None else free[el.j] for el in self.elements],
+                            dtype=np.int64)
+        K_ = info.coefficients(form, h)
+        none = np.zeros(0, dtype=np.int64)
+        lib = _block_library() if backend == "c" else None
+        self._driver = None
+        if lib is not None:  # beam_response's kernel (block_chain.c), A factorized once
+            stored = node_blocks(model)
+            op = _block_operator(lib, form, info, K_, stored, nodes)
+            self._make_advance = lambda loaded: _block_advance(lib, form, info, K_, stored,
+                                                               nodes, loaded, none, op)
+            self._driver = _c_driver(self.elements, self._sz)
+            mats, L, c_u, shift, rows, keep, names = op
+            self._op = op  # what the loop's arrays point into
+            self._P = _stride(nodes)
+            self._model_idx = [shift, rows]
+            self._last = shift.shape[0]
+            self._steps = [L, c_u, np.array([K_["w0"], K_["w1"]]), *list(mats)]
+        else:
+            Mg, Cg, Kg = node_system(model)
+            self._make_advance = lambda loaded: mck.make_advance(form, info, K_, Mg, Cg, Kg,
+                                                                 loaded, none, None)
+        self._backend_used = "c" if lib is not None else "numpy"
+        self._method = (f"DT-TMM {info.name} ({form} form, matrix Riccati sweep)"
+                        if lib is not None
+                        else f"{info.name} ({form} form, assembled matrices, sparse LU)")
+        self._dof_kind = lambda name: "rotation" if name.startswith("psi") else "translation"
+        self.setup_time = time.perf_counter() - t0
+
+    def _state_dofs(self, dofs):
+        return self._free[dofs]
+
+    def _state(self, x0, v0):
+        full = [np.zeros(self._n_state), np.zeros(self._n_state)]
+        full[0][self._free], full[1][self._free] = x0, v0
+        return full
+
+    def _accel(self, x0, v0):
+        C, K, free, nf = self._C, self._K, self._free, self._n_state
+
+        def accel(f0):  # a_0 = M^-1 (f_0 - L^T g_0 - C v_0 - K x_0) on the kept DOFs
+            if self._mass_solve is None:  # M factorized once, at the first run
+                self._mass_solve = linalg.solver(self._mass, "M")
+            a0 = np.zeros(nf)
+            a0[free] = self._mass_solve(f0[free] - C @ v0 - K @ x0)
+            return a0
+        return accel
+
+    def _loop(self, f):
+        if self._driver is None:
+            return None
+        from dtdyn.linear._beam import _to_kernel
+        nodes, P, sz = self._nodes, self._P, self._sz
+
+        def c_loop(run):  # the whole loop in generated/nl_stations.c
+            U = run.plan.cache.get("U")
+            if U is None:  # U in the kernel's layout, once per plan
+                U = run.plan.cache["U"] = _to_kernel(run.U, nodes)
+            return _run_c(self._driver, sz, c_api.NL_STATIONS_BEAM, nodes, self._last, None,
+                          run, self._model_idx, self._steps, _to_kernel(run.H, nodes), U,
+                          lambda d: (d & 1) * P + (d >> 1), self._ei, self._ej,
+                          self._free[self.outputs], f, self._h, self._tol, self.substeps,
+                          self._max_iter)
+        return c_loop
 
 
 @cache

@@ -160,7 +160,7 @@ def test_bad_run_inputs_are_named():
                                           force_dofs=[3]), "after errors")
 
 
-# --- chains, beams, shafts: a delegation (each run one call of the model's function) -------------
+# --- chains, beams, shafts: prepared solvers, each run bitwise the model's function ------------
 # Chain.solver, Beam.solver and Shaft.solver reach it through the registry with elements=...;
 # here through the registry itself (dtdyn.linear._solver.nonlinear_solver)
 
@@ -180,7 +180,7 @@ def station_models():
 
 
 @pytest.mark.parametrize("index", [0, 1, 2], ids=["chain", "shaft", "beam"])
-def test_chain_beam_shaft_solvers_delegate_bitwise(index):
+def test_chain_beam_shaft_solvers_equal_their_functions_bitwise(index):
     from dtdyn.linear._solver import nonlinear_solver
     model, call, elements, load, dt, force = station_models()[index]
     solver = nonlinear_solver(model, dt, elements, scheme="hht", alpha=-0.05, substeps=2)
@@ -220,3 +220,131 @@ def test_chain_beam_and_shaft_solvers_with_elements_equal_their_functions():
     assert np.array_equal(a.x, b.x)
     with pytest.raises(ValueError, match="substeps=2 is an option of the solvers with elements"):
         chain.solver(0.02, substeps=2)
+
+
+# Beams and shafts: the solver prepares once what nonlinear_beam_response /
+# nonlinear_shaft_response build before their loop (checks, the step's factors, the compiled
+# loop; per force_dofs the elements' unit responses); each run is the function's result bitwise.
+STATION_BEAM = dd.Beam(E=2.1e11, I=8e-6, rho_A=20.0, length=3.0, elements=12,
+                       rayleigh=(0.0, 2e-6))
+STATION_SHAFT = dd.Shaft([1.0, 2.0, 1.5, 1.0], [1e4, 2e4, 2e4, 1.5e4], [1.0, 1.0, 1.0, 1.0],
+                         branches=[dd.Branch(2, [0.5, 0.8], [5e3, 6e3], [0.5, 0.5], ratio=2.0,
+                                             name="out")])
+
+
+def station_cases(kind):
+    """(model, function, dt, elements, load cases): a force from rest, a ground record alone, two
+    forces from (x0, v0), and a Bouc-Wen element's force and states stored."""
+    rng = np.random.default_rng(11)
+    if kind == "beam":
+        model, dt, t = STATION_BEAM, 1e-4, np.arange(201) * 1e-4
+        f = (200.0 * np.sin(2 * np.pi * 15 * t))[:, None]
+        els = [dd.Gap(model.dof("w12"), gap=2e-4, stiffness=2e6),
+               dd.Cubic(model.dof("w6"), k3=1e12)]
+        loads, scale = ["w12", "w6"], (1e-5, 1e-3)
+        hysteretic = dd.BoucWen(model.dof("w12"), stiffness=2e6, beta=5e3, gamma=5e3)
+        call = dd.nonlinear_beam_response
+    else:
+        model, dt, t = STATION_SHAFT, 1e-3, np.arange(201) * 1e-3
+        f = (300.0 * np.sin(40 * t))[:, None]
+        els = [dd.Cubic(model.dof("main.1"), k3=1e9),
+               dd.Cubic(model.dof("main.3"), model.dof("out.1"), k3=5e8)]
+        loads, scale = ["main.3", "out.1"], (1e-3, 0.1)
+        hysteretic = dd.BoucWen(model.dof("main.1"), stiffness=1e4, beta=50.0, gamma=50.0)
+        call = dd.nonlinear_shaft_response
+    n = model.n_dof
+    cases = [dict(force=f, force_dofs=loads[:1]),
+             dict(force=None, ground_acceleration=20 * np.sin(2 * np.pi * 12 * t)),
+             dict(force=np.column_stack([f[:, 0], 0.3 * f[:, 0]]), force_dofs=loads,
+                  x0=rng.uniform(-scale[0], scale[0], n), v0=rng.uniform(-scale[1], scale[1], n))]
+    return model, call, dt, els, hysteretic, cases
+
+
+@pytest.mark.parametrize("kind", ["beam", "shaft"])
+@pytest.mark.parametrize("backend", ["c", "numpy"])
+@pytest.mark.parametrize("substeps", [1, 2])
+def test_beam_and_shaft_solver_runs_equal_their_functions_bitwise(kind, backend, substeps):
+    model, call, dt, els, hysteretic, cases = station_cases(kind)
+    options = [dict(backend=backend, substeps=substeps),
+               dict(backend=backend, substeps=substeps, scheme="hht", alpha=-0.1,
+                    form="acceleration", outputs=[0, 3], quantities=("x", "a", "g"))]
+    for opts in options:
+        solver = model.solver(dt, elements=els, **opts)
+        for i, case in enumerate(cases):
+            case = dict(case)
+            force = case.pop("force")
+            ref = call(model, force, dt, elements=els, **opts, **case)
+            assert_same(solver.run(force, **case), ref, (kind, opts, i))
+    solver = model.solver(dt, elements=[hysteretic], quantities=("x", "g", "z"),
+                          backend=backend, substeps=substeps)
+    case = dict(cases[0])
+    force = case.pop("force")
+    ref = call(model, force, dt, elements=[hysteretic], quantities=("x", "g", "z"),
+               backend=backend, substeps=substeps, **case)
+    assert ref.z is not None and np.abs(ref.z).max() > 0
+    assert_same(solver.run(force, **case), ref, (kind, "BoucWen"))
+
+
+@pytest.mark.parametrize("kind", ["beam", "shaft"])
+def test_many_beam_and_shaft_runs_on_one_solver_equal_fresh_calls(kind):
+    """Runs in any order, the loaded DOFs changing from run to run (one plan each, kept), from
+    rest or not, give each the fresh call's result; runs from threads too (C loop)."""
+    model, call, dt, els, _, cases = station_cases(kind)
+    refs = []
+    for case in cases:
+        case = dict(case)
+        force = case.pop("force")
+        refs.append(call(model, force, dt, elements=els, scheme="generalized_alpha",
+                         rho_inf=0.8, **case))
+    solver = model.solver(dt, elements=els, scheme="generalized_alpha", rho_inf=0.8)
+    order = [0, 2, 1, 0, 2, 2, 1, 0]
+    for i in order:
+        case = dict(cases[i])
+        assert_same(solver.run(case.pop("force"), **case), refs[i], (kind, i))
+
+    def run(i):
+        case = dict(cases[i])
+        return solver.run(case.pop("force"), **case)
+    with ThreadPoolExecutor(4) as pool:
+        for i, res in zip(order, pool.map(run, order)):
+            assert_same(res, refs[i], (kind, "thread", i))
+    from dtdyn.linear._solver import nonlinear_solver
+    with pytest.raises(ValueError, match="influence is an option of run"):
+        nonlinear_solver(model, dt, els, influence=np.ones(model.n_dof))
+    with pytest.raises(ValueError, match="elements is empty"):
+        model.solver(dt, elements=[])
+
+
+@pytest.mark.parametrize("backend", ["c", "numpy"])
+@pytest.mark.parametrize("substeps", [1, 2])
+def test_chain_solver_runs_equal_nonlinear_chain_response_bitwise(backend, substeps):
+    """The chain's solver prepares once (checks, the compiled loop; per force_dofs the elements'
+    unit responses); runs in any order equal fresh calls of nonlinear_chain_response."""
+    rng = np.random.default_rng(12)
+    n = 20
+    m, k, c = rng.uniform(1, 2, n), rng.uniform(1e4, 2e4, n), rng.uniform(0.1, 0.5, n)
+    kg = np.zeros(n)
+    kg[5] = 3e3
+    chain = dd.Chain(m, k, c, ground_stiffness=kg)
+    t = np.arange(201) * 1e-3
+    f = (30 * np.sin(40 * t))[:, None]
+    cases = [dict(force=f, force_dofs=[n - 1]),
+             dict(force=None, ground_acceleration=5 * np.sin(30 * t)),
+             dict(force=np.column_stack([f[:, 0], 0.5 * f[:, 0]]), force_dofs=[3, 10],
+                  x0=rng.uniform(-1e-3, 1e-3, n), v0=rng.uniform(-0.1, 0.1, n))]
+    for els, opts in (([dd.Cubic(0, k3=1e9), dd.Cubic(10, 11, k3=5e8)],
+                       dict(scheme="hht", alpha=-0.1, form="acceleration", outputs=[0, 4],
+                            quantities=("x", "a", "g"))),
+                      ([dd.BoucWen(0, stiffness=1e4, beta=50.0, gamma=50.0)],
+                       dict(quantities=("x", "g", "z")))):
+        opts = dict(opts, backend=backend, substeps=substeps)
+        refs = []
+        for case in cases:
+            case = dict(case)
+            force = case.pop("force")
+            refs.append(dd.nonlinear_chain_response(m, k, c, force, 1e-3, elements=els,
+                                                    ground_stiffness=kg, **opts, **case))
+        solver = chain.solver(1e-3, elements=els, **opts)
+        for i in [0, 1, 2, 0, 2, 1]:
+            case = dict(cases[i])
+            assert_same(solver.run(case.pop("force"), **case), refs[i], (opts, i))
