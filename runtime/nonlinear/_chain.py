@@ -125,7 +125,33 @@ def nonlinear_chain_response(mass, stiffness, damping, force, dt, *, elements,
                        ground_displacement, influence)
 
 
-class ChainNonlinearSolver:
+class CondensedSolver:
+    """What the solvers of the condensed loop share (`ChainNonlinearSolver`, the shaft's and
+    the beam's): a `condensed_plan` per distinct set of loaded DOFs, built at its first use
+    under a lock and kept. A subclass sets ``_n_state``, ``_make_advance``, ``_ei``, ``_ej``,
+    ``_h``, ``_info``, ``_plans`` and ``_plan_lock``."""
+
+    def __repr__(self) -> str:
+        params = "".join(f", {k}={v!r}" for k, v in self.params.items())
+        return (f"<{type(self).__name__} of {self.model!r}: dt={self.dt!r}, "
+                f"{len(self.elements)} elements, scheme={self.scheme!r}{params}, "
+                f"form={self.form!r}, substeps={self.substeps}, backend={self.backend!r}>")
+
+    def _plan(self, loaded):
+        """The `condensed_plan` of the loaded DOFs ``loaded`` (state numbering)."""
+        key = loaded.tobytes()
+        plan = self._plans.get(key)
+        if plan is None:
+            with self._plan_lock:
+                plan = self._plans.get(key)
+                if plan is None:
+                    plan = self._plans[key] = condensed_plan(
+                        self._make_advance, self._n_state, self._info.history, self.elements,
+                        self._ei, self._ej, loaded, self._h)
+        return plan
+
+
+class ChainNonlinearSolver(CondensedSolver):
     """A `Chain` with localized nonlinear elements, prepared for one sample step; `run` runs
     one load case.
 
@@ -208,7 +234,7 @@ class ChainNonlinearSolver:
         self._chain = chain = chain_parameters(model.mass, model.stiffness, model.damping,
                                                model.ground_stiffness, model.ground_damping)
         m = chain[0]
-        self._N = N = m.size
+        self._N = self._n_state = N = m.size
         self.dt = validate.positive_scalar("dt", dt)
         self.outputs = validate.dof_indices("outputs", outputs, N)
         self.quantities = check_quantities(quantities, QUANTITIES)
@@ -250,25 +276,6 @@ class ChainNonlinearSolver:
         self._plan_lock = threading.Lock()
         self._loop_lock = threading.Lock()
         self.setup_time = time.perf_counter() - t0
-
-    def __repr__(self) -> str:
-        params = "".join(f", {k}={v!r}" for k, v in self.params.items())
-        return (f"<{type(self).__name__} of {self.model!r}: dt={self.dt!r}, "
-                f"{len(self.elements)} elements, scheme={self.scheme!r}{params}, "
-                f"form={self.form!r}, substeps={self.substeps}, backend={self.backend!r}>")
-
-    def _plan(self, force_dofs):
-        """The `condensed_plan` of ``force_dofs``, built at its first use under the lock."""
-        key = force_dofs.tobytes()
-        plan = self._plans.get(key)
-        if plan is None:
-            with self._plan_lock:
-                plan = self._plans.get(key)
-                if plan is None:
-                    plan = self._plans[key] = condensed_plan(
-                        self._make_advance, self._N, self._info.history, self.elements,
-                        self._ei, self._ej, force_dofs, self._h)
-        return plan
 
     def run(self, force, *, force_dofs=None, x0=None, v0=None, ground_acceleration=None,
             ground_velocity=None, ground_displacement=None, influence=None) -> Response:

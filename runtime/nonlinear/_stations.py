@@ -38,7 +38,8 @@ from dtdyn._engine.result import Response
 from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.stepping import check_quantities
 from dtdyn.generated import c_api
-from dtdyn.nonlinear._chain import _newton_error, condensed_plan, condensed_run, newton_code
+from dtdyn.nonlinear._chain import (CondensedSolver, _newton_error, condensed_run,
+                                     newton_code)
 from dtdyn.nonlinear._elements import check_elements
 from dtdyn.nonlinear._response import QUANTITIES, _c_source, _residual_function, _sizes
 
@@ -223,7 +224,7 @@ def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, schem
                        ground_displacement, influence)
 
 
-class _StationsSolver:
+class _StationsSolver(CondensedSolver):
     """The solver parts the shaft's and the beam's share (`ShaftNonlinearSolver`,
     `BeamNonlinearSolver`): a `condensed_plan` per distinct ``force_dofs``, kept, and one run of
     `condensed_run` around it. A subclass sets the model's operands in ``__init__`` and
@@ -248,26 +249,6 @@ class _StationsSolver:
         self._plans: dict = {}
         self._plan_lock = threading.Lock()
         self._loop_lock = threading.Lock()
-
-    def __repr__(self) -> str:
-        params = "".join(f", {k}={v!r}" for k, v in self.params.items())
-        return (f"<{type(self).__name__} of {self.model!r}: dt={self.dt!r}, "
-                f"{len(self.elements)} elements, scheme={self.scheme!r}{params}, "
-                f"form={self.form!r}, substeps={self.substeps}, backend={self.backend!r}>")
-
-    def _plan(self, loaded):
-        """The `condensed_plan` of the loaded DOFs ``loaded`` (state numbering), built at its
-        first use under the lock and kept."""
-        key = loaded.tobytes()
-        plan = self._plans.get(key)
-        if plan is None:
-            with self._plan_lock:
-                plan = self._plans.get(key)
-                if plan is None:
-                    plan = self._plans[key] = condensed_plan(
-                        self._make_advance, self._n_state, self._info.history, self.elements,
-                        self._ei, self._ej, loaded, self._h)
-        return plan
 
     def run(self, force, *, force_dofs=None, x0=None, v0=None, ground_acceleration=None,
             ground_velocity=None, ground_displacement=None, influence=None) -> Response:
