@@ -2,6 +2,7 @@
 makes one solver per model and settings and runs every later load case on it; `run_batch` does
 so in each worker process. The results equal, bitwise, the same scenes run alone (a fresh
 solver each, as `mck_response`, `chain_response`, `beam_response`, `shaft_response` make)."""
+import dataclasses
 import warnings
 
 import numpy as np
@@ -145,3 +146,25 @@ def test_run_batch_makes_one_solver_per_model_and_worker():
         alone, _ = dd.run_scene(dd.scene_from_dict(scene), check=False)
         for q in ("x", "v", "a"):
             assert np.array_equal(ds[q].values[i], getattr(alone, q)), (i, q)
+
+
+def test_nonlinear_scenes_reuse_one_solver_bitwise():
+    """Scenes with elements on matrices (P4's scene, modal_ramp at 3 sub-steps): the cache's
+    solver runs them bitwise as run_scene without a cache (nonlinear_mck_response); other
+    elements or options make another solver, an accuracy target none (a call)."""
+    from importlib.resources import files
+    base = dd.load_scene(files("dtdyn.app") / "scenes" / "p4.toml")
+    cache = SolverCache()
+    plain, _ = dd.run_scene(base, check=False)
+    for _ in range(3):
+        r, report = dd.run_scene(base, check=False, solvers=cache)
+        assert np.array_equal(r.x, plain.x) and np.array_equal(r.v, plain.v)
+        assert report["substeps"] == 3
+    assert (cache.built, cache.reused) == (1, 2)
+    stiffer = dataclasses.replace(base, elements=[dataclasses.replace(base.elements[0],
+                                                                      k3=2 * base.elements[0].k3),
+                                                  *base.elements[1:]])
+    r, _ = dd.run_scene(stiffer, check=False, solvers=cache)
+    assert cache.built == 2 and not np.array_equal(r.x, plain.x)
+    target = dataclasses.replace(base, nonlinear={"accuracy": 1e-3})
+    assert cache.nonlinear_solver(target) is None

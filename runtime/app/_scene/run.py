@@ -9,6 +9,7 @@ from __future__ import annotations
 import collections
 import dataclasses
 import hashlib
+import pickle
 import threading
 import time
 import warnings
@@ -145,7 +146,7 @@ def model_digest(scene: Scene) -> str | None:
 
 
 class SolverCache:
-    """Linear solvers of scenes, kept for the scenes that come next on the same model.
+    """Solvers of scenes, kept for the scenes that come next on the same model.
 
     `run_scene` with ``solvers=`` a cache looks the scene's solver up by its model's content
     (`model_digest`) and its settings (dt, scheme and parameters, form, sweep, backend,
@@ -153,8 +154,10 @@ class SolverCache:
     solver and keeps it. The results are those of a fresh solver, bitwise (a solver's runs do
     not depend on the runs before). It also keeps each model's natural frequencies for the
     stability check. A batch's worker holds one (`run_batch`: one solver per model and
-    settings per worker process). Safe to use from several threads; the least recently used
-    entries beyond ``size`` are dropped.
+    settings per worker process). Scenes with ``[[element]]`` on a chain or matrices and no
+    accuracy target get `nonlinear_solver`'s (keyed also by the elements and the [nonlinear]
+    options); the others with elements run as calls. Safe to use from several threads; the
+    least recently used entries beyond ``size`` are dropped.
 
     A warning the solver gave when it was made (a dt past the stability limit with
     ``unstable = "warn"``) is given again for each scene that reuses it, as making it again
@@ -248,6 +251,37 @@ class SolverCache:
             self._put(self._solvers, key, (solver, again))
         return solver
 
+    def nonlinear_solver(self, scene: Scene):
+        """The solver of a scene with elements (a chain's or matrices' model, no accuracy
+        target: `Matrices.solver` with ``elements``), reused or made and kept; None for the
+        others (they run as a call)."""
+        digest = model_digest(scene) if scene.model is None else None
+        if digest is None or scene.scheme == "auto" or \
+                not set(scene.nonlinear) <= set(SOLVER_OPTIONS):
+            return None
+        key = ("nonlinear", scene.kind, digest, repr(float(scene.dt)), scene.scheme,
+               tuple(sorted((k, repr(v)) for k, v in scene.scheme_params.items())),
+               tuple(sorted((k, repr(v)) for k, v in scene.nonlinear.items())),
+               hashlib.blake2b(pickle.dumps(scene.elements), digest_size=20).hexdigest(),
+               np.asarray(scene.outputs).tobytes(), tuple(scene.quantities))
+        got = self._get(self._solvers, key)
+        if got is not None:
+            with self._lock:
+                self.reused += 1
+            return got[0]
+        from dtdyn.linear._mck import Matrices
+
+        M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m)
+                   for m in scene_matrices(scene))
+        solver = Matrices(M, C, K).solver(scene.dt, elements=scene.elements,
+                                          outputs=scene.outputs, quantities=scene.quantities,
+                                          scheme=scene.scheme, **scene.nonlinear,
+                                          **scene.scheme_params)
+        with self._lock:
+            self.built += 1
+        self._put(self._solvers, key, (solver, ()))
+        return solver
+
     def frequencies(self, scene: Scene) -> np.ndarray:
         """`natural_frequencies` of the scene's model, reused or computed and kept."""
         digest = model_digest(scene)
@@ -276,13 +310,21 @@ def _support(scene: Scene) -> dict:
     return kw
 
 
-def _run_nonlinear(scene: Scene) -> tuple[Response, dict]:
-    """``nonlinear_mck_response`` on the scene; errors get the scene file's name."""
+#: the [nonlinear] options a solver takes (an accuracy target picks sub-steps per record)
+SOLVER_OPTIONS = ("substeps", "backend", "tol", "max_iter", "modes")
+
+
+def _run_nonlinear(scene: Scene, solvers: SolverCache | None = None) -> tuple[Response, dict]:
+    """``nonlinear_mck_response`` on the scene (through the cache's solver when ``solvers``
+    holds or can make one: the same result, bitwise); errors get the scene file's name."""
     from dtdyn.nonlinear import _response as nonlinear
 
     start = time.perf_counter()
     try:
-        if scene.model is not None:  # shaft, beam: the sweep with the condensed element problem
+        solver = solvers.nonlinear_solver(scene) if solvers is not None else None
+        if solver is not None:
+            response = solver.run(scene.force, force_dofs=scene.loaded, **_support(scene))
+        elif scene.model is not None:  # shaft, beam: the sweep with the condensed problem
             response = model_module(scene.kind).simulate_nonlinear(scene, _support(scene))
         else:
             M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m)
@@ -400,7 +442,7 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True,
         cached = solvers is not None and scene.linear
         _check_stability(scene, solvers.frequencies if cached else natural_frequencies)
     if not scene.linear:
-        return _run_nonlinear(scene)
+        return _run_nonlinear(scene, solvers)
     start = time.perf_counter()
     # the solver of mck_response, chain_response, shaft_response or beam_response: the same
     # results, bitwise
