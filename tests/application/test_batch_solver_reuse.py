@@ -168,3 +168,18 @@ def test_nonlinear_scenes_reuse_one_solver_bitwise():
     assert cache.built == 2 and not np.array_equal(r.x, plain.x)
     target = dataclasses.replace(base, nonlinear={"accuracy": 1e-3})
     assert cache.nonlinear_solver(target) is None
+
+
+@pytest.mark.parametrize("kind", ["beam", "shaft"])
+def test_nonlinear_beam_and_shaft_scenes_reuse_their_solver(kind):
+    """A beam's scene with a gap and a shaft's with two cubics (test_station_scene_elements'):
+    the cache's solver (Beam.solver, Shaft.solver with elements) gives run_scene's result
+    without a cache, bitwise."""
+    from test_station_scene_elements import BEAM, SHAFT
+    scene = dd.scene_from_dict(BEAM if kind == "beam" else SHAFT)
+    cache = SolverCache()
+    plain, _ = dd.run_scene(scene, check=False)
+    for _ in range(2):
+        r, _ = dd.run_scene(scene, check=False, solvers=cache)
+        assert np.array_equal(r.x, plain.x)
+    assert (cache.built, cache.reused) == (1, 1)

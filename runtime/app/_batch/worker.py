@@ -3,7 +3,7 @@ one task, their reductions and the write of the task's block of the Zarr store.
 
 Nothing here holds a ctypes object across tasks or ships one: every worker process compiles
 (or loads from its on-disk cache) the kernels it needs on its first case, through
-`dtdyn._engine.cbuild`, and keeps them in its own memory. Likewise the linear solvers: the
+`dtdyn._engine.cbuild`, and keeps them in its own memory. Likewise the solvers: the
 scenes are shipped, and each worker process keeps the solver of each model and settings it
 has run (`SOLVERS`, a `dtdyn.app._scene.run.SolverCache`), so that the load cases of a batch on
 one model validate, factorize and load their kernel once per worker.
@@ -40,7 +40,7 @@ META = ("index", "status", "message", "backend", "worker", "run_time", "max_rel_
         "output_name", "period", "freq_hz", "case_record", "case_hash")
 
 _FOLDERS: dict[str, Path] = {}
-#: the linear solvers a worker process keeps (models x settings; each holds its model's
+#: the solvers a worker process keeps (models x settings; each holds its model's
 #: factors, a dense 2,000-DOF model about 100 MB)
 SOLVER_CACHE_SIZE = 4
 _SOLVERS = None

@@ -154,9 +154,9 @@ class SolverCache:
     solver and keeps it. The results are those of a fresh solver, bitwise (a solver's runs do
     not depend on the runs before). It also keeps each model's natural frequencies for the
     stability check. A batch's worker holds one (`run_batch`: one solver per model and
-    settings per worker process). Scenes with ``[[element]]`` on a chain or matrices and no
-    accuracy target get `nonlinear_solver`'s (keyed also by the elements and the [nonlinear]
-    options); the others with elements run as calls. Safe to use from several threads; the
+    settings per worker process). Scenes with ``[[element]]`` and no accuracy target get
+    `nonlinear_solver`'s (keyed also by the elements and the [nonlinear] options); those with
+    a target run as calls. Safe to use from several threads; the
     least recently used entries beyond ``size`` are dropped.
 
     A warning the solver gave when it was made (a dt past the stability limit with
@@ -252,10 +252,10 @@ class SolverCache:
         return solver
 
     def nonlinear_solver(self, scene: Scene):
-        """The solver of a scene with elements (a chain's or matrices' model, no accuracy
-        target: `Matrices.solver` with ``elements``), reused or made and kept; None for the
-        others (they run as a call)."""
-        digest = model_digest(scene) if scene.model is None else None
+        """The solver of a scene with elements and no accuracy target (`Matrices.solver`,
+        `Beam.solver` or `Shaft.solver` with ``elements``), reused or made and kept; None for
+        the others (they run as a call)."""
+        digest = model_digest(scene)
         if digest is None or scene.scheme == "auto" or \
                 not set(scene.nonlinear) <= set(SOLVER_OPTIONS):
             return None
@@ -269,14 +269,16 @@ class SolverCache:
             with self._lock:
                 self.reused += 1
             return got[0]
-        from dtdyn.linear._mck import Matrices
+        if scene.model is not None:  # a beam or a shaft: its own solver
+            model = scene.model
+        else:
+            from dtdyn.linear._mck import Matrices
 
-        M, C, K = (m.toarray() if sps.issparse(m) else np.asarray(m)
-                   for m in scene_matrices(scene))
-        solver = Matrices(M, C, K).solver(scene.dt, elements=scene.elements,
-                                          outputs=scene.outputs, quantities=scene.quantities,
-                                          scheme=scene.scheme, **scene.nonlinear,
-                                          **scene.scheme_params)
+            model = Matrices(*(m.toarray() if sps.issparse(m) else np.asarray(m)
+                               for m in scene_matrices(scene)))
+        solver = model.solver(scene.dt, elements=scene.elements, outputs=scene.outputs,
+                              quantities=scene.quantities, scheme=scene.scheme,
+                              **scene.nonlinear, **scene.scheme_params)
         with self._lock:
             self.built += 1
         self._put(self._solvers, key, (solver, ()))
