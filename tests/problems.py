@@ -1,5 +1,7 @@
 """The reference problems for the tests: P1-P4 are `dtdyn.problem` (one home, dtdyn.app); this adds
 the tests' own helpers."""
+import textwrap
+
 import numpy as np
 
 from dtdyn import problem
@@ -39,3 +41,24 @@ def uniform_chain(n, m=1.0, k=1e4, c=1.0):
 def rel_error(x, ref):
     """max over time and outputs of |x - ref|, relative to max |ref|."""
     return float(np.max(np.abs(x - ref)) / np.max(np.abs(ref)))
+
+
+def chain_scene(n, steps, dt=1e-4) -> str:
+    """The fault suite's chain scene (TOML): n unit masses on 1e6 springs, a step on the last
+    one, x of mass 0 stored."""
+    ones = ", ".join(["1.0"] * n)
+    return textwrap.dedent(f"""\
+        [model]
+        mass = [{ones}]
+        stiffness = [{", ".join(["1e6"] * n)}]
+        damping = [{ones}]
+        [[load]]
+        dof = {n - 1}
+        kind = "step"
+        [time]
+        dt = {dt}
+        duration = {steps * dt!r}
+        [output]
+        outputs = [0]
+        quantities = ["x"]
+        """)

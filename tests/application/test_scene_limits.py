@@ -1,12 +1,12 @@
 """A scene's limits, seen from inside the scene parser (dtdyn.app._scene.parse), from the fault
 suite's third round (tests/behaviour/test_fault_suite_escapes.py): the memory estimate counts
 what a run stores, and an oversized scene file is refused before it is read."""
-import textwrap
 from pathlib import Path
 
 import pytest
 
 import dtdyn as dd
+from problems import chain_scene
 from dtdyn.app._scene import parse
 from dtdyn.app._scene.parse import stored_columns
 
@@ -17,24 +17,6 @@ def _write(tmp, name, text):
     return path
 
 
-def _chain_scene(n, steps, dt=1e-4):
-    """The fault suite's chain scene: n unit masses on 1e6 springs, a step on the last one."""
-    ones = ", ".join(["1.0"] * n)
-    return textwrap.dedent(f"""\
-        [model]
-        mass = [{ones}]
-        stiffness = [{", ".join(["1e6"] * n)}]
-        damping = [{ones}]
-        [[load]]
-        dof = {n - 1}
-        kind = "step"
-        [time]
-        dt = {dt}
-        duration = {steps * dt!r}
-        [output]
-        outputs = [0]
-        quantities = ["x"]
-        """)
 
 
 def test_scene_estimate_counts_what_is_stored():
@@ -50,7 +32,7 @@ def test_scene_estimate_counts_what_is_stored():
 
 def test_an_oversized_scene_file_is_refused_before_reading(tmp_path, monkeypatch):
     monkeypatch.setattr(parse, "MAX_SCENE_BYTES", 100)
-    path = _write(tmp_path, "big.toml", _chain_scene(20, 10))
+    path = _write(tmp_path, "big.toml", chain_scene(20, 10))
     with pytest.raises(ValueError, match=r"big\.toml: the scene file is [\d,]+ bytes; the limit "
                                          r"is 100"):
         dd.load_scene(path)

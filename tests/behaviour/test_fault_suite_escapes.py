@@ -10,7 +10,6 @@ import os
 import re
 import subprocess
 import sys
-import textwrap
 import time
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import numpy as np
 import pytest
 
 import dtdyn as dd
+from problems import chain_scene
 from dtdyn.app import main
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "faults.md"
@@ -156,23 +156,6 @@ def test_escape_is_named_within_5_s(case, tmp_path):
 
 # --- a valid run that was refused (the estimate behind it: tests/application/test_scene_limits.py)
 
-def _chain_scene(n, steps, dt=1e-4):
-    ones = ", ".join(["1.0"] * n)
-    return textwrap.dedent(f"""\
-        [model]
-        mass = [{ones}]
-        stiffness = [{", ".join(["1e6"] * n)}]
-        damping = [{ones}]
-        [[load]]
-        dof = {n - 1}
-        kind = "step"
-        [time]
-        dt = {dt}
-        duration = {steps * dt!r}
-        [output]
-        outputs = [0]
-        quantities = ["x"]
-        """)
 
 
 SCENE_RUN = """
@@ -190,7 +173,7 @@ def test_a_long_one_output_chain_scene_runs_in_bounded_memory(tmp_path):
     address-space limit of what the process maps plus 200 MB: the old estimate (a force column
     per DOF: 20,001 x 2,002 x 8 B = 320 MB) refused it; it stores 3 values per sample (0.5 MB)
     and runs, its exact check skipped (the matrix exponential's recursion is too long)."""
-    path = _write(tmp_path, "chain.toml", _chain_scene(2000, 20_000))
+    path = _write(tmp_path, "chain.toml", chain_scene(2000, 20_000))
     out = tmp_path / "r.npz"
     code = SCENE_RUN.format(limit_mb=200, path=str(path), out=str(out))
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -204,7 +187,7 @@ def test_a_long_one_output_chain_scene_runs_in_bounded_memory(tmp_path):
 
 def test_the_same_scene_at_a_smaller_size_matches_chain_response(tmp_path):
     """What the scene stores is the run of chain_response (same model, load, output)."""
-    path = _write(tmp_path, "chain.toml", _chain_scene(50, 2_000))
+    path = _write(tmp_path, "chain.toml", chain_scene(50, 2_000))
     scene = dd.load_scene(path)
     response, report = dd.run_scene(scene)
     n = 50
