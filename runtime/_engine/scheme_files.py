@@ -19,7 +19,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from dtdyn._engine import cbuild
+from dtdyn._engine import cbuild, validate
 from dtdyn._engine.version import VERSION
 
 #: bump when the cached files' layout changes (old folders are then ignored)
@@ -127,7 +127,8 @@ class FileScheme:
         from dtdyn._engine.schemes import get_scheme
 
         info = get_scheme(self)
-        W = np.logspace(-2, 4, 61) if omega_dt is None else np.asarray(omega_dt, float)
+        W = (np.logspace(-2, 4, 61) if omega_dt is None
+             else validate.vector("omega_dt", np.atleast_1d(omega_dt), positive=True))
         rho, elongation, damping = info.spectral(W)
         return {"name": self.name, "title": self.table["title"], "source": self.path,
                 "order": self.table["order"], "claimed_order": self.table.get("claimed_order"),

@@ -16,6 +16,7 @@ import numpy as np
 from dtdyn._engine.schemes import get_scheme
 from dtdyn._engine.errors import DtdynStabilityWarning, DtdynUnstableError
 from dtdyn._engine.public import public, warn
+from dtdyn._engine import validate
 
 
 @dataclass
@@ -91,9 +92,7 @@ def stability(scheme, omega_dt, damping_ratio=0.0, **scheme_params) -> Stability
     [1.0, 1.0]
     """
     info = get_scheme(scheme, **scheme_params)
-    W = np.atleast_1d(np.asarray(omega_dt, dtype=float))
-    if np.any(~np.isfinite(W)) or np.any(W <= 0.0):
-        raise ValueError("omega_dt must be finite and > 0")
+    W = validate.vector("omega_dt", np.atleast_1d(omega_dt), positive=True)
     zeta = _damping_ratio(damping_ratio)
     rho, elong, xi_bar = info.spectral(W, zeta)
     return Stability(info.name, dict(info.params), W, zeta, rho, elong, xi_bar)

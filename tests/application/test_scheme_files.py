@@ -172,6 +172,12 @@ def test_report_order_and_spectral_properties(scheme):
     assert rep["critical_omega_dt"] == np.inf
 
 
+@pytest.mark.parametrize("bad", [[0.0], [1.0, -2.0], [np.nan]])
+def test_report_refuses_omega_dt_not_positive(scheme, bad):
+    with pytest.raises(ValueError, match=r"omega_dt\[\d\] = .*finite and > 0"):
+        scheme.report(omega_dt=bad)
+
+
 def test_second_load_in_a_new_process_imports_no_sympy(scheme_path, scheme, chain30):
     code = textwrap.dedent(f"""
         import sys, numpy as np, dtdyn as dd
