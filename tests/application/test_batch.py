@@ -284,7 +284,7 @@ def test_cluster_of_dask_scheduler_and_dask_worker(tmp_path):
             address = c.scheduler.address
         scene = p4_file(tmp_path, "p4.toml")
         out = tmp_path / "r.zarr"
-        proc = subprocess.run([sys.executable, "-m", "dtdyn.app._cli", "batch", str(scene),
+        proc = subprocess.run([sys.executable, "-m", "dtdyn", "batch", str(scene),
                                "--seed", "3", "--scheduler", address, "--reduce", "peak",
                                "--out", str(out), "--quiet"], capture_output=True, text=True,
                               timeout=300)

@@ -47,7 +47,7 @@ def test_modes_json_gives_the_cantilever_frequencies(tmp_path):
     path.write_text("\n".join(["[model]"] + [f"{k} = {json.dumps(v)}" for k, v in MODEL.items()]
                               + ['[[load]]', 'dof = "w200"', 'kind = "step"', "[scheme]",
                                  'name = "newmark"', "[time]", "dt = 1e-4", "duration = 0.01"]))
-    out = subprocess.run([sys.executable, "-m", "dtdyn.app._cli", "modes", str(path), "--count",
+    out = subprocess.run([sys.executable, "-m", "dtdyn", "modes", str(path), "--count",
                           "5", "--json"], capture_output=True, text=True, check=True)
     omega = np.array(json.loads(out.stdout)["omega_rad_s"])
     beta_l = np.array([1.875104, 4.694091, 7.854757, 10.995541, 14.137168])

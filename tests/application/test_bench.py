@@ -182,7 +182,7 @@ def test_three_bench_runs_rank_only_within_spreads(tmp_path):
     paths = []
     for k in range(3):
         out = tmp_path / f"run{k}"
-        proc = subprocess.run([sys.executable, "-m", "dtdyn.app._cli", "bench", "P3", "--out",
+        proc = subprocess.run([sys.executable, "-m", "dtdyn", "bench", "P3", "--out",
                                str(out)], capture_output=True, text=True, timeout=600)
         assert proc.returncode == 0, proc.stderr
         assert "BLAS pinned to 1 thread" in proc.stdout

@@ -56,7 +56,7 @@ def test_simulate_malformed_scene_writes_nothing(tmp_path, capsys):
 
 
 def test_console_script_runs():
-    proc = subprocess.run([sys.executable, "-m", "dtdyn.app._cli", "show", "fox_euler"],
+    proc = subprocess.run([sys.executable, "-m", "dtdyn", "show", "fox_euler"],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and "Fox-Euler" in proc.stdout
 
@@ -108,7 +108,7 @@ def test_generate_outside_a_checkout_refuses(tmp_path, monkeypatch, capsys):
 
 
 def test_piped_output_closed_early_is_quiet():
-    proc = subprocess.run(f"{sys.executable} -m dtdyn.app._cli stability | head -n 1",
+    proc = subprocess.run(f"{sys.executable} -m dtdyn stability | head -n 1",
                           shell=True, capture_output=True, text=True, timeout=300)
     assert proc.stdout.startswith("scheme") and "Traceback" not in proc.stderr
 

@@ -93,7 +93,7 @@ def test_scene_runs_and_equals_simulate_mck():
 def test_modes_json_is_the_wittrick_williams_count(tmp_path):
     path = tmp_path / "gear.toml"
     path.write_text(TOML)
-    out = subprocess.run([sys.executable, "-m", "dtdyn.app._cli", "modes", str(path), "--count",
+    out = subprocess.run([sys.executable, "-m", "dtdyn", "modes", str(path), "--count",
                           "5", "--json"], capture_output=True, text=True, check=True).stdout
     data = json.loads(out)
     sc = dd.load_scene(path)

@@ -28,7 +28,7 @@ relations = ["x1 = x0 + dt*v0 + dt**2/4*(a0 + a1)", "v1 = v0 + dt/2*(a0 + a1)",
 def test_vendor_copy_compiles_and_the_example_runs(tmp_path):
     (tmp_path / "vendored.toml").write_text(SCHEME)
     out = tmp_path / "out"
-    subprocess.run([sys.executable, "-m", "dtdyn.app._cli", "generate", "--out", str(out),
+    subprocess.run([sys.executable, "-m", "dtdyn", "generate", "--out", str(out),
                     str(tmp_path / "vendored.toml")], check=True, capture_output=True)
     vendor = out / "vendor"
     sources = sorted(p.name for p in vendor.glob("*.c"))
