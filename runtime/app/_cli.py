@@ -190,6 +190,16 @@ def _check_outputs(args) -> None:
         plot_checked_path(args.plot)
 
 
+def _check_table_outputs(args) -> None:
+    """`_check_outputs` for the commands whose --out is a CSV table (srs, fds, random)."""
+    from dtdyn.app._scene.io import plot_checked_path
+
+    if args.out and (Path(args.out).is_dir() or not Path(args.out).resolve().parent.is_dir()):
+        raise ValueError(f"--out {args.out!r}: not a file in an existing folder")
+    if args.plot:
+        plot_checked_path(args.plot)
+
+
 def _simulate(args) -> int:
     from dtdyn.app import _scene as scenes
 
@@ -466,9 +476,7 @@ def _srs(args) -> int:
     from dtdyn.modal import _srs as S
 
     accel = S.load_record(args.record, args.column)
-    for flag, path in (("--out", args.out), ("--plot", args.plot)):
-        if path and (Path(path).is_dir() or not Path(path).resolve().parent.is_dir()):
-            raise ValueError(f"{flag} {path!r}: not a file in an existing folder")
+    _check_table_outputs(args)
     if not args.dt > 0.0 or not np.isfinite(args.dt):
         raise ValueError(f"--dt must be finite and > 0, got {args.dt!r}")
     fs = 1.0 / args.dt
@@ -537,13 +545,11 @@ def _fds(args) -> int:
 
     import numpy as np
 
-    from dtdyn._engine.atomic import write_atomic, write_atomic_files
+    from dtdyn._engine.atomic import write_atomic_files
     from dtdyn._engine.result_io import _versions, sidecar_path
     from dtdyn.random_vibration import _spectra as S
 
-    for flag, path in (("--out", args.out), ("--plot", args.plot)):
-        if path and (Path(path).is_dir() or not Path(path).resolve().parent.is_dir()):
-            raise ValueError(f"{flag} {path!r}: not a file in an existing folder")
+    _check_table_outputs(args)
     table = _read_psd_table(args.psd)
     if args.q is not None:
         if not args.q > 0.5 or not np.isfinite(args.q):
@@ -604,18 +610,7 @@ def _fds(args) -> int:
                             (args.out, lambda fh: fh.write(data))])
         print(f"results: {args.out} (metadata: {sidecar_path(args.out).name})")
     if args.plot:
-        from dtdyn._engine.extras import require
-        require("matplotlib", "plot", "dtdyn fds --plot")
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-
-        path = Path(args.plot)
-        fig = Figure(figsize=(7.0, 9.0), layout="constrained")
-        canvas = FigureCanvasAgg(fig)
-        fmt = path.suffix[1:].lower() or "png"
-        if fmt not in canvas.get_supported_filetypes():
-            raise ValueError(f"--plot {args.plot!r}: unsupported format {fmt!r}, allowed: "
-                             f"{', '.join(sorted(canvas.get_supported_filetypes()))}")
+        fig, save = _figure(args.plot, (7.0, 9.0))
         a1, a2, a3 = fig.subplots(3, 1)
         fb = np.geomspace(table.freqs_hz[0], table.freqs_hz[-1], 400)
         a1.loglog(fb, table(fb), "k", label=f"{Path(args.psd).name}: {table.grms:.3g} grms")
@@ -633,9 +628,25 @@ def _fds(args) -> int:
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(fontsize=8)
         fig.suptitle(f"damping ratio {zeta:g} (Q = {1 / (2 * zeta):g})", fontsize=10)
-        write_atomic(path, lambda fh: fig.savefig(fh, format=fmt, dpi=110))
-        print(f"plot: {args.plot}")
+        save()
     return 0
+
+
+def _figure(plot, figsize):
+    """A figure for ``--plot`` (its format checked first) and the function that writes it
+    atomically and says where."""
+    from dtdyn._engine.atomic import write_atomic
+    from dtdyn.app._scene.io import plot_checked_path
+
+    path, fmt = plot_checked_path(plot)
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, layout="constrained")
+
+    def save():
+        write_atomic(path, lambda fh: fig.savefig(fh, format=fmt, dpi=110))
+        print(f"plot: {plot}")
+    return fig, save
 
 
 def _fds_arguments(sub) -> None:
@@ -710,13 +721,11 @@ def _random(args) -> int:
 
     import numpy as np
 
-    from dtdyn._engine.atomic import write_atomic, write_atomic_files
+    from dtdyn._engine.atomic import write_atomic_files
     from dtdyn._engine.result_io import _versions, sidecar_path
     from dtdyn.app import _scene as scenes
 
-    for flag, path in (("--out", args.out), ("--plot", args.plot)):
-        if path and (Path(path).is_dir() or not Path(path).resolve().parent.is_dir()):
-            raise ValueError(f"{flag} {path!r}: not a file in an existing folder")
+    _check_table_outputs(args)
     table = _read_psd_table(args.psd)
     sc = scenes.load_scene(args.scene)
     if args.freqs is None:
@@ -769,18 +778,7 @@ def _random(args) -> int:
                             (args.out, lambda fh: fh.write(data))])
         print(f"results: {args.out} (metadata: {sidecar_path(args.out).name})")
     if args.plot:
-        from dtdyn._engine.extras import require
-        require("matplotlib", "plot", "dtdyn random --plot")
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-
-        path = Path(args.plot)
-        fig = Figure(figsize=(7.0, 2.8 * (len(r.quantities) + 1)), layout="constrained")
-        canvas = FigureCanvasAgg(fig)
-        fmt = path.suffix[1:].lower() or "png"
-        if fmt not in canvas.get_supported_filetypes():
-            raise ValueError(f"--plot {args.plot!r}: unsupported format {fmt!r}, allowed: "
-                             f"{', '.join(sorted(canvas.get_supported_filetypes()))}")
+        fig, save = _figure(args.plot, (7.0, 2.8 * (len(r.quantities) + 1)))
         axes = fig.subplots(len(r.quantities) + 1, 1, squeeze=False)[:, 0]
         axes[0].loglog(freqs, table(freqs), "k",
                        label=f"{Path(args.psd).name}: {table.grms:.3g} grms")
@@ -795,8 +793,7 @@ def _random(args) -> int:
             ax.grid(True, which="both", alpha=0.3)
             ax.legend(fontsize=7)
         fig.suptitle(f"{sc.title}: response PSDs", fontsize=10)
-        write_atomic(path, lambda fh: fig.savefig(fh, format=fmt, dpi=110))
-        print(f"plot: {args.plot}")
+        save()
     return 0
 
 

@@ -116,7 +116,7 @@ def test_random_command_plots(spec, tmp_path):
 
 @pytest.mark.parametrize("scene, extra, message", [
     (CHAIN, ["--freqs", "100", "10", "5"], "--freqs: need 0 < FMIN < FMAX"),
-    (CHAIN, ["--plot", "nofolder/x.png"], "--plot 'nofolder/x.png': not a file"),
+    (CHAIN, ["--plot", "nofolder/x.png"], "cannot plot to 'nofolder/x.png': not a file"),
     (CHAIN.split("[[load]]")[0] + "[time]\ndt = 1e-3\nduration = 1.0\n", [],
      "applies the PSD at the scene's loaded DOFs"),
     (CHAIN.replace("damping = [60.0, 60.0, 60.0]", "damping = [0.0, 0.0, 0.0]"), [],
