@@ -303,10 +303,13 @@ class _MCK:
         self.n_dof = self.M.shape[0]
 
     def modes(self, below):
-        M, C, K = (A.toarray() if sps.issparse(A) else A for A in (self.M, self.C, self.K))
-        lam, phi = sla.eigh(K, M)
+        if sps.issparse(self.M) and self.n_dof > 64:
+            lam, phi = _sparse_modes_below(self.M, self.K, below)
+        else:
+            lam, phi = sla.eigh(*(A.toarray() if sps.issparse(A) else A
+                                  for A in (self.K, self.M)))
         keep = (lam > 0) & (lam < below**2)
-        return _projected(np.sqrt(lam[keep]), phi[:, keep], C)
+        return _projected(np.sqrt(lam[keep]), phi[:, keep], self.C)
 
     def mass(self):
         return self.M
@@ -329,6 +332,25 @@ class _MCK:
             x = np.linalg.solve(Z, np.broadcast_to(load, (Z.shape[0],) + load.shape))
             out[lo:lo + BLOCK] = x[:, outputs]
         return out
+
+
+def _sparse_modes_below(M, K, below, first=16):
+    """The eigenpairs (k_r, phi_r) of K phi = k M phi up to beyond k = below^2 by shift-invert
+    (ARPACK) about a small negative shift, so that rigid-body modes (k = 0) do not make K - sigma M
+    singular; the count doubles until the largest found lies above below^2. The modes only place
+    the quadrature's panels (their frequencies and damping), so ARPACK's tolerance suffices."""
+    n = M.shape[0]
+    M, K = sps.csc_matrix(M), sps.csc_matrix(K)
+    scale = abs(K).max() / abs(M).max()
+    sigma = -1e-8 * min(below * below, scale) if below > 0 else -1e-8 * scale
+    count = min(first, n - 2)
+    while True:
+        lam, phi = spla.eigsh(K, k=count, M=M, sigma=sigma, which="LM")
+        order = np.argsort(lam)
+        lam, phi = lam[order], phi[:, order]
+        if lam[-1] >= below * below or count == n - 2:
+            return lam, phi
+        count = min(2 * count, n - 2)
 
 
 class _Chain:
