@@ -262,7 +262,7 @@ static inline int solve_step(double *restrict u, double *restrict r, double *res
  * the modes. The loop copies J, dg/du and g of each step into a block of EB steps (work +
  * dims[13]); at the block's end `estimate_prep` forms its gains K_k and differences (independent,
  * out of line), and during the next block the loop runs the recursion over it, one step of the
- * estimate (estimate_step, estimate_out at the samples) after each step of the solution. In a
+ * estimate (estimate_step; e and dg kept at the samples) after each step of the solution. In a
  * pass of its own the recursion is bound by its latency (each step's error feeds the next through
  * the elements' tangent stiffness); inside the loop the processor overlaps its chain with the
  * solution's, and it costs about its instructions (on P4 about half the time of the pass).
@@ -276,7 +276,9 @@ static inline int solve_step(double *restrict u, double *restrict r, double *res
  * nl_residual: dg/du (NE x (NW + NZ)). dims[13], dims[14]: the estimate's blocks (offset in
  * work, EB steps): two sets (the block being stepped, the one whose recursion runs along) of
  * J (EB NU^2), dg/du (EB NE NU), g ((EB + NST - 1) NE), K (EB NW NEP4), nabla^{NST-1} g (EB NE);
- * then the output rows [Co_m Dog] (NO (NMP + NEP4)).
+ * then the samples' e and dg of a block (EB (NMP + NEP4)), whose outputs Co_m e + Dog dg
+ * `estimate_outs` forms once per block: out of the steps' loop, the samples independent (in the
+ * loop, one sample's four rows cost P4 about 3 ns per step at 1 sub-step).
  */
 typedef double v4 __attribute__((vector_size(32), aligned(8))); /* 4 rows, loads unaligned */
 #if defined(__FMA__) && defined(__AVX__)
@@ -519,6 +521,14 @@ static inline int explicit_block(long nb, long first, const double *restrict tb,
 #endif
 
 enum { NWV = (NL_NW + 3) / 4, NEV4 = (NL_NE + 3) / 4, NEP4 = 4 * NEV4 };
+/* The explicit polynomial without internal states or velocities: u = y, and each element's force
+   depends on its own deformation only (explicit_rows), so K_k = dg/dy is diagonal: the loop keeps
+   its diagonal, and dg_k = K_k Cw e_k is a product lane by lane (NWV = NEV4) */
+#if defined(NL_EXPLICIT) && NL_NZ == 0 && NL_NW == NL_NE
+#define DIAGONAL_GAIN 1
+#else
+#define DIAGONAL_GAIN 0
+#endif
 
 /*
  * The embedded estimate (modal_run's comment). `estimate_prep`, once per block of nb steps: the
@@ -628,12 +638,18 @@ static inline void estimate_step(const double *const *mats, const v4 *restrict c
             s = VFMA(*(const v4 *)(Bs + (c * NMV + v) * 4), bd[c], s);
         e[v] = VFMA(*(const v4 *)(Tb + 4 * v), x, s);
     }
+#if DIAGONAL_GAIN
+    (void)nw;
+    for (q = 0; q < NEV4; ++q)
+        dg[q] = *(const v4 *)(K + q * 4) * ce[q];
+#else
     for (q = 0; q < NEV4; ++q) {
         v4 s = *(const v4 *)(K + q * 4) * VSPLAT(ce[0][0]);
         for (c = 1; c < nw; ++c)
             s = VFMA(*(const v4 *)(K + (c * NEV4 + q) * 4), VSPLAT(ce[c / 4][c % 4]), s);
         dg[q] = s;
     }
+#endif
 }
 
 /* the running largest and smallest values, lane by lane, of y: NaN lanes of y skipped */
@@ -650,31 +666,32 @@ static inline void vrange(v4 *restrict mx, v4 *restrict mn, const v4 *restrict y
 #endif
 }
 
-/* the running largest and smallest values (mx, mn: NOV vectors) of Co_m e + Dog dg: R holds the
-   rows [Co_m  Dog], padded to NMP + NEP4; 4 rows to a vector, their products summed across lanes
-   as in vdots4 */
-static inline void estimate_out(const double *restrict R, const v4 *restrict e,
-                                const v4 *restrict dg, v4 *restrict mx, v4 *restrict mn)
+/* the running largest and smallest values (mx, mn: NOV vectors) of Co_m e + Dog dg over m samples
+   of ob (each [e (NMP); dg (NEP4)]), from the columns of [Co Dof Dog] (NOP rows): once per block,
+   out of the steps' loop, its samples independent of each other */
+#ifdef __GNUC__
+static void estimate_outs(long m, const double *restrict Cout, const double *restrict ob,
+                          v4 *restrict mx, v4 *restrict mn) ESTIMATE_ATTRIBUTES;
+#endif
+static void estimate_outs(long m, const double *restrict Cout, const double *restrict ob,
+                          v4 *restrict mx, v4 *restrict mn)
 {
     enum { nx = NMP + NEP4 };
-    int q, l, v;
-    for (q = 0; q < NOV; ++q) {
-        v4 p[4], t0, t1, y;
-        for (l = 0; l < 4; ++l) {
-            const double *a = R + (4 * q + l) * nx;
-            p[l] = VSPLAT(0.0);
-            if (4 * q + l < NL_NO) {
-                p[l] = *(const v4 *)(a + NMP) * dg[0];
-                for (v = 1; v < NEV4; ++v)
-                    p[l] = VFMA(*(const v4 *)(a + NMP + 4 * v), dg[v], p[l]);
-                for (v = 0; v < NMV; ++v)
-                    p[l] = VFMA(*(const v4 *)(a + 4 * v), e[v], p[l]);
-            }
+    long k;
+    int q, c;
+    for (k = 0; k < m; ++k) {
+        const double *o = ob + k * nx;
+        for (q = 0; q < NOV; ++q) {
+            v4 s0 = *(const v4 *)(Cout + 4 * q) * VSPLAT(o[0]), s1;
+            s1 = *(const v4 *)(Cout + (NL_NM + NL_NF) * NOP + 4 * q) * VSPLAT(o[NMP]);
+            for (c = 1; c < NL_NM; ++c)
+                s0 = VFMA(*(const v4 *)(Cout + c * NOP + 4 * q), VSPLAT(o[c]), s0);
+            for (c = 1; c < NL_NE; ++c)
+                s1 = VFMA(*(const v4 *)(Cout + (NL_NM + NL_NF + c) * NOP + 4 * q),
+                          VSPLAT(o[NMP + c]), s1);
+            s0 += s1;
+            vrange(mx + q, mn + q, &s0);
         }
-        t0 = (v4){p[0][0], p[1][0], p[0][2], p[1][2]} + (v4){p[0][1], p[1][1], p[0][3], p[1][3]};
-        t1 = (v4){p[2][0], p[3][0], p[2][2], p[3][2]} + (v4){p[2][1], p[3][1], p[2][3], p[3][3]};
-        y = (v4){t0[0], t0[1], t1[0], t1[1]} + (v4){t0[2], t0[3], t1[2], t1[3]};
-        vrange(mx + q, mn + q, &y);
     }
 }
 
@@ -707,13 +724,14 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     double *cw = work;  /* CasADi work */
     /* the estimate (the comment above): two sets of a block's J, dg/du, g (after NST - 1
        earlier), K, differences (sets[p]: the block being stepped, sets[1 - p]: the one whose
-       recursion runs along once have), the output rows Rb; e, dg and the largest and smallest
-       outputs carried; the columns of Cw Eg and Cw Bs as vectors; sc: steps to the next sample */
+       recursion runs along once have), the samples' e and dg Ob (nout of them); e, dg and the
+       largest and smallest outputs carried; the columns of Cw Eg and Cw Bs as vectors; sc: steps
+       to the next sample */
     enum { nx = NMP + NEP4 };
     const long set = eb * (nu * nu + ne * nu + NEP4 * nw + ne) + (eb + (nst > 0 ? nst - 1 : 0)) * ne;
-    double *sets[2][5], *Rb = work + (nst > 0 ? dims[13] : 0) + 2 * set;
+    double *sets[2][5], *Ob = work + (nst > 0 ? dims[13] : 0) + 2 * set;
     v4 e[NMV], dgv[NEV4], mx[NOV], mn[NOV], cwv[2 * ne * NWV + 1];
-    long kb = 0, p = 0, have = 0, sc = 1;
+    long kb = 0, p = 0, have = 0, sc = 1, nout = 0;
     const double *arg[5];
     double *res[5];
     lu_keep lu; /* the kept LU factors (newton_fixed), their count in stats[5 + no] */
@@ -783,11 +801,6 @@ static int modal_run(const long *dims, const double *const *mats, const double *
         }
     for (i = 0; i < NEV4; ++i)
         dgv[i] = VSPLAT(0.0);
-    for (i = 0; nst > 0 && i < no; ++i) /* the output rows [Co_m  Dog], padded */
-        for (c = 0; c < nx; ++c)
-            Rb[i * nx + c] = c < nm ? Cout[c * NOP + i]
-                             : (c >= NMP && c < NMP + ne) ? Cout[(nm + nf + c - NMP) * NOP + i]
-                                                          : 0.0;
     n = 0;
     j = 0;
     while (n < n_samples) {
@@ -882,7 +895,10 @@ static int modal_run(const long *dims, const double *const *mats, const double *
 #if !defined(NL_EXPLICIT) || NL_NZ > 0
                 copy(nu * nu, J, sets[p][0] + kb * nu * nu);
 #endif
-#if defined(NL_EXPLICIT) && NL_NZ == 0
+#if DIAGONAL_GAIN
+                for (c = 0; c < ne; ++c) /* K_k = dg/dy: its diagonal (padded: zeros, kept) */
+                    sets[p][3][kb * nw * NEP4 + c] = Gu[c * ne + c];
+#elif defined(NL_EXPLICIT) && NL_NZ == 0
                 for (c = 0; c < nw; ++c) /* K_k = dg/du, its columns padded (zeros, kept) */
                     copy(ne, Gu + c * ne, sets[p][3] + (kb * nw + c) * NEP4);
 #else
@@ -892,9 +908,13 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                 if (have) { /* the block before: its step kb */
                     estimate_step(mats, cwv, sets[1 - p][4] + kb * ne,
                                   sets[1 - p][3] + kb * nw * NEP4, e, dgv);
-                    if (--sc == 0) { /* a sample */
+                    if (--sc == 0) { /* a sample: e and dg kept for estimate_outs */
+                        double *o = Ob + nout++ * nx;
                         sc = S;
-                        estimate_out(Rb, e, dgv, mx, mn);
+                        for (i = 0; i < NMV; ++i)
+                            *(v4 *)(o + 4 * i) = e[i];
+                        for (i = 0; i < NEV4; ++i)
+                            *(v4 *)(o + NMP + 4 * i) = dgv[i];
                     }
                 }
                 ++kb;
@@ -925,6 +945,8 @@ static int modal_run(const long *dims, const double *const *mats, const double *
         if (nst > 0 && kb == eb) { /* out of the steps' loop: no call inside it */
             double **c = sets[p];
             estimate_prep(eb, mats[13], c[0], c[1], c[2], c[3], c[4], sets[1 - p][2]);
+            estimate_outs(nout, Cout, Ob, mx, mn);
+            nout = 0;
             p = 1 - p;
             have = 1;
             kb = 0;
@@ -943,20 +965,31 @@ static int modal_run(const long *dims, const double *const *mats, const double *
             estimate_step(mats, cwv, sets[1 - p][4] + k * ne, sets[1 - p][3] + k * nw * NEP4, e,
                           dgv);
             if (--sc == 0) {
+                double *o = Ob + nout++ * nx;
                 sc = S;
-                estimate_out(Rb, e, dgv, mx, mn);
+                for (i = 0; i < NMV; ++i)
+                    *(v4 *)(o + 4 * i) = e[i];
+                for (i = 0; i < NEV4; ++i)
+                    *(v4 *)(o + NMP + 4 * i) = dgv[i];
             }
         }
+        estimate_outs(nout, Cout, Ob, mx, mn);
+        nout = 0;
         if (kb > 0) {
             double **c = sets[p];
             estimate_prep(kb, mats[13], c[0], c[1], c[2], c[3], c[4], sets[1 - p][2]);
             for (k = 0; k < kb; ++k) {
                 estimate_step(mats, cwv, c[4] + k * ne, c[3] + k * nw * NEP4, e, dgv);
                 if (--sc == 0) {
+                    double *o = Ob + nout++ * nx;
                     sc = S;
-                    estimate_out(Rb, e, dgv, mx, mn);
+                    for (i = 0; i < NMV; ++i)
+                        *(v4 *)(o + 4 * i) = e[i];
+                    for (i = 0; i < NEV4; ++i)
+                        *(v4 *)(o + NMP + 4 * i) = dgv[i];
                 }
             }
+            estimate_outs(nout, Cout, Ob, mx, mn);
         }
         { /* max |out| = max(largest, -smallest); NaN when e or dg is not finite in the end
              (the maxima skip a NaN, but once there it stays: every lane reaches dg) */
@@ -988,7 +1021,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
  * The doubles of nl_loop_run's work for these dims: CasADi's work (nl_residual_work), then, with
  * the embedded estimate (NL_NST > 0), its blocks of dims[14] steps from dims[13] (modal_run's
  * layout: two sets of J, dg/du, g after NST - 1 earlier ones, K, the differences; then the
- * output rows). -1 when they would overlap CasADi's work.
+ * samples' e and dg). -1 when they would overlap CasADi's work.
  */
 long dtdyn_nl_work(const long *dims)
 {
@@ -1001,7 +1034,7 @@ long dtdyn_nl_work(const long *dims)
         if (dims[13] < (long)sz_w || eb < 0)
             return -1;
         return dims[13] + 2 * (eb * (nu * nu + ne * nu + NEP4 * nw + ne) + (eb + nst - 1) * ne)
-               + NL_NO * (NMP + NEP4);
+               + eb * (NMP + NEP4);
     }
 #endif
     (void)dims;
