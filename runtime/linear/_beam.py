@@ -259,7 +259,7 @@ class Beam(Model):
     @public
     def solver(self, dt, *, scheme="newmark", form="displacement", backend="c", outputs=None,
                quantities=("x", "v", "a"), unstable="raise", elements=None, substeps=None, tol=None,
-               max_iter=None, **scheme_params) -> BeamSolver:
+               max_iter=None, refine="auto", **scheme_params) -> BeamSolver:
         """Prepare the beam for many load cases at the sample step ``dt``.
 
         Checks the options and the stability limit (a bound of the beam's highest mode),
@@ -295,6 +295,11 @@ class Beam(Model):
             to the function bitwise.
         substeps, tol, max_iter : optional
             With ``elements`` only: as `nonlinear_beam_response` (its defaults when None).
+        refine : {"auto", True, False}
+            Iterative refinement of every step's solve: "auto" from 2,000 elements on
+            (``REFINE_MIN_ELEMENTS``), where the double-precision step's rounding
+            nears 1e-6 of a static deflection (docs/beam_conditioning.md); below it the
+            results are bitwise those without.
         **scheme_params
             The scheme's parameters.
 
@@ -317,11 +322,11 @@ class Beam(Model):
         if elements is not None:  # dtdyn.nonlinear's solver, by the registry (the layers)
             return nonlinear_solver(self, dt, elements, scheme=scheme, form=form,
                                     backend=backend, outputs=outputs, quantities=quantities,
-                                    unstable=unstable, **nonlinear,
+                                    unstable=unstable, refine=refine, **nonlinear,
                                     **scheme_params)
         nonlinear_solver(self, dt, None, **nonlinear)  # none of them without elements
         return BeamSolver(self, dt, scheme, form, backend, outputs, quantities, unstable,
-                          scheme_params)
+                          scheme_params, refine)
 
 
 def beam_matrices(beam: Beam):
@@ -744,7 +749,7 @@ def beam_response(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
                   form="displacement", outputs=None, quantities=("x", "v", "a"), x0=None,
                   v0=None, unstable="raise", backend="c", progress=False,
                   ground_acceleration=None, ground_velocity=None, ground_displacement=None,
-                  influence=None, **scheme_params):
+                  influence=None, refine="auto", **scheme_params):
     """Time history of a `Beam` by the DT-TMM with the matrix Riccati sweep.
 
     Each step the scheme makes every DOF's x, v, a affine in its unknown u (the increment
@@ -780,6 +785,10 @@ def beam_response(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
         Support motion as in `mck_response` (one record; ``force`` may then be None): the DOFs
         are relative to the supports, which move together; the default influence r is the
         rigid translation (1 on every w, 0 on every psi).
+    refine : {"auto", True, False}
+        Iterative refinement of every step's solve, the residual element by element in
+        double-double: "auto" from 2,000 elements on; below that the results are bitwise
+        those of ``refine=False``.
     **scheme_params
         The scheme's parameters by name (``beta``, ``gamma`` of "newmark", ``theta`` of
         "wilson", ``alpha`` of "hht", ``rho_inf`` of "generalized_alpha"; `dtdyn show` lists
@@ -803,7 +812,8 @@ def beam_response(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     if not isinstance(beam, Beam):
         raise ValueError(f"beam must be a Beam, got {type(beam).__name__}")
     solver = beam.solver(dt, scheme=scheme, form=form, backend=backend, outputs=outputs,
-                         quantities=quantities, unstable=unstable, **scheme_params)
+                         quantities=quantities, unstable=unstable, refine=refine,
+                         **scheme_params)
     return solver.run(force, force_dofs=force_dofs, x0=x0, v0=v0, progress=progress,
                       ground_acceleration=ground_acceleration, ground_velocity=ground_velocity,
                       ground_displacement=ground_displacement, influence=influence)
@@ -818,8 +828,9 @@ class BeamSolver(Solver):
     made at the first run that has one."""
 
     def __init__(self, beam, dt, scheme, form, backend, outputs, quantities, unstable,
-                 scheme_params):
+                 scheme_params, refine="auto"):
         lib = _block_library() if check_backend(backend) == "c" else None
+        self._corrections = refinements(beam, refine)
         super().__init__(beam, dt, scheme, form, backend, outputs, quantities, unstable,
                          lambda limit: _highest_frequency_bound(beam), scheme_params)
         self._lib = lib
@@ -836,16 +847,17 @@ class BeamSolver(Solver):
             self._mass = _mass_factor(lib, beam, self._blocks)
             self._coeffs = {scheme_key(s): s.coefficients(form, self.dt) for s in runs}
             self._ops = {key: _block_operator(lib, form, s, self._coeffs[key], self._blocks,
-                                              nodes)
+                                              nodes, refine_data(beam, s, self._coeffs[key],
+                                                                 self._corrections))
                          for s in runs for key in [scheme_key(s)]}
         else:
             M, self._C, self._K = beam_matrices(beam)
             self._ground_mass = M
             self._mass_solve = linalg.solver(M, "M")
             Mg, Cg, Kg = node_system(beam)
-            self._ops = {scheme_key(s): mck.step_operator(form, s, s.coefficients(form, self.dt),
-                                                          Mg, Cg, Kg, self._stored, None)
-                         for s in runs}
+            self._ops = {scheme_key(s): refined_step_operator(
+                beam, form, s, s.coefficients(form, self.dt), Mg, Cg, Kg, self._stored,
+                self._corrections) for s in runs}
 
     def _load_case(self, force, force_dofs, x0, v0, *ground):
         if self._ground_mass is None and support.given(*ground[:3]):
@@ -884,7 +896,7 @@ class BeamSolver(Solver):
         c = self._lib is not None
         res.info.update(method="DT-TMM (matrix Riccati sweep)" if c else
                         "assembled matrices (sparse LU)", form=self.form,
-                        backend="c" if c else "numpy")
+                        backend="c" if c else "numpy", refinements=self._corrections)
 
 
 @cache
@@ -1048,12 +1060,199 @@ def _block_product(b, z, nodes):
     return out.ravel()
 
 
-def _block_operator(lib, form, sch, K_, stored, nodes):
+#: ``refine="auto"`` refines the step's solves from this many elements on (measured,
+#: docs/beam_conditioning.md: without refinement a held tip load's static deflection is off by
+#: 1e-7 at 1,000 elements, 3e-7 .. 8e-7 at 2,000, 1e-5 .. 1e-4 at 5,000, 1e-3 at 10,000, where
+#: beta K damping alone makes the plain step unstable; a refined step costs about 3 plain
+#: ones); below it the step is bitwise the unrefined one
+REFINE_MIN_ELEMENTS = 2000
+#: the most corrections per step (each: a residual and a solve with the kept factors); fewer
+#: once the next one is predicted below REFINE_TOL times the displacements (block_chain.h):
+#: three for the 10,000-element cantilever of docs/beam_conditioning.md at dt = 1e-4 (each
+#: contracts by ~3e-4), five when beta K damps its first mode critically (~1.5e-2 each). What
+#: a step leaves adds up over the slowest mode's decay time (measured: 1e-10 a step left 9e-8
+#: of a static deflection, 1e-12 left 7e-10)
+REFINE_CORRECTIONS = 8
+REFINE_TOL = 1e-12
+#: work rows of P doubles the kernel's refinement needs after the step's own (block_chain.h's
+#: BC_REFINE_ROWS; the kernel refuses a shorter work)
+REFINE_ROWS = 10
+
+
+def refinements(beam: Beam, refine) -> int:
+    """The corrections per step ``refine`` asks for: "auto" `REFINE_CORRECTIONS` from
+    `REFINE_MIN_ELEMENTS` elements on (else 0), True always, False never."""
+    if isinstance(refine, str) and refine == "auto":
+        return REFINE_CORRECTIONS if beam.elements >= REFINE_MIN_ELEMENTS else 0
+    if refine is True or refine is False:
+        return REFINE_CORRECTIONS if refine else 0
+    raise ValueError(f"refine = {refine!r}: must be 'auto', True or False")
+
+
+def block_work(nodes: int, refined: bool) -> int:
+    """The doubles of block_chain.c's work for ``nodes`` (with the refinement's rows)."""
+    from dtdyn.generated import c_api
+
+    P = _stride(nodes)
+    return c_api.BLOCK_CHAIN_ROWS * (P + c_api.BLOCK_CHAIN_GAP) + (REFINE_ROWS * P if refined
+                                                                    else 0)
+
+
+def _element_terms(beam: Beam):
+    """(h, F^-1 as (f00, f01, f11), Me): the element's length, the stiffness block of its left
+    node (its flexibility's inverse: K_e = [I, -T]^T F^-1 [I, -T], T = [[1, -h], [0, 1]]) and
+    its mass matrix, from the generated element matrices."""
+    h = beam.length / beam.elements
+    Ke = derived.element_stiffness(beam.E * beam.I, h)
+    Me = (derived.element_mass if beam.mass_matrix == "consistent"
+          else derived.element_mass_lumped)(beam.rho_A, h)
+    return h, (float(Ke[0, 0]), float(Ke[0, 1]), float(Ke[1, 1])), np.asarray(Me, dtype=float)
+
+
+def _point_terms(beam: Beam):
+    """(dofs, k, c, m) of the nodes' springs, dampers and masses (node-system indices, the
+    nonzero ones), and the held DOFs."""
+    diag = beam.nodal_diagonals()
+    held = np.ones(2 * (beam.elements + 1), dtype=bool)
+    held[beam.free] = False
+    dofs = np.flatnonzero((diag["k"] != 0) | (diag["c"] != 0) | (diag["m"] != 0))
+    return dofs, diag["k"][dofs], diag["c"][dofs], diag["m"][dofs], np.flatnonzero(held)
+
+
+def refine_data(beam: Beam, sch, K_, corrections: int):
+    """The refinement's data of block_chain.c (its layout: block_chain.h, BR_HEAD) for one
+    scheme's coefficients ``K_``, or None when ``corrections`` is 0."""
+    if not corrections:
+        return None
+    h, (f00, f01, f11), Me = _element_terms(beam)
+    dofs, k, c, m, held = _point_terms(beam)
+    alpha, beta = beam.rayleigh or (0.0, 0.0)
+    head = [corrections, REFINE_TOL, dofs.size, held.size, h, f00, f01, f11, alpha, beta,
+            K_["p"], K_["r"], K_["alpha_u"], *Me.ravel()]
+    pts = np.column_stack([dofs, k, c, m]).ravel()
+    return np.ascontiguousarray(np.concatenate([head, pts, held]), dtype=float)
+
+
+def _split(a):
+    """Veltkamp's split of a into two halves of 26 bits (a = hi + lo exactly)."""
+    t = 134217729.0 * a
+    hi = t - (t - a)
+    return hi, a - hi
+
+
+def _two_prod(a, b):
+    """a b = p + e exactly (Dekker's product: NumPy has no fma)."""
+    p = a * b
+    ah, al = _split(a)
+    bh, bl = _split(b)
+    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
+
+
+def _two_sum(a, b):
+    """a + b = s + e exactly (Knuth)."""
+    s = a + b
+    bb = s - a
+    return s, (a - (s - bb)) + (b - bb)
+
+
+def _add_product(hi, lo, a, b):
+    """(hi, lo) + a b, double-double."""
+    p, ep = _two_prod(a, b)
+    s, e = _two_sum(hi, p)
+    return s, lo + (e + ep)
+
+
+def refined_residual(beam, K_, L, H, u, F, terms):
+    """block_chain.h's refinement residual in NumPy: F - K (q + p u) - C (s + r u) -
+    M (b + alpha u) over the node system (2 i + c), element by element with the deformations in
+    double-double, zero on the held DOFs, and max |x + beta_R v| per component (w, psi). L: the
+    rows q, s, b over the history H (n_hist, 2 nodes); ``terms``: (`_element_terms`,
+    `_point_terms`)."""
+    (h, (f00, f01, f11), Me), (dofs, k, c, m, held) = terms
+    alpha, beta = beam.rayleigh or (0.0, 0.0)
+    eq = []
+    for t, coef in enumerate((K_["p"], K_["r"], K_["alpha_u"])):
+        hi, lo = np.zeros_like(u), np.zeros_like(u)
+        for j in np.flatnonzero(L[t]):
+            hi, lo = _add_product(hi, lo, L[t, j], H[j])
+        eq.append(_add_product(hi, lo, coef, u))
+    (xh, xl), (vh, vl), (ah, al) = eq
+    xh, xl = _add_product(xh, xl, beta, vh)
+    Xh, Xl = _two_sum(xh, xl + beta * vl)
+    xmax = np.abs(Xh).reshape(-1, 2).max(axis=0)
+    Y = (ah + al) + alpha * (vh + vl)
+    wh, wl, ph, pl = Xh[0::2], Xl[0::2], Xh[1::2], Xl[1::2]
+    yh, e = _two_sum(wh[:-1], -wh[1:])
+    yh, yl = _add_product(yh, e + (wl[:-1] - wl[1:]), h, ph[1:])
+    yw = yh + (yl + h * pl[1:])
+    yh, e = _two_sum(ph[:-1], -ph[1:])
+    yp = yh + (e + (pl[:-1] - pl[1:]))
+    fw, fp = f00 * yw + f01 * yp, f01 * yw + f11 * yp
+    mass = Me @ np.stack([Y[0:-2:2], Y[1:-1:2], Y[2::2], Y[3::2]])
+    r = F.copy()
+    r[0:-2:2] -= fw + mass[0]
+    r[1:-1:2] -= fp + mass[1]
+    r[2::2] -= mass[2] - fw
+    r[3::2] -= mass[3] + (h * fw - fp)
+    x = eq[0][0][dofs] + eq[0][1][dofs]
+    r[dofs] -= k * x + c * (vh[dofs] + vl[dofs]) + m * (ah[dofs] + al[dofs])
+    r[held] = 0.0
+    return r, xmax
+
+
+def refined_step_operator(beam, form, sch, K_, M, C, K, outputs, corrections):
+    """`dtdyn.linear._mck.step_operator` (NumPy, sparse LU) on the node system, each step's
+    solve refined ``corrections`` times by `refined_residual` (0: that operator itself)."""
+    if not corrections:
+        return mck.step_operator(form, sch, K_, M, C, K, outputs, None)
+    from dtdyn.generated.dttmm_sweep import combine, error_history_maps, shift_history
+    from dtdyn.linear._mck import EFFECTIVE
+
+    A = K_["alpha_u"] * M + K_["r"] * C + K_["p"] * K
+    with_m = form != "acceleration"
+    solve = linalg.sparse_lu(A, EFFECTIVE[form], orderings=linalg.FILL_ORDERINGS).solve
+    names = sch.history
+    L = error_history_maps(K_, list(names))[0]
+    terms = (_element_terms(beam), _point_terms(beam))
+    n = M.shape[0]
+
+    def bind(loaded):
+        def advance(frc, H, xo, vo, ao):
+            Fe = np.zeros(n)
+            for step in range(frc.shape[0] - 1):
+                Fe[loaded] = K_["w0"] * frc[step] + K_["w1"] * frc[step + 1]
+                rhs = Fe - K @ combine(K_, "q", H, names) - C @ combine(K_, "s", H, names)
+                if with_m:
+                    rhs -= M @ combine(K_, "b", H, names)
+                u = solve(rhs)
+                prev = 0.0
+                for c in range(corrections):  # as block_chain.h: stop when the next is small
+                    r, xmax = refined_residual(beam, K_, L, H, u, Fe, terms)
+                    du = solve(r)
+                    u = u + du
+                    d = np.abs(K_["p"] * du).reshape(-1, 2).max(axis=0)
+                    e = max(d[k] / xmax[k] if d[k] > 0 else 0.0 for k in (0, 1))
+                    if e == 0.0 or (c > 0 and e * (e / prev) <= REFINE_TOL):
+                        break
+                    prev = e
+                new = {q: combine(K_, q + "1", H, names, K_.get(q + "1_u", 0.0) * u)
+                       for q in "xva"}
+                shift_history(H, names, new)
+                for arr, q in ((xo, "x"), (vo, "v"), (ao, "a")):
+                    if arr is not None:
+                        arr[step + 1] = new[q][outputs]
+            return 0.0
+        return advance
+    return bind
+
+
+def _block_operator(lib, form, sch, K_, stored, nodes, refine=None):
     """The load-independent operands of `_block_advance` for one scheme: the effective matrix
     factorized by the matrix Riccati sweep (a ValueError when it is singular), the step's maps
     on the history rows and the kernel's pointer array ``mats``. Returns (mats, L, c_u, shift,
     rows, keep, names): ``keep`` the arrays ``mats`` points to; every array is only read by
-    the kernel, so one operator serves any number of runs, at once in several threads."""
+    the kernel, so one operator serves any number of runs, at once in several threads.
+    ``refine``: `refine_data` (None: no refinement), the last of ``mats``."""
     from dtdyn.generated.dttmm_sweep import error_history_maps
     from dtdyn.linear._mck import EFFECTIVE
 
@@ -1081,11 +1280,11 @@ def _block_operator(lib, form, sch, K_, stored, nodes):
         for h in used:
             B[h] = _aligned(bK.shape)
             B[h][...] = L_qsb[0, h] * bK + L_qsb[1, h] * bC + L_qsb[2, h] * bM
-    keep = (bK, bC, bM, fac, B)
+    keep = (bK, bC, bM, fac, B, refine)
     ptr = lambda a: None if a is None else a.ctypes.data  # noqa: E731
-    mats = (ctypes.c_void_p * (4 + len(names)))(
+    mats = (ctypes.c_void_p * (5 + len(names)))(
         None if direct else bK.ctypes.data, bC.ctypes.data, bM.ctypes.data if with_m else None,
-        fac.ctypes.data, *[ptr(b) for b in B])
+        fac.ctypes.data, *[ptr(b) for b in B], ptr(refine))
     return mats, L, c_u, shift, rows, keep, names
 
 
@@ -1102,7 +1301,7 @@ def _block_advance(lib, form, sch, K_, stored, nodes, loaded, outputs, operator=
     out_idx = np.ascontiguousarray(outputs, dtype=np.int64)
     from dtdyn.generated import c_api  # the work's rows (z), each after its gap
 
-    work = _aligned((c_api.BLOCK_CHAIN_ROWS * (_stride(nodes) + c_api.BLOCK_CHAIN_GAP),))
+    work = _aligned((block_work(nodes, mats[len(names) + 4] is not None),))
     n_hist = len(names)
     run = lib.dtdyn_block_chain_loop
 

@@ -163,7 +163,7 @@ def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, schem
                             quantities=("x", "v", "a"), backend="c", tol=1e-12, max_iter=30,
                             ground_acceleration=None, ground_velocity=None,
                             ground_displacement=None, influence=None, x0=None, v0=None,
-                            **scheme_params) -> Response:
+                            refine="auto", **scheme_params) -> Response:
     """Forced response of a `Beam` with nonlinear elements by the matrix Riccati sweep.
 
     Each step: one 2 x 2 block Riccati sweep of `beam_response` (O(N)) and the condensed
@@ -196,6 +196,10 @@ def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, schem
         Support motion as in `beam_response` (default influence: a rigid translation).
     x0, v0
         As `nonlinear_chain_response`, over ``beam.dof_names``.
+    refine : {"auto", True, False}
+        As `beam_response`: every linear step's solve (and so the elements' unit responses)
+        refined with the residual element by element in double-double; "auto" from 2,000
+        elements on, below it bitwise unrefined.
     **scheme_params
         As `nonlinear_chain_response`: the scheme's parameters.
 
@@ -219,7 +223,8 @@ def nonlinear_beam_response(beam, force, dt, *, elements, force_dofs=None, schem
     t0 = time.perf_counter()
     solver = BeamNonlinearSolver(beam, dt, elements=elements, scheme=scheme, form=form,
                                  substeps=substeps, outputs=outputs, quantities=quantities,
-                                 backend=backend, tol=tol, max_iter=max_iter, **scheme_params)
+                                 backend=backend, tol=tol, max_iter=max_iter, refine=refine,
+                                 **scheme_params)
     return solver._run(t0, force, force_dofs, x0, v0, ground_acceleration, ground_velocity,
                        ground_displacement, influence)
 
@@ -307,6 +312,8 @@ class _StationsSolver(CondensedSolver):
         res = _response(dt, outputs, self._names, store, stats, self.quantities, self._info,
                         self.form, self.substeps, self._backend_used, self._method,
                         self.elements, t0, self._dof_kind)
+        if self._kind == "beam":
+            res.info["refinements"] = self._corrections
         return support.finish(res, ground)
 
 
@@ -493,6 +500,8 @@ class BeamNonlinearSolver(_StationsSolver):
         Newton's tolerance.
     max_iter : int
         Newton iterations per step.
+    refine : {"auto", True, False}
+        As `nonlinear_beam_response`.
     **scheme_params
         The scheme's parameters.
 
@@ -531,10 +540,10 @@ class BeamNonlinearSolver(_StationsSolver):
 
     def __init__(self, model, dt, *, elements, scheme="newmark", form="displacement",
                  substeps=1, outputs=None, quantities=("x", "v", "a"), backend="c", tol=1e-12,
-                 max_iter=30, **scheme_params):
-        from dtdyn.linear import _mck as mck
+                 max_iter=30, refine="auto", **scheme_params):
         from dtdyn.linear._beam import (Beam, _block_advance, _block_library, _block_operator,
                                         _stride, beam_matrices, node_blocks, node_system,
+                                        refine_data, refined_step_operator, refinements,
                                         rigid_translation)
         t0 = time.perf_counter()
         if not isinstance(model, Beam):
@@ -557,9 +566,11 @@ class BeamNonlinearSolver(_StationsSolver):
         none = np.zeros(0, dtype=np.int64)
         lib = _block_library() if backend == "c" else None
         self._driver = None
+        self._corrections = corrections = refinements(model, refine)
         if lib is not None:  # beam_response's kernel (block_chain.c), A factorized once
             stored = node_blocks(model)
-            op = _block_operator(lib, form, info, K_, stored, nodes)
+            op = _block_operator(lib, form, info, K_, stored, nodes,
+                                 refine_data(model, info, K_, corrections))
             self._make_advance = lambda loaded: _block_advance(lib, form, info, K_, stored,
                                                                nodes, loaded, none, op)
             self._driver = _c_driver(self.elements, self._sz)
@@ -571,8 +582,8 @@ class BeamNonlinearSolver(_StationsSolver):
             self._steps = [L, c_u, np.array([K_["w0"], K_["w1"]]), *list(mats)]
         else:
             Mg, Cg, Kg = node_system(model)
-            self._make_advance = lambda loaded: mck.make_advance(form, info, K_, Mg, Cg, Kg,
-                                                                 loaded, none, None)
+            step = refined_step_operator(model, form, info, K_, Mg, Cg, Kg, none, corrections)
+            self._make_advance = step
         self._backend_used = "c" if lib is not None else "numpy"
         self._method = (f"DT-TMM {info.name} ({form} form, matrix Riccati sweep)"
                         if lib is not None
@@ -613,7 +624,7 @@ class BeamNonlinearSolver(_StationsSolver):
                           run, self._model_idx, self._steps, _to_kernel(run.H, nodes), U,
                           lambda d: (d & 1) * P + (d >> 1), self._ei, self._ej,
                           self._free[self.outputs], f, self._h, self._tol, self.substeps,
-                          self._max_iter)
+                          self._max_iter, refined=self._corrections > 0)
         return c_loop
 
 
@@ -632,11 +643,12 @@ def _c_driver(elements, sz):
 
 
 def _run_c(driver, sz, kind, N, last, sweep, run, model_idx, model_mats, H, U, offset, ei, ej,
-           outputs, f, h, tol, S, max_iter):
+           outputs, f, h, tol, S, max_iter, refined=False):
     """The time loop of generated/nl_stations.c (nl_stations.h: the arguments' layout) for the
     elements' sizes ``sz`` on the ``run`` `condensed_response` prepared, with H and U in the
     step kernel's layout (``offset``: a DOF's place in a history row) and the step's own
-    arguments ``model_idx``, ``model_mats`` (arrays, addresses or None); ``last``: dims[15].
+    arguments ``model_idx``, ``model_mats`` (arrays, addresses or None); ``last``: dims[15];
+    ``refined``: dims[17] (the beam's operator refines its step).
     Returns (max iterations, total, largest residual, LU factorizations of the kept-LU Newton
     or 0: `dtdyn.nonlinear._chain.newton_code`)."""
     from dtdyn.linear._beam import _aligned
@@ -657,7 +669,8 @@ def _run_c(driver, sz, kind, N, last, sweep, run, model_idx, model_mats, H, U, o
             for a in arrays + model_mats]
     state = [np.ascontiguousarray(a, dtype=float) for a in (run.u, run.g, run.rate)]
     dims = np.array([kind, N, H.shape[0], run.loaded.size, run.pf.size, sz.ne, sz.nw, sz.nz,
-                     outputs.size, n_samples, S, max_iter, ix, iv, ia, last, newton_code(sz)],
+                     outputs.size, n_samples, S, max_iter, ix, iv, ia, last, newton_code(sz),
+                     int(refined)],
                     dtype=np.int64)
 
     def pointers(xs):

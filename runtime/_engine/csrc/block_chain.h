@@ -57,6 +57,34 @@
  *   two components, each row after a gap whose last double is z[-1] = 0; generated/c_api.h).
  * Outputs (NULL: not stored) get row k + 1 of the stored DOFs. Returns 0, DTDYN_STOPPED when
  * stopped, DTDYN_ERR_WORK (nothing written) when n_work is too short.
+ *
+ * Iterative refinement (mats[4 + n_hist], NULL: none; a beam's uniform elements, layout at
+ * BR_HEAD below): the double-precision solve and right side lose about eps N^3.5 of the low
+ * modes of a beam of N elements (each element's stiffness, ~12 EI / h^3, is N^3 times the
+ * beam's, and the rounding of every product K x and of every pivot is a random nodal force of
+ * eps times it; docs/beam_conditioning.md). Each step then computes u as above, and BR_CORR
+ * times the residual of the step's equation
+ *
+ *     r = F - K (q + p u) - C (s + r u) - M (b + alpha u),   C = alpha_R M + beta_R K + C_d,
+ *
+ * and u += A^-1 r with the same factors, before the update. The residual is taken element by
+ * element, without the assembled K: x_e = q + p u + beta_R (s + r u) in double-double
+ * (exact products by fma, Knuth's TwoSum), each element's deformation y = x_i - T x_{i+1}
+ * (T = [[1, -h], [0, 1]]: the left node against the right node's rigid extension) from it
+ * in double-double and rounded once, its end forces F^-1 y (F^-1 = the element stiffness's
+ * left block) and -T^T F^-1 y in double; the inertia Me (b + alpha u + alpha_R (s + r u)) and
+ * the nodes' springs, dampers and masses in double (their rounding is eps of a force that
+ * does not cancel). The corrections contract by a factor rho (about eps times the element
+ * stiffness's part of A against the low modes' A, 3e-4 for a 10,000-element cantilever at
+ * dt = 1e-4): after correction c >= 2 the loop stops when the next, predicted as
+ * e_c^2 / e_{c-1} (e_c = max |p du| / max |x| per component, the larger), is below BR_TOL,
+ * or after BR_CORR of them. So no product of an element stiffness with a displacement is rounded:
+ * rigid motions give y = 0 exactly, and the residual's rounding is eps of the element
+ * forces, which are of the order of the beam's own. Double-double rather than long double:
+ * a long double (64-bit mantissa, x86 only; double on MSVC and aarch64) x_e still leaves
+ * eps_ld N^3.5 (1e-5 at 10,000 elements); double-double leaves the state's own rounding.
+ * work then needs BC_REFINE_ROWS P doubles more (u, r, x_e hi and lo, the inertia's
+ * argument: two rows each).
  */
 #include <math.h>
 #include <stddef.h>
@@ -308,6 +336,259 @@ static void sub_product(long P, const double *restrict B, long lo, long m,
         x1 = fma(b10, y0, fma(b11, y1, z1)); \
     }
 
+/* the refinement's data (mats[4 + n_hist]): a header of BR_HEAD doubles, then n_point
+   nodal terms (dof, k, c, m: a node's springs, dampers and masses to the ground, dof = 2 i + c)
+   and the n_held held dofs */
+enum {
+    BR_CORR,   /* the most corrections per step */
+    BR_TOL,    /* ... fewer once the next one is predicted below this (relative to x) */
+    BR_POINTS, /* n_point */
+    BR_HELD,   /* n_held */
+    BR_LEN,    /* h, the element length */
+    BR_F00, BR_F01, BR_F11, /* F^-1, the element stiffness's block of its left node */
+    BR_ALPHA, BR_BETA,      /* Rayleigh: C = alpha_R M + beta_R K + the dampers */
+    BR_P, BR_R, BR_AU,      /* the step's p, r, alpha (the coefficients of u) */
+    BR_ME,                  /* the element mass matrix, 4 x 4 row-major */
+    BR_HEAD = BR_ME + 16
+};
+/* work rows of the refinement, P doubles each, after the step's own */
+#define BC_REFINE_ROWS 10
+
+/* a + b = s + e exactly (Knuth's TwoSum: any order of magnitude) */
+static inline double dd_two_sum(double a, double b, double *e)
+{
+    const double s = a + b, bb = s - a;
+    *e = (a - (s - bb)) + (b - bb);
+    return s;
+}
+
+/* (hi, lo) += a b: the product exact by fma, its sum by TwoSum, the low parts added */
+static inline void dd_add_product(double a, double b, double *hi, double *lo)
+{
+    const double p = a * b, ep = fma(a, b, -p);
+    double e;
+    *hi = dd_two_sum(*hi, p, &e);
+    *lo += e + ep;
+}
+
+/* x, v, a at the step's equation for DOF offset o (c P + i): q + p u, s + r u, b + alpha u in
+   double-double (the L rows q, s, b over the history), rounded */
+static void refine_point(long P, long n_hist, const double *restrict L, const double *restrict H,
+                         const double *restrict R, long o, double u, double *out)
+{
+    long h, t;
+    for (t = 0; t < 3; ++t) {
+        double hi = 0.0, lo = 0.0;
+        for (h = 0; h < n_hist; ++h)
+            if (L[t * n_hist + h] != 0.0)
+                dd_add_product(L[t * n_hist + h], H[h * 2 * P + o], &hi, &lo);
+        dd_add_product(R[BR_P + t], u, &hi, &lo);
+        out[t] = hi + lo;
+    }
+}
+
+/* (hi, lo) = L_t H + c u over the 2 P entries of both components, double-double */
+static void refine_row(long P, long n_hist, const double *restrict Lt, const double *restrict H,
+                       double c, const double *restrict u, double *restrict hi,
+                       double *restrict lo)
+{
+    long h, o;
+    for (o = 0; o < 2 * P; ++o) {
+        hi[o] = 0.0;
+        lo[o] = 0.0;
+    }
+    for (h = 0; h < n_hist; ++h)
+        if (Lt[h] != 0.0) {
+            const double l = Lt[h], *restrict x = H + h * 2 * P;
+            for (o = 0; o < 2 * P; ++o)
+                dd_add_product(l, x[o], hi + o, lo + o);
+        }
+    for (o = 0; o < 2 * P; ++o)
+        dd_add_product(c, u[o], hi + o, lo + o);
+}
+
+/* b = A^-1 b as dtdyn_block_chain_solve, each recurrence two nodes a round as the step's
+   (block_chain.h's comment: GG from the factors); t: scratch, two rows of P */
+static void refine_solve(long N, const double *restrict fac, double *restrict b,
+                         double *restrict t)
+{
+    const long P = BC_STRIDE(N);
+    const double *g00 = fac, *g01 = fac + P, *g10 = fac + 2 * P, *g11 = fac + 3 * P;
+    const double *h00 = fac + 4 * P, *h01 = fac + 5 * P, *h10 = fac + 6 * P, *h11 = fac + 7 * P;
+    const double *p00 = fac + 8 * P, *p01 = fac + 9 * P, *p11 = fac + 10 * P;
+    double *b0 = b, *b1 = b + P, *t0 = t, *t1 = t + P, y0 = 0.0, y1 = 0.0;
+    long j;
+    if (N <= 0)
+        return;
+    for (j = 0; j + 1 < N; ++j) /* t_j = b_j - G_j b_{j+1} */
+        BC_SUB(t0[j], t1[j], b0[j], b1[j], g00[j + 1], g01[j + 1], g10[j + 1], g11[j + 1],
+               b0[j + 1], b1[j + 1])
+    for (j = N - 1; j > 0; j -= 2) { /* y_j off the chain, y_{j-1} = t_{j-1} + GG_j y_{j+1} */
+        const double yR0 = y0, yR1 = y1;
+        BC_SUB(b0[j], b1[j], b0[j], b1[j], g00[j + 1], g01[j + 1], g10[j + 1], g11[j + 1], yR0,
+               yR1)
+        BC_ADD(y0, y1, t0[j - 1], t1[j - 1], h00[j], h01[j], h10[j], h11[j], yR0, yR1)
+        b0[j - 1] = y0;
+        b1[j - 1] = y1;
+    }
+    if (j == 0) /* node 0, when N is odd */
+        BC_SUB(b0[0], b1[0], b0[0], b1[0], g00[1], g01[1], g10[1], g11[1], y0, y1)
+    for (j = 0; j < N; ++j) { /* z = P^-1 y */
+        const double z0 = p00[j] * b0[j] + p01[j] * b1[j];
+        b1[j] = p01[j] * b0[j] + p11[j] * b1[j];
+        b0[j] = z0;
+    }
+    t0[0] = b0[0];
+    t1[0] = b1[0];
+    for (j = 1; j < N; ++j) /* t'_j = z_j - G_{j-1}^T z_{j-1} */
+        BC_SUB(t0[j], t1[j], b0[j], b1[j], g00[j], g10[j], g01[j], g11[j], b0[j - 1], b1[j - 1])
+    y0 = y1 = 0.0; /* u_{j-1} */
+    for (j = 0; j + 1 < N; j += 2) { /* u_j off the chain, u_{j+1} = t'_{j+1} + GG_j^T u_{j-1} */
+        const double uL0 = y0, uL1 = y1;
+        BC_SUB(b0[j], b1[j], b0[j], b1[j], g00[j], g10[j], g01[j], g11[j], uL0, uL1)
+        BC_ADD(y0, y1, t0[j + 1], t1[j + 1], h00[j], h10[j], h01[j], h11[j], uL0, uL1)
+        b0[j + 1] = y0;
+        b1[j + 1] = y1;
+    }
+    if (j < N) /* the last node, when N is odd */
+        BC_SUB(b0[j], b1[j], b0[j], b1[j], g00[j], g10[j], g01[j], g11[j], y0, y1)
+}
+
+/* r = F - K (q + p u) - C (s + r u) - M (b + alpha u) over nodes 0 .. N - 1 (block_chain.h's
+   comment: element by element, the deformations from double-double), zero on the held DOFs,
+   into Xh, and max |x + beta_R v| per component into xmax. u: two rows of P (component 0,
+   then 1); f, Xh, Xl, Y: scratch, two rows of P each (the padding of u and of the history
+   rows zero). */
+static void refine_residual(long N, long n_hist, const double *restrict L, const double *restrict H,
+                            const double *restrict R, long n_loaded, const long *restrict loaded,
+                            const double *restrict f0, const double *restrict f1, double w0,
+                            double w1, const double *restrict u, double *restrict f,
+                            double *restrict Xh, double *restrict Xl, double *restrict Y,
+                            double *xmax)
+{
+    const long P = BC_STRIDE(N), n_point = (long)R[BR_POINTS], n_held = (long)R[BR_HELD];
+    const double h = R[BR_LEN], f00 = R[BR_F00], f01 = R[BR_F01], f11 = R[BR_F11];
+    const double alpha = R[BR_ALPHA], beta = R[BR_BETA], *Me = R + BR_ME;
+    const double *pts = R + BR_HEAD, *held = pts + 4 * n_point;
+    const double *Lb = L + 2 * n_hist;
+    double *restrict r = Xh, *restrict fw = f, *restrict fp = f + P;
+    double m0 = 0.0, m1 = 0.0;
+    double eq[3];
+    long i, j, h_;
+    /* v = s + r u (double-double: hi in f, lo in Y), x = q + p u, X = x + beta_R v */
+    refine_row(P, n_hist, L + n_hist, H, R[BR_R], u, f, Y);
+    refine_row(P, n_hist, L, H, R[BR_P], u, Xh, Xl);
+    for (i = 0; i < 2 * P; ++i) {
+        double hi = Xh[i], lo = Xl[i];
+        dd_add_product(beta, f[i], &hi, &lo);
+        Xh[i] = dd_two_sum(hi, lo + beta * Y[i], Xl + i);
+    }
+    for (i = 0; i < N; ++i) { /* max |X| per component, the corrections' scale */
+        const double a0 = fabs(Xh[i]), a1 = fabs(Xh[P + i]);
+        m0 = a0 > m0 ? a0 : m0;
+        m1 = a1 > m1 ? a1 : m1;
+    }
+    xmax[0] = m0;
+    xmax[1] = m1;
+    /* Y = b + alpha u + alpha_R v (double: its rounding is eps of an inertia force) */
+    for (i = 0; i < 2 * P; ++i)
+        Y[i] = fma(R[BR_AU], u[i], alpha * (f[i] + Y[i]));
+    for (h_ = 0; h_ < n_hist; ++h_)
+        if (Lb[h_] != 0.0)
+            for (i = 0; i < 2 * P; ++i)
+                Y[i] = fma(Lb[h_], H[h_ * 2 * P + i], Y[i]);
+    /* element i (nodes i, i + 1): its deformation y = x_i - T x_{i+1} from double-double,
+       rounded once, its left end's force and moment F^-1 y */
+    for (i = 0; i + 1 < N; ++i) {
+        double e, yl, yw, yp;
+        double yh = dd_two_sum(Xh[i], -Xh[i + 1], &e);
+        yl = e + (Xl[i] - Xl[i + 1]);
+        dd_add_product(h, Xh[P + i + 1], &yh, &yl);
+        yw = yh + (yl + h * Xl[P + i + 1]);
+        yh = dd_two_sum(Xh[P + i], -Xh[P + i + 1], &e);
+        yp = yh + (e + (Xl[P + i] - Xl[P + i + 1]));
+        fw[i] = f00 * yw + f01 * yp;
+        fp[i] = f01 * yw + f11 * yp;
+    }
+    /* node i: minus element i's left end (F^-1 y and Me's rows 0, 1) and element i - 1's right
+       end (-T^T F^-1 y and Me's rows 2, 3); the ends' missing elements as zeros */
+    for (i = 0; i < P; ++i) {
+        r[i] = 0.0;
+        r[P + i] = 0.0;
+    }
+#define BR_LEFT(i) \
+    { \
+        const double a0 = Y[i], a1 = Y[P + i], a2 = Y[i + 1], a3 = Y[P + i + 1]; \
+        r[i] -= fw[i] + (Me[0] * a0 + Me[1] * a1 + Me[2] * a2 + Me[3] * a3); \
+        r[P + i] -= fp[i] + (Me[4] * a0 + Me[5] * a1 + Me[6] * a2 + Me[7] * a3); \
+    }
+#define BR_RIGHT(i) \
+    { \
+        const double a0 = Y[i - 1], a1 = Y[P + i - 1], a2 = Y[i], a3 = Y[P + i]; \
+        r[i] -= (Me[8] * a0 + Me[9] * a1 + Me[10] * a2 + Me[11] * a3) - fw[i - 1]; \
+        r[P + i] -= (Me[12] * a0 + Me[13] * a1 + Me[14] * a2 + Me[15] * a3) \
+                    + (h * fw[i - 1] - fp[i - 1]); \
+    }
+    for (i = 0; i + 1 < N; ++i)
+        BR_LEFT(i)
+    for (i = 1; i < N; ++i)
+        BR_RIGHT(i)
+#undef BR_LEFT
+#undef BR_RIGHT
+    for (j = 0; j < n_loaded; ++j) {
+        const long d = loaded[j];
+        r[(d & 1) * P + (d >> 1)] += w0 * f0[j] + w1 * f1[j];
+    }
+    for (j = 0; j < n_point; ++j) { /* the nodes' springs, dampers and masses */
+        const long d = (long)pts[4 * j], o = (d & 1) * P + (d >> 1);
+        refine_point(P, n_hist, L, H, R, o, u[o], eq);
+        r[o] -= pts[4 * j + 1] * eq[0] + pts[4 * j + 2] * eq[1] + pts[4 * j + 3] * eq[2];
+    }
+    for (j = 0; j < n_held; ++j) {
+        const long d = (long)held[j];
+        r[(d & 1) * P + (d >> 1)] = 0.0;
+    }
+}
+
+/* x1, v1, a1 = L H + c_u u into H at nodes lo .. hi - 1 (u0, u1 from node lo), the lags
+   shifted; X: six rows of BC_ROW scratch */
+static void update_block(long P, long n_hist, const double *restrict L,
+                         const double *restrict c_u, double *restrict H, long lo, long hi,
+                         const double *restrict v0, const double *restrict v1, long n_shift,
+                         const long *restrict shift, const long *restrict rows, int in_place,
+                         double *const *X)
+{
+    const long m = hi - lo;
+    long i, j, o;
+    if (in_place) { /* x1, v1, a1 = L H + c_u u, written over x0, v0, a0 */
+        update_in_place(P, L + 3 * n_hist, c_u, H, lo, m, v0, v1);
+        return;
+    }
+    history_terms(P, n_hist, 3, L + 3 * n_hist, H, lo, hi, X);
+    for (o = 0; o < 3; ++o) {
+        const double cu = c_u[o];
+        for (j = 0; j < m; ++j) {
+            X[2 * o][j] = fma(cu, v0[j], X[2 * o][j]);
+            X[2 * o + 1][j] = fma(cu, v1[j], X[2 * o + 1][j]);
+        }
+    }
+    for (j = 0; j < n_shift; ++j) { /* lags, oldest first */
+        double *dst = H + shift[2 * j] * 2 * P;
+        const double *src = H + shift[2 * j + 1] * 2 * P;
+        for (i = lo; i < hi; ++i) {
+            dst[i] = src[i];
+            dst[P + i] = src[P + i];
+        }
+    }
+    for (o = 0; o < 3; ++o) {
+        double *dst = H + rows[o] * 2 * P + lo;
+        for (j = 0; j < m; ++j) {
+            dst[j] = X[2 * o][j];
+            dst[P + j] = X[2 * o + 1][j];
+        }
+    }
+}
+
 DTDYN_LOOP int block_chain_loop_run(long N, long n_hist, long n_steps, long n_loaded,
                                     const long *restrict loaded, const double *restrict force,
                                     const double *const *mats, const double *restrict L,
@@ -330,11 +611,21 @@ DTDYN_LOOP int block_chain_loop_run(long N, long n_hist, long n_steps, long n_lo
     double *z0 = work + DTDYN_BLOCK_CHAIN_GAP;
     double *z1 = work + (P + DTDYN_BLOCK_CHAIN_GAP) + DTDYN_BLOCK_CHAIN_GAP;
     double T[12][BC_ROW] __attribute__((aligned(64)));
-    long k, i, j, o, lo;
-    if (N < 0 || n_work < DTDYN_BLOCK_CHAIN_ROWS * (P + DTDYN_BLOCK_CHAIN_GAP))
+    double *const X[6] = {T[6], T[7], T[8], T[9], T[10], T[11]};
+    /* the refinement (NULL: none) and its rows after the step's work */
+    const double *R = mats[4 + n_hist];
+    const long n_corr = R ? (long)R[BR_CORR] : 0;
+    const long base = DTDYN_BLOCK_CHAIN_ROWS * (P + DTDYN_BLOCK_CHAIN_GAP);
+    double *ur = work + base, *rr = ur + 2 * P, *rXh = rr + 2 * P, *rXl = rXh + 2 * P;
+    double *rY = rXl + 2 * P;
+    long k, i, j, o, lo, c;
+    if (N < 0 || n_work < base + (R ? BC_REFINE_ROWS * P : 0))
         return DTDYN_ERR_WORK;
     z0[-1] = 0.0;
     z1[-1] = 0.0;
+    if (R) /* u's padding (nodes N ..), which the refinement's row loops read */
+        for (i = 0; i < 2 * P; ++i)
+            ur[i] = 0.0;
     for (k = 0; k < n_steps; ++k) {
         const double *f0 = force + k * n_loaded, *f1 = f0 + n_loaded;
         double y0 = 0.0, y1 = 0.0, u0 = 0.0, u1 = 0.0;
@@ -426,33 +717,43 @@ DTDYN_LOOP int block_chain_loop_run(long N, long n_hist, long n_steps, long n_lo
                 v0[j] = u0;
                 v1[j] = u1;
             }
-            if (in_place) { /* x1, v1, a1 = L H + c_u u, written over x0, v0, a0 */
-                update_in_place(P, L + 3 * n_hist, c_u, H, lo, m, v0, v1);
-            } else {
-                double *X[6] = {T[6], T[7], T[8], T[9], T[10], T[11]};
-                history_terms(P, n_hist, 3, L + 3 * n_hist, H, lo, hi, X);
-                for (o = 0; o < 3; ++o) {
-                    const double cu = c_u[o];
-                    for (j = 0; j < m; ++j) {
-                        X[2 * o][j] = fma(cu, v0[j], X[2 * o][j]);
-                        X[2 * o + 1][j] = fma(cu, v1[j], X[2 * o + 1][j]);
-                    }
+            if (R) { /* refined below: u kept, H not yet updated */
+                for (j = 0; j < m; ++j) {
+                    ur[lo + j] = v0[j];
+                    ur[P + lo + j] = v1[j];
                 }
-                for (j = 0; j < n_shift; ++j) { /* lags, oldest first */
-                    double *dst = H + shift[2 * j] * 2 * P;
-                    const double *src = H + shift[2 * j + 1] * 2 * P;
-                    for (i = lo; i < hi; ++i) {
-                        dst[i] = src[i];
-                        dst[P + i] = src[P + i];
-                    }
+                continue;
+            }
+            update_block(P, n_hist, L, c_u, H, lo, hi, v0, v1, n_shift, shift, rows, in_place,
+                         X);
+        }
+        if (R) {
+            double prev = 0.0;
+            for (c = 0; c < n_corr; ++c) { /* u += A^-1 r, the residual in double-double */
+                double xmax[2], d0 = 0.0, d1 = 0.0, e;
+                refine_residual(N, n_hist, L, H, R, n_loaded, loaded, f0, f1, w0, w1, ur, rr,
+                                rXh, rXl, rY, xmax);
+                refine_solve(N, fac, rXh, rXl);
+                for (i = 0; i < N; ++i) {
+                    const double a0 = fabs(rXh[i]), a1 = fabs(rXh[P + i]);
+                    ur[i] += rXh[i];
+                    ur[P + i] += rXh[P + i];
+                    d0 = a0 > d0 ? a0 : d0;
+                    d1 = a1 > d1 ? a1 : d1;
                 }
-                for (o = 0; o < 3; ++o) {
-                    double *dst = H + rows[o] * 2 * P + lo;
-                    for (j = 0; j < m; ++j) {
-                        dst[j] = X[2 * o][j];
-                        dst[P + j] = X[2 * o + 1][j];
-                    }
-                }
+                d0 *= fabs(R[BR_P]);
+                d1 *= fabs(R[BR_P]);
+                d0 = d0 > 0.0 ? d0 / xmax[0] : 0.0;
+                d1 = d1 > 0.0 ? d1 / xmax[1] : 0.0;
+                e = d0 > d1 ? d0 : d1;
+                if (e == 0.0 || (c > 0 && e * (e / prev) <= R[BR_TOL]))
+                    break;
+                prev = e;
+            }
+            for (lo = 0; lo < N; lo += BC_BLOCK) {
+                const long hi = lo + BC_BLOCK < N ? lo + BC_BLOCK : N;
+                update_block(P, n_hist, L, c_u, H, lo, hi, ur + lo, ur + P + lo, n_shift, shift,
+                             rows, in_place, X);
             }
         }
         for (o = 0; o < 3; ++o) {

@@ -42,7 +42,9 @@
  * dims: kind (DTDYN_NL_STATIONS_BEAM or _SHAFT), N (nodes or disks), nh, n_loaded, nf (force
  *       columns), ne, nw, nz, no, n_samples, S, max_iter, ix, iv, ia (the rows of x0, v0, a0 in
  *       H), then the beam's n_shift (its scheme's lags) or the shaft's form (DTDYN_FORM_*),
- *       then newton (DTDYN_NEWTON_PLAIN: newton_solve; DTDYN_NEWTON_KEPT_LU: newton_kept).
+ *       then newton (DTDYN_NEWTON_PLAIN: newton_solve; DTDYN_NEWTON_KEPT_LU: newton_kept),
+ *       then the beam's refinement (1: its operator's mats hold the refinement's data,
+ *       block_chain.h, and the step's work has BC_REFINE_ROWS P doubles more; 0: not).
  * idx:  loaded (n_loaded, ascending: the step's DOFs, the beam's as node-system indices
  *       2 i + c), pf (nf), pi (ne), pj (ne; -1: ground) as positions in loaded; ei, ej (ne; -1:
  *       ground), outs (no) as offsets in a history row; then the beam's shift (n_shift pairs)
@@ -57,7 +59,8 @@
  * stats: [max iterations, total iterations, max final residual, failing residual, LU
  *        factorizations of newton_kept (0 with newton_solve)].
  * work: n_work >= dtdyn_nl_stations_work(dims) doubles: the step's (the beam's
- *       DTDYN_BLOCK_CHAIN_ROWS (P + DTDYN_BLOCK_CHAIN_GAP), 64-byte aligned as the caller gives
+ *       DTDYN_BLOCK_CHAIN_ROWS (P + DTDYN_BLOCK_CHAIN_GAP) (+ BC_REFINE_ROWS P refined),
+ *       64-byte aligned as the caller gives
  *       work; the shaft's DTDYN_SHAFT_ROWS N), then 2 n_loaded + nw + 2 nz + (nw + nz)(nw + nz
  *       + 1) + ne + nz, with newton_kept (nw + nz)(nw + nz + 1) more (nl_stations_scratch),
  *       then the CasADi work; iwork: n_iwork >= CasADi's (nl_residual_work).
@@ -72,8 +75,9 @@ static long nl_stations_row(const long *dims)
 /* the step kernel's work */
 static long nl_stations_step_work(const long *dims)
 {
-    if (dims[0] == DTDYN_NL_STATIONS_BEAM)
-        return DTDYN_BLOCK_CHAIN_ROWS * (BC_STRIDE(dims[1]) + DTDYN_BLOCK_CHAIN_GAP);
+    if (dims[0] == DTDYN_NL_STATIONS_BEAM) /* with the refinement's rows when refined */
+        return DTDYN_BLOCK_CHAIN_ROWS * (BC_STRIDE(dims[1]) + DTDYN_BLOCK_CHAIN_GAP)
+               + (dims[17] ? BC_REFINE_ROWS * BC_STRIDE(dims[1]) : 0);
     return DTDYN_SHAFT_ROWS * dims[1];
 }
 
