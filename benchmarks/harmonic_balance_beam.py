@@ -16,12 +16,17 @@ is refused above 2 n (2 H + 1) = 6000).
    (alpha = 0): by LAPACK's banded LU alone ("banded LU"), by the banded receptance of
    `harmonic_balance` (the same LU refined with residuals in twice the working precision;
    the size of its last correction under the row) and by the reduced receptance (its modes
-   refined). Below: the first two frequencies by ARPACK and refined against
-   ``beam_frequencies``, and the first mode's damping in the assembled C (phi^T C phi, C phi
-   summed exactly) against alpha + beta k_1.
+   refined), both built as `harmonic_balance` builds them for a Beam (alpha M and beta K
+   kept apart: C v = alpha M v + beta K v, the modes' damping alpha + beta k_r). Below: the
+   first two frequencies by ARPACK and refined against ``beam_frequencies``, and the first
+   mode's damping, the reduced receptance's and that of the assembled C (phi^T C phi, C phi
+   summed exactly), against alpha + beta w_1^2 (w_1 from ``beam_frequencies``).
 1. The curve (H = 10 harmonics, n_time 128 samples per period, ``max_step=0.03`` for about
-   200 points, ``convergence_points=0``) with ``receptance="reduced"`` and ``"banded"`` for
-   N = 100, 300, 1,000, 2,000 (and 10,000 with ``--full``, the reduced receptance only).
+   200 points, ``convergence_points=0``) with ``receptance="reduced"``, ``"banded"`` and
+   "plain LU" (LAPACK's banded LU unrefined: what ``"auto"`` ran on a Beam before it chose
+   the reduced receptance for Rayleigh-damped models of 50 DOFs and more) for N = 100, 300,
+   1,000, 2,000 (and 10,000 with ``--full``, the reduced receptance only); then the receptance
+   ``"auto"`` runs at each N.
    Per run: the points, the setup
    (the run time of a two-point curve over the same band: the reduced receptance's modes and
    residual terms, built for the whole band, and two points' Newton), the time per point
@@ -31,6 +36,9 @@ is refused above 2 n (2 H + 1) = 6000).
    one frequency to the next, stops Newton below that), the reduced receptance's check
    (``info["receptance_check"]``: its modes, series terms and difference from the banded
    receptance at the top of the band, or why it fell back), and the peak tip amplitude.
+   Under the table (with --full): the reduced receptance's cost per point and per Newton
+   iteration at N = 1,000 and 10,000, measured interleaved (`cost_ratio`: the curve at each
+   N in turn, 5 rounds; per point its run time less its setup, timed apart, over its points).
 2. Convergence in the harmonics at N = 300: ``harmonic_convergence`` (x_max with 2 H
    harmonics and twice the samples against H, at 10 points and the peak) for H = 10 and 20.
 3. Three frequencies (15 and 18.5 Hz, the gap in contact near the first resonance, and 110 Hz
@@ -107,7 +115,8 @@ def curve(n, receptance, harmonics=10, freqs_hz=BAND, **kw):
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)
-                r = dd.harmonic_balance(b, tol=tol, **args)
+                r = plain_lu(b, tol, args) if receptance == "plain LU" else \
+                    dd.harmonic_balance(b, tol=tol, **args)
         except dd.NewtonError as exc:
             err = str(exc).removeprefix("harmonic_balance: ")
             continue
@@ -115,6 +124,18 @@ def curve(n, receptance, harmonics=10, freqs_hz=BAND, **kw):
             return r, tol, err
         err = f"stopped: {r.info['stop']} at {r.frequency_hz[-1]:.4g} Hz"
     return None, None, err
+
+
+def plain_lu(b, tol, args):
+    """harmonic_balance with LAPACK's banded LU unrefined: what receptance="auto" ran on a Beam
+    before it chose the reduced receptance for Rayleigh-damped models of 50 DOFs and more."""
+    from dtdyn.nonlinear import _harmonic_balance as hb
+    keep = hb.REDUCED_AUTO_MIN_DOFS
+    hb.REDUCED_AUTO_MIN_DOFS = 1 << 62
+    try:
+        return dd.harmonic_balance(b, tol=tol, **{**args, "receptance": "auto"})
+    finally:
+        hb.REDUCED_AUTO_MIN_DOFS = keep
 
 
 def check_text(info):
@@ -149,7 +170,7 @@ def part0(sizes, lines):
     from dtdyn.nonlinear._elements import element_matrix
     from dtdyn.nonlinear._harmonic_balance import _bandwidth, _BandedReceptance
     from dtdyn.nonlinear._receptance import (ReducedReceptance, exact_product,
-                                             rayleigh_coefficients)
+                                             rayleigh_coefficients, rayleigh_parts)
     lines.append("0) the tip receptance |H / H_exact - 1| of the linear beam against the "
                  "continuous beam's closed form (mpmath)")
     lines.append(f"{'N':>6} {'damping':>9} {'receptance':>16} "
@@ -166,10 +187,13 @@ def part0(sizes, lines):
             B = np.zeros((M.shape[0], 1))
             B[tip] = 1.0
             out = np.array([tip])
-            exact = _BandedReceptance(M, C, K, Lm, out, B, _bandwidth(M, C, K))
+            # as harmonic_balance builds them for a Beam: alpha M and beta K kept apart
+            parts = rayleigh_parts(b, M, C, K)
+            exact = _BandedReceptance(M, C, K, Lm, out, B, _bandwidth(M, C, K), refine=True,
+                                      parts=parts)
             t0 = time.perf_counter()
             rec = ReducedReceptance(exact, M, C, K, Lm, out, B, rayleigh_coefficients(M, C, K),
-                                    w_max=2 * np.pi * 10 * BAND[1])
+                                    w_max=2 * np.pi * 10 * BAND[1], parts=parts)
             t_setup = time.perf_counter() - t0
             w = 2 * np.pi * np.array(P0_FREQS)
             h = np.array([exact_tip_receptance(wk, alpha, beta) for wk in w])
@@ -203,29 +227,32 @@ def part0(sizes, lines):
                              f"{abs(np.sqrt(np.sort(k0)[0] / ww[0]) - 1):.1e}, "
                              f"{abs(np.sqrt(np.sort(k0)[1] / ww[1]) - 1):.1e}; refined "
                              f"{abs(np.sqrt(k[0] / ww[0]) - 1):.1e}, "
-                             f"{abs(np.sqrt(k[1] / ww[1]) - 1):.1e}; C's damping of mode 1, "
-                             f"phi^T C phi / (alpha + beta k_1) - 1: "
-                             f"{modal_damping_error(rec, exact_product, alpha, beta):.1e}")
+                             f"{abs(np.sqrt(k[1] / ww[1]) - 1):.1e}")
+                lines.append(f"{'':>8}mode 1's damping / (alpha + beta w_1^2) - 1, w_1 from "
+                             f"beam_frequencies: the reduced receptance's "
+                             f"{rec.modal_damping[0] / (alpha + beta * ww[0]) - 1:.1e}; the "
+                             f"assembled C's, phi^T C phi (C phi exactly) "
+                             f"{modal_damping_error(rec, exact_product, alpha, beta, ww[0]):.1e}")
             print("\n".join(lines[first:]), flush=True)
     lines.append("")
 
 
-def modal_damping_error(rec, exact_product, alpha, beta):
-    """phi_1^T C phi_1 / (alpha + beta k_1) - 1 for the reduced receptance's first mode (C phi
+def modal_damping_error(rec, exact_product, alpha, beta, k1):
+    """phi_1^T C phi_1 / (alpha + beta k1) - 1 for the reduced receptance's first mode (C phi
     exactly), the first mode's damping in the assembled C against the Rayleigh damping."""
     phi = rec.modes[:, :1]
     hi, lo = exact_product(rec.cd, phi)
-    return float(phi[:, 0] @ (hi + lo)[:, 0]) / (alpha + beta * rec.k[0]) - 1
+    return float(phi[:, 0] @ (hi + lo)[:, 0]) / (alpha + beta * k1) - 1
 
 
 def part1(sizes, lines):
     lines.append(f"1) the curve {BAND[0]:g} .. {BAND[1]:g} Hz, H = 10, max_step 0.03")
     lines.append(f"{'N':>6} {'receptance':>10} {'points':>6} {'tol':>6} {'setup s':>8} "
                  f"{'ms/point':>8} {'Newton/pt':>9} {'tip max mm':>10}  reduced check")
-    per_point, wall_time, newton = {}, {}, {}
+    per_point = {}
     for n in sizes:
-        for rec in ("reduced", "banded"):
-            if rec == "banded" and n > BANDED_MAX_N:
+        for rec in ("reduced", "banded", "plain LU"):
+            if rec != "reduced" and n > BANDED_MAX_N:
                 lines.append(f"{n:>6} {rec:>10}  not run: its LU does not converge near the "
                              f"first resonance at this N (part 0)")
                 print(lines[-1], flush=True)
@@ -254,23 +281,74 @@ def part1(sizes, lines):
             pts = r.omega.size
             ms = 1e3 * (r.info["run_time"] - t_first) / (pts - 2)
             per_point[(n, r.info["receptance"], rec)] = ms
-            wall_time[(n, rec)] = (r.info["run_time"], pts)
-            newton[(n, rec)] = r.info["newton_iterations"] / pts
             lines.append(f"{n:>6} {rec:>10} {pts:>6} {tol:>6.0e} {t_first:>8.2f} {ms:>8.2f} "
                          f"{r.info['newton_iterations'] / pts:>9.2f} "
                          f"{1e3 * r.x_max[:, 0].max():>10.5f}  "
                          + (check_text(r.info) if rec == "reduced" else ""))
             print(lines[-1], flush=True)
-    a, b = per_point.get((1000, "reduced", "reduced")), per_point.get((10_000, "reduced",
-                                                                       "reduced"))
-    if a and b:
-        run, pts = wall_time[(10_000, "reduced")]
-        nw = {n: newton[(n, "reduced")] for n in (1000, 10_000)}
-        lines.append(f"reduced, N = 10,000 / N = 1,000: cost per point {b / a:.2f}, per Newton "
-                     f"iteration {(b / nw[10_000]) / (a / nw[1000]):.2f}; the curve at "
-                     f"N = 10,000: {pts} points in {run:.1f} s (info['run_time'], the setup "
-                     f"included)")
+    used = []
+    for n in sizes:
+        r, _, _ = curve(n, "auto", max_points=2)
+        used.append(f"N = {n}: {r.info['receptance'] if r is not None else '-'}")
+    lines.append("receptance='auto' runs (2-point curves): " + ", ".join(used))
+    print(lines[-1], flush=True)
+    if (1000, "reduced", "reduced") in per_point and (10_000, "reduced", "reduced") in per_point:
+        lines.extend(cost_ratio())
+        print("\n".join(lines[-3:]), flush=True)
     return per_point
+
+
+def cost_ratio(sizes=(1000, 10_000), repeats=5):
+    """The reduced receptance's cost per point at two N, interleaved (`interleaved`: each
+    round runs the curve at every N in turn, so that the machine's drift reaches all alike):
+    per point, ``info["run_time"]`` less the setup (the run's `_prepare`: the model's matrices,
+    the receptance's modes and residual terms, timed by a wrapper) over the points; the median
+    over the rounds [min, max]."""
+    from dtdyn.app import interleaved
+    from dtdyn.nonlinear import _harmonic_balance as hb
+    prepare, setup = hb._prepare, []
+
+    def timed(*args, **kw):
+        t0 = time.perf_counter()
+        out = prepare(*args, **kw)
+        setup.append(time.perf_counter() - t0)
+        return out
+
+    fns = {}
+    for n in sizes:
+        tol = curve(n, "reduced")[1]
+
+        def run(n=n, tol=tol):
+            b, args = problem(n)
+            args.update(harmonics=10, freqs_hz=BAND, receptance="reduced",
+                        convergence_points=0)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                r = dd.harmonic_balance(b, tol=tol, **args)
+            return r, setup[-1]
+        fns[n] = run
+    hb._prepare = timed
+    try:
+        t = interleaved(fns, repeats, key=lambda out: (out[0].info["run_time"] - out[1])
+                        / out[0].omega.size)
+        found = {n: fn() for n, fn in fns.items()}
+    finally:
+        hb._prepare = prepare
+    out = []
+    for n in sizes:
+        r, prep = found[n]
+        pts = r.omega.size
+        out.append(f"   N = {n:>6}: {pts} points, {r.info['newton_iterations'] / pts:.2f} Newton "
+                   f"iterations per point, {1e3 * t[n].median:.2f} ms per point "
+                   f"[{1e3 * t[n].min:.2f}, {1e3 * t[n].max:.2f}] "
+                   f"({1e3 * t[n].median * pts / r.info['newton_iterations']:.3f} ms per "
+                   f"iteration), setup {prep:.2f} s, whole run {r.info['run_time']:.2f} s "
+                   f"(medians of {repeats})")
+    a, b = sizes
+    nw = {n: found[n][0].info["newton_iterations"] / found[n][0].omega.size for n in sizes}
+    out.append(f"reduced, N = {b:,} / N = {a:,}: cost per point {t[b].median / t[a].median:.2f}"
+               f", per Newton iteration {(t[b].median / nw[b]) / (t[a].median / nw[a]):.2f}")
+    return out
 
 
 def part2(lines, n=300):
@@ -361,23 +439,30 @@ def part4(sizes, lines, duration=4.0, dts=(2e-4, 1e-4)):
                  f"tip deflection at the end (and its mean over the last 0.5 s) against the "
                  f"static solution {x_static:.10e} m; the model's damping (alpha+beta), and at "
                  f"the largest N alpha M alone and beta K alone")
-    cases = [(n, "alpha+beta", dt) for n in sizes for dt in dts]
-    cases += [(max(sizes), name, dts[-1]) for name in ("alpha only", "beta only")]
-    for n, name, dt in cases:
+    lines.append(f"   (beta only: {2 * duration:g} s, its first mode being damped 3.6 times "
+                 "less; refine: the step's refinement, 'auto' (the corrections per step at "
+                 "most: 0 when off), and refine=False at the largest N)")
+    cases = [(n, "alpha+beta", dt, "auto") for n in sizes for dt in dts]
+    cases += [(max(sizes), "alpha+beta", dts[-1], False)]
+    cases += [(max(sizes), name, dts[-1], "auto") for name in ("alpha only", "beta only")]
+    for n, name, dt, refine in cases:
         b, args = problem(n)
         alpha, beta = b.rayleigh
         if name != "alpha+beta":
             b = dd.Beam(E=E, I=I, rho_A=RHO_A, length=L, elements=n,
                         rayleigh=(alpha, 0.0) if name == "alpha only" else (0.0, beta))
-        t = np.arange(int(round(duration / dt)) + 1) * dt
+        end = 2 * duration if name == "beta only" else duration
+        t = np.arange(int(round(end / dt)) + 1) * dt
         ramp = np.where(t < TD_RAMP, 0.5 * (1 - np.cos(np.pi * t / TD_RAMP)), 1.0)
         t0 = time.perf_counter()
         r = dd.nonlinear_beam_response(b, FORCE * ramp, dt, force_dofs=args["force_dofs"],
                                        elements=args["elements"], outputs=args["outputs"],
-                                       quantities=("x",), scheme="average_acceleration")
+                                       quantities=("x",), scheme="average_acceleration",
+                                       refine=refine)
         x = r.x[:, 0]
         tail = x[-int(round(0.5 / dt)):]
-        lines.append(f"   N = {n:>6}, {name:>10}, dt = {dt:g}: end "
+        lines.append(f"   N = {n:>6}, {name:>10}, dt = {dt:g}, refine {str(refine):>5} "
+                     f"({r.info['refinements']} at most): end "
                      f"{x[-1] / x_static - 1:>9.1e}, mean "
                      f"{tail.mean() / x_static - 1:>9.1e}, spread over the last 0.5 s "
                      f"{(tail.max() - tail.min()) / x_static:.1e} "
@@ -444,35 +529,41 @@ less elsewhere in the band.
 With the model's damping, alpha M + beta K, a second loss appears, in the matrices
 themselves: `beam_matrices` sums C = alpha M + beta K entry by entry in double precision, and
 at large N an entry of alpha M (of order rho_A h) falls below the rounding of beta K's (of
-order beta EI / h^3): the first mode's damping phi^T C phi in the assembled C is
-40 % below alpha + beta k_1 at N = 10,000 (1e-4 at 2,000, 7e-6 at 1,000). Every receptance
-here, and `nonlinear_beam_response` (the node blocks of the same C), solve that assembled
-model: its tip receptance at 18 Hz differs from the Rayleigh beam's by 0.67 at N = 10,000,
-the curve's peak is about 7.9 mm instead of 5.0 mm. Keeping alpha M and beta K apart (C v
-as alpha M v + beta K v) would remove it; it is not the receptances' doing.
+order beta EI / h^3): the first mode's damping phi^T C phi in the assembled C is 40 % below
+alpha + beta w_1^2 at N = 10,000 (1e-4 at 2,000, 7e-6 at 1,000). `harmonic_balance` takes a
+Beam's Rayleigh coefficients from the model instead of from its C: the reduced receptance
+damps each kept mode by alpha + beta k_r (equal to alpha + beta w_1^2 from
+`beam_frequencies` to rounding, the line under each reduced row), and the refined banded and
+the reduced receptances form C v as alpha M v + beta K v (K v exactly); the rows above are
+built as `harmonic_balance` builds them. With the model's damping the reduced receptance then
+equals the continuous beam at N = 10,000 as closely as with beta alone (before, with the
+assembled C: 0.67 off at 18 Hz), and the refined banded one at N = 1,000 to the model's own
+rounding. Only the plain banded LU ("banded LU") still solves with the assembled C.
 
-Part 1, the curve. The reduced receptance's time per Newton iteration does not grow with N
-(the ratios 10,000 / 1,000 are printed under the table; per point the 10,000-element curve
-costs more because it is another curve: its assembled C damps the first mode less, the peak
-is higher and sharper, and Newton takes more iterations per point), and the 10,000-element
-curve, setup included, takes a few seconds. The refined banded receptance gets through the
-band at `tol=1e-10` for every N where it is run, at a cost per point that grows with N
-(exact residual products with K and C at every solve): it is the reference, not the fast
-path.
+Part 1, the curve. The reduced receptance's cost per point does not grow with N: the
+10,000-element curve is the 1,000-element one (the same points, Newton iterations per point
+and peak), and its time per point and per Newton iteration, measured interleaved under the
+table, is the same; only its setup (the modes, refined, and the residual terms: O(N)) grows.
+The refined banded receptance gets through the band at `tol=1e-10` for every N where it is
+run, at a cost per point that grows with N (exact residual products with K at every solve):
+it is the reference, not the fast path.
 
-Part 3, the time domain. At N = 1,000 the harmonic balance equals the extrapolated time
-domain to about 1e-5, the time domain's own dt error. At N = 10,000 the time domain does not
-converge: its amplitude changes by about 1e-3 from one period to the next after 3 s, and
-P = 512 and 1024 steps per period differ by percents (at 18.5 Hz, near the first mode, they
-settle on different amplitudes). Part 4 shows why: a static tip load, ramped in and held,
-gives the static deflection to 4e-9 (the mean over the last 0.5 s) at N = 1,000, but at
-N = 10,000 the deflection fluctuates by percents of itself from step to step, also with
-alpha M alone as damping (no beta K in C to lose alpha M against): the time stepping's solves
-and products with K in double precision carry the eps N^3.5 rounding of part 0 at every
-step; with beta K alone the run does not settle at all. The 1e-4 comparison of the issue at
-N = 10,000 is therefore out of reach of `nonlinear_beam_response` in double precision; the
-harmonic balance's receptance at 10,000 elements is checked instead against the continuous
-beam (part 0, linear).
+Part 3, the time domain. The harmonic balance equals the extrapolated time domain to about
+1e-5, the time domain's own dt error, at N = 1,000 and at N = 10,000. At 10,000 elements this
+needs the time steps' refinement (`refine="auto"` refines from 2,000 elements on): a
+double-precision step carries the eps N^3.5 rounding of part 0 at every step (its solves and
+its products with K), and without refinement the amplitude changes by about 1e-3 from one
+period to the next after 3 s and P = 512 and 1024 steps per period differ by percents. The
+refined step corrects its solve with the step equation's residual formed element by element
+(each element's deformation from x + beta v in double-double, so no element stiffness
+multiplies a rounded displacement, and C v as alpha M v + beta K v, never an assembled C);
+docs/beam_conditioning.md has the equations and the cost (about 3x a plain step).
+
+Part 4, the time domain's rounding. A static tip load, ramped in and held: with the refined
+steps the deflection at the end equals the static solution to about 1e-9 at N = 10,000 with
+the model's damping and with alpha M alone; with beta K alone (mode 1 then has about 1.4 % of
+critical damping, run for 8 s) what is left is the physical transient, the same at
+N = 1,000. The row with `refine=False` shows the plain step's rounding at N = 10,000.
 
 Output of `python benchmarks/harmonic_balance_beam.py{flag}` (2-core shared machine; every
 number from this run):

@@ -31,10 +31,13 @@ correction with a banded LU of K - k_r M (`refined_modes`), and every solve with
 by residuals in twice the working precision (`refined_solve`): a Hermite beam of N elements
 has cond(K) ~ N^4 and a double-precision LU loses about eps N^3.5 (ARPACK's lowest frequency
 of a 10,000-element beam: 4e-3; refined: 1e-15 from `beam_frequencies`). The kept modes'
-damping is C's own, phi^T C phi (C phi summed exactly), as an m x m matrix where
-alpha + beta k_r does not reproduce it: C = alpha M + beta K summed entry by entry in double
-precision loses alpha M against beta K at large N (a 10,000-element beam: the first mode's
-damping 40 % below alpha + beta k_1), and the model is C as it is. The cut-off: the highest
+damping: a model that carries its Rayleigh coefficients (a `Beam` with ``rayleigh``;
+`rayleigh_parts`) gives alpha + beta k_r exactly (plus its supports' dampers, phi^T E phi),
+and every product with C is alpha M v + beta K v + E v: C = alpha M + beta K summed entry by
+entry in double precision loses alpha M against beta K at large N (a 10,000-element beam: the
+first mode's damping 40 % below alpha + beta k_1). Given matrices alone, the model is C as it
+is: the kept modes' damping is C's own, phi^T C phi (C phi summed exactly), as an m x m matrix
+where alpha + beta k_r does not reproduce it. The cut-off: the highest
 frequency asked for, w_c (the highest harmonic of the band, with a margin), times 2.5 (the
 series' ratio |b / (a s)| <= 0.16); the number of terms J grows until the reduced receptance
 equals the exact banded one (`_BandedReceptance`) at w_c and at the first natural frequency
@@ -182,6 +185,42 @@ def refined_modes(K, M, k, phi, width, steps=4):
     return rho, out
 
 
+def rayleigh_parts(model, M, C, K, tol=1e-8):
+    """(alpha, beta, E) with C = alpha M + beta K + E, for a model that carries its Rayleigh
+    coefficients (a `Beam` with ``rayleigh``), else None. E (sparse, or None when zero): what
+    Beam's C holds beside alpha M + beta K of the whole model, its supports' dampers less alpha
+    times its point masses and beta times its support springs (Beam forms alpha M + beta K from
+    the elements alone). M, C, K: the model's assembled matrices, in the order of its DOFs;
+    C is checked against the parts (``tol`` relative, on two random vectors).
+
+    A receptance built from the parts keeps alpha M and beta K apart: the modes' damping is
+    alpha + beta k_r exactly, and C v = alpha M v + beta K v + E v, where C summed entry by
+    entry in double precision loses alpha M against beta K at large N (a 10,000-element beam:
+    the first mode's damping 40 % low)."""
+    from dtdyn.linear._beam import Beam
+    if not isinstance(model, Beam) or model.rayleigh is None:
+        return None
+    alpha, beta = model.rayleigh
+    diag = model.nodal_diagonals()
+    e = (diag["c"] - alpha * diag["m"] - beta * diag["k"])[model.free]
+    E = sps.diags(e).tocsr() if np.any(e) else None
+    rng = np.random.default_rng(1)
+    for x in (rng.standard_normal(M.shape[0]) for _ in range(2)):
+        terms = [C @ x, alpha * (M @ x), beta * (K @ x)] + ([E @ x] if E is not None else [])
+        scale = sum(float(np.abs(t).max()) for t in terms)
+        if np.abs(terms[0] - sum(terms[1:])).max() > tol * scale:
+            return None
+    return float(alpha), float(beta), E
+
+
+def damping_product(parts, M, K, X):
+    """C X = alpha M X + beta K X + E X in working precision (``parts`` from `rayleigh_parts`;
+    M, K sparse)."""
+    alpha, beta, E = parts
+    out = alpha * (M @ X) + beta * (K @ X)
+    return out if E is None else out + E @ X
+
+
 def rayleigh_coefficients(M, C, K, tol=1e-8):
     """(alpha, beta) with C = alpha M + beta K to ``tol`` (relative, on two random vectors),
     or None. C = 0 gives (0, 0)."""
@@ -223,11 +262,20 @@ class ReducedReceptance:
     ``strict``: with a warning).
 
     Calls return H (len(w), ne + no, ne + nb) and dH/dw (len(w), ne, ne + nb), as the other
-    receptances of `harmonic_balance`."""
+    receptances of `harmonic_balance`.
+
+    ``parts``: (alpha, beta, E) from `rayleigh_parts` when the model carries its Rayleigh
+    coefficients: the kept modes' damping is then alpha + beta k_r (+ phi^T E phi) exactly,
+    not C's assembled entries (``damping`` is then ignored). ``backup``: the receptance the
+    calls go to after a failed check (default ``exact``; "auto" gives LAPACK's banded LU
+    without refinement, its receptance before)."""
 
     def __init__(self, exact, M, C, K, L, outputs, B, damping, *, w_max=None, rtol=1e-8,
-                 strict=False):
-        self.exact, self.rtol, self.strict = exact, rtol, strict
+                 strict=False, parts=None, backup=None):
+        self.exact, self.rtol, self.strict, self.parts = exact, rtol, strict, parts
+        self.backup = exact if backup is None else backup
+        if parts is not None:
+            damping = parts[:2]
         self.M, self.C, self.K = sps.csc_matrix(M), sps.csr_matrix(C), sps.csc_matrix(K)
         self.alpha, self.beta = damping
         self.ne = L.shape[0]
@@ -239,7 +287,10 @@ class ReducedReceptance:
         self.cover = 0.0
         self.fallback = False
         self.name = "reduced"
-        self.check = dict(receptance="reduced", rtol=rtol, builds=0)
+        self.check = dict(receptance="reduced", rtol=rtol, builds=0,
+                          damping="rayleigh" if parts is not None else "C")
+        #: the kept modes' damping (the diagonal of their modal damping matrix), 1/s
+        self.modal_damping = np.zeros(0)
         self._lu = None
         self.Cm = None
         width = exact.width
@@ -251,12 +302,14 @@ class ReducedReceptance:
     def __call__(self, w):
         w = np.asarray(w, dtype=float)
         top = float(np.abs(w).max()) if w.size else 0.0
+        if self.fallback:
+            return self.backup(w)
         if top == 0.0 and not self.cover:
             return self.exact(w)                  # the static harmonic before the first build
         if not self.fallback and top > self.cover:
             self._build(2.0 * top if self.cover else REDUCED_FIRST * top)
         if self.fallback:
-            return self.exact(w)
+            return self.backup(w)
         return self._evaluate(w)
 
     def _evaluate(self, w, terms=None):
@@ -297,6 +350,33 @@ class ReducedReceptance:
         self.name = "banded"
         self.check.update(receptance="banded", reason=reason)
 
+    def _modal_damping(self, k, phi):
+        """(the kept modes' damping matrix phi^T C phi, None), or (None, why not)."""
+        m = k.size
+        if self.parts is not None:   # alpha + beta k_r exactly, and the supports' part
+            E = self.parts[2]
+            Cp = np.diag(self.alpha + self.beta * k)
+            if E is not None:
+                Cp = Cp + phi.T @ (E @ phi)
+                Cp = 0.5 * (Cp + Cp.T)
+        else:                        # phi^T C phi, C phi exactly
+            hi, lo = exact_product(self.cd, phi)
+            Cp = phi.T @ (hi + lo)
+            Cp = 0.5 * (Cp + Cp.T)
+        if m >= 2 and self.parts is None:
+            # alpha, beta from the modes' damping: C's entries may have lost alpha M to
+            # rounding (a long beam)
+            c = np.diag(Cp)
+            (alpha, beta), *_ = np.linalg.lstsq(np.column_stack([np.ones(m), k / k[-1]]),
+                                               c, rcond=None)
+            fit = np.abs(alpha + beta * k / k[-1] - c).max()
+            off = np.abs(Cp - np.diag(c)).max()
+            if max(fit, off) > 1e-6 * np.abs(c).max():
+                return None, (f"the damping is not Rayleigh's (alpha M + beta K) in the "
+                              f"modes: {max(fit, off) / np.abs(c).max():.1e}")
+            self.alpha, self.beta = max(float(alpha), 0.0), max(float(beta) / k[-1], 0.0)
+        return Cp, None
+
     def _build(self, w_c):
         """Modes below REDUCED_CUTOFF w_c, the residual terms until the check at w_c passes."""
         self.check["builds"] += 1
@@ -310,7 +390,10 @@ class ReducedReceptance:
             return self._give_up(f"{m} modes below {w_m / 2 / np.pi:.4g} Hz (more than "
                                  f"{min(REDUCED_MAX_MODES, n - 3)})")
         if self._lu is None:
-            self._lu = spla.splu(self.K)
+            try:
+                self._lu = spla.splu(self.K)
+            except RuntimeError as exc:              # "Factor is exactly singular"
+                return self._give_up(f"the LU of K failed ({exc}): a rigid-body mode?")
         lu = self._lu
         width = self.exact.width
 
@@ -319,26 +402,22 @@ class ReducedReceptance:
 
         if m:
             op = spla.LinearOperator(self.K.shape, matvec=lu.solve, dtype=float)
-            k, phi = spla.eigsh(self.K, m, M=self.M, sigma=0.0, OPinv=op)
+            try:
+                # a fixed start vector: the same modes, and the same setup time, every run
+                v0 = np.random.default_rng(0).standard_normal(n)
+                k, phi = spla.eigsh(self.K, m, M=self.M, sigma=0.0, OPinv=op, v0=v0)
+            except spla.ArpackError as exc:
+                return self._give_up(f"ARPACK found no {m} modes: {exc}")
             k, phi = refined_modes(self.K, self.M, k, phi, width)
-            hi, lo = exact_product(self.cd, phi)        # phi^T C phi, C phi exactly
-            Cp = phi.T @ (hi + lo)
-            Cp = 0.5 * (Cp + Cp.T)
-            if m >= 2:       # alpha, beta from the modes' damping: C's entries may have lost
-                c = np.diag(Cp)                           # alpha M to rounding (a long beam)
-                (alpha, beta), *_ = np.linalg.lstsq(np.column_stack([np.ones(m), k / k[-1]]),
-                                                   c, rcond=None)
-                fit = np.abs(alpha + beta * k / k[-1] - c).max()
-                off = np.abs(Cp - np.diag(c)).max()
-                if max(fit, off) > 1e-6 * np.abs(c).max():
-                    return self._give_up(f"the damping is not Rayleigh's (alpha M + beta K) in "
-                                         f"the modes: {max(fit, off) / np.abs(c).max():.1e}")
-                self.alpha, self.beta = max(float(alpha), 0.0), max(float(beta) / k[-1], 0.0)
-            # the kept modes with C's own modal damping matrix where alpha + beta k_r misses
-            # it (C = alpha M + beta K summed in double loses alpha M at large N: its lowest
-            # modes' damping is off, and C couples them)
+            Cp, reason = self._modal_damping(k, phi)
+            if reason:
+                return self._give_up(reason)
+            # the kept modes with their own modal damping matrix where alpha + beta k_r misses
+            # it: the supports' part E, or C as it is (C = alpha M + beta K summed in double
+            # loses alpha M at large N: its lowest modes' damping is off, and C couples them)
             miss = np.abs(Cp - np.diag(self.alpha + self.beta * k)).max(axis=1)
             self.Cm = Cp if np.any(miss > 1e-3 * self.rtol * np.diag(Cp)) else None
+            self.modal_damping = np.diag(Cp).copy()
         else:
             k, phi = np.zeros(0), np.zeros((n, 0))
             self.Cm = None
