@@ -10,7 +10,9 @@ Newmark average acceleration, displacement form. Each pair: `nonlinear_beam_resp
 `beam_response` (`nonlinear_shaft_response` against `shaft_response`) on the same model and
 record, both storing the loaded DOF, called in turn (dtdyn.app._timing.interleaved), median
 [min, max] of 5 after a warm-up, wall time of the whole call (setup included), BLAS pinned to one
-thread. The ratio is of the medians; the goal is at most 1.5.
+thread. The ratio is of the medians; the goal is at most 1.5. Both beam runs take the default
+`refine="auto"`: the 10,000-element ones refine every step's solve (docs/beam_conditioning.md),
+the 1,000-element ones do not.
 
     python benchmarks/nonlinear_stations_speed.py     (writes docs/nonlinear_stations_speed.md)
 """
