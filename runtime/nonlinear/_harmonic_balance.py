@@ -25,7 +25,9 @@ root search on that component along the arc.
 
 Models: a Chain, Beam, Shaft or Matrices in place of M, C, K brings its (sparse) matrices, DOF
 names and rigid motion; a sparse symmetric banded model's receptance is LAPACK's banded LU
-(O(n) per harmonic; Z = D^-1 [L^T, B], and D symmetric gives dH/dw = -Z_L^T D' Z). Support
+(O(n) per harmonic; Z = D^-1 [L^T, B], and D symmetric gives dH/dw = -Z_L^T D' Z), or, with
+Rayleigh damping and 50 DOFs or more, the reduced one (dtdyn.nonlinear._receptance: the modes
+below a cut-off and a residual series, O(1) per harmonic). Support
 motion adds the load -M r a_g (relative coordinates); `harmonic_balance_amplitude` continues in
 the load factor s at a fixed omega instead (R_k = Y_k - s L H P F_k + L H L^T G_k).
 
@@ -48,7 +50,10 @@ Gross, "Harmonic Balance for Nonlinear Vibration Problems", Springer 2019 (ch. 2
 Griffin, J. Appl. Mech. 56 (1989) 149 (AFT); Lazarus & Thomas, C. R. Mecanique 338 (2010) 510
 (Hill's method); Peletan, Baguet, Torkhani & Jacquet-Richardet, Nonlinear Dyn. 72 (2013) 671,
 and Guillot, Lazarus, Thomas, Vergez & Cochelin, J. Comput. Phys. 416 (2020) 109477 (the
-selection by the eigenvectors).
+selection by the eigenvectors). On a large model (``stability="reduced"``, or "auto" above
+2 n (2 H + 1) = 6000) the same eigenproblem is solved for a reduced model: the modes below
+2 (H + 1) omega_top and the elements' attachment modes P K^{-1} L^T with two mass corrections,
+M, C, K projected (`dtdyn.nonlinear._hill_reduced`).
 """
 from __future__ import annotations
 
@@ -155,12 +160,14 @@ class _BandedReceptance:
     in working precision: its terms do not cancel), until a correction no longer halves. A
     beam of N elements loses about eps N^3.5 in the LU (docs/beam_conditioning.md);
     ``last_correction`` is the largest relative size of the last corrections of a call (near
-    eps when the refinement converged)."""
+    eps when the refinement converged). ``parts`` (alpha, beta, E) from
+    `dtdyn.nonlinear._receptance.rayleigh_parts`: C Z is alpha M Z + beta K Z + E Z, K Z
+    exactly (C's entries summed in double precision lose alpha M against beta K at large N)."""
 
     name = "banded"
 
-    def __init__(self, M, C, K, L, outputs, B, width, refine=False):
-        self.refine = refine
+    def __init__(self, M, C, K, L, outputs, B, width, refine=False, parts=None):
+        self.refine, self.parts = refine, parts
         self.width, self.L, self.outputs = width, L, outputs
         cols = np.hstack([L.T, B])
         # a column repeated (a force where an element acts) is solved once
@@ -168,10 +175,10 @@ class _BandedReceptance:
         self.which = self.which.ravel()
         self.cols = np.ascontiguousarray(unique, dtype=complex)
         self.ncols = cols.shape[1]
-        self.M, self.C = sps.csr_matrix(M), sps.csr_matrix(C)
+        self.M, self.C, self.K = sps.csr_matrix(M), sps.csr_matrix(C), sps.csr_matrix(K)
         self.bands = [self._band(A) for A in (M, C, K)]
         from dtdyn.nonlinear._receptance import band_diagonals
-        self.kc = band_diagonals([K, C], width)
+        self.kc = band_diagonals([K, C] if parts is None else [K], width)
         self.last_correction = 0.0
 
     def _band(self, A):
@@ -200,7 +207,8 @@ class _BandedReceptance:
         """Z = D(wk)^-1 cols, refined, and C Z (both (n, columns), complex)."""
         from scipy.linalg import lapack
 
-        from dtdyn.nonlinear._receptance import REFINE_STEPS, REFINE_TOL, exact_product
+        from dtdyn.nonlinear._receptance import (REFINE_STEPS, REFINE_TOL, damping_product,
+                                                 exact_product)
         bM, bC, bK = self.bands
         w = self.width
         ab = np.zeros((3 * w + 1, bK.shape[1]), complex)
@@ -215,9 +223,16 @@ class _BandedReceptance:
         last = np.inf
         for _ in range(REFINE_STEPS):
             X = np.hstack([Z.real, Z.imag])
-            (kh, ch), (kl, cl) = exact_product(self.kc, X)      # K X and C X exactly
-            CZ = (ch[:, :c] + cl[:, :c]) + 1j * (ch[:, c:] + cl[:, c:])
             mx = self.M @ X
+            if self.parts is None:
+                (kh, ch), (kl, cl) = exact_product(self.kc, X)      # K X and C X exactly
+            else:         # K X exactly, C X = alpha M X + beta K X + E X from it
+                (kh,), (kl,) = exact_product(self.kc, X)
+                alpha, beta, E = self.parts
+                ch, cl = beta * kh + alpha * mx, beta * kl
+                if E is not None:
+                    ch = ch + E @ X
+            CZ = (ch[:, :c] + cl[:, :c]) + 1j * (ch[:, c:] + cl[:, c:])
             re = ((B.real - kh[:, :c] + w2 * mx[:, :c] + wk * ch[:, c:]) - kl[:, :c]
                   + wk * cl[:, c:])
             im = ((B.imag - kh[:, c:] + w2 * mx[:, c:] - wk * ch[:, :c]) - kl[:, c:]
@@ -226,7 +241,8 @@ class _BandedReceptance:
             size = float(np.abs(dZ).max()) / max(float(np.abs(Z).max()), 1e-300)
             if size > last:          # diverging: the LU too inaccurate at this w to correct
                 break
-            Z, CZ = Z + dZ, CZ + self.C @ dZ
+            Z, CZ = Z + dZ, CZ + (self.C @ dZ if self.parts is None else
+                                  damping_product(self.parts, self.M, self.K, dZ))
             stalled, last = size > 0.5 * last, size
             if stalled or size <= REFINE_TOL:
                 break
@@ -236,6 +252,9 @@ class _BandedReceptance:
 
 #: the banded receptance is used for sparse symmetric models up to this bandwidth
 BANDED_MAX_WIDTH = 16
+#: "auto" tries the reduced receptance on sparse symmetric banded models with Rayleigh damping
+#: from this many DOFs (below, its setup costs more than the banded LU's points save)
+REDUCED_AUTO_MIN_DOFS = 50
 
 
 # ----------------------------------------------------------------------------------------------
@@ -432,7 +451,10 @@ def _hill(M, C, K, L, Jy, Jv, omega, D):
           + Gv @ np.kron(Nab, np.eye(n)))
     m = n * nH
     Z, I_m = np.zeros((m, m)), np.eye(m)
-    lam, vec = sla.eig(np.block([[Z, I_m], [-A0, -A1]]), np.block([[I_m, Z], [Z, A2]]))
+    if np.array_equal(M, np.eye(n)):       # A2 = I (a reduced model): a standard eigenproblem
+        lam, vec = np.linalg.eig(np.block([[Z, I_m], [-A0, -A1]]))
+    else:
+        lam, vec = sla.eig(np.block([[Z, I_m], [-A0, -A1]]), np.block([[I_m, Z], [Z, A2]]))
     ok = np.isfinite(lam)
     lam, vec = lam[ok], vec[:m, ok]
     keep = lam.size // nH
@@ -833,6 +855,54 @@ def _solve(A, b):
 #: Hill's method is refused beyond this size 2 n (2 H + 1) of its dense eigenproblem
 HILL_MAX_SIZE = 6000
 
+
+def _stability_choice(stability, n, H):
+    """None (no stability), "full" or "reduced" Hill's method from the ``stability`` option."""
+    if stability is False:
+        return None
+    size = 2 * n * (2 * H + 1)
+    if stability is True or stability == "full":
+        if size > HILL_MAX_SIZE:
+            raise ValueError(f"stability={stability!r}: Hill's method on the full model is a "
+                             f"dense eigenproblem of size 2 n (2 H + 1) = {size} here (at most "
+                             f"{HILL_MAX_SIZE}); pass stability='reduced' (or 'auto') for Hill's "
+                             "method on a reduced model, or stability=False")
+        return "full"
+    if stability == "reduced":
+        return "reduced"
+    if stability == "auto":
+        return "full" if size <= HILL_MAX_SIZE else "reduced"
+    raise ValueError(f"stability must be True, False, 'auto', 'full' or 'reduced', got "
+                     f"{stability!r}")
+
+
+def _hill_model(choice, M, C, K, L, H, w_top, model=None):
+    """The matrices (M, C, K, L) Hill's method runs on (dense), or None without stability, and
+    a dict describing them; "reduced": `reduced_hill_model` for the frequencies up to
+    (H + 1) ``w_top``."""
+    if choice is None:
+        return None
+    if choice == "full":
+        Md, Cd, Kd = ((A.toarray() if sps.issparse(A) else np.asarray(A, dtype=float))
+                      for A in (M, C, K))
+        return (Md, Cd, Kd, L), dict(method="full", size=M.shape[0])
+    from dtdyn.nonlinear._hill_reduced import reduced_hill_model
+    width = None
+    if sps.issparse(M) or sps.issparse(K):
+        if not all(_symmetric(sps.csr_matrix(A)) for A in (M, K)):
+            raise ValueError("stability='reduced' needs symmetric M and K (the modes of K, M)")
+        width = _bandwidth(M, C, K)
+        width = width if width <= BANDED_MAX_WIDTH and _symmetric(sps.csr_matrix(C)) else None
+    elif not (np.allclose(M, M.T, rtol=1e-13, atol=0) and np.allclose(K, K.T, rtol=1e-13,
+                                                                       atol=0)):
+        raise ValueError("stability='reduced' needs symmetric M and K (the modes of K, M)")
+    from dtdyn.nonlinear._receptance import rayleigh_parts
+    parts = rayleigh_parts(model, M, C, K) if sps.issparse(M) else None
+    Mr, Cr, Kr, Lr, info = reduced_hill_model(M, C, K, L, (H + 1) * w_top, width=width,
+                                              parts=parts)
+    info.update(method="reduced")
+    return (Mr, Cr, Kr, Lr), info
+
 _COMMON_PARAMETERS = """harmonics : int
         H, the highest harmonic kept (0 .. H, the static part included).
     outputs : sequence of int or DOF names, optional
@@ -847,17 +917,31 @@ _COMMON_PARAMETERS = """harmonics : int
         matrices stay sparse); "banded": LAPACK's banded LU of a sparse symmetric banded model
         (chains, beams, shafts without branches), O(n) per harmonic, each solve refined with
         residuals in twice the working precision (a beam's assembled K loses ~eps N^3.5 in the
-        LU alone: 7.8e-3 at 10,000 elements); "auto": modal for dense models up to 2000 DOFs,
-        banded without the refinement (faster, as accurate on chains and beams of up to ~1,000
-        elements) for sparse symmetric ones of bandwidth <= 16 (a `Chain`, `Beam`, `Shaft`), else
-        direct. "reduced" (sparse symmetric models with Rayleigh or no
-        damping): the modes below a cut-off above the highest harmonic plus the higher modes'
-        residual as a short series, built once, so that a point costs the same whatever n; it
-        is checked at setup against "banded" at the highest harmonic frequency (1e-8 relative)
-        and falls back to "banded", with a warning, when the check fails (info["receptance"]
-        and info["receptance_check"] say which ran and why).
-    stability : bool
-        Hill's method at every point (dense, of size 2 n (2 H + 1), refused above 6000).
+        LU alone: 7.8e-3 at 10,000 elements); "reduced" (sparse symmetric models with Rayleigh
+        or no damping): the modes below a cut-off above the highest harmonic plus the higher
+        modes' residual as a short series, built once, so that a point costs the same whatever
+        n; it is checked at setup against "banded" at the highest harmonic frequency (1e-8
+        relative) and falls back to "banded", with a warning, when the check fails
+        (info["receptance"] and info["receptance_check"] say which ran and why). A `Beam` with
+        ``rayleigh`` keeps alpha M and beta K apart in both (the modes' damping
+        alpha + beta omega_r^2: its assembled C loses alpha M to rounding at large N, 40 % of
+        the first mode's damping at 10,000 elements). "auto": modal for dense models up to
+        2000 DOFs; for sparse symmetric ones of bandwidth <= 16 (a `Chain`, `Beam`, `Shaft`)
+        "reduced" when they have Rayleigh or no damping and at least 50 DOFs, with LAPACK's
+        banded LU without the refinement where its check fails (no warning), and that banded
+        LU otherwise; else direct. The unrefined banded LU loses about eps N^3.5 on a beam of
+        N elements (1.9e-6 of a static deflection at 1,000 elements, 7.8e-3 at 10,000; on a
+        chain about eps N^2), more near a resonance: choose "banded" for the refined solves.
+    stability : {"auto", "full", "reduced"} or bool
+        Hill's method at every point, for the labels ``stable``, ``floquet_exponents`` and the
+        bifurcations. "full" (or True): on the full model, a dense eigenproblem of size
+        2 n (2 H + 1), refused above 6000. "reduced": on a reduced model of the modes below
+        2 (H + 1) times the highest forcing frequency and the elements' attachment modes with
+        two mass corrections (M, C, K projected, the elements' Jacobians of the point), of a
+        size that does not grow with n (symmetric M, K; at most 150 reduced DOFs, else refused);
+        its exponents equal the full Hill's to ~1e-8 relative in the tests. "auto": "full" up
+        to 6000, "reduced" above. False: none (``stable`` and ``floquet_exponents`` None).
+        info["stability"] says which ran, the reduced model's size and the time it took.
     step, max_step, min_step : float
         Initial, largest and smallest arclength step in the scaled variables (the parameter
         per its range's span, deformations per their largest amplitude so far).
@@ -876,10 +960,12 @@ _COMMON_PARAMETERS = """harmonics : int
         amplitude; "all" every point; 0 none."""
 
 
-def _receptance(receptance, M, C, K, L, outputs, B, w_max=None):
+def _receptance(receptance, M, C, K, L, outputs, B, w_max=None, model=None):
     """The receptance object of the choice ``receptance`` (and M, C, K as it holds them);
     ``w_max``: the highest angular frequency it will be asked for, if known (rad/s; "reduced"
-    is then set up once)."""
+    is then set up once); ``model``: the model object M, C, K come from, if any (a Beam's
+    Rayleigh coefficients keep alpha M and beta K apart in "reduced" and "banded")."""
+    from dtdyn.nonlinear._receptance import rayleigh_parts
     sparse = sps.issparse(M) or sps.issparse(K)
     n = M.shape[0]
     width = None
@@ -889,15 +975,23 @@ def _receptance(receptance, M, C, K, L, outputs, B, w_max=None):
         if receptance in ("banded", "reduced") and width is None:
             raise ValueError(f"receptance={receptance!r} needs sparse symmetric M, C, K (a Chain, "
                              "Beam or Shaft, or scipy.sparse matrices)")
-    if receptance == "reduced":
+    if receptance in ("auto", "reduced") and width is not None:
         from dtdyn.nonlinear._receptance import ReducedReceptance, rayleigh_coefficients
-        damping = rayleigh_coefficients(M, C, K)
-        if damping is None:
-            raise ValueError("receptance='reduced' needs Rayleigh damping C = alpha M + beta K "
-                             "(or none): the modes must diagonalize C")
-        exact = _BandedReceptance(M, C, K, L, outputs, B, width, refine=True)
-        return ReducedReceptance(exact, M, C, K, L, outputs, B, damping, w_max=w_max,
-                                 strict=True), (M, C, K)
+        auto = receptance == "auto"
+        if not auto or (n >= REDUCED_AUTO_MIN_DOFS and width <= BANDED_MAX_WIDTH):
+            parts = rayleigh_parts(model, M, C, K)
+            damping = rayleigh_coefficients(M, C, K) if parts is None else parts[:2]
+            if damping is None and not auto:
+                raise ValueError("receptance='reduced' needs Rayleigh damping C = alpha M + "
+                                 "beta K (or none): the modes must diagonalize C")
+            if damping is not None:
+                exact = _BandedReceptance(M, C, K, L, outputs, B, width, refine=True,
+                                          parts=parts)
+                backup = (_BandedReceptance(M, C, K, L, outputs, B, width) if auto else
+                          None)
+                return ReducedReceptance(exact, M, C, K, L, outputs, B, damping, w_max=w_max,
+                                         strict=not auto, parts=parts,
+                                         backup=backup), (M, C, K)
     chosen = receptance
     if receptance == "auto":
         receptance = ("banded" if width is not None and width <= BANDED_MAX_WIDTH else
@@ -908,8 +1002,10 @@ def _receptance(receptance, M, C, K, L, outputs, B, w_max=None):
             M, C, K = M.toarray(), C.toarray(), K.toarray()
         return _ModalReceptance(M, C, K, L, outputs, B), (M, C, K)
     if receptance == "banded":  # chosen: refined; by "auto": LAPACK's solve as it is
-        return _BandedReceptance(M, C, K, L, outputs, B, width,
-                                 refine=chosen == "banded"), (M, C, K)
+        refine = chosen == "banded"
+        return _BandedReceptance(M, C, K, L, outputs, B, width, refine=refine,
+                                 parts=rayleigh_parts(model, M, C, K) if refine else None), \
+            (M, C, K)
     if sparse:
         M, C, K = sps.csc_matrix(M), sps.csc_matrix(C), sps.csc_matrix(K)
     return _DirectReceptance(M, C, K, L, outputs, B), (M, C, K)
@@ -920,6 +1016,7 @@ def _prepare(M, C, K, elements, force_dofs, force, ground_acceleration, influenc
              max_iter, max_points, convergence_points, omega=None, w_top=None):
     """The checked inputs: (system, continuation options, model data for the result);
     ``w_top``: the highest fundamental angular frequency of the run (rad/s), if known."""
+    source = M
     M, C, K, names, rigid, is_model = _model(M, C, K)
     sparse = sps.issparse(M) or sps.issparse(K)
     M, C, K = linalg.mck(M, C, K, keep_sparse=sparse)
@@ -947,11 +1044,7 @@ def _prepare(M, C, K, elements, force_dofs, force, ground_acceleration, influenc
     if receptance not in ("auto", "modal", "direct", "banded", "reduced"):
         raise ValueError(f"receptance must be 'auto', 'modal', 'direct', 'banded' or 'reduced', "
                          f"got {receptance!r}")
-    validate.flag("stability", stability)
-    if stability and 2 * n * (2 * H + 1) > HILL_MAX_SIZE:
-        raise ValueError(f"stability=True: Hill's method is a dense eigenproblem of size 2 n "
-                         f"(2 H + 1) = {2 * n * (2 * H + 1)} here (at most {HILL_MAX_SIZE}); "
-                         "pass stability=False for a model of this size")
+    stability = _stability_choice(stability, n, H)
     opts = dict(step=validate.positive_scalar("step", step),
                 max_step=validate.positive_scalar("max_step", max_step),
                 min_step=validate.positive_scalar("min_step", min_step),
@@ -973,11 +1066,14 @@ def _prepare(M, C, K, elements, force_dofs, force, ground_acceleration, influenc
     # the highest harmonic frequency of the curve, H w_top (the H -> 2 H check asks for more:
     # a reduced receptance is rebuilt for it then)
     w_max = None if w_top is None else w_top * H
-    rec, (M, C, K) = _receptance(receptance, M, C, K, L, outputs, B, w_max=w_max)
+    rec, (M, C, K) = _receptance(receptance, M, C, K, L, outputs, B, w_max=w_max,
+                                 model=source if is_model else None)
     system = _System(rec, _law_function(elements, N), len(elements), outputs.size, F, H, N,
                      omega)
     model = dict(M=M, C=C, K=K, L=L, outputs=outputs, r_g=r_g, A_g=A_g, stability=stability,
                  is_model=is_model, elements=elements, convergence_points=convergence_points)
+    model["hill"] = _hill_model(stability, M, C, K, L, H, w_top,
+                                model=source if is_model else None)
     return system, tol, max_iter, opts, model
 
 
@@ -1083,21 +1179,23 @@ def _curve(system, cont, U, p0, p1, opts, model, t_start) -> HarmonicBalanceResu
         a_abs_max = np.array([_peak(A) for A in a_abs])
         a_abs = np.transpose(a_abs, (0, 2, 1))
     stable = lam = None
-    if model["stability"]:
-        Md, Cd, Kd = ((A.toarray() if sps.issparse(A) else A)
-                      for A in (model["M"], model["C"], model["K"]))
+    hill_info = None
+    if model["hill"] is not None:
+        t_hill = time.perf_counter()
+        (Md, Cd, Kd, Lh), hill_info = model["hill"]
         _, _, D = _basis(H, system.N)
         lam = []
         for (U, _, _), w in zip(points, omega):
             Jy, Jv = system.linearization(U, w)
-            lam.append(_hill(Md, Cd, Kd, model["L"], Jy, Jv, w, D))
+            lam.append(_hill(Md, Cd, Kd, Lh, Jy, Jv, w, D))
         width = max(v.size for v in lam)
         lam = np.array([np.pad(v, (0, width - v.size), constant_values=np.nan) for v in lam])
         stable = np.nanmax(lam.real, axis=1) < 1e-9 * omega
 
         def hill_at(U, w):
-            return _hill(Md, Cd, Kd, model["L"], *system.linearization(U, w), w, D)
+            return _hill(Md, Cd, Kd, Lh, *system.linearization(U, w), w, D)
         crossings = _crossings(lam, omega, p, fold_steps, cont, arcs, system, hill_at)
+        hill_info = dict(hill_info, time=time.perf_counter() - t_hill)
     else:
         crossings = []
     kinds = ["fold"] * len(folds) + [c[0] for c in crossings]
@@ -1113,7 +1211,7 @@ def _curve(system, cont, U, p0, p1, opts, model, t_start) -> HarmonicBalanceResu
                 law_evaluations=system.evaluations,
                 receptance_evaluations=system.receptance_evaluations,
                 run_time=time.perf_counter() - t_start, receptance=receptance,
-                receptance_check=check,
+                receptance_check=check, stability=hill_info,
                 n_time=system.N, harmonics=H, stop=stop,
                 harmonic_error=float(harmonic_error.max()),
                 harmonic_error_points=harmonic_error,
@@ -1141,7 +1239,7 @@ def _curve(system, cont, U, p0, p1, opts, model, t_start) -> HarmonicBalanceResu
 @public(renamed={"frequencies": "freqs_hz"})
 def harmonic_balance(M, C=None, K=None, *, elements, freqs_hz, force_dofs=None, force=None,
                      ground_acceleration=None, influence=None, harmonics=7, outputs=None,
-                     n_time=None, receptance="auto", stability=True, step=0.02, max_step=0.1,
+                     n_time=None, receptance="auto", stability="auto", step=0.02, max_step=0.1,
                      min_step=1e-7, max_angle=0.35, max_points=5000, tol=1e-10,
                      max_iter=20, convergence_points=10) -> HarmonicBalanceResult:
     """Periodic steady-state frequency response of M q'' + C q' + K q + L^T g = f(t) by
@@ -1222,7 +1320,7 @@ def harmonic_balance(M, C=None, K=None, *, elements, freqs_hz, force_dofs=None, 
 def harmonic_balance_amplitude(M, C=None, K=None, *, elements, frequency_hz, amplitudes,
                                force_dofs=None, force=None, ground_acceleration=None,
                                influence=None, harmonics=7, outputs=None, n_time=None,
-                               receptance="auto", stability=True, step=0.02, max_step=0.1,
+                               receptance="auto", stability="auto", step=0.02, max_step=0.1,
                                min_step=1e-7, max_angle=0.35, max_points=5000, tol=1e-10,
                                max_iter=20, convergence_points=10) -> HarmonicBalanceResult:
     """Periodic steady state at a fixed forcing frequency, continued in the load's amplitude:

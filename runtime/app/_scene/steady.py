@@ -14,7 +14,8 @@ model and elements), saving and plotting the frequency response curve.
     # ground_acceleration = 0.05        # support motion, m/s^2 (rad/s^2 on a shaft): a number
                                         #   or [re, im]; or ground_acceleration_harmonics = [...]
     # influence = [1.0, 1.0]            # matrices and beam scenes: r, one entry per DOF
-    stability = true                    # optional: Hill's method at every point
+    stability = "auto"                  # optional: Hill's method at every point (true or
+                                        # "full": the whole model; "reduced"; false: none)
     # step, max_step, min_step, max_angle, max_points, tol, max_iter, n_time, receptance,
     #   convergence_points: optional, harmonic_balance's keywords and defaults
     # frequency_hz = 0.25               # instead of freqs_hz: at one frequency, the load
@@ -242,8 +243,10 @@ def _options(tbl: dict, H: int, defaults: dict) -> dict:
     """The continuation's and the solver's options the table gives."""
     kw = {}
     if "stability" in tbl:
-        if not isinstance(tbl["stability"], bool):
-            raise ValueError(f"harmonic.stability = {tbl['stability']!r}: must be true or false")
+        if not (isinstance(tbl["stability"], bool)
+                or tbl["stability"] in ("auto", "full", "reduced")):
+            raise ValueError(f"harmonic.stability = {tbl['stability']!r}: must be true, false, "
+                             "'auto', 'full' or 'reduced'")
         kw["stability"] = tbl["stability"]
     for key in ("step", "max_step", "min_step", "max_angle", "tol"):
         if key in tbl:
