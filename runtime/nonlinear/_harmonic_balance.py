@@ -1306,14 +1306,40 @@ def harmonic_balance(M, C=None, K=None, *, elements, freqs_hz, force_dofs=None, 
         max_iter, max_points, convergence_points, w_top=2 * np.pi * max(f0, f1))
     w0, w1 = 2 * np.pi * f0, 2 * np.pi * f1
     cont = _Continuation(system, tol, max_iter, abs(w1 - w0))
-    # the first point: Newton at the start frequency from the linear response
-    ne = system.ne
-    Hm, _ = system.receptance(w0)
-    U = _real(np.einsum("kec,kc->ke", Hm[:, :ne, ne:], system.F))
-    cont.su = max(np.abs(U).max(), 1e-300)
-    U, _ = cont.solve_fixed(U, w0)
+    U = _first_point(system, cont, w0)
     cont.su = max(np.abs(U).max(), 1e-300)
     return _curve(system, cont, U, w0, w1, opts, model, t_start)
+
+
+def _first_point(system, cont, w0):
+    """The curve's first point: Newton at w0 from the linear response. Where that fails (a load
+    far beyond the linear range), the load is brought in by steps, s F for s = 1/8, 1/4, ..
+    1 (a step that fails is halved, down to 1/1024), each Newton from the last solution."""
+    ne, F = system.ne, system.F
+    Hm, _ = system.receptance(w0)
+    linear = _real(np.einsum("kec,kc->ke", Hm[:, :ne, ne:], F))
+    cont.su = max(np.abs(linear).max(), 1e-300)
+    try:
+        return cont.solve_fixed(linear, w0)[0]
+    except NewtonError as exc:
+        failure = exc
+    done, U, ds = 0.0, 0.0 * linear, 0.125
+    try:
+        while done < 1.0:
+            s = min(1.0, done + ds)
+            system.F = s * F
+            cont.su = max(s * np.abs(linear).max(), np.abs(U).max(), 1e-300)
+            try:
+                U = cont.solve_fixed(U if done > 0 else s * linear, w0)[0]
+            except NewtonError:
+                ds /= 2
+                if ds < 1.0 / 1024:
+                    raise failure from None
+                continue
+            done, ds = s, 2 * ds
+    finally:
+        system.F = F
+    return U
 
 
 @public

@@ -772,3 +772,15 @@ def test_period_doubling_of_a_quadratic_oscillator_against_the_monodromy():
     assert list(r.bifurcation_kind) == ["period_doubling", "period_doubling"]
     lo, hi = r.bifurcation_frequency_hz
     assert 0.29 < lo < 0.305 and 0.32 < hi < 0.34
+
+
+def test_first_point_beyond_the_linear_range_brings_the_load_in_by_steps():
+    """F = 1 at 0.08 Hz: Newton from the linear response does not converge there (residual
+    0.09 after 20 iterations); the load brought in by steps gives the point the curve swept
+    down from 0.15 Hz ends on."""
+    kw = dict(elements=[Cubic(0, k3=K3)], force_dofs=[0], force=[1.0], harmonics=7)
+    start = harmonic_balance(np.eye(1), [[C_D]], np.eye(1), freqs_hz=(0.08, 0.0808), **kw)
+    swept = harmonic_balance(np.eye(1), [[C_D]], np.eye(1), freqs_hz=(0.15, 0.08), **kw)
+    assert start.frequency_hz[0] == swept.frequency_hz[-1] == 0.08
+    np.testing.assert_allclose(start.harmonics[0], swept.harmonics[-1], rtol=0,
+                               atol=1e-9 * np.abs(swept.harmonics[-1]).max())
