@@ -42,32 +42,9 @@ from dtdyn.app import pin_blas
 sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parent))
 from harmonic_balance_beam import curve, problem  # noqa: E402
 
-KC, FC = 0.05, 0.02
-
-
-def coupled_chain(s=8, ms=0.01):
-    """Two unit masses coupled by KC, each grounded through s masses ms in series (springs
-    s + 1, total static stiffness 1), C = 0.008 M + 0.002 K."""
-    n = 2 + 2 * s
-    K, M = np.zeros((n, n)), np.zeros((n, n))
-
-    def spring(i, j, k):
-        K[i, i] += k
-        if j is not None:
-            K[j, j] += k
-            K[i, j] -= k
-            K[j, i] -= k
-    M[0, 0] = M[1, 1] = 1.0
-    spring(0, 1, KC)
-    for a, first in ((0, 2), (1, 2 + s)):
-        chain = [a] + list(range(first, first + s))
-        for p, q in zip(chain[:-1], chain[1:]):
-            spring(p, q, float(s + 1))
-        spring(chain[-1], None, float(s + 1))
-        for q in chain[1:]:
-            M[q, q] = ms
-    return M, 0.008 * M + 0.002 * K, K
-
+sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1] / "tests"
+                       / "behaviour"))
+from test_hill_reduced import FC, coupled_chain  # noqa: E402   (the test's model)
 
 def run(*args, **kw):
     with warnings.catch_warnings():
@@ -114,7 +91,7 @@ def report_pair(name, full, red):
 
 
 def part_a():
-    M, C, K = coupled_chain()
+    M, C, K = coupled_chain(8)
     kw = dict(elements=[dd.Cubic(0, k3=1.0), dd.Cubic(1, k3=1.0)], force_dofs=[0], force=[FC],
               freqs_hz=(0.16, 0.21), harmonics=5, max_step=0.05, convergence_points=0)
     full = run(M, C, K, stability=True, **kw)
