@@ -34,6 +34,7 @@ from dtdyn.generated import beam as derived
 from dtdyn._engine import cbuild
 from dtdyn._engine import ground as support
 from dtdyn._engine import linalg, validate
+from dtdyn._engine.twofold import add_product, two_sum
 from dtdyn._engine.public import public
 from dtdyn.linear import _mck as mck
 from dtdyn.linear._solver import (Model, Solver, check_backend, nonlinear_solver, scheme_key,
@@ -1133,35 +1134,6 @@ def refine_data(beam: Beam, sch, K_, corrections: int):
     return np.ascontiguousarray(np.concatenate([head, pts, held]), dtype=float)
 
 
-def _split(a):
-    """Veltkamp's split of a into two halves of 26 bits (a = hi + lo exactly)."""
-    t = 134217729.0 * a
-    hi = t - (t - a)
-    return hi, a - hi
-
-
-def _two_prod(a, b):
-    """a b = p + e exactly (Dekker's product: NumPy has no fma)."""
-    p = a * b
-    ah, al = _split(a)
-    bh, bl = _split(b)
-    return p, ((ah * bh - p) + ah * bl + al * bh) + al * bl
-
-
-def _two_sum(a, b):
-    """a + b = s + e exactly (Knuth)."""
-    s = a + b
-    bb = s - a
-    return s, (a - (s - bb)) + (b - bb)
-
-
-def _add_product(hi, lo, a, b):
-    """(hi, lo) + a b, double-double."""
-    p, ep = _two_prod(a, b)
-    s, e = _two_sum(hi, p)
-    return s, lo + (e + ep)
-
-
 def refined_residual(beam, K_, L, H, u, F, terms):
     """block_chain.h's refinement residual in NumPy: F - K (q + p u) - C (s + r u) -
     M (b + alpha u) over the node system (2 i + c), element by element with the deformations in
@@ -1174,18 +1146,18 @@ def refined_residual(beam, K_, L, H, u, F, terms):
     for t, coef in enumerate((K_["p"], K_["r"], K_["alpha_u"])):
         hi, lo = np.zeros_like(u), np.zeros_like(u)
         for j in np.flatnonzero(L[t]):
-            hi, lo = _add_product(hi, lo, L[t, j], H[j])
-        eq.append(_add_product(hi, lo, coef, u))
+            hi, lo = add_product(hi, lo, L[t, j], H[j])
+        eq.append(add_product(hi, lo, coef, u))
     (xh, xl), (vh, vl), (ah, al) = eq
-    xh, xl = _add_product(xh, xl, beta, vh)
-    Xh, Xl = _two_sum(xh, xl + beta * vl)
+    xh, xl = add_product(xh, xl, beta, vh)
+    Xh, Xl = two_sum(xh, xl + beta * vl)
     xmax = np.abs(Xh).reshape(-1, 2).max(axis=0)
     Y = (ah + al) + alpha * (vh + vl)
     wh, wl, ph, pl = Xh[0::2], Xl[0::2], Xh[1::2], Xl[1::2]
-    yh, e = _two_sum(wh[:-1], -wh[1:])
-    yh, yl = _add_product(yh, e + (wl[:-1] - wl[1:]), h, ph[1:])
+    yh, e = two_sum(wh[:-1], -wh[1:])
+    yh, yl = add_product(yh, e + (wl[:-1] - wl[1:]), h, ph[1:])
     yw = yh + (yl + h * pl[1:])
-    yh, e = _two_sum(ph[:-1], -ph[1:])
+    yh, e = two_sum(ph[:-1], -ph[1:])
     yp = yh + (e + (pl[:-1] - pl[1:]))
     fw, fp = f00 * yw + f01 * yp, f01 * yw + f11 * yp
     mass = Me @ np.stack([Y[0:-2:2], Y[1:-1:2], Y[2::2], Y[3::2]])

@@ -34,6 +34,7 @@ from scipy.linalg import lapack
 
 from dtdyn._engine import linalg, validate
 from dtdyn._engine.frf import receptance_matrix
+from dtdyn._engine.twofold import split, two_prod, two_sum
 from dtdyn._engine.public import public
 from dtdyn.generated import beam as derived
 from dtdyn.linear import _sweep_modes as sweep_modes
@@ -211,8 +212,6 @@ def _pivoted_step(phi, lam, K, M):
     return out
 
 
-#: Dekker's splitter: a = hi + lo with hi, lo of 26 bits, so hi * hi' etc. are exact
-_SPLITTER = 134217729.0
 #: modes refined together (the products over the band run on (chunk, n) arrays)
 _CHUNK = 16
 #: residual-correction steps after the two steps of inverse iteration
@@ -221,29 +220,20 @@ _CORRECTIONS = 3
 _CONFIRM = 1e-7
 
 
-def _split(a):
-    c = _SPLITTER * a
-    hi = c - (c - a)
-    return hi, a - hi
-
-
 def _exact_band_product(diags, x):
     """K x as an unevaluated sum hi + lo, for K by its diagonals ``diags`` ((offset, K[i, i +
     offset] for every i, its two halves)), x (k, n): every product exact (Dekker's two-product)
     and the sums compensated (Knuth's two-sum), so hi + lo is K x to about eps^2 |K| |x|."""
     n = x.shape[-1]
-    xh, xl = _split(x)
+    xh, xl = split(x)
     s, err = np.zeros_like(x), np.zeros_like(x)
     for d, a, ah, al in diags:
         rows, cols = (slice(0, n - d), slice(d, n)) if d >= 0 else (slice(-d, n),
                                                                      slice(0, n + d))
-        b, bh, bl, t0 = x[:, cols], xh[:, cols], xl[:, cols], s[:, rows]
-        p = a * b
-        pe = ((ah * bh - p) + ah * bl + al * bh) + al * bl
-        t = t0 + p
-        bb = t - t0
-        err[:, rows] += ((t0 - (t - bb)) + (p - bb)) + pe
-        s[:, rows] = t
+        b = x[:, cols]
+        p, pe = two_prod(a, b, (ah, al), (xh[:, cols], xl[:, cols]))
+        s[:, rows], te = two_sum(s[:, rows], p)
+        err[:, rows] += te + pe
     return s, err
 
 
@@ -257,7 +247,7 @@ def _pencil_bands(beam: Beam):
     offsets = range(-width, width + 1)
     kd = [(d, K.diagonal(d) / kscale) for d in offsets]
     md = [(d, M.diagonal(d) / mscale) for d in offsets]
-    return width, [(d, a, *_split(a)) for d, a in kd], md, kscale / mscale
+    return width, [(d, a, *split(a)) for d, a in kd], md, kscale / mscale
 
 
 def refined_roots(beam: Beam, lam: np.ndarray, index: np.ndarray, blocks) -> np.ndarray:

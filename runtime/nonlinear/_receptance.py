@@ -55,6 +55,8 @@ import numpy as np
 import scipy.sparse as sps
 import scipy.sparse.linalg as spla
 
+from dtdyn._engine.twofold import split, two_prod, two_sum
+
 #: the reduced receptance keeps at most this many modes (a model with more below its cut-off,
 #: e.g. a long chain whose band is dense in modes, keeps the exact banded receptance)
 REDUCED_MAX_MODES = 200
@@ -75,18 +77,10 @@ REDUCED_MARGIN = 1.25
 # relative (docs/beam_conditioning.md); b - K x summed exactly (Dekker's two-product, Knuth's
 # two-sum) and corrected with the same LU recovers the digits while that loss is below 1
 
-#: Dekker's splitter: a = hi + lo with hi, lo of 26 bits, so that their products are exact
-_SPLITTER = 134217729.0
 #: refinement steps at most (each stops early when its correction no longer halves)
 REFINE_STEPS = 6
 #: refinement stops at a correction below this (relative to the solution's largest entry)
 REFINE_TOL = 1e-13
-
-
-def _split(a):
-    c = _SPLITTER * a
-    hi = c - (c - a)
-    return hi, a - hi
 
 
 def band_diagonals(mats, width):
@@ -99,7 +93,7 @@ def band_diagonals(mats, width):
     for m, A in enumerate(mats):
         A = sps.coo_matrix(A)
         np.add.at(a[m], (A.col - A.row + width, A.row), A.data)
-    return (single, width, a[..., None], *(h[..., None] for h in _split(a)))
+    return (single, width, a[..., None], *(h[..., None] for h in split(a)))
 
 
 def exact_product(bands, X):
@@ -108,19 +102,15 @@ def exact_product(bands, X):
     the sums compensated (Knuth's two-sum), so that hi + lo is A X to about eps^2 |A| |X|."""
     single, w, a, ah, al = bands
     n, k = X.shape
-    Xh, Xl = _split(X)
+    Xh, Xl = split(X)
     s, err = np.zeros((a.shape[0], n, k)), np.zeros((a.shape[0], n, k))
     for j in range(2 * w + 1):
         d = j - w
         rows, cols = (slice(0, n - d), slice(d, n)) if d >= 0 else (slice(-d, n), slice(0, n + d))
         aj, ahj, alj = a[:, j, rows], ah[:, j, rows], al[:, j, rows]
-        b, bh, bl, t0 = X[cols], Xh[cols], Xl[cols], s[:, rows]
-        p = aj * b
-        pe = ((ahj * bh - p) + ahj * bl + alj * bh) + alj * bl
-        t = t0 + p
-        bb = t - t0
-        err[:, rows] += ((t0 - (t - bb)) + (p - bb)) + pe
-        s[:, rows] = t
+        p, pe = two_prod(aj, X[cols], (ahj, alj), (Xh[cols], Xl[cols]))
+        s[:, rows], te = two_sum(s[:, rows], p)
+        err[:, rows] += te + pe
     return (s[0], err[0]) if single else (s, err)
 
 

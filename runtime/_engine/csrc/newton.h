@@ -140,6 +140,22 @@ static inline double grow(double s, double v)
     return (v > s && v < INFINITY) ? v : s;
 }
 
+/* |J_yy - I|_inf over the first ne rows and columns of J (n x n, column-major): how far the
+ * elements' block of the iteration is from contracting (docs/newton.md). */
+static inline double gain_contraction(long nu, long ne, const double *restrict J)
+{
+    double theta = 0.0;
+    long i, k;
+    for (i = 0; i < ne; ++i) {
+        double row = 0.0;
+        for (k = 0; k < ne; ++k)
+            row += fabs(J[k * nu + i] - (i == k ? 1.0 : 0.0));
+        if (row > theta)
+            theta = row;
+    }
+    return theta;
+}
+
 /*
  * One step's Newton iteration under the acceptance rule of every backend (docs/newton.md):
  * u is accepted when
@@ -161,20 +177,13 @@ static long newton_solve(long nu, long ne, double *restrict u, double *restrict 
                          double *theta)
 {
     const double lim_r = tol * fmax(scale_r, DBL_MIN), lim_u = tol * fmax(scale_u, DBL_MIN);
-    long it, i, k;
+    long it, i;
     for (it = 0;; ++it) {
         nl_residual(arg, res, iw, w, 0);
         *rn = norm_inf(nu, r);
         if (!(*rn < INFINITY))
             return -1;
-        *theta = 0.0;
-        for (i = 0; i < ne; ++i) {
-            double row = 0.0;
-            for (k = 0; k < ne; ++k)
-                row += fabs(J[k * nu + i] - (i == k ? 1.0 : 0.0));
-            if (row > *theta)
-                *theta = row;
-        }
+        *theta = gain_contraction(nu, ne, J);
         if (*rn <= lim_r)
             return it;
         if (lu_solve(nu, J, r))
@@ -240,7 +249,7 @@ static inline long newton_kept(long nu, long ne, double *restrict u, double *res
 {
     const double lim_r = tol * fmax(scale_r, DBL_MIN), lim_u = tol * fmax(scale_u, DBL_MIN);
     double dprev = INFINITY;
-    long it, i, k;
+    long it, i;
     for (it = 0;; ++it) {
         double dn;
         int fresh = it >= KEPT_FRESH_ITERS;
@@ -248,14 +257,7 @@ static inline long newton_kept(long nu, long ne, double *restrict u, double *res
         *rn = norm_inf(nu, r);
         if (!(*rn < INFINITY))
             return -1;
-        *theta = 0.0;
-        for (i = 0; i < ne; ++i) {
-            double row = 0.0;
-            for (k = 0; k < ne; ++k)
-                row += fabs(J[k * nu + i] - (i == k ? 1.0 : 0.0));
-            if (row > *theta)
-                *theta = row;
-        }
+        *theta = gain_contraction(nu, ne, J);
         if (*rn <= lim_r)
             return it;
         if (lu_kept_step(nu, lu, J, r, d, &fresh))
