@@ -158,6 +158,8 @@ CONSTANTS = {
     "BLOCK_CHAIN_GAP": (8, "doubles before each row (64 bytes: the rows stay aligned)"),
     "BLOCK_CHAIN_ALIGN": (8, "the node stride P of every per-node row: N + 1 rounded up to a "
                              "multiple of this many doubles (64 bytes: the rows stay aligned)"),
+    "BLOCK_CHAIN_REFINE_ROWS": (10, "rows of P doubles the refined step needs after the "
+                                   "step's own (u, r, x_e hi and lo, ...: block_chain.h)"),
     # dtdyn_nl_stations' model (its dims[0], nl_stations.h)
     "NL_STATIONS_BEAM": (0, "a beam: the block chain step (block_chain.h)"),
     "NL_STATIONS_SHAFT": (1, "a shaft or tree: the tree sweep dtdyn_shaft_<scheme>"),

@@ -76,6 +76,9 @@ typedef int (*shaft_fn)(int form, int sweep, long N, long n_steps, const long *p
 /* the node stride P of every per-node row: N + 1 rounded up to a multiple of this many doubles (64
  * bytes: the rows stay aligned) */
 #define DTDYN_BLOCK_CHAIN_ALIGN (8)
+/* rows of P doubles the refined step needs after the step's own (u, r, x_e hi and lo, ...:
+ * block_chain.h) */
+#define DTDYN_BLOCK_CHAIN_REFINE_ROWS (10)
 /* a beam: the block chain step (block_chain.h) */
 #define DTDYN_NL_STATIONS_BEAM (0)
 /* a shaft or tree: the tree sweep dtdyn_shaft_<scheme> */

@@ -320,6 +320,8 @@ BLOCK_CHAIN_ROWS = 2
 BLOCK_CHAIN_GAP = 8
 #: the node stride P of every per-node row: N + 1 rounded up to a multiple of this many doubles (64 bytes: the rows stay aligned)
 BLOCK_CHAIN_ALIGN = 8
+#: rows of P doubles the refined step needs after the step's own (u, r, x_e hi and lo, ...: block_chain.h)
+BLOCK_CHAIN_REFINE_ROWS = 10
 #: a beam: the block chain step (block_chain.h)
 NL_STATIONS_BEAM = 0
 #: a shaft or tree: the tree sweep dtdyn_shaft_<scheme>
@@ -358,6 +360,7 @@ CONSTANTS = {
     "BLOCK_CHAIN_ROWS": BLOCK_CHAIN_ROWS,
     "BLOCK_CHAIN_GAP": BLOCK_CHAIN_GAP,
     "BLOCK_CHAIN_ALIGN": BLOCK_CHAIN_ALIGN,
+    "BLOCK_CHAIN_REFINE_ROWS": BLOCK_CHAIN_REFINE_ROWS,
     "NL_STATIONS_BEAM": NL_STATIONS_BEAM,
     "NL_STATIONS_SHAFT": NL_STATIONS_SHAFT,
     "NEWTON_PLAIN": NEWTON_PLAIN,

@@ -1075,9 +1075,6 @@ REFINE_MIN_ELEMENTS = 2000
 #: of a static deflection, 1e-12 left 7e-10)
 REFINE_CORRECTIONS = 8
 REFINE_TOL = 1e-12
-#: work rows of P doubles the kernel's refinement needs after the step's own (block_chain.h's
-#: BC_REFINE_ROWS; the kernel refuses a shorter work)
-REFINE_ROWS = 10
 
 
 def refinements(beam: Beam, refine) -> int:
@@ -1095,8 +1092,8 @@ def block_work(nodes: int, refined: bool) -> int:
     from dtdyn.generated import c_api
 
     P = _stride(nodes)
-    return c_api.BLOCK_CHAIN_ROWS * (P + c_api.BLOCK_CHAIN_GAP) + (REFINE_ROWS * P if refined
-                                                                    else 0)
+    refine_rows = c_api.BLOCK_CHAIN_REFINE_ROWS if refined else 0
+    return c_api.BLOCK_CHAIN_ROWS * (P + c_api.BLOCK_CHAIN_GAP) + refine_rows * P
 
 
 def _element_terms(beam: Beam):

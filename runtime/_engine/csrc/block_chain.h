@@ -351,8 +351,8 @@ enum {
     BR_ME,                  /* the element mass matrix, 4 x 4 row-major */
     BR_HEAD = BR_ME + 16
 };
-/* work rows of the refinement, P doubles each, after the step's own */
-#define BC_REFINE_ROWS 10
+/* work rows of the refinement, P doubles each, after the step's own (the contract's) */
+#define BC_REFINE_ROWS DTDYN_BLOCK_CHAIN_REFINE_ROWS
 
 /* a + b = s + e exactly (Knuth's TwoSum: any order of magnitude) */
 static inline double dd_two_sum(double a, double b, double *e)
