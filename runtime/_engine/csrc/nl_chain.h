@@ -31,7 +31,7 @@
 #include "stop.h"
 #include "flush_subnormals.h"
 
-#include "newton.h"
+#include "nl_elements.h"
 
 /*
  * dims: N, nh, n_loaded, nf (force columns), ne, nw, nz, no, n_samples, S, max_iter, form,
@@ -56,9 +56,8 @@
    and the kept factors */
 static long nl_chain_scratch(const long *dims)
 {
-    const long N = dims[0], nl = dims[2], ne = dims[4], nw = dims[5], nz = dims[6];
-    const long nu = nw + nz, kept = dims[15] == DTDYN_NEWTON_KEPT_LU ? nu + nu * nu : 0;
-    return DTDYN_CHAIN_ROWS_STABLE * N + 2 * nl + nw + nz + nz + nu + nu * nu + ne + nz + kept;
+    return DTDYN_CHAIN_ROWS_STABLE * dims[0] + 2 * dims[2]
+           + nl_scratch(dims[4], dims[5], dims[6], dims[15] == DTDYN_NEWTON_KEPT_LU);
 }
 
 long dtdyn_nl_chain_work(const long *dims)
@@ -83,19 +82,13 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
     const long *loaded = idx[0], *pf = idx[1], *pi = idx[2], *pj = idx[3], *ei = idx[4];
     const long *ej = idx[5], *outs = idx[6];
     const double *m = mats[0], *k = mats[1], *c = mats[2], *kg = mats[3], *cg = mats[4];
-    const double *params = mats[5], *U = mats[6], *par = mats[7], *Dwg = par, *force = mats[8];
-    double *cwork = work, *frc = cwork + DTDYN_CHAIN_ROWS_STABLE * N, *Q = frc + 2 * nl, *zold = Q + nw;
-    double *rold = zold + nz, *r = rold + nz, *J = r + nu, *gn = J + nu * nu, *rn_ = gn + ne;
-    double *d = rn_ + nz, *cw = d + (kept ? nu + nu * nu : 0);
+    const double *params = mats[5], *U = mats[6], *par = mats[7], *force = mats[8];
+    double *cwork = work, *frc = cwork + DTDYN_CHAIN_ROWS_STABLE * N, *Q = frc + 2 * nl, *cw;
     long piv[kept && nu > 0 ? nu : 1];
-    lu_kept lu = {kept ? d + nu : NULL, piv, 0, 0.0};
-    const double *arg[5];
-    double *res[4];
-    double scale = 0.0, scale_u = 0.0;
+    nl_step st;
     nl_int sz_arg, sz_res, sz_iw, sz_w;
-    long n, j, i, e, o, t, it;
-    arg[0] = u; arg[1] = Q; arg[2] = zold; arg[3] = rold; arg[4] = par;
-    res[0] = r; res[1] = J; res[2] = gn; res[3] = rn_;
+    long n, j, e, o;
+    cw = nl_step_init(&st, ne, nw, nz, max_iter, kept, h, tol, par, par, u, g, rate, Q, piv);
     (void)lu_apply_t; /* newton.c's transposed solve: nl_loop.c's estimate */
     nl_residual_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
     if (N < 0 || cw - work != nl_chain_scratch(dims) || n_work < dtdyn_nl_chain_work(dims)
@@ -119,17 +112,7 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
             return DTDYN_STOPPED;
         for (j = 0; j < S; ++j) {
             const double ca = (double)j / (double)S, cb = (double)(j + 1) / (double)S;
-            double rn = INFINITY, theta = 0.0;
-            zero(2 * nl, frc);
-            for (i = 0; i < nf; ++i) {
-                frc[pf[i]] += f0[i] + ca * (f1[i] - f0[i]);
-                frc[nl + pf[i]] += f0[i] + cb * (f1[i] - f0[i]);
-            }
-            for (e = 0; e < ne; ++e) {
-                frc[pi[e]] -= g[e];
-                if (pj[e] >= 0)
-                    frc[pj[e]] += g[e];
-            }
+            nl_loads(nl, nf, ne, pf, pi, pj, f0, f1, ca, cb, g, frc);
             if (sweep(form, (n == 0 && j == 0) ? DTDYN_SWEEP_STABLE : DTDYN_SWEEP_REUSE, N, 1, m, k, c, kg, cg, h, params, nl, loaded,
                       frc, H, 0, NULL, NULL, NULL, NULL, cwork, DTDYN_CHAIN_ROWS_STABLE * N, NULL, NULL,
                       1))
@@ -139,45 +122,11 @@ DTDYN_LOOP int nl_chain_run(const long *dims, chain_fn sweep, const long *const 
                 if (nw > ne)
                     Q[ne + e] = H[iv * N + ei[e]] - (ej[e] >= 0 ? H[iv * N + ej[e]] : 0.0);
             }
-            /* predictor u = [Q + Dwg g_prev; z_prev + h z'_prev] */
-            copy(nz, u + nw, zold);
-            copy(nz, rate, rold);
-            for (i = 0; i < nw; ++i) {
-                double s = Q[i];
-                for (e = 0; e < ne; ++e)
-                    s += Dwg[e * nw + i] * g[e];
-                u[i] = s;
-            }
-            for (i = 0; i < nz; ++i)
-                u[nw + i] = zold[i] + h * rold[i];
-            scale = grow(scale, norm_inf(nw, Q));
-            if (kept)
-                it = newton_kept(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork,
-                                 cw, &rn, &theta, &lu, d);
-            else
-                it = newton_solve(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res,
-                                  iwork, cw, &rn, &theta);
-            stats[4] = lu.formed;
-            if (it < 0 || !(norm_inf(ne, gn) < INFINITY)) {
+            if (nl_solve(&st, iwork, cw, stats)) {
                 fail[0] = n * S + j;
-                stats[3] = rn;
                 return 1;
             }
-            scale_u = grow(scale_u, norm_inf(nu, u));
-            scale = grow(scale, scale_u);
-            stats[1] += (double)it;
-            if ((double)it > stats[0])
-                stats[0] = (double)it;
-            if (rn > stats[2])
-                stats[2] = rn;
-            copy(ne, gn, g);
-            copy(nz, rn_, rate);
-            for (t = 0; t < size; ++t) {
-                double s = 0.0;
-                for (e = 0; e < ne; ++e)
-                    s += g[e] * U[e * size + t];
-                H[t] += s;
-            }
+            nl_add_forces(size, ne, g, U, H);
         }
     }
     return 0;

@@ -36,7 +36,7 @@
 #include "stop.h"
 #include "flush_subnormals.h"
 #include "block_chain.h"
-#include "newton.h"
+#include "nl_elements.h"
 
 /*
  * dims: kind (DTDYN_NL_STATIONS_BEAM or _SHAFT), N (nodes or disks), nh, n_loaded, nf (force
@@ -85,9 +85,8 @@ static long nl_stations_step_work(const long *dims)
    then Q, z_old, z'_old, r, J, g, z', with newton_kept its step d and the kept factors */
 static long nl_stations_scratch(const long *dims)
 {
-    const long nl = dims[3], ne = dims[5], nw = dims[6], nz = dims[7], nu = nw + nz;
-    const long kept = dims[16] == DTDYN_NEWTON_KEPT_LU ? nu + nu * nu : 0;
-    return nl_stations_step_work(dims) + 2 * nl + nw + nz + nz + nu + nu * nu + ne + nz + kept;
+    return nl_stations_step_work(dims) + 2 * dims[3]
+           + nl_scratch(dims[5], dims[6], dims[7], dims[16] == DTDYN_NEWTON_KEPT_LU);
 }
 
 long dtdyn_nl_stations_work(const long *dims)
@@ -128,21 +127,15 @@ DTDYN_LOOP int nl_stations_run(const long *dims, shaft_fn sweep, const long *con
     const int kept = dims[16] == DTDYN_NEWTON_KEPT_LU;
     const long *pf = idx[1], *pi = idx[2], *pj = idx[3], *ei = idx[4], *ej = idx[5];
     const long *outs = idx[6];
-    const double *U = mats[0], *par = mats[1], *Dwg = par, *force = mats[2];
-    double *swork = work, *frc = swork + nl_stations_step_work(dims), *Q = frc + 2 * nl;
-    double *zold = Q + nw, *rold = zold + nz, *r = rold + nz, *J = r + nu, *gn = J + nu * nu;
-    double *rn_ = gn + ne, *d = rn_ + nz, *cw = d + (kept ? nu + nu * nu : 0);
+    const double *U = mats[0], *par = mats[1], *force = mats[2];
+    double *swork = work, *frc = swork + nl_stations_step_work(dims), *Q = frc + 2 * nl, *cw;
     long piv[kept && nu > 0 ? nu : 1];
-    lu_kept lu = {kept ? d + nu : NULL, piv, 0, 0.0};
+    nl_step st;
     const double *xs = H + ix * n, *vs = H + iv * n, *as = H + ia * n;
-    const double *arg[5];
-    double *res[4];
-    double scale = 0.0, scale_u = 0.0;
     nl_int sz_arg, sz_res, sz_iw, sz_w;
-    long k, j, i, e, o, t, it;
+    long k, j, e, o;
     int rc;
-    arg[0] = u; arg[1] = Q; arg[2] = zold; arg[3] = rold; arg[4] = par;
-    res[0] = r; res[1] = J; res[2] = gn; res[3] = rn_;
+    cw = nl_step_init(&st, ne, nw, nz, max_iter, kept, h, tol, par, par, u, g, rate, Q, piv);
     (void)lu_apply_t; /* newton.h's transposed solve: nl_loop.c's estimate */
     nl_residual_work(&sz_arg, &sz_res, &sz_iw, &sz_w);
     if (dims[1] < 0 || (dims[0] != DTDYN_NL_STATIONS_BEAM && sweep == NULL)
@@ -167,17 +160,7 @@ DTDYN_LOOP int nl_stations_run(const long *dims, shaft_fn sweep, const long *con
             return DTDYN_STOPPED;
         for (j = 0; j < S; ++j) {
             const double ca = (double)j / (double)S, cb = (double)(j + 1) / (double)S;
-            double rn = INFINITY, theta = 0.0;
-            zero(2 * nl, frc);
-            for (i = 0; i < nf; ++i) {
-                frc[pf[i]] += f0[i] + ca * (f1[i] - f0[i]);
-                frc[nl + pf[i]] += f0[i] + cb * (f1[i] - f0[i]);
-            }
-            for (e = 0; e < ne; ++e) {
-                frc[pi[e]] -= g[e];
-                if (pj[e] >= 0)
-                    frc[pj[e]] += g[e];
-            }
+            nl_loads(nl, nf, ne, pf, pi, pj, f0, f1, ca, cb, g, frc);
             rc = nl_stations_step(dims, sweep, idx, mats, frc, H, h, swork, k == 0 && j == 0);
             if (rc) {
                 fail[0] = rc;
@@ -188,51 +171,11 @@ DTDYN_LOOP int nl_stations_run(const long *dims, shaft_fn sweep, const long *con
                 if (nw > ne)
                     Q[ne + e] = vs[ei[e]] - (ej[e] >= 0 ? vs[ej[e]] : 0.0);
             }
-            /* predictor u = [Q + Dwg g_prev; z_prev + h z'_prev] */
-            copy(nz, u + nw, zold);
-            copy(nz, rate, rold);
-            for (i = 0; i < nw; ++i) {
-                double s = Q[i];
-                for (e = 0; e < ne; ++e)
-                    s += Dwg[e * nw + i] * g[e];
-                u[i] = s;
-            }
-            for (i = 0; i < nz; ++i)
-                u[nw + i] = zold[i] + h * rold[i];
-            scale = grow(scale, norm_inf(nw, Q));
-            if (kept)
-                it = newton_kept(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res, iwork,
-                                 cw, &rn, &theta, &lu, d);
-            else
-                it = newton_solve(nu, 0, u, r, J, scale, scale_u, tol, max_iter, arg, res,
-                                  iwork, cw, &rn, &theta);
-            stats[4] = lu.formed;
-            if (it < 0 || !(norm_inf(ne, gn) < INFINITY)) {
+            if (nl_solve(&st, iwork, cw, stats)) {
                 fail[0] = k * S + j;
-                stats[3] = rn;
                 return 1;
             }
-            scale_u = grow(scale_u, norm_inf(nu, u));
-            scale = grow(scale, scale_u);
-            stats[1] += (double)it;
-            if ((double)it > stats[0])
-                stats[0] = (double)it;
-            if (rn > stats[2])
-                stats[2] = rn;
-            copy(ne, gn, g);
-            copy(nz, rn_, rate);
-            if (ne == 1) { /* H += sum_e g_e U_e (one element: a vector loop) */
-                const double g0 = g[0];
-                for (t = 0; t < size; ++t)
-                    H[t] += g0 * U[t];
-            } else {
-                for (t = 0; t < size; ++t) {
-                    double s = 0.0;
-                    for (e = 0; e < ne; ++e)
-                        s += g[e] * U[e * size + t];
-                    H[t] += s;
-                }
-            }
+            nl_add_forces(size, ne, g, U, H);
         }
     }
     return 0;
