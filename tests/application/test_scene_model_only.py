@@ -236,3 +236,33 @@ def test_batch_unstable_sets_every_linear_scene(tmp_path):
     np.testing.assert_array_equal(ds["peak_x"].values[0], np.abs(alone.x).max(axis=0))
     with pytest.raises(ValueError, match=r"unstable = 'sometimes': unknown value"):
         dd.run_batch(path, progress=False, unstable="sometimes")
+
+
+def test_initial_state_without_load_is_free_vibration(tmp_path, capsys):
+    """[initial] without [[load]] or [ground]: the free vibration from that state, what
+    chain_response computes with a zero force, and close to the exact motion
+    x(t) = Phi cos(Omega t) Phi^T M x0 (undamped chain; Newmark's period error
+    (omega dt)^2 / 12 over omega T radians bounds the phase: omega_max^3 dt^2 T / 12 of the
+    amplitude). An [initial] state of zeros is not a load: the error still says what is missing."""
+    x0 = [0.01, -0.02, 0.03]
+    path = tmp_path / "free.toml"
+    path.write_text(CHAIN + f"[initial]\nx0 = {x0}\n[time]\ndt = 0.001\nduration = 2.0\n")
+    sc = load_scene(path)
+    r, report = run_scene(sc)
+    mass, stiffness = [1.0, 2.0, 1.5], [100.0, 200.0, 150.0]
+    ref = dd.chain_response(mass, stiffness, np.zeros(3), np.zeros((2001, 1)), 0.001,
+                            force_dofs=[0], x0=np.array(x0))
+    np.testing.assert_array_equal(r.x, ref.x)
+    assert report["max_rel_error"] < 1e-3      # the run's own check against the exponential
+    K, M = _tridiagonal_chain(mass, stiffness)
+    w2, phi = sla.eigh(K, M)
+    t = np.arange(2001) * 0.001
+    exact = (phi * np.cos(np.outer(t, np.sqrt(w2)))[:, None, :]) @ (phi.T @ M @ x0)
+    bound = np.sqrt(w2.max()) ** 3 * 0.001**2 * 2.0 / 12
+    assert np.abs(r.x - exact).max() / np.abs(exact).max() < 2 * bound, bound
+    assert main(["simulate", str(path), "--out", str(tmp_path / "free.npz"), "--no-check"]) == 0
+    path.write_text(CHAIN + "[initial]\nx0 = [0.0, 0.0, 0.0]\n[time]\ndt = 0.01\n"
+                    "duration = 1.0\n")
+    with pytest.raises(ValueError, match=r"needs a load: .* \(or an \[initial\] x0 / v0 not "
+                                         r"all zero: free vibration\)"):
+        run_scene(load_scene(path))

@@ -316,10 +316,11 @@ def _runnable(shared, specs, unstable) -> None:
             raise ValueError(f"{shared.sources[k]}: run_batch needs a [time] table with dt and "
                              "duration (e.g. [time] dt = 0.01, duration = 1.0); the scene has "
                              "none")
-        if not has & {"load", "ground"}:
+        if not has & {"load", "ground", "initial"}:
             raise ValueError(f"{shared.sources[k]}: run_batch needs a load: one or more "
                              "[[load]] tables (dof, kind and that kind's fields) or a [ground] "
-                             "record; the scene has neither")
+                             "record; the scene has neither (or an [initial] state: free "
+                             "vibration)")
         if unstable is not None and not base.get("element"):
             scheme = base.get("scheme", {})
             if isinstance(scheme, dict):  # else the parser names the bad value

@@ -356,6 +356,10 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".",  # noqa: C901 (a che
     x0 = v0 = None
     if "initial" in data:
         x0, v0 = _parse_initial(data["initial"], n_dof)
+    if (dt is not None and force is None and ground is None
+            and any(a is not None and np.any(a) for a in (x0, v0))):
+        # free vibration from the initial state: no load, the runs get a zero record on DOF 0
+        loaded, force = np.zeros(1, dtype=np.int64), np.zeros((n_steps + 1, 1))
     harmonic = None
     if "harmonic" in data:  # the steady state's table (dtdyn steady)
         from dtdyn.app._scene.steady import parse_harmonic

@@ -32,9 +32,9 @@ reference problem P3)::
                                         #   the scene's times; after the record's end an
                                         #   acceleration is 0, a velocity or displacement holds
                                         #   its last sample
-    [initial]                           # optional: the state at t_0
-    x0 = [0.0, 0.01]                    #   displacement of every DOF (default zeros)
-    v0 = [0.0, 0.0]                     #   velocity of every DOF (default zeros)
+    [initial]                           # optional: the state at t_0 (without [[load]] and
+    x0 = [0.0, 0.01]                    #   [ground]: free vibration from it); displacement
+    v0 = [0.0, 0.0]                     #   and velocity of every DOF (default zeros)
     [scheme]                            # optional: default newmark, beta = 0.25, gamma = 0.5
     name = "newmark"                    # plus that scheme's parameters: beta = 0.25, gamma = 0.5
     form = "displacement"               # optional
@@ -462,7 +462,8 @@ class Scene:
         if load and self.force is None and self.ground is None:
             raise ValueError(f"{self.source}: {command} needs a load: one or more [[load]] "
                              "tables (dof, kind and that kind's fields) or a [ground] record; "
-                             "the scene has neither")
+                             "the scene has neither (or an [initial] x0 / v0 not all zero: "
+                             "free vibration)")
 
     @property
     def linear(self) -> bool:
