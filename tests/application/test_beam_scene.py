@@ -86,3 +86,34 @@ def test_beam_scene_with_support_motion():
                             ground_acceleration=ag, outputs=scene.outputs, form="acceleration",
                             quantities=("x", "v"))
     np.testing.assert_allclose(response.x, same.x, rtol=0, atol=1e-12 * np.abs(same.x).max())
+
+
+def test_refine_key_reaches_the_beam_runs():
+    """scheme.refine (linear) and nonlinear.refine (with [[element]]) are the runs' ``refine``:
+    the scene equals beam_response / nonlinear_beam_response called with it, and a run's
+    info says how many corrections a step took; other kinds and bad values are refused."""
+    base = {k: v for k, v in SCENE.items() if k != "output"} | {"time": {"dt": 1e-4,
+                                                                         "duration": 0.01}}
+    for refine in (True, False):
+        scene = dd.scene_from_dict(base | {"scheme": {"name": "newmark", "refine": refine}})
+        r, _ = dd.run_scene(scene)
+        ref = dd.beam_response(scene.model, scene.force, scene.dt, force_dofs=scene.loaded,
+                               refine=refine)
+        np.testing.assert_array_equal(r.x, ref.x)
+        assert (r.info["refinements"] > 0) == refine
+    nl = base | {"element": [{"kind": "cubic", "i": "w200", "k3": 1e9}],
+                 "nonlinear": {"substeps": 1, "refine": True}, "scheme": {"name": "newmark"}}
+    scene = dd.scene_from_dict(nl)
+    r, _ = dd.run_scene(scene)
+    ref = dd.nonlinear_beam_response(scene.model, scene.force, scene.dt,
+                                     force_dofs=scene.loaded, elements=scene.elements,
+                                     substeps=1, refine=True)
+    np.testing.assert_array_equal(r.x, ref.x)
+    with pytest.raises(ValueError, match=r"scheme\.refine = 'yes': must be \"auto\", true or "):
+        dd.scene_from_dict(base | {"scheme": {"refine": "yes"}})
+    with pytest.raises(ValueError, match=r"scheme\.refine = True: a scene with \[\[element\]\] "
+                                         r"sets nonlinear\.refine"):
+        dd.scene_from_dict(nl | {"scheme": {"name": "newmark", "refine": True}})
+    chain = {"model": {"mass": [1.0], "stiffness": [4.0]}, "scheme": {"refine": False}}
+    with pytest.raises(ValueError, match=r"scheme\.refine = False: only for beams"):
+        dd.scene_from_dict(chain)

@@ -17,7 +17,8 @@
     supports = [{node = 50, k_w = 1e5, c_w = 20.0}]                # optional: k_psi, c_psi too
 
 DOF names (loads' ``dof``, ``[output] outputs``): "w<node>", "psi<node>" (`dtdyn.Beam`); held
-DOFs are not among them. The scene runs `beam_response` (scheme, form, backend from [scheme]);
+DOFs are not among them. The scene runs `beam_response` (scheme, form, backend and refine from
+[scheme]; with [[element]] `nonlinear_beam_response`, refine from [nonlinear]);
 ``Scene.matrices()`` gives the assembled sparse M, C, K and ``Scene.dof_names`` their DOFs;
 `dtdyn modes` counts the frequencies by Wittrick-Williams.
 """

@@ -117,6 +117,27 @@ def _load_dofs(loads, n_dof: int, names: tuple[str, ...] | None = None):
     return [dict(x) for x in loads], np.array(sorted(dofs), dtype=np.int64)
 
 
+def _parse_refine(data: dict, kind: str, nonlinear: bool):
+    """A beam's ``refine`` ("auto", true or false): ``scheme.refine`` in a linear scene,
+    ``nonlinear.refine`` in one with [[element]]; refused elsewhere, naming the table."""
+    table, other = ("nonlinear", "scheme") if nonlinear else ("scheme", "nonlinear")
+    tbl = data.get(other)
+    if isinstance(tbl, dict) and "refine" in tbl:
+        raise ValueError(f"{other}.refine = {tbl['refine']!r}: "
+                         + ("a scene with [[element]] sets nonlinear.refine" if nonlinear else
+                            "a linear scene sets scheme.refine"))
+    tbl = data.get(table)
+    if not isinstance(tbl, dict) or "refine" not in tbl:
+        return "auto"
+    value = tbl["refine"]
+    if kind != "beam":
+        raise ValueError(f"{table}.refine = {value!r}: only for beams (model.kind = 'beam'), "
+                         f"not {kind!r}: remove the key")
+    if not (isinstance(value, bool) or value == "auto"):
+        raise ValueError(f"{table}.refine = {value!r}: must be \"auto\", true or false")
+    return value
+
+
 def _parse_initial(tbl, n_dof: int):
     """(x0, v0) of the [initial] table, each of length n_dof or None."""
     if not isinstance(tbl, dict):
@@ -356,6 +377,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".",  # noqa: C901 (a che
     x0 = v0 = None
     if "initial" in data:
         x0, v0 = _parse_initial(data["initial"], n_dof)
+    refine = _parse_refine(data, kind, nonlinear)
     if (dt is not None and force is None and ground is None
             and any(a is not None and np.any(a) for a in (x0, v0))):
         # free vibration from the initial state: no load, the runs get a zero record on DOF 0
@@ -371,7 +393,7 @@ def scene_from_dict(data: dict, base_dir: Path | str = ".",  # noqa: C901 (a che
                  quantities=quantities, source=source, base_dir=base_dir, kind=kind, M=M, C=C, K=K,
                  dof_names=names, elements=elements, nonlinear=options, ground=ground,
                  ground_quantity=ground_quantity, influence=influence, x0=x0, v0=v0, model=model,
-                 unstable=unstable, harmonic=harmonic)
+                 unstable=unstable, harmonic=harmonic, refine=refine)
 
 
 def load_scene(path: str | os.PathLike | None = None) -> Scene:

@@ -20,7 +20,7 @@ import scipy.sparse as sps
 from dtdyn._engine.public import warn
 from dtdyn._engine.result import Response
 from dtdyn.app._scene.schema import (EXACT_MAX_DOF, SCHEMES, UNSTABLE, Scene, _choice,
-                                    model_module)
+                                    model_module, model_options)
 
 def natural_frequencies(scene: Scene) -> np.ndarray:
     """Undamped natural frequencies (rad/s) to check stability against: all of them up to
@@ -90,7 +90,7 @@ def scene_solver(scene: Scene):
     if scene.model is not None:  # a kind in MODEL_MODULES (a shaft, a beam)
         if not hasattr(scene.model, "solver"):
             return None
-        return scene.model.solver(scene.dt, form=scene.form, **common)
+        return scene.model.solver(scene.dt, form=scene.form, **model_options(scene), **common)
     from dtdyn.linear._chain import Chain  # imported here: chain may compile kernels on first use
 
     chain = scene.chain
@@ -223,7 +223,7 @@ class SolverCache:
         key = (scene.kind, digest, repr(float(scene.dt)), scene.scheme,
                tuple(sorted((k, repr(v)) for k, v in scene.scheme_params.items())), scene.form,
                scene.sweep, scene.backend, np.asarray(scene.outputs).tobytes(),
-               tuple(scene.quantities), scene.unstable)
+               tuple(scene.quantities), scene.unstable, scene.refine)
         got = self._get(self._solvers, key)
         if got is not None:
             solver, again = got

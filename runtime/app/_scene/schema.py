@@ -42,6 +42,7 @@ reference problem P3)::
     backend = "c"                       # optional
     unstable = "raise"                  # optional: "warn" runs a dt past the scheme's stability
                                         #   limit with a warning (for study; --unstable warn)
+    refine = "auto"                     # optional, beams only: beam_response's refine
     [time]                              # required to run (not by `dtdyn modes`)
     dt = 1e-3                           # s
     duration = 0.8                      # s, an integer multiple of dt: n_steps = duration / dt
@@ -110,6 +111,9 @@ Nonlinear elements (dtdyn.nonlinear._elements) join the model, chain or matrices
     max_iter = 30                       # optional: Newton iterations per step
     modes = [0, 1]                      # optional, modal methods only: the modes kept (0-based,
                                         #   sorted by |pole|), default all
+    refine = "auto"                     # optional, beams only: each step's solve corrected
+                                        #   by its residual ("auto": from 2,000 elements; true,
+                                        #   false); a linear beam scene: scheme.refine
 
 Element kinds and fields (required unless a default is given; the defaults are those of the
 element classes)::
@@ -204,7 +208,7 @@ _MATRIX_NAMES = ("M", "K", "C")
 _MTX_SUFFIXES = (".mtx", ".mtx.gz", ".mtx.bz2")
 _TIME_KEYS = ("dt", "duration")
 _OUTPUT_KEYS = ("outputs", "quantities")
-_SCHEME_COMMON = ("name", "form", "sweep", "backend", "unstable")
+_SCHEME_COMMON = ("name", "form", "sweep", "backend", "unstable", "refine")
 #: the scheme of a linear scene without ``scheme.name``: the entry points' own default
 #: (``chain_response``, ``mck_response``, ``shaft_response``, ``beam_response``: ``"newmark"``
 #: with beta = 1/4, gamma = 1/2, the average acceleration method)
@@ -233,7 +237,8 @@ def model_simulate(simulate, scene, progress=False, support=None):
     return simulate(scene.model, scene.force, scene.dt, force_dofs=scene.loaded,
                     scheme=scene.scheme, form=scene.form, backend=scene.backend,
                     outputs=scene.outputs, quantities=scene.quantities, progress=progress,
-                    unstable=scene.unstable, **(support or {}), **scene.scheme_params)
+                    unstable=scene.unstable, **(support or {}), **model_options(scene),
+                    **scene.scheme_params)
 
 
 def model_simulate_nonlinear(simulate, scene, support=None):
@@ -243,7 +248,12 @@ def model_simulate_nonlinear(simulate, scene, support=None):
     return simulate(scene.model, scene.force, scene.dt, elements=scene.elements,
                     force_dofs=scene.loaded, scheme=scene.scheme, outputs=scene.outputs,
                     quantities=scene.quantities, **(support or {}), **scene.nonlinear,
-                    **scene.scheme_params)
+                    **model_options(scene), **scene.scheme_params)
+
+
+def model_options(scene) -> dict:
+    """The model's own keywords of a scene's runs: a beam's ``refine``."""
+    return {"refine": scene.refine} if scene.kind == "beam" else {}
 
 
 #: element kind -> (class in dtdyn.nonlinear._elements, required fields, optional fields); the
@@ -264,7 +274,8 @@ _ELEMENT_FIELDS = {
 }
 #: Law's own argument names, which its constants cannot take
 _LAW_RESERVED = ("i", "j", "expression")
-_NONLINEAR_KEYS = ("substeps", "backend", "tol", "max_iter", "modes", "accuracy", "max_substeps")
+_NONLINEAR_KEYS = ("substeps", "backend", "tol", "max_iter", "modes", "accuracy", "max_substeps",
+                   "refine")
 NONLINEAR_BACKENDS = ("c", "casadi")
 _DEFAULT_NONLINEAR_METHOD = "modal_ramp"
 
@@ -378,6 +389,7 @@ class Scene:
     ground_damping: np.ndarray | None = None
     model: object | None = None  # the model object of a kind in MODEL_MODULES (e.g. a Shaft)
     harmonic: dict | None = None  # the [harmonic] table: harmonic_balance's keywords
+    refine: str | bool = "auto"  # a beam's refine (scheme.refine, nonlinear.refine)
 
     @property
     def chain(self) -> dict:
