@@ -258,7 +258,7 @@ class Beam(Model):
         return M.tocsr(), C.tocsr(), K.tocsr()
 
     @public
-    def solver(self, dt, *, scheme="newmark", form="displacement", backend="c", outputs=None,
+    def solver(self, dt, *, scheme="newmark", form=None, backend="c", outputs=None,
                quantities=("x", "v", "a"), unstable="raise", elements=None, substeps=None, tol=None,
                max_iter=None, refine="auto", **scheme_params) -> BeamSolver:
         """Prepare the beam for many load cases at the sample step ``dt``.
@@ -277,8 +277,9 @@ class Beam(Model):
         scheme : str
             Any scheme of `chain_response`; its parameters (``beta``, ``gamma``, ``theta``,
             ``alpha``, ``rho_inf``) as keywords.
-        form : {"displacement", "acceleration"}
-            As `beam_response` (explicit schemes have only the acceleration form).
+        form : {"displacement", "acceleration"} or None
+            As `beam_response` (None: the displacement form, or the acceleration form of an
+            explicit scheme, its only one).
         backend : {"c", "numpy"}
             As `beam_response`.
         outputs : sequence of int or DOF names, optional
@@ -747,7 +748,7 @@ def node_system(beam: Beam):
 
 
 def beam_response(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
-                  form="displacement", outputs=None, quantities=("x", "v", "a"), x0=None,
+                  form=None, outputs=None, quantities=("x", "v", "a"), x0=None,
                   v0=None, unstable="raise", backend="c", progress=False,
                   ground_acceleration=None, ground_velocity=None, ground_displacement=None,
                   influence=None, refine="auto", **scheme_params):
@@ -770,7 +771,8 @@ def beam_response(beam: Beam, force, dt, *, force_dofs=None, scheme="newmark",
     force_dofs : sequence of int or DOF names, optional
         Indices into ``beam.dof_names`` or the names themselves ("w200"); default every DOF.
     scheme, form
-        As `chain_response` (explicit schemes have only the acceleration form).
+        As `chain_response` (None: the displacement form, or the acceleration form of an
+        explicit scheme, its only one).
     outputs : sequence of int or DOF names, optional
         The DOFs stored, as ``force_dofs``; default every DOF.
     quantities, x0, v0, unstable
@@ -846,8 +848,8 @@ class BeamSolver(Solver):
         if lib is not None:
             self._blocks = node_blocks(beam)
             self._mass = _mass_factor(lib, beam, self._blocks)
-            self._coeffs = {scheme_key(s): s.coefficients(form, self.dt) for s in runs}
-            self._ops = {key: _block_operator(lib, form, s, self._coeffs[key], self._blocks,
+            self._coeffs = {scheme_key(s): s.coefficients(self.form, self.dt) for s in runs}
+            self._ops = {key: _block_operator(lib, self.form, s, self._coeffs[key], self._blocks,
                                               nodes, refine_data(beam, s, self._coeffs[key],
                                                                  self._corrections))
                          for s in runs for key in [scheme_key(s)]}
@@ -857,7 +859,7 @@ class BeamSolver(Solver):
             self._mass_solve = linalg.solver(M, "M")
             Mg, Cg, Kg = node_system(beam)
             self._ops = {scheme_key(s): refined_step_operator(
-                beam, form, s, s.coefficients(form, self.dt), Mg, Cg, Kg, self._stored,
+                beam, self.form, s, s.coefficients(self.form, self.dt), Mg, Cg, Kg, self._stored,
                 self._corrections) for s in runs}
 
     def _load_case(self, force, force_dofs, x0, v0, *ground):

@@ -129,7 +129,7 @@ class Chain(Model):
                               ground_damping=self.cg)
 
     @public
-    def solver(self, dt, *, scheme="newmark", form="displacement", sweep="stable", backend="c",
+    def solver(self, dt, *, scheme="newmark", form=None, sweep="stable", backend="c",
                outputs=None, quantities=("x", "v", "a"), unstable="raise", workers=None,
                elements=None, substeps=None, tol=None,
                max_iter=None, **scheme_params) -> ChainSolver:
@@ -145,7 +145,7 @@ class Chain(Model):
             Sample step, s, > 0.
         scheme : str
             Any scheme of `chain_response`; its parameters as keywords.
-        form : {"displacement", "acceleration"}
+        form : {"displacement", "acceleration"} or None
             As `chain_response`.
         sweep : {"stable", "plain"}
             As `chain_response` (the plain sweep warns with its error estimate per run).
@@ -287,7 +287,7 @@ def chain_matrices(mass, stiffness, damping, sparse: bool | None = None, *,
 
 
 def chain_response(mass, stiffness, damping, force, dt, *, ground_stiffness=None,
-                   ground_damping=None, force_dofs=None, scheme="newmark", form="displacement",
+                   ground_damping=None, force_dofs=None, scheme="newmark", form=None,
                    sweep="stable", backend="c", outputs=None,
                    quantities=("x", "v", "a"), x0=None, v0=None, unstable="raise",
                    progress=False, ground_acceleration=None, ground_velocity=None,
@@ -315,9 +315,10 @@ def chain_response(mass, stiffness, damping, force, dt, *, ground_stiffness=None
         "newmark" (beta, gamma), "average_acceleration", "linear_acceleration", "fox_goodwin",
         "newmark_1_8", "central_difference", "fox_euler", "wilson" (theta), "houbolt", "park",
         "hht" (alpha), "generalized_alpha" (rho_inf); parameters as keywords.
-    form : {"displacement", "acceleration"}
-        Primary unknown of the step transfer matrices. Explicit schemes have only the
-        acceleration form, and need c_n > 0 on every station there.
+    form : {"displacement", "acceleration"} or None
+        Primary unknown of the step transfer matrices (None: "displacement", or
+        "acceleration" for an explicit scheme, which has only that form and needs c_n > 0 on
+        every station there).
     sweep : {"stable", "plain"}
         "stable": the Riccati sweep, O(N) and accurate on any chain. "plain": the source's product
         of transfer matrices, kept for study; it loses accuracy like (m A / k)^N and warns
@@ -412,7 +413,7 @@ class ChainSolver(Solver):
                          lambda limit: chain_highest_frequency(m, k, limit, kg), scheme_params)
         info = self._info
         kappa = np.min([np.abs(k * K0["p"] + c * K0["r"]) for K0 in
-                        (s.coefficients(form, self.dt) for s in schemes_of_run(info))], axis=0)
+                        (s.coefficients(self.form, self.dt) for s in schemes_of_run(info))], axis=0)
         if np.any(kappa == 0.0):  # (a ground damper does not help: the station's row divides)
             n = int(np.flatnonzero(kappa == 0.0)[0])
             raise ValueError(f"damping[{n}] = 0 with the explicit scheme {info.name!r}: the "

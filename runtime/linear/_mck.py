@@ -437,6 +437,7 @@ class MatricesSolver(Solver):
                          lambda limit: highest_frequency(M, K, limit), scheme_params)
         self._loop = loop
         self._ground_mass = M
+        form = self.form
         self._steps = {scheme_key(s): step_operator(form, s, s.coefficients(form, self.dt), M,
                                                     model.C, K, self.outputs, loop)
                        for s in schemes_of_run(self._info)}

@@ -450,7 +450,7 @@ class Shaft(Model):
         return len(self._lumped.names)
 
     @public
-    def solver(self, dt, *, scheme="newmark", form="displacement", backend="c", outputs=None,
+    def solver(self, dt, *, scheme="newmark", form=None, backend="c", outputs=None,
                quantities=("x", "v", "a"), unstable="raise", elements=None, substeps=None, tol=None,
                max_iter=None, **scheme_params) -> ShaftSolver:
         """Prepare the shaft for many load cases at the sample step ``dt``.
@@ -468,8 +468,9 @@ class Shaft(Model):
         scheme : str
             Any scheme of `chain_response`; its parameters (``beta``, ``gamma``, ``theta``,
             ``alpha``, ``rho_inf``) as keywords.
-        form : {"displacement", "acceleration"}
-            As `shaft_response` (explicit schemes have only the acceleration form).
+        form : {"displacement", "acceleration"} or None
+            As `shaft_response` (None: the displacement form, or the acceleration form of an
+            explicit scheme, its only one).
         backend : {"c", "numpy"}
             As `shaft_response`.
         outputs : sequence of int or DOF names, optional
@@ -660,7 +661,7 @@ def check_connections(tree: Tree, info, form: str, dt: float) -> None:
 
 
 def shaft_response(shaft: Shaft, force, dt, *, force_dofs=None, scheme="newmark",
-                   form="displacement", backend="c", outputs=None, quantities=("x", "v", "a"),
+                   form=None, backend="c", outputs=None, quantities=("x", "v", "a"),
                    x0=None, v0=None, unstable="raise", progress=False, ground_acceleration=None,
                    ground_velocity=None, ground_displacement=None, influence=None,
                    **scheme_params):
@@ -730,7 +731,7 @@ class ShaftSolver(Solver):
         super().__init__(shaft, dt, scheme, form, check_backend(backend), outputs, quantities,
                          unstable, lambda limit: highest_frequency(M, K, limit), scheme_params)
         tree = shaft.tree
-        check_connections(tree, self._info, form, self.dt)
+        check_connections(tree, self._info, self.form, self.dt)
         self._C, self._K = C, K
         self._ground_mass = sps.diags(tree.J)
         self._rigid = lambda k: rigid_rotation(shaft)

@@ -152,8 +152,8 @@ class Solver:
         Sample step, s, > 0.
     scheme : str
         A scheme of the scheme table.
-    form : {"acceleration", "displacement"}
-        The step's unknown.
+    form : {"acceleration", "displacement"} or None
+        The step's unknown (None: "displacement", or "acceleration" for an explicit scheme).
     backend : {"c", "numpy"}
         The implementation.
     outputs : sequence of int or None
@@ -207,6 +207,8 @@ class Solver:
         self.outputs = validate.dof_indices("outputs", outputs, n, names=self._names)
         self.quantities = stepping.check_quantities(quantities)
         self._info = get_scheme(scheme, **scheme_params)
+        if form is None:  # the displacement form; an explicit scheme has only the acceleration form
+            form = "acceleration" if self._info.explicit else "displacement"
         if form not in ("acceleration", "displacement"):
             raise ValueError(f"form must be 'displacement' or 'acceleration', got {form!r}")
         self.form = form

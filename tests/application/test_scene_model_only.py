@@ -139,13 +139,26 @@ def test_default_scheme_is_the_entry_points_default(tmp_path):
                     'duration = 1.0\n[output]\nquantities = ["x", "v", "a"]\n')
     sc = load_scene(path)
     assert (sc.scheme, sc.scheme_params, sc.form, sc.sweep, sc.backend, sc.unstable) == \
-        ("newmark", {}, "displacement", "stable", "c", "raise")
+        ("newmark", {}, None, "stable", "c", "raise")     # form None: the scheme's own
     response, report = run_scene(sc)
+    assert report["form"] == "displacement"
     ref = dd.chain_response([1.0, 2.0, 1.5], [100.0, 200.0, 150.0], np.zeros(3),
                             np.ones((101, 1)), 0.01, force_dofs=[2])
     for q in "xva":
         np.testing.assert_array_equal(getattr(response, q), getattr(ref, q))
     assert report["max_rel_error"] < 1e-2  # against the matrix exponential
+    # an explicit scheme without a form: its only one, the acceleration form, as the
+    # entry points take it
+    damped = CHAIN.replace("]\n", "]\ndamping = [1.0, 1.0, 1.0]\n", 1)
+    path.write_text(damped + '[[load]]\ndof = 2\nkind = "step"\n[time]\ndt = 0.01\n'
+                    'duration = 1.0\n[scheme]\nname = "central_difference"\n')
+    response, report = run_scene(load_scene(path))
+    ref = dd.chain_response([1.0, 2.0, 1.5], [100.0, 200.0, 150.0], np.ones(3),
+                            np.ones((101, 1)), 0.01, force_dofs=[2], scheme="central_difference")
+    assert report["form"] == ref.info["form"] == "acceleration"
+    np.testing.assert_array_equal(response.x, ref.x)
+    path.write_text(CHAIN + '[[load]]\ndof = 2\nkind = "step"\n[time]\ndt = 0.01\n'
+                    'duration = 1.0\n[output]\nquantities = ["x", "v", "a"]\n')
     # a [scheme] table without a name keeps the default name and takes its parameters
     path.write_text(path.read_text() + "[scheme]\nbeta = 0.3\ngamma = 0.6\n")
     sc = load_scene(path)

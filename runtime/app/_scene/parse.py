@@ -54,7 +54,7 @@ def _parse_scheme(tbl, kind: str = "chain", base_dir=None) -> tuple:
     unstable = _choice("scheme.unstable", tbl.get("unstable", "raise"), UNSTABLE)
     if kind == "matrices":
         return name, params, "acceleration", None, "", unstable  # backend: from the matrices
-    form = _choice("scheme.form", tbl.get("form", "displacement"), FORMS)
+    form = _choice("scheme.form", tbl["form"], FORMS) if "form" in tbl else None  # the scheme's
     sweep = _choice("scheme.sweep", tbl.get("sweep", "stable"), SWEEPS)
     backend = _choice("scheme.backend", tbl.get("backend", "c"), BACKENDS)
     return name, params, form, sweep, backend, unstable

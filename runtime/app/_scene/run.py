@@ -458,7 +458,7 @@ def run_scene(scene: Scene, progress: bool = False, check: bool = True,
 
     report = {
         "title": scene.title, "scheme": scene.scheme, "scheme_params": dict(scene.scheme_params),
-        "form": scene.form, "sweep": scene.sweep,
+        "form": scene.form if solver is None else solver.form, "sweep": scene.sweep,
         "backend": response.info.get("backend", scene.backend), "dt": scene.dt,
         "n_steps": scene.n_steps, "n_dof": scene.n_dof, "n_outputs": int(scene.outputs.size),
         "run_time_s": run_time, "exact_time_s": None, "max_rel_error": None, "check": None,

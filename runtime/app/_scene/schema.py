@@ -37,7 +37,8 @@ reference problem P3)::
     v0 = [0.0, 0.0]                     #   and velocity of every DOF (default zeros)
     [scheme]                            # optional: default newmark, beta = 0.25, gamma = 0.5
     name = "newmark"                    # plus that scheme's parameters: beta = 0.25, gamma = 0.5
-    form = "displacement"               # optional
+    form = "displacement"               # optional (default: displacement; acceleration for an
+                                        #   explicit scheme, its only form)
     sweep = "stable"                    # optional
     backend = "c"                       # optional
     unstable = "raise"                  # optional: "warn" runs a dt past the scheme's stability
@@ -291,8 +292,10 @@ class Scene:
 
     Only ``[model]`` is required: that is all `dtdyn modes` and the other commands that do not
     integrate read. A run needs ``[time]`` (``dt``, ``n_steps``, ``force`` and ``ground`` are
-    None without it) and a load (``[[load]]`` or ``[ground]``); `require_run` checks both and
-    names the table to add. Without ``[scheme]`` (or ``scheme.name``) a linear scene runs the
+    None without it) and a load (``[[load]]`` or ``[ground]``; an ``[initial]`` state alone is
+    a free vibration, a zero ``force`` on DOF 0); `require_run` checks both and names the table
+    to add. ``form`` None is the scheme's own (displacement; acceleration for an explicit
+    scheme). Without ``[scheme]`` (or ``scheme.name``) a linear scene runs the
     entry points' default scheme, `DEFAULT_SCHEME` (``"newmark"``, beta = 1/4, gamma = 1/2).
 
     ``kind`` is ``"chain"`` (``mass``, ``stiffness``, ``damping`` set; ``M``, ``C``, ``K`` None)
@@ -345,6 +348,9 @@ class Scene:
     harmonic : dict or None
         The ``[harmonic]`` table as the keywords of `harmonic_balance` (with ``frequency_hz``
         and ``amplitudes``: of `harmonic_balance_amplitude`), checked; None without one.
+    refine : {"auto", True, False}
+        A beam's ``refine`` (``scheme.refine``, or ``nonlinear.refine`` with [[element]]);
+        "auto" for every other kind.
 
     Examples
     --------
