@@ -343,20 +343,35 @@ def _probe(run_w, samples, accuracy, substeps, max_substeps, p, log, runs, spent
     max(S + 1, S 2^(2/p)) when the estimate meets the goal: a run whose error is at most a
     quarter of it), until a run's estimate meets the goal and some run's estimate has been
     confirmed by the next one (`_confirms`): the coarsest such S (the estimator then follows
-    the runs on this problem). None when a window run fails, has no embedded estimate or does
-    not confirm the one before (the window is the record's start: a run that fails there fails
-    on the record too); QUIET when a window run's estimate is 0 (no response in the window:
-    the record's runs confirm each other as without a window). Appends to ``log`` and
-    ``runs``, the differences' time to spent[0]."""
+    the runs on this problem). A run after one whose estimate meets the goal only confirms it,
+    and runs without its own estimate (``run_w(S, estimate=False)``). None when a window run
+    fails, has no embedded estimate or does not confirm the one before (the window is the
+    record's start: a run that fails there fails on the record too); QUIET when a window run's
+    estimate is 0 (no response in the window: the record's runs confirm each other as without
+    a window). Appends to ``log`` and ``runs``, the differences' time to spent[0]."""
     goal = accuracy / PROBE_MARGIN
     S, prev, confirmed = substeps, None, False
     where = f"window of {samples} samples"
     while S <= max_substeps:
+        # a run after one whose estimate meets the goal only confirms it: its own estimate is
+        # not formed (the window returns the coarser S either way, or None)
+        confirming = prev is not None and prev.info["error_estimate"] <= goal
         try:
-            r = run_w(S)
+            r = run_w(S, estimate=False) if confirming else run_w(S)
         except (NewtonError, DtdynStepStabilityError) as exc:
             log.append((S, None, f"{where}: {type(exc).__name__}"))
             return None
+        if confirming:
+            runs.append(r)
+            ok, d = _confirms(r, prev, spent)
+            if not ok:
+                log.append((S, None, f"{where}: difference {d:.3g} to {prev.info['substeps']} "
+                            f"sub-steps does not confirm its estimate "
+                            f"{prev.info['error_estimate']:.3g}"))
+                return None
+            log.append((S, None, f"{where}, confirms {prev.info['substeps']} (its own estimate "
+                        "not formed)"))
+            return prev.info["substeps"]
         if r.info.get("error_estimate_kind") != "embedded":
             log.append((S, None, f"{where}: no embedded estimate"))
             return None
@@ -376,8 +391,6 @@ def _probe(run_w, samples, accuracy, substeps, max_substeps, p, log, runs, spent
             confirmed = True
             note += f", confirms {prev.info['substeps']}"
         log.append((S, est, note))
-        if confirmed and prev.info["error_estimate"] <= goal:
-            return prev.info["substeps"]
         if confirmed and est <= goal:
             return S
         if est <= goal:

@@ -666,8 +666,9 @@ def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, sch
                                  "(remove modes)")
         acc.scheme_order(scheme, scheme_params)
 
-        def run(S, method=scheme, window=None):
-            """The run at S sub-steps; ``window``: of the record's first samples only."""
+        def run(S, method=scheme, window=None, estimate=None):
+            """The run at S sub-steps; ``window``: of the record's first samples only;
+            ``estimate=False``: without its embedded estimate (a run that only confirms)."""
             def cut(r):
                 return r if window is None or r is None else np.asarray(r)[:window]
             return nonlinear_mck_response(
@@ -677,7 +678,7 @@ def nonlinear_mck_response(M, C, K, force, dt, *, elements, force_dofs=None, sch
                 ground_acceleration=cut(ground_acceleration),
                 ground_velocity=cut(ground_velocity),
                 ground_displacement=cut(ground_displacement), influence=influence, x0=x0,
-                v0=v0, **scheme_params)
+                v0=v0, estimate=estimate, **scheme_params)
         if S0 > cap and target is not None:
             raise ValueError(f"substeps ({S0}) must be <= max_substeps ({cap}) with accuracy")
         if scheme in POLYNOMIAL and backend == "c":  # its runs estimate themselves

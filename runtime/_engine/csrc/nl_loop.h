@@ -278,7 +278,8 @@ static inline int solve_step(double *restrict u, double *restrict r, double *res
  * J (EB NU^2), dg/du (EB NE NU), g ((EB + NST - 1) NE), K (EB NW NEP4), nabla^{NST-1} g (EB NE);
  * then the samples' e and dg of a block (EB (NMP + NEP4)), whose outputs Co_m e + Dog dg
  * `estimate_outs` forms once per block: out of the steps' loop, the samples independent (in the
- * loop, one sample's four rows cost P4 about 3 ns per step at 1 sub-step).
+ * loop, one sample's four rows cost P4 about 3 ns per step at 1 sub-step). The recursion runs in
+ * a basis of its own (`estimate_basis`) where outputs of one kind read half its rows.
  */
 typedef double v4 __attribute__((vector_size(32), aligned(8))); /* 4 rows, loads unaligned */
 #if defined(__FMA__) && defined(__AVX__)
@@ -608,14 +609,15 @@ static inline void vdots4(const double *restrict A, const v4 *restrict x, v4 *re
  *     Cw e_k = (Cw Eg) dn_k + (Cw Bs) dg_{k-1} + (Cw T) e_{k-1},   dg_k = K_k Cw e_k,
  *     e_k = T e_{k-1} + Eg dn_k + Bs dg_{k-1}
  * (the terms of dg_{k-1} last but one, those of e_{k-1} last: the paths from the previous step
- * short). cw: the columns of Cw Eg, then of Cw Bs, padded to 4 NWV rows.
+ * short). em: T, Eg, Bs and (Cw T)^T in the estimate's basis (estimate_basis); cw: the columns
+ * of Cw Eg, then of Cw Bs, padded to 4 NWV rows.
  */
-static inline void estimate_step(const double *const *mats, const v4 *restrict cw,
+static inline void estimate_step(const double *const *em, const v4 *restrict cw,
                                  const double *restrict dn, const double *restrict K,
                                  v4 *restrict e, v4 *restrict dg)
 {
     enum { ne = NL_NE, nw = NL_NW };
-    const double *Tb = mats[10], *Eg = mats[12], *Bs = mats[15], *CTw = mats[19];
+    const double *Tb = em[0], *Eg = em[1], *Bs = em[2], *CTw = em[3];
     v4 ce[NWV], bd[ne], y[NWV];
     int q, c, v;
     for (c = 0; c < ne; ++c)
@@ -667,14 +669,15 @@ static inline void vrange(v4 *restrict mx, v4 *restrict mn, const v4 *restrict y
 }
 
 /* the running largest and smallest values (mx, mn: NOV vectors) of Co_m e + Dog dg over m samples
-   of ob (each [e (NMP); dg (NEP4)]), from the columns of [Co Dof Dog] (NOP rows): once per block,
-   out of the steps' loop, its samples independent of each other */
+   of ob (each [e (NMP); dg (NEP4)]), from the columns of [Co_m Dog] (NOP rows, estimate_basis):
+   once per block, out of the steps' loop, its samples independent of each other. Columns that
+   are zero are left out: every second one of Co_m (stride 2) and Dog (dog 0) where
+   estimate_basis found them so (kind) */
 #ifdef __GNUC__
-static void estimate_outs(long m, const double *restrict Cout, const double *restrict ob,
-                          v4 *restrict mx, v4 *restrict mn) ESTIMATE_ATTRIBUTES;
+__attribute__((always_inline))
 #endif
-static void estimate_outs(long m, const double *restrict Cout, const double *restrict ob,
-                          v4 *restrict mx, v4 *restrict mn)
+static inline void outs_rows(long m, const double *restrict Co, const double *restrict ob,
+                             v4 *restrict mx, v4 *restrict mn, const int stride, const int dog)
 {
     enum { nx = NMP + NEP4 };
     long k;
@@ -682,17 +685,151 @@ static void estimate_outs(long m, const double *restrict Cout, const double *res
     for (k = 0; k < m; ++k) {
         const double *o = ob + k * nx;
         for (q = 0; q < NOV; ++q) {
-            v4 s0 = *(const v4 *)(Cout + 4 * q) * VSPLAT(o[0]), s1;
-            s1 = *(const v4 *)(Cout + (NL_NM + NL_NF) * NOP + 4 * q) * VSPLAT(o[NMP]);
-            for (c = 1; c < NL_NM; ++c)
-                s0 = VFMA(*(const v4 *)(Cout + c * NOP + 4 * q), VSPLAT(o[c]), s0);
-            for (c = 1; c < NL_NE; ++c)
-                s1 = VFMA(*(const v4 *)(Cout + (NL_NM + NL_NF + c) * NOP + 4 * q),
-                          VSPLAT(o[NMP + c]), s1);
-            s0 += s1;
+            v4 s0 = *(const v4 *)(Co + 4 * q) * VSPLAT(o[0]), s1;
+            for (c = stride; c < NL_NM; c += stride)
+                s0 = VFMA(*(const v4 *)(Co + c * NOP + 4 * q), VSPLAT(o[c]), s0);
+            if (dog) {
+                s1 = *(const v4 *)(Co + NL_NM * NOP + 4 * q) * VSPLAT(o[NMP]);
+                for (c = 1; c < NL_NE; ++c)
+                    s1 = VFMA(*(const v4 *)(Co + (NL_NM + c) * NOP + 4 * q),
+                              VSPLAT(o[NMP + c]), s1);
+                s0 += s1;
+            }
             vrange(mx + q, mn + q, &s0);
         }
     }
+}
+
+#ifdef __GNUC__
+static void estimate_outs(long m, const double *restrict Co, const double *restrict ob,
+                          v4 *restrict mx, v4 *restrict mn, int kind) ESTIMATE_ATTRIBUTES;
+#endif
+static void estimate_outs(long m, const double *restrict Co, const double *restrict ob,
+                          v4 *restrict mx, v4 *restrict mn, int kind)
+{
+    if (kind == 2)
+        outs_rows(m, Co, ob, mx, mn, 2, 0);
+    else if (kind == 1)
+        outs_rows(m, Co, ob, mx, mn, 1, 0);
+    else
+        outs_rows(m, Co, ob, mx, mn, 1, 1);
+}
+
+/*
+ * The estimate's basis: em = T (dia; off), Eg, Bs, (Cw T)^T and [Co_m Dog] (mats' layouts) for
+ * estimate_step and estimate_outs. The outputs read a 2 x 2 block's rows (a, b) through
+ * Co_a e_a + Co_b e_b. Where these two columns are parallel on every output row (outputs of one
+ * kind, x say, read a mode through one combination of its pair), the estimate can carry
+ * e'_a = alpha e_a + beta e_b (alpha, beta: the pair's entries on its largest output row) and
+ * e'_b = e_b (e_a when |beta| > |alpha|): e' = R e, T' = R T R^-1 (again a 2 x 2 block),
+ * Eg' = R Eg, Bs' = R Bs, (Cw T)' = (Cw T) R^-1 and Co' = Co R^-1, whose column b is zero (set
+ * so: the columns parallel to 64 ulps of the pair's largest entry squared). The same recursion
+ * in other coordinates (its numbers differ by rounding), whose outputs take half the products.
+ * Used only when every second column of Co' is zero and so is Dog (P4's x: kind 2); else the
+ * matrices as given, kind 1 when Dog is zero, 0 otherwise.
+ */
+static int estimate_basis(const double *const *mats, double *restrict Te, double *restrict Ege,
+                          double *restrict Bse, double *restrict CTe, double *restrict Coe)
+{
+    enum { nm = NL_NM, ne = NL_NE, nw = NL_NW, no = NL_NO, nf = NL_NF };
+    const double *T = mats[10], *Eg = mats[12], *Bs = mats[15], *CT = mats[19], *Co = mats[18];
+    double R[NMV * 2][2][2], Ri[NMV * 2][2][2];
+    int i, c, q, dog = 1, all = 1;
+    copy(2 * NMP, T, Te);
+    copy(ne * NMP, Eg, Ege);
+    copy(ne * NMP, Bs, Bse);
+    copy(nw * NMP, CT, CTe);
+    copy(nm * NOP, Co, Coe);
+    copy(ne * NOP, Co + (nm + nf) * NOP, Coe + nm * NOP);
+    for (c = 0; c < ne * NOP; ++c)
+        dog &= Coe[nm * NOP + c] == 0.0;
+    for (q = 0; 2 * q + 1 < nm && all && dog; ++q) { /* the pairs' R, R^-1 */
+        const int a = 2 * q, b = a + 1;
+        double big = -1.0, al = 0.0, be = 0.0;
+        int top = 0;
+        for (i = 0; i < no; ++i) {
+            const double w = fabs(Co[a * NOP + i]) + fabs(Co[b * NOP + i]);
+            if (w > big) {
+                big = w;
+                top = i;
+            }
+        }
+        if (big == 0.0 || (T[NMP + a] == 0.0 && T[NMP + b] == 0.0)) {
+            /* not read, or two real poles (R = I): column b must be zero as it is */
+            for (i = 0; i < no; ++i)
+                all &= Co[b * NOP + i] == 0.0;
+            R[q][0][0] = R[q][1][1] = Ri[q][0][0] = Ri[q][1][1] = 1.0;
+            R[q][0][1] = R[q][1][0] = Ri[q][0][1] = Ri[q][1][0] = 0.0;
+            continue;
+        }
+        al = Co[a * NOP + top];
+        be = Co[b * NOP + top];
+        if (!(big < INFINITY)) {
+            all = 0;
+            break;
+        }
+        for (i = 0; i < no; ++i) /* parallel: |alpha Co_b - beta Co_a| within 64 ulps */
+            all &= fabs(al * Co[b * NOP + i] - be * Co[a * NOP + i]) <= 0x1p-46 * big * big;
+        R[q][0][0] = al;
+        R[q][0][1] = be;
+        if (fabs(al) >= fabs(be)) { /* e' = (alpha e_a + beta e_b, e_b) */
+            R[q][1][0] = 0.0;
+            R[q][1][1] = 1.0;
+            Ri[q][0][0] = 1.0 / al;
+            Ri[q][0][1] = -be / al;
+            Ri[q][1][0] = 0.0;
+            Ri[q][1][1] = 1.0;
+        } else { /* e' = (alpha e_a + beta e_b, e_a) */
+            R[q][1][0] = 1.0;
+            R[q][1][1] = 0.0;
+            Ri[q][0][0] = 0.0;
+            Ri[q][0][1] = 1.0;
+            Ri[q][1][0] = 1.0 / be;
+            Ri[q][1][1] = -al / be;
+        }
+    }
+    if (!(all && dog) || (nm & 1)) /* every second column zero, or the matrices as given */
+        return dog;
+    for (q = 0; 2 * q + 1 < nm; ++q) {
+        const int a = 2 * q, b = a + 1;
+        double (*r)[2] = R[q], (*ri)[2] = Ri[q];
+        double t[2][2], u[2][2], tt[2][2];
+        int j, l;
+        tt[0][0] = T[a];
+        tt[0][1] = T[NMP + a];
+        tt[1][0] = T[NMP + b];
+        tt[1][1] = T[b];
+        for (i = 0; i < 2; ++i) /* T' = R T R^-1 */
+            for (j = 0; j < 2; ++j)
+                t[i][j] = r[i][0] * tt[0][j] + r[i][1] * tt[1][j];
+        for (i = 0; i < 2; ++i)
+            for (j = 0; j < 2; ++j)
+                u[i][j] = t[i][0] * ri[0][j] + t[i][1] * ri[1][j];
+        Te[a] = u[0][0];
+        Te[NMP + a] = u[0][1];
+        Te[NMP + b] = u[1][0];
+        Te[b] = u[1][1];
+        for (c = 0; c < ne; ++c) { /* R Eg, R Bs */
+            const double *x[2] = {Eg + c * NMP, Bs + c * NMP};
+            double *y[2] = {Ege + c * NMP, Bse + c * NMP};
+            for (l = 0; l < 2; ++l) {
+                const double xa = x[l][a], xb = x[l][b];
+                y[l][a] = r[0][0] * xa + r[0][1] * xb;
+                y[l][b] = r[1][0] * xa + r[1][1] * xb;
+            }
+        }
+        for (c = 0; c < nw; ++c) { /* (Cw T) R^-1 */
+            const double xa = CT[c * NMP + a], xb = CT[c * NMP + b];
+            CTe[c * NMP + a] = xa * ri[0][0] + xb * ri[1][0];
+            CTe[c * NMP + b] = xa * ri[0][1] + xb * ri[1][1];
+        }
+        for (i = 0; i < NOP; ++i) { /* Co R^-1: column b zero */
+            const double xa = Co[a * NOP + i], xb = Co[b * NOP + i];
+            Coe[a * NOP + i] = xa * ri[0][0] + xb * ri[1][0];
+            Coe[b * NOP + i] = 0.0;
+        }
+    }
+    return 2;
 }
 
 static int modal_run(const long *dims, const double *const *mats, const double *restrict force,
@@ -731,6 +868,10 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     const long set = eb * (nu * nu + ne * nu + NEP4 * nw + ne) + (eb + (nst > 0 ? nst - 1 : 0)) * ne;
     double *sets[2][5], *Ob = work + (nst > 0 ? dims[13] : 0) + 2 * set;
     v4 e[NMV], dgv[NEV4], mx[NOV], mn[NOV], cwv[2 * ne * NWV + 1];
+    /* the estimate's T, Eg, Bs, (Cw T)^T and [Co_m Dog] (estimate_basis), its outputs' kind */
+    double Te[2 * NMP], Ege[ne * NMP], Bse[ne * NMP], CTe[nw * NMP], Coe[(nm + ne) * NOP];
+    const double *em[4] = {Te, Ege, Bse, CTe};
+    const int okind = nst > 0 ? estimate_basis(mats, Te, Ege, Bse, CTe, Coe) : 0;
     long kb = 0, p = 0, have = 0, sc = 1, nout = 0;
     const double *arg[5];
     double *res[5];
@@ -906,7 +1047,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
 #endif
                 copy(ne, g, sets[p][2] + (kb + nst - 1) * ne);
                 if (have) { /* the block before: its step kb */
-                    estimate_step(mats, cwv, sets[1 - p][4] + kb * ne,
+                    estimate_step(em, cwv, sets[1 - p][4] + kb * ne,
                                   sets[1 - p][3] + kb * nw * NEP4, e, dgv);
                     if (--sc == 0) { /* a sample: e and dg kept for estimate_outs */
                         double *o = Ob + nout++ * nx;
@@ -945,7 +1086,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
         if (nst > 0 && kb == eb) { /* out of the steps' loop: no call inside it */
             double **c = sets[p];
             estimate_prep(eb, mats[13], c[0], c[1], c[2], c[3], c[4], sets[1 - p][2]);
-            estimate_outs(nout, Cout, Ob, mx, mn);
+            estimate_outs(nout, Coe, Ob, mx, mn, okind);
             nout = 0;
             p = 1 - p;
             have = 1;
@@ -962,7 +1103,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
     if (nst > 0) {
         /* the rest of the block before, then this one's kb steps */
         for (k = have ? kb : eb; k < eb; ++k) {
-            estimate_step(mats, cwv, sets[1 - p][4] + k * ne, sets[1 - p][3] + k * nw * NEP4, e,
+            estimate_step(em, cwv, sets[1 - p][4] + k * ne, sets[1 - p][3] + k * nw * NEP4, e,
                           dgv);
             if (--sc == 0) {
                 double *o = Ob + nout++ * nx;
@@ -973,13 +1114,13 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                     *(v4 *)(o + NMP + 4 * i) = dgv[i];
             }
         }
-        estimate_outs(nout, Cout, Ob, mx, mn);
+        estimate_outs(nout, Coe, Ob, mx, mn, okind);
         nout = 0;
         if (kb > 0) {
             double **c = sets[p];
             estimate_prep(kb, mats[13], c[0], c[1], c[2], c[3], c[4], sets[1 - p][2]);
             for (k = 0; k < kb; ++k) {
-                estimate_step(mats, cwv, c[4] + k * ne, c[3] + k * nw * NEP4, e, dgv);
+                estimate_step(em, cwv, c[4] + k * ne, c[3] + k * nw * NEP4, e, dgv);
                 if (--sc == 0) {
                     double *o = Ob + nout++ * nx;
                     sc = S;
@@ -989,7 +1130,7 @@ static int modal_run(const long *dims, const double *const *mats, const double *
                         *(v4 *)(o + NMP + 4 * i) = dgv[i];
                 }
             }
-            estimate_outs(nout, Cout, Ob, mx, mn);
+            estimate_outs(nout, Coe, Ob, mx, mn, okind);
         }
         { /* max |out| = max(largest, -smallest); NaN when e or dg is not finite in the end
              (the maxima skip a NaN, but once there it stays: every lane reaches dg) */
