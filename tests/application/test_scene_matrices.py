@@ -217,7 +217,7 @@ def test_chain_scene_with_explicit_kind_and_no_names(tmp_path):
     model = '[model]\nkind = "chain"\nmass = [1.0, 2.0]\nstiffness = [10.0, 20.0]\n'
     s = load_scene(write_scene(tmp_path, model))
     assert s.kind == "chain" and s.n_dof == 2 and s.M is None and s.dof_names is None
-    assert (s.form, s.sweep, s.backend) == ("displacement", "stable", "c")
+    assert (s.form, s.sweep, s.backend) == (None, "stable", "c")  # form: the scheme's own
     with pytest.raises(ValueError, match=r"load\[0\]\.dof = 'roof': must be an integer mass index"):
         load_scene(write_scene(tmp_path, model, loads='[[load]]\ndof = "roof"\nkind = "step"\n'))
 

@@ -272,8 +272,12 @@ def test_explicit_file_scheme_has_the_acceleration_form_only(tmp_path):
     r = dd.chain_response(m, k, c, np.ones(51), 0.01, force_dofs=[1], scheme=s,
                           form="acceleration")
     assert rel(r.x, ref.x) < 1e-13
+    # without a form: its only one, as for the built-in explicit scheme
+    r = dd.chain_response(m, k, c, np.ones(51), 0.01, force_dofs=[1], scheme=s)
+    assert r.info["form"] == "acceleration" and rel(r.x, ref.x) < 1e-13
     with pytest.raises(ValueError, match="explicit"):
-        dd.chain_response(m, k, c, np.ones(51), 0.01, force_dofs=[1], scheme=s)
+        dd.chain_response(m, k, c, np.ones(51), 0.01, force_dofs=[1], scheme=s,
+                          form="displacement")
 
 
 def test_multistep_file_scheme_equals_the_built_in(tmp_path):
