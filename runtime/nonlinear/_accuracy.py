@@ -336,6 +336,12 @@ def _confirms(r, prev, spent):
     return est / 3 <= d <= 3 * est, d
 
 
+def _unconfirmed(where, d, prev):
+    """The log's note of a window run whose difference d does not confirm prev's estimate."""
+    return (f"{where}: difference {d:.3g} to {prev.info['substeps']} sub-steps does not "
+            f"confirm its estimate {prev.info['error_estimate']:.3g}")
+
+
 def _probe(run_w, samples, accuracy, substeps, max_substeps, p, log, runs, spent):
     """The window's sub-steps: runs of the first ``samples`` samples from ``substeps``, the next
     S from the order p (S (estimate / goal)^(1/p) up, goal = accuracy / PROBE_MARGIN, the
@@ -365,9 +371,7 @@ def _probe(run_w, samples, accuracy, substeps, max_substeps, p, log, runs, spent
             runs.append(r)
             ok, d = _confirms(r, prev, spent)
             if not ok:
-                log.append((S, None, f"{where}: difference {d:.3g} to {prev.info['substeps']} "
-                            f"sub-steps does not confirm its estimate "
-                            f"{prev.info['error_estimate']:.3g}"))
+                log.append((S, None, _unconfirmed(where, d, prev)))
                 return None
             log.append((S, None, f"{where}, confirms {prev.info['substeps']} (its own estimate "
                         "not formed)"))
@@ -384,9 +388,7 @@ def _probe(run_w, samples, accuracy, substeps, max_substeps, p, log, runs, spent
         if prev is not None:
             ok, d = _confirms(r, prev, spent)
             if not ok:
-                log.append((S, est, f"{where}: difference {d:.3g} to {prev.info['substeps']} "
-                            f"sub-steps does not confirm its estimate "
-                            f"{prev.info['error_estimate']:.3g}"))
+                log.append((S, est, _unconfirmed(where, d, prev)))
                 return None
             confirmed = True
             note += f", confirms {prev.info['substeps']}"
