@@ -1176,45 +1176,24 @@ def refined_step_operator(beam, form, sch, K_, M, C, K, outputs, corrections):
     solve refined ``corrections`` times by `refined_residual` (0: that operator itself)."""
     if not corrections:
         return mck.step_operator(form, sch, K_, M, C, K, outputs, None)
-    from dtdyn.generated.dttmm_sweep import combine, error_history_maps, shift_history
-    from dtdyn.linear._mck import EFFECTIVE
+    from dtdyn.generated.dttmm_sweep import error_history_maps
 
-    A = K_["alpha_u"] * M + K_["r"] * C + K_["p"] * K
-    with_m = form != "acceleration"
-    solve = linalg.sparse_lu(A, EFFECTIVE[form], orderings=linalg.FILL_ORDERINGS).solve
-    names = sch.history
-    L = error_history_maps(K_, list(names))[0]
+    L = error_history_maps(K_, list(sch.history))[0]
     terms = (_element_terms(beam), _point_terms(beam))
-    n = M.shape[0]
 
-    def bind(loaded):
-        def advance(frc, H, xo, vo, ao):
-            Fe = np.zeros(n)
-            for step in range(frc.shape[0] - 1):
-                Fe[loaded] = K_["w0"] * frc[step] + K_["w1"] * frc[step + 1]
-                rhs = Fe - K @ combine(K_, "q", H, names) - C @ combine(K_, "s", H, names)
-                if with_m:
-                    rhs -= M @ combine(K_, "b", H, names)
-                u = solve(rhs)
-                prev = 0.0
-                for c in range(corrections):  # as block_chain.h: stop when the next is small
-                    r, xmax = refined_residual(beam, K_, L, H, u, Fe, terms)
-                    du = solve(r)
-                    u = u + du
-                    d = np.abs(K_["p"] * du).reshape(-1, 2).max(axis=0)
-                    e = max(d[k] / xmax[k] if d[k] > 0 else 0.0 for k in (0, 1))
-                    if e == 0.0 or (c > 0 and e * (e / prev) <= REFINE_TOL):
-                        break
-                    prev = e
-                new = {q: combine(K_, q + "1", H, names, K_.get(q + "1_u", 0.0) * u)
-                       for q in "xva"}
-                shift_history(H, names, new)
-                for arr, q in ((xo, "x"), (vo, "v"), (ao, "a")):
-                    if arr is not None:
-                        arr[step + 1] = new[q][outputs]
-            return 0.0
-        return advance
-    return bind
+    def correct(u, H, Fe, solve):
+        prev = 0.0
+        for c in range(corrections):  # as block_chain.h: stop when the next is small
+            r, xmax = refined_residual(beam, K_, L, H, u, Fe, terms)
+            du = solve(r)
+            u = u + du
+            d = np.abs(K_["p"] * du).reshape(-1, 2).max(axis=0)
+            e = max(d[k] / xmax[k] if d[k] > 0 else 0.0 for k in (0, 1))
+            if e == 0.0 or (c > 0 and e * (e / prev) <= REFINE_TOL):
+                break
+            prev = e
+        return u
+    return mck.step_operator(form, sch, K_, M, C, K, outputs, None, correct=correct)
 
 
 def _block_operator(lib, form, sch, K_, stored, nodes, refine=None):

@@ -143,11 +143,13 @@ def make_advance(form, sch, K_, M, C, K, loaded, outputs, loop, blocks=None):
     return step_operator(form, sch, K_, M, C, K, outputs, loop, blocks)(loaded)
 
 
-def step_operator(form, sch, K_, M, C, K, outputs, loop, blocks=None):
+def step_operator(form, sch, K_, M, C, K, outputs, loop, blocks=None, correct=None):
     """The factorized step of `make_advance` without its load: ``bind(loaded)`` gives the
     ``advance`` of the force columns on DOFs ``loaded``. The effective matrix is factorized
     here, once; each ``bind`` allocates its own scratch, so advances bound from one operator
-    may run at the same time in several threads (the factors are only read)."""
+    may run at the same time in several threads (the factors are only read). ``correct``
+    (NumPy only): ``u = correct(u, H, Fe, solve)`` after each step's solve (a beam's
+    refinement, `dtdyn.linear._beam.refined_step_operator`)."""
     A = K_["alpha_u"] * M + K_["r"] * C + K_["p"] * K
     with_m = form != "acceleration"  # the acceleration form has b = 0
     what = EFFECTIVE[form]
@@ -170,6 +172,8 @@ def step_operator(form, sch, K_, M, C, K, outputs, loop, blocks=None):
                 if with_m:
                     rhs -= M @ combine(K_, "b", H, names)
                 u = solve(rhs)
+                if correct is not None:
+                    u = correct(u, H, Fe, solve)
                 new = {q: combine(K_, q + "1", H, names, K_.get(q + "1_u", 0.0) * u)
                        for q in "xva"}
                 shift_history(H, names, new)
